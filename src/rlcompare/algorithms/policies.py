@@ -1,0 +1,57 @@
+"""Action selection from one row of a Q-table (Sutton and Barto, section 2.2 and 6.4).
+
+The behaviour policy is ε-greedy: with probability ε an action uniformly at random (the greedy one
+included), otherwise a greedy action, ties broken uniformly at random so that an all-zero row of a fresh
+table does not always pick action 0. Evaluation and loaded agents act with :func:`greedy_action`, which
+takes the first maximum like ``np.argmax``, so an agent acts the same here and inside Gymnasium.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rlcompare.rng import next_below, next_double
+
+
+@njit(inline="always")
+def greedy_action(q_row: np.ndarray) -> int:
+    """The first action of highest value, as ``np.argmax``."""
+    best = 0
+    for action in range(1, q_row.size):
+        if q_row[action] > q_row[best]:
+            best = action
+    return best
+
+
+@njit(inline="always")
+def greedy_action_random_ties(q_row: np.ndarray, rng_state: np.ndarray) -> int:
+    """An action of highest value, chosen uniformly among the tied ones."""
+    best_value = q_row.max()
+    ties = 0
+    for action in range(q_row.size):
+        if q_row[action] == best_value:
+            ties += 1
+    if ties == 1:
+        return greedy_action(q_row)
+    pick = next_below(rng_state, ties)
+    for action in range(q_row.size):
+        if q_row[action] == best_value:
+            if pick == 0:
+                return action
+            pick -= 1
+    return -1  # unreachable
+
+
+@njit(inline="always")
+def uniform_action(n_actions: int, rng_state: np.ndarray) -> int:
+    """An action uniformly at random: the random baseline, and the exploring branch of ε-greedy."""
+    return next_below(rng_state, n_actions)
+
+
+@njit(inline="always")
+def epsilon_greedy_action(q_row: np.ndarray, epsilon: float, rng_state: np.ndarray) -> int:
+    """With probability ``epsilon`` a uniform action, otherwise greedy with random tie-breaking."""
+    if next_double(rng_state) < epsilon:
+        return uniform_action(q_row.size, rng_state)
+    return greedy_action_random_ties(q_row, rng_state)

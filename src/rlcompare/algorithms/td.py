@@ -1,0 +1,40 @@
+"""One-step temporal-difference control: the paper's Algorithms 1 and 2.
+
+Both rules move ``Q(s, a)`` a step ``alpha`` toward a target (Sutton and Barto, 2nd ed., section 6.4 for
+SARSA, section 6.5 for Q-Learning). They differ only in how the target values the next state:
+
+- Q-Learning (Algorithm 1, off-policy): ``R + gamma * max_a Q(s', a)``, the greedy target policy.
+- SARSA (Algorithm 2, on-policy): ``R + gamma * Q(s', a')`` with ``a'`` the action the behaviour
+  policy actually takes next.
+
+At a terminal ``s'`` the value of the next state is zero and the target is ``R`` alone. An episode cut by
+the time limit is not terminal: its last target still bootstraps (Pardo et al. 2018), unless the caller
+asks for the old Gym behaviour of treating the cut as terminal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(inline="always")
+def q_learning_target(reward: float, q_next: np.ndarray, gamma: float, terminal: bool) -> float:
+    """``R + gamma * max_a Q(s', a)``; ``R`` when ``s'`` is terminal (Algorithm 1, line 7)."""
+    if terminal:
+        return reward
+    return reward + gamma * q_next.max()
+
+
+@njit(inline="always")
+def sarsa_target(reward: float, q_next_taken: float, gamma: float, terminal: bool) -> float:
+    """``R + gamma * Q(s', a')`` for the action ``a'`` taken next; ``R`` when terminal (Algorithm 2, line 6)."""
+    if terminal:
+        return reward
+    return reward + gamma * q_next_taken
+
+
+@njit(inline="always")
+def td_update(q: np.ndarray, state: int, action: int, target: float, alpha: float) -> None:
+    """``Q(s, a) <- Q(s, a) + alpha * (target - Q(s, a))``, in place."""
+    q[state, action] += alpha * (target - q[state, action])

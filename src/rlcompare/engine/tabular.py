@@ -1,0 +1,204 @@
+"""Fused training kernels for tabular control on Mountain Car: many runs at once, one core each.
+
+A run is one seed of one configuration. :func:`train_runs` spreads runs over threads with ``prange``;
+each run owns its Q-table and three random streams (environment resets, the agent's choices, evaluation
+resets), so a run's result is the same whatever thread runs it, however many threads there are, and
+however the episodes are split into chunks between calls. Because the environment stream only draws
+start states, every algorithm sees the same start state at the same episode of the same seed: common
+random numbers for paired comparisons.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
+from rlcompare.algorithms.td import q_learning_target, sarsa_target, td_update
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import UniformGrid, cell_index_2d
+from rlcompare.rng import stream_state
+
+RANDOM, Q_LEARNING, SARSA = 0, 1, 2
+ALGORITHM_CODES = {"random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA}
+ENV_STREAM, AGENT_STREAM, EVAL_STREAM = 0, 1, 2
+
+
+class Settings(NamedTuple):
+    """Scalars of one configuration, as the kernel reads them."""
+
+    algorithm: int
+    alpha: float
+    gamma: float
+    max_steps: int
+    truncation_is_terminal: bool
+    eval_every: int
+
+
+class Records(NamedTuple):
+    """What training writes, indexed by run first; filled in place, chunk by chunk."""
+
+    returns: np.ndarray  # (runs, episodes) float64: behaviour return of each episode
+    lengths: np.ndarray  # (runs, episodes) int64
+    terminated: np.ndarray  # (runs, episodes) bool: reached the goal before the limit
+    eval_returns: np.ndarray  # (runs, rounds, eval_episodes) float64: greedy-policy returns
+    eval_lengths: np.ndarray  # (runs, rounds, eval_episodes) int64
+    eval_terminated: np.ndarray  # (runs, rounds, eval_episodes) bool
+    snapshots: np.ndarray  # (runs, stages, states, actions) float64: Q-tables at named stages
+    snapshot_episodes: np.ndarray  # (stages,) int64: episodes completed when each snapshot is taken
+    visits: np.ndarray  # (runs, states) int64: training steps taken from each state
+
+
+class RunState(NamedTuple):
+    """What carries over from one chunk of episodes to the next."""
+
+    q: np.ndarray  # (runs, states, actions) float64, initialised to 0 as in the paper
+    rng: np.ndarray  # (runs, 3, 4) uint64: the environment, agent and evaluation streams of each run
+
+
+def initial_state(seeds: list[int], n_states: int, n_actions: int) -> RunState:
+    """Zero Q-tables and per-run streams. The environment stream of seed ``s`` is ``PCG64(s)``, so its
+    start states are those of Gymnasium's ``env.reset(seed=s)`` followed by plain resets."""
+    rng = np.empty((len(seeds), 3, 4), dtype=np.uint64)
+    for run, seed in enumerate(seeds):
+        agent, evaluation = np.random.SeedSequence(seed).spawn(2)
+        rng[run, ENV_STREAM] = stream_state(seed)
+        rng[run, AGENT_STREAM] = stream_state(agent)
+        rng[run, EVAL_STREAM] = stream_state(evaluation)
+    return RunState(q=np.zeros((len(seeds), n_states, n_actions)), rng=rng)
+
+
+def allocate_records(
+    runs: int, episodes: int, rounds: int, eval_episodes: int, snapshot_episodes: np.ndarray, q_shape: tuple
+) -> Records:
+    return Records(
+        returns=np.zeros((runs, episodes)),
+        lengths=np.zeros((runs, episodes), dtype=np.int64),
+        terminated=np.zeros((runs, episodes), dtype=np.bool_),
+        eval_returns=np.zeros((runs, rounds, eval_episodes)),
+        eval_lengths=np.zeros((runs, rounds, eval_episodes), dtype=np.int64),
+        eval_terminated=np.zeros((runs, rounds, eval_episodes), dtype=np.bool_),
+        snapshots=np.zeros((runs, snapshot_episodes.size, *q_shape)),
+        snapshot_episodes=np.asarray(snapshot_episodes, dtype=np.int64),
+        visits=np.zeros((runs, q_shape[0]), dtype=np.int64),
+    )
+
+
+@njit(cache=True)
+def train_episode(
+    settings: Settings,
+    q: np.ndarray,
+    grid: UniformGrid,
+    epsilon: float,
+    env_rng: np.ndarray,
+    agent_rng: np.ndarray,
+    visits: np.ndarray,
+) -> tuple[float, int, bool]:
+    """One training episode of Algorithm 1 (Q-Learning), Algorithm 2 (SARSA) or the random baseline."""
+    algorithm, alpha, gamma = settings.algorithm, settings.alpha, settings.gamma
+    n_actions = q.shape[1]
+    position, velocity = mountain_car.reset(env_rng)
+    state = cell_index_2d(grid, position, velocity)
+    if algorithm == RANDOM:
+        action = uniform_action(n_actions, agent_rng)
+    else:
+        action = epsilon_greedy_action(q[state], epsilon, agent_rng)
+    episode_return, steps = 0.0, 0
+    while True:
+        visits[state] += 1
+        position, velocity, terminated = mountain_car.step(position, velocity, action)
+        reward = mountain_car.REWARD
+        episode_return += reward
+        steps += 1
+        truncated = not terminated and steps >= settings.max_steps
+        terminal = terminated or (truncated and settings.truncation_is_terminal)
+        next_state = cell_index_2d(grid, position, velocity)
+        if algorithm == Q_LEARNING:
+            td_update(q, state, action, q_learning_target(reward, q[next_state], gamma, terminal), alpha)
+            if terminated or truncated:
+                break
+            action = epsilon_greedy_action(q[next_state], epsilon, agent_rng)
+        elif algorithm == SARSA:
+            next_action = 0 if terminal else epsilon_greedy_action(q[next_state], epsilon, agent_rng)
+            td_update(q, state, action, sarsa_target(reward, q[next_state, next_action], gamma, terminal), alpha)
+            if terminated or truncated:
+                break
+            action = next_action
+        else:
+            if terminated or truncated:
+                break
+            action = uniform_action(n_actions, agent_rng)
+        state = next_state
+    return episode_return, steps, terminated
+
+
+@njit(cache=True)
+def evaluation_episode(
+    algorithm: int, q: np.ndarray, grid: UniformGrid, max_steps: int, eval_rng: np.ndarray
+) -> tuple[float, int, bool]:
+    """One episode of the target policy: greedy (first maximum) for the learners, uniform for the baseline."""
+    position, velocity = mountain_car.reset(eval_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while not terminated and steps < max_steps:
+        if algorithm == RANDOM:
+            action = uniform_action(q.shape[1], eval_rng)
+        else:
+            action = greedy_action(q[cell_index_2d(grid, position, velocity)])
+        position, velocity, terminated = mountain_car.step(position, velocity, action)
+        episode_return += mountain_car.REWARD
+        steps += 1
+    return episode_return, steps, terminated
+
+
+@njit(cache=True)
+def train_run(
+    run: int,
+    settings: Settings,
+    state: RunState,
+    grid: UniformGrid,
+    epsilons: np.ndarray,
+    first_episode: int,
+    stop_episode: int,
+    records: Records,
+) -> None:
+    """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
+    q = state.q[run]
+    env_rng, agent_rng, eval_rng = state.rng[run, 0], state.rng[run, 1], state.rng[run, 2]
+    eval_episodes = records.eval_returns.shape[2]
+    for episode in range(first_episode, stop_episode):
+        ret, length, terminated = train_episode(
+            settings, q, grid, epsilons[episode], env_rng, agent_rng, records.visits[run]
+        )
+        records.returns[run, episode] = ret
+        records.lengths[run, episode] = length
+        records.terminated[run, episode] = terminated
+        completed = episode + 1
+        if settings.eval_every > 0 and completed % settings.eval_every == 0:
+            round_ = completed // settings.eval_every - 1
+            for k in range(eval_episodes):
+                ret, length, terminated = evaluation_episode(
+                    settings.algorithm, q, grid, settings.max_steps, eval_rng
+                )
+                records.eval_returns[run, round_, k] = ret
+                records.eval_lengths[run, round_, k] = length
+                records.eval_terminated[run, round_, k] = terminated
+        for stage in range(records.snapshot_episodes.size):
+            if records.snapshot_episodes[stage] == completed:
+                records.snapshots[run, stage] = q
+
+
+@njit(parallel=True, cache=True)
+def train_runs(
+    settings: Settings,
+    state: RunState,
+    grid: UniformGrid,
+    epsilons: np.ndarray,
+    first_episode: int,
+    stop_episode: int,
+    records: Records,
+) -> None:
+    """Every run over episodes ``[first_episode, stop_episode)``, runs spread over threads."""
+    for run in prange(state.q.shape[0]):
+        train_run(run, settings, state, grid, epsilons, first_episode, stop_episode, records)

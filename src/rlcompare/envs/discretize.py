@@ -1,0 +1,79 @@
+"""A uniform grid over a box of observations, equal to ``gymnasium.wrappers.DiscretizeObservation``.
+
+Gymnasium's wrapper splits each dimension of ``observation_space`` into ``bins`` even cells with
+``np.linspace(low, high, bins + 1)[1:-1]`` computed in float32, finds a cell with ``np.digitize`` and
+flattens the cell indices with the first dimension most significant. The compiled :func:`cell_index`
+gives the same flat index for every float32 observation, so a table trained here acts the same inside
+Gymnasium. A first guess from arithmetic is corrected against the exact edges, which costs a compare or
+two instead of a search.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class UniformGrid(NamedTuple):
+    """Arrays that describe the grid, passed as they are to compiled code."""
+
+    edges: np.ndarray
+    """``(dims, max_bins - 1)`` inner cell edges (float32 values held as float64), padded with +inf."""
+    low: np.ndarray
+    """``(dims,)`` lower bound of each dimension."""
+    scale: np.ndarray
+    """``(dims,)`` bins per unit of each dimension, for the first guess."""
+    bins: np.ndarray
+    """``(dims,)`` number of cells of each dimension."""
+
+    @property
+    def n_cells(self) -> int:
+        return int(np.prod(self.bins))
+
+
+def make_grid(low: np.ndarray, high: np.ndarray, bins: int | tuple[int, ...]) -> UniformGrid:
+    """The grid of ``DiscretizeObservation(env, bins)`` for a Box with bounds ``low`` and ``high``."""
+    low = np.ravel(np.asarray(low))
+    high = np.ravel(np.asarray(high))
+    per_dim = np.broadcast_to(np.asarray(bins, dtype=np.int64), low.shape).copy()
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+        raise ValueError(f"a uniform grid needs finite bounds, got low={low}, high={high}")
+    edges = np.full((low.size, max(int(per_dim.max()) - 1, 1)), np.inf)
+    for dim in range(low.size):
+        inner = np.linspace(low[dim], high[dim], per_dim[dim] + 1)[1:-1]
+        edges[dim, : inner.size] = inner
+    low64 = low.astype(np.float64)
+    scale = per_dim / (high.astype(np.float64) - low64)
+    return UniformGrid(edges=edges, low=low64, scale=scale, bins=per_dim)
+
+
+@njit(inline="always")
+def _bin(edges: np.ndarray, low: float, scale: float, bins: int, x: float) -> int:
+    """Number of inner edges ``<= x``: ``np.digitize(x, edges)``."""
+    guess = (x - low) * scale
+    cell = 0 if guess < 0.0 else (bins - 1 if guess >= bins - 1 else int(guess))
+    while cell > 0 and x < edges[cell - 1]:
+        cell -= 1
+    while cell < bins - 1 and x >= edges[cell]:
+        cell += 1
+    return cell
+
+
+@njit(inline="always")
+def cell_index_2d(grid: UniformGrid, x0: float, x1: float) -> int:
+    """Flat cell of a two-dimensional observation, each coordinate first rounded to float32."""
+    b0 = _bin(grid.edges[0], grid.low[0], grid.scale[0], grid.bins[0], np.float32(x0))
+    b1 = _bin(grid.edges[1], grid.low[1], grid.scale[1], grid.bins[1], np.float32(x1))
+    return b0 * grid.bins[1] + b1
+
+
+@njit
+def cell_index(grid: UniformGrid, observation: np.ndarray) -> int:
+    """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
+    flat = 0
+    for dim in range(grid.bins.size):
+        x = np.float32(observation[dim])
+        flat = flat * grid.bins[dim] + _bin(grid.edges[dim], grid.low[dim], grid.scale[dim], grid.bins[dim], x)
+    return flat
