@@ -27,20 +27,21 @@ def greedy_action(q_row: np.ndarray) -> int:
 @njit(inline="always")
 def greedy_action_random_ties(q_row: np.ndarray, rng_state: np.ndarray) -> int:
     """An action of highest value, chosen uniformly among the tied ones."""
-    best_value = q_row.max()
-    ties = 0
-    for action in range(q_row.size):
-        if q_row[action] == best_value:
+    best, ties = 0, 1
+    for action in range(1, q_row.size):
+        if q_row[action] > q_row[best]:
+            best, ties = action, 1
+        elif q_row[action] == q_row[best]:
             ties += 1
     if ties == 1:
-        return greedy_action(q_row)
+        return best
     pick = next_below(rng_state, ties)
-    for action in range(q_row.size):
-        if q_row[action] == best_value:
+    for action in range(best, q_row.size):
+        if q_row[action] == q_row[best]:
             if pick == 0:
                 return action
             pick -= 1
-    return -1  # unreachable
+    return best  # unreachable: ``pick < ties``
 
 
 @njit(inline="always")

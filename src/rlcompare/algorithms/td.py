@@ -23,7 +23,10 @@ def q_learning_target(reward: float, q_next: np.ndarray, gamma: float, terminal:
     """``R + gamma * max_a Q(s', a)``; ``R`` when ``s'`` is terminal (Algorithm 1, line 7)."""
     if terminal:
         return reward
-    return reward + gamma * q_next.max()
+    best = q_next[0]
+    for value in q_next[1:]:
+        best = max(best, value)
+    return reward + gamma * best
 
 
 @njit(inline="always")

@@ -1,0 +1,177 @@
+"""The ``rlcompare`` command line: parse, call one library function, print."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from rlcompare.experiment.config import ConfigError, ExperimentConfig
+from rlcompare.experiment.store import StoreError
+
+app = typer.Typer(
+    help="Run, measure and explain comparisons of reinforcement-learning algorithms.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+)
+console = Console(width=None if Console().is_terminal else 120)
+_DEFAULTS = ExperimentConfig()
+
+Seeds = Annotated[int, typer.Option(help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ...")]
+FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
+
+
+def _seeds(count: int, first: int) -> tuple[int, ...]:
+    if count < 1:
+        raise typer.BadParameter(f"got {count}; allowed: an integer >= 1", param_hint="'--seeds'")
+    if first < 0:
+        raise typer.BadParameter(f"got {first}; allowed: an integer >= 0", param_hint="'--first-seed'")
+    return tuple(range(first, first + count))
+
+
+def _option_name(field_name: str) -> str:
+    return "'--seeds'" if field_name == "seeds" else f"'--{field_name.replace('_', '-')}'"
+
+
+def _config(**values) -> ExperimentConfig:
+    """Build the configuration, turning a bad value into a usage error that names the option."""
+    try:
+        return ExperimentConfig(**values)
+    except ConfigError as error:
+        raise typer.BadParameter(f"got {error.value!r}; allowed: {error.allowed}",
+                                 param_hint=_option_name(error.field_name)) from None
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} is a file; allowed: a directory (new or existing)",
+                                 param_hint="'--out'")
+
+
+def _progress() -> Progress:
+    """A progress bar on a terminal; nothing but the per-configuration lines in a log."""
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                    console=console, disable=not console.is_terminal)
+
+
+@app.command()
+def run(
+    algorithm: Annotated[str, typer.Option(help="q_learning (Algorithm 1), sarsa (Algorithm 2) or random.")]
+    = _DEFAULTS.algorithm,
+    schedule: Annotated[str, typer.Option(help="ε schedule: constant or decay.")] = _DEFAULTS.schedule,
+    alpha: Annotated[float, typer.Option(help="Step size α in (0, 1].")] = _DEFAULTS.alpha,
+    gamma: Annotated[float, typer.Option(help="Discount γ in [0, 1].")] = _DEFAULTS.gamma,
+    epsilon: Annotated[float, typer.Option(help="ε of the constant schedule.")] = _DEFAULTS.epsilon,
+    epsilon_start: Annotated[float, typer.Option(help="ε at the first episode of decay.")]
+    = _DEFAULTS.epsilon_start,
+    epsilon_end: Annotated[float, typer.Option(help="ε at the end of decay.")] = _DEFAULTS.epsilon_end,
+    decay_fraction: Annotated[float, typer.Option(help="Share of the episodes over which ε decays.")]
+    = _DEFAULTS.decay_fraction,
+    bins: Annotated[int, typer.Option(help="Grid cells per observation dimension.")] = _DEFAULTS.bins,
+    episodes: Annotated[int, typer.Option(help="Training episodes per seed.")] = _DEFAULTS.episodes,
+    max_steps: Annotated[int, typer.Option(help="Episode limit (truncation).")] = _DEFAULTS.max_steps,
+    truncation_as_terminal: Annotated[bool, typer.Option(
+        help="Treat the time limit as terminal (no bootstrap), as old Gym's done did.")]
+    = _DEFAULTS.truncation_as_terminal,
+    seeds: Seeds = len(_DEFAULTS.seeds),
+    first_seed: FirstSeed = 0,
+    eval_every: Annotated[int, typer.Option(help="Evaluate the greedy policy every N episodes (0: never).")]
+    = _DEFAULTS.eval_every,
+    eval_episodes: Annotated[int, typer.Option(help="Episodes per evaluation.")] = _DEFAULTS.eval_episodes,
+    out: Annotated[Path, typer.Option(help="Run directory to write.")] = Path("runs/run"),
+) -> None:
+    """Train one configuration over many seeds and write its run directory."""
+    from rlcompare.experiment.runner import run as run_experiment
+
+    config = _config(
+        algorithm=algorithm, schedule=schedule, alpha=alpha, gamma=gamma, epsilon=epsilon,
+        epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=bins,
+        episodes=episodes, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
+        seeds=_seeds(seeds, first_seed), eval_every=eval_every, eval_episodes=eval_episodes,
+    )
+    _check_out(out)
+    with _progress() as progress:
+        task = progress.add_task(config.name, total=config.episodes)
+        results = run_experiment(config, out=out, progress=lambda n: progress.advance(task, n))
+    _print_summary([results])
+    console.print(f"Run directory: {out}")
+
+
+@app.command()
+def reproduce(
+    seeds: Seeds = 30,
+    first_seed: FirstSeed = 0,
+    episodes: Annotated[int, typer.Option(help="Training episodes per seed (the paper gives none).")] = 5000,
+    out: Annotated[Path, typer.Option(help="Study directory; one run directory per configuration.")]
+    = Path("runs/paper"),
+) -> None:
+    """Reproduce the paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1.
+
+    Configurations already complete in OUT are loaded, not trained again.
+    """
+    from rlcompare.studies.paper import paper_configs
+    from rlcompare.studies.paper import reproduce as reproduce_study
+
+    seed_list = _seeds(seeds, first_seed)
+    _check_out(out)
+    if episodes < 1:
+        raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
+    configs = [dataclasses.replace(c) for c in paper_configs(seed_list, episodes)]
+    finished = []
+    with _progress() as progress:
+        task = progress.add_task("paper", total=sum(c.episodes for c in configs))
+        for results, reused in reproduce_study(out, configs, progress=lambda n: progress.advance(task, n)):
+            finished.append(results)
+            seconds = results.meta["timings"]["wall_seconds"]
+            how = "loaded (already complete)" if reused else f"{seconds:.1f} s"
+            progress.console.print(f"{results.config.name:<20} {len(results.seeds)} seeds x "
+                                   f"{results.config.episodes} episodes: {how}")
+    _print_summary(finished)
+    console.print(f"Study directory: {out}")
+
+
+@app.command()
+def bench() -> None:
+    """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
+    from rlcompare.experiment.benchmark import run_benchmark
+
+    table = Table(title="Tabular control on MountainCar-v0, 20 bins (one step: act, step, update)")
+    for column in ("what", "threads", "steps", "seconds", "steps/s", "vs Gymnasium", "vs 1 thread"):
+        table.add_column(column, justify="left" if column == "what" else "right")
+    measurements = run_benchmark()
+    reference = measurements[0].steps_per_second
+    single = {m.label: m.steps_per_second for m in measurements if m.threads == 1}
+    for m in measurements:
+        table.add_row(m.label, str(m.threads), f"{m.steps:,}", f"{m.seconds:.3f}", f"{m.steps_per_second:,.0f}",
+                      f"{m.steps_per_second / reference:,.0f}x", f"{m.steps_per_second / single[m.label]:.2f}x")
+    console.print(table)
+
+
+def _print_summary(results) -> None:
+    from rlcompare.studies.paper import summary_table
+
+    frame = summary_table(results)
+    table = Table(title="Mean cumulative reward, mean over seeds [95% bootstrap interval]",
+                  caption="behaviour: ε-greedy return averaged over all training episodes; greedy: return of "
+                          "the final greedy policy; success: its episodes that reached the goal")
+    for column in ("configuration", "seeds", "behaviour", "greedy", "success", "paper"):
+        table.add_column(column, justify="left" if column == "configuration" else "right", no_wrap=True)
+    for row in frame.itertuples():
+        table.add_row(row.configuration, str(row.seeds), row.behaviour.format(), row.greedy.format(),
+                      f"{row.success:.0%}", "" if row.paper != row.paper else f"{row.paper:.0f}")
+    console.print(table)
+
+
+def main() -> None:
+    """Entry point that turns store errors into one clear line and exit code 2."""
+    try:
+        app()
+    except StoreError as error:
+        console.print(f"[red]Error:[/red] {error}")
+        raise SystemExit(2) from None

@@ -1,0 +1,165 @@
+"""The configuration of one experiment: one algorithm and schedule over many seeds.
+
+Defaults are the paper's setting (Section IV): MountainCar-v0, 20 bins per dimension, α = 0.05, γ = 0.9,
+a 1000-step limit, Q-tables initialised to zero. What the paper leaves open (episodes, seeds, the decay
+rule, evaluation) is documented in ``docs/departures.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from rlcompare.algorithms.schedules import SCHEDULES
+from rlcompare.engine.tabular import ALGORITHM_CODES
+
+ENVIRONMENTS = ("MountainCar-v0",)
+ALGORITHMS = tuple(ALGORITHM_CODES)
+DEFAULT_STAGES = (("early", 0.1), ("middle", 0.5), ("final", 1.0))
+
+
+class ConfigError(ValueError):
+    """A configuration value outside what is allowed; names the field and the allowed values."""
+
+    def __init__(self, field_name: str, value: Any, allowed: str) -> None:
+        self.field_name, self.value, self.allowed = field_name, value, allowed
+        super().__init__(f"{field_name}: got {value!r}; allowed: {allowed}")
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """One configuration, run once per seed. Frozen and validated on creation."""
+
+    algorithm: str = "q_learning"
+    """Learning rule: ``q_learning`` (Algorithm 1), ``sarsa`` (Algorithm 2) or ``random`` (the baseline)."""
+    schedule: str = "decay"
+    """Exploration: ``constant`` (ε fixed) or ``decay`` (linear from ``epsilon_start`` to ``epsilon_end``)."""
+    env: str = "MountainCar-v0"
+    """Environment id; the fast engine ports Gymnasium's MountainCar-v0."""
+    alpha: float = 0.05
+    """Step size α, in (0, 1]."""
+    gamma: float = 0.9
+    """Discount γ, in [0, 1]."""
+    epsilon: float = 0.5
+    """ε of the ``constant`` schedule, in [0, 1]."""
+    epsilon_start: float = 1.0
+    """ε at the first episode of the ``decay`` schedule, in [0, 1]."""
+    epsilon_end: float = 0.0
+    """ε once the ``decay`` schedule has run its course, in [0, 1]."""
+    decay_fraction: float = 0.5
+    """Share of the episodes over which ``decay`` goes from start to end, in (0, 1]."""
+    bins: int = 20
+    """Cells per observation dimension of the uniform grid (``DiscretizeObservation(env, bins)``), >= 1."""
+    episodes: int = 5000
+    """Training episodes per seed, >= 1."""
+    max_steps: int = 1000
+    """Episode limit; reaching it truncates the episode (the paper's 1000 moves), >= 1."""
+    truncation_as_terminal: bool = False
+    """Treat the time limit as a terminal state (old Gym ``done``) instead of bootstrapping through it."""
+    seeds: tuple[int, ...] = tuple(range(30))
+    """One run per seed; seed ``s`` draws the start states of ``env.reset(seed=s)``."""
+    eval_every: int = 50
+    """Evaluate the greedy policy after every this many episodes; 0 turns evaluation off."""
+    eval_episodes: int = 10
+    """Episodes per evaluation, >= 1."""
+    stages: tuple[tuple[str, float], ...] = field(default=DEFAULT_STAGES)
+    """Named stages of learning, as shares of the episodes, at which the Q-table is kept."""
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "seeds", tuple(_as_int(s) for s in self.seeds))
+        except (TypeError, ValueError):
+            raise ConfigError("seeds", self.seeds, "a list of distinct integers >= 0") from None
+        try:
+            object.__setattr__(self, "stages", tuple((str(n), float(f)) for n, f in self.stages))
+        except (TypeError, ValueError):
+            raise ConfigError("stages", self.stages, "pairs of (name, share of the episodes)") from None
+        for check in _CHECKS:
+            check(self)
+
+    @property
+    def name(self) -> str:
+        """Short label, also the run directory's name in a study: ``q_learning-decay``, ``random``."""
+        return self.algorithm if self.algorithm == "random" else f"{self.algorithm}-{self.schedule}"
+
+    @property
+    def evaluation_rounds(self) -> int:
+        return self.episodes // self.eval_every if self.eval_every else 0
+
+    def stage_episodes(self) -> dict[str, int]:
+        """Episodes completed when each stage's snapshot is taken (at least 1)."""
+        return {name: max(1, round(share * self.episodes)) for name, share in self.stages}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: (list(map(list, v)) if k == "stages" else list(v) if k == "seeds" else v)
+                for k, v in dataclasses.asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ExperimentConfig:
+        """Build from a mapping, rejecting unknown keys by name."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ConfigError(unknown[0], data[unknown[0]], f"one of {', '.join(sorted(known))}")
+        return cls(**data)
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, sort_keys=True)
+
+
+def _as_int(value: Any) -> int:
+    if isinstance(value, bool) or int(value) != value:
+        raise ValueError(value)
+    return int(value)
+
+
+def _require(ok: bool, name: str, value: Any, allowed: str) -> None:
+    if not ok:
+        raise ConfigError(name, value, allowed)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _is_count(value: Any, minimum: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= minimum
+
+
+def _check_choices(c: ExperimentConfig) -> None:
+    _require(c.algorithm in ALGORITHMS, "algorithm", c.algorithm, ", ".join(ALGORITHMS))
+    _require(c.schedule in SCHEDULES, "schedule", c.schedule, ", ".join(SCHEDULES))
+    _require(c.env in ENVIRONMENTS, "env", c.env, ", ".join(ENVIRONMENTS))
+
+
+def _check_rates(c: ExperimentConfig) -> None:
+    _require(_is_number(c.alpha) and 0 < c.alpha <= 1, "alpha", c.alpha, "a number in (0, 1]")
+    _require(_is_number(c.gamma) and 0 <= c.gamma <= 1, "gamma", c.gamma, "a number in [0, 1]")
+    for name in ("epsilon", "epsilon_start", "epsilon_end"):
+        value = getattr(c, name)
+        _require(_is_number(value) and 0 <= value <= 1, name, value, "a number in [0, 1]")
+    _require(_is_number(c.decay_fraction) and 0 < c.decay_fraction <= 1, "decay_fraction",
+             c.decay_fraction, "a number in (0, 1]")
+    _require(isinstance(c.truncation_as_terminal, bool), "truncation_as_terminal",
+             c.truncation_as_terminal, "true or false")
+
+
+def _check_counts(c: ExperimentConfig) -> None:
+    for name in ("bins", "episodes", "max_steps", "eval_episodes"):
+        _require(_is_count(getattr(c, name), 1), name, getattr(c, name), "an integer >= 1")
+    _require(_is_count(c.eval_every, 0), "eval_every", c.eval_every, "an integer >= 0 (0: no evaluation)")
+    _require(len(c.seeds) >= 1, "seeds", c.seeds, "at least one seed")
+    _require(all(s >= 0 for s in c.seeds), "seeds", c.seeds, "integers >= 0")
+    _require(len(set(c.seeds)) == len(c.seeds), "seeds", c.seeds, "distinct integers")
+
+
+def _check_stages(c: ExperimentConfig) -> None:
+    names = [n for n, _ in c.stages]
+    _require(len(set(names)) == len(names) and all(names), "stages", c.stages, "distinct non-empty names")
+    _require(all(0 < f <= 1 for _, f in c.stages), "stages", c.stages, "shares of the episodes in (0, 1]")
+
+
+_CHECKS = (_check_choices, _check_rates, _check_counts, _check_stages)

@@ -1,0 +1,136 @@
+"""What a run produces, in memory and in its run directory (layout in :mod:`rlcompare.experiment.store`)."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.engine.tabular import Records
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ExperimentConfig
+
+
+@dataclass
+class Results:
+    """Records of every seed of one configuration, with the configuration and how the run went."""
+
+    config: ExperimentConfig
+    epsilons: np.ndarray
+    """(episodes,) ε of each episode."""
+    records: Records
+    meta: dict[str, Any]
+    """Versions, timings, command line, study name."""
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        return self.config.seeds
+
+    def _labels(self) -> dict[str, Any]:
+        c = self.config
+        schedule = "none" if c.algorithm == "random" else c.schedule
+        return {"study": self.meta.get("study", ""), "env": c.env, "algorithm": c.algorithm,
+                "schedule": schedule}
+
+    def episodes(self) -> pd.DataFrame:
+        """Long table: one row per seed x episode."""
+        runs, episodes = self.records.returns.shape
+        frame = pd.DataFrame({
+            "seed": np.repeat(np.asarray(self.seeds, dtype=np.int64), episodes),
+            "episode": np.tile(np.arange(episodes, dtype=np.int64), runs),
+            "epsilon": np.tile(self.epsilons, runs),
+            "return": self.records.returns.ravel(),
+            "length": self.records.lengths.ravel(),
+            "terminated": self.records.terminated.ravel(),
+        })
+        return _with_labels(frame, self._labels())
+
+    def evaluations(self) -> pd.DataFrame:
+        """Long table: one row per seed x evaluation round x greedy episode."""
+        runs, rounds, per_round = self.records.eval_returns.shape
+        frame = pd.DataFrame({
+            "seed": np.repeat(np.asarray(self.seeds, dtype=np.int64), rounds * per_round),
+            "round": np.tile(np.repeat(np.arange(rounds, dtype=np.int64), per_round), runs),
+            "after_episode": np.tile(np.repeat((np.arange(rounds, dtype=np.int64) + 1)
+                                               * self.config.eval_every, per_round), runs),
+            "return": self.records.eval_returns.ravel(),
+            "length": self.records.eval_lengths.ravel(),
+            "terminated": self.records.eval_terminated.ravel(),
+        })
+        return _with_labels(frame, self._labels())
+
+    def q_table(self, seed: int, stage: str = "final") -> np.ndarray:
+        """The Q-table of one seed at a named stage, ``(cells, actions)``."""
+        stages = [name for name, _ in self.config.stages]
+        if seed not in self.seeds:
+            raise KeyError(f"seed {seed} is not in this run; seeds: {list(self.seeds)}")
+        if stage not in stages:
+            raise KeyError(f"stage {stage!r} is not in this run; stages: {stages}")
+        return self.records.snapshots[self.seeds.index(seed), stages.index(stage)]
+
+    def save(self, run_dir: Path) -> Path:
+        """Write the run directory, ``meta.json`` last."""
+        run_dir = store.prepare_directory(Path(run_dir))
+        store.write_json_atomic(run_dir / store.CONFIG_FILE, self.config.to_dict())
+        for name, frame in ((store.EPISODES_FILE, self.episodes()), (store.EVALUATIONS_FILE, self.evaluations())):
+            store.write_atomic(run_dir / name, lambda handle, f=frame: f.to_parquet(handle, index=False))
+        buffer = io.BytesIO()
+        np.savez_compressed(
+            buffer, snapshots=self.records.snapshots, snapshot_episodes=self.records.snapshot_episodes,
+            visits=self.records.visits, seeds=np.asarray(self.seeds), epsilons=self.epsilons,
+        )
+        store.write_atomic(run_dir / store.QTABLES_FILE, lambda handle: handle.write(buffer.getvalue()))
+        store.write_json_atomic(run_dir / store.META_FILE, self.meta)
+        return run_dir
+
+    @classmethod
+    def load(cls, run_dir: Path) -> Results:
+        """Read a complete run directory back, without training."""
+        run_dir = Path(run_dir)
+        missing = [name for name in store.RUN_FILES if not (run_dir / name).is_file()]
+        if missing:
+            raise store.StoreError(f"{run_dir}: not a complete run directory; missing {', '.join(missing)}")
+        config = ExperimentConfig.from_dict(_tuples(store.read_json(run_dir / store.CONFIG_FILE)))
+        try:
+            episodes = pd.read_parquet(run_dir / store.EPISODES_FILE)
+            evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)
+            with np.load(run_dir / store.QTABLES_FILE) as arrays:
+                tables = {key: arrays[key] for key in arrays.files}
+        except Exception as error:  # noqa: BLE001 - any decoding failure means a damaged file
+            raise store.StoreError(f"{run_dir}: cannot read the stored records ({error})") from None
+        runs, n_episodes = len(config.seeds), config.episodes
+        rounds, per_round = config.evaluation_rounds, config.eval_episodes
+        episodes = episodes.sort_values(["seed", "episode"])
+        evaluations = evaluations.sort_values(["seed", "round"], kind="stable")
+        records = Records(
+            returns=episodes["return"].to_numpy().reshape(runs, n_episodes),
+            lengths=episodes["length"].to_numpy().reshape(runs, n_episodes),
+            terminated=episodes["terminated"].to_numpy().reshape(runs, n_episodes),
+            eval_returns=evaluations["return"].to_numpy().reshape(runs, rounds, per_round),
+            eval_lengths=evaluations["length"].to_numpy().reshape(runs, rounds, per_round),
+            eval_terminated=evaluations["terminated"].to_numpy().reshape(runs, rounds, per_round),
+            snapshots=tables["snapshots"],
+            snapshot_episodes=tables["snapshot_episodes"],
+            visits=tables["visits"],
+        )
+        return cls(config=config, epsilons=tables["epsilons"], records=records,
+                   meta=store.read_json(run_dir / store.META_FILE))
+
+
+def _with_labels(frame: pd.DataFrame, labels: dict[str, Any]) -> pd.DataFrame:
+    for position, (name, value) in enumerate(labels.items()):
+        frame.insert(position, name, pd.Categorical([value] * len(frame)))
+    return frame
+
+
+def _tuples(data: dict[str, Any]) -> dict[str, Any]:
+    """JSON lists back to the tuples of the frozen config."""
+    if "stages" in data:
+        data["stages"] = tuple(tuple(pair) for pair in data["stages"])
+    if "seeds" in data:
+        data["seeds"] = tuple(data["seeds"])
+    return data

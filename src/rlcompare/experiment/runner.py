@@ -1,0 +1,105 @@
+"""``run(config) -> Results``: train every seed of a configuration in the fused engine."""
+
+from __future__ import annotations
+
+import platform
+import sys
+import time
+from collections.abc import Callable
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
+from rlcompare.engine.tabular import ALGORITHM_CODES, Settings, allocate_records, initial_state, train_runs
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import make_grid
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
+
+CHUNK_EPISODES = 250
+"""Episodes per kernel call; between calls the progress bar moves. Results do not depend on it."""
+
+
+def epsilon_schedule(config: ExperimentConfig) -> np.ndarray:
+    """ε of every episode under the configured schedule."""
+    if config.schedule == "constant":
+        return constant_epsilon(config.episodes, config.epsilon)
+    return linear_decay_epsilon(config.episodes, config.epsilon_start, config.epsilon_end,
+                                config.decay_fraction)
+
+
+def run(
+    config: ExperimentConfig,
+    *,
+    out: Path | None = None,
+    study: str = "",
+    progress: Callable[[int], None] | None = None,
+) -> Results:
+    """Train every seed of ``config``; write the run directory to ``out`` if given.
+
+    ``progress`` is called with the number of episodes (per seed) finished since its last call.
+    """
+    grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, config.bins)
+    epsilons = epsilon_schedule(config)
+    state = initial_state(list(config.seeds), grid.n_cells, mountain_car.N_ACTIONS)
+    stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
+    records = allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
+                               config.eval_episodes, stage_episodes, state.q.shape[1:])
+    settings = Settings(
+        algorithm=ALGORITHM_CODES[config.algorithm], alpha=float(config.alpha), gamma=float(config.gamma),
+        max_steps=int(config.max_steps), truncation_is_terminal=bool(config.truncation_as_terminal),
+        eval_every=int(config.eval_every),
+    )
+    started = time.perf_counter()
+    for first in range(0, config.episodes, CHUNK_EPISODES):
+        stop = min(first + CHUNK_EPISODES, config.episodes)
+        train_runs(settings, state, grid, epsilons, first, stop, records)
+        if progress is not None:
+            progress(stop - first)
+    wall = time.perf_counter() - started
+    steps = int(records.lengths.sum())
+    meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
+    results = Results(config=config, epsilons=epsilons, records=records, meta=meta)
+    if out is not None:
+        results.save(out)
+    return results
+
+
+def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:
+    return {
+        "study": study,
+        "name": config.name,
+        "seeds": list(config.seeds),
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "command": sys.argv,
+        "timings": {"wall_seconds": wall, "training_steps": steps, "evaluation_steps": eval_steps,
+                    "threads": numba.get_num_threads(),
+                    "steps_per_second": (steps + eval_steps) / wall if wall > 0 else None},
+        "versions": {"python": platform.python_version(), "platform": platform.platform(),
+                     **{pkg: _version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}},
+    }
+
+
+def _version(package: str) -> str | None:
+    try:
+        return metadata.version(package)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def load(run_dir: Path) -> Results:
+    """Read a finished run directory."""
+    return Results.load(run_dir)
+
+
+def load_if_complete(run_dir: Path, config: ExperimentConfig) -> Results | None:
+    """The stored results of ``config`` in ``run_dir`` if that run finished, else None (so it is re-run)."""
+    if not store.is_complete(run_dir):
+        return None
+    stored = store.read_json(Path(run_dir) / store.CONFIG_FILE)
+    return Results.load(run_dir) if stored == config.to_dict() else None

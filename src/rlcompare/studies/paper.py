@@ -1,0 +1,87 @@
+"""The paper's experiment: random baseline, Q-Learning and SARSA under ε constant and ε decaying.
+
+"Comparative Analysis of On and Off Policy Reinforcement Learning", Sections IV and V: MountainCar-v0,
+20 bins per dimension, α = 0.05, γ = 0.9, a 1000-step limit, ε = 0.5 constant or decaying from 1.
+One run directory per configuration under the study's output directory.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.analysis.stats import mean_interval
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
+from rlcompare.experiment.runner import load_if_complete, run
+
+STUDY = "paper"
+DEFAULT_EPISODES = 5000
+DEFAULT_SEEDS = 30
+
+PAPER_TABLE_I = {"q_learning-decay": 41.5, "q_learning-constant": 13.8, "sarsa-decay": 10.7,
+                 "sarsa-constant": 11.5}
+"""Table I, "time to converge", as printed (no unit or rule is given)."""
+PAPER_TABLE_II = {"q_learning-decay": -191.0, "q_learning-constant": -262.0, "sarsa-decay": -174.0,
+                  "sarsa-constant": -176.0}
+"""Table II, mean cumulative reward, as printed."""
+
+
+def paper_configs(seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES, **overrides) -> list[ExperimentConfig]:
+    """The five configurations of the paper, in the order of its tables, baseline first."""
+    base = ExperimentConfig(seeds=seeds, episodes=episodes, **overrides)
+    return [
+        replace(base, algorithm="random", schedule="constant"),
+        *(replace(base, algorithm=algorithm, schedule=schedule)
+          for algorithm in ("q_learning", "sarsa") for schedule in ("decay", "constant")),
+    ]
+
+
+def reproduce(
+    out: Path,
+    configs: list[ExperimentConfig],
+    *,
+    progress: Callable[[int], None] | None = None,
+) -> Iterator[tuple[Results, bool]]:
+    """Run each configuration into ``out / config.name``, or load it if that run already finished.
+
+    Yields ``(results, reused)`` as each configuration completes, so an interrupted study resumes where
+    it stopped and loses nothing finished.
+    """
+    for config in configs:
+        run_dir = Path(out) / config.name
+        stored = load_if_complete(run_dir, config)
+        if stored is not None:
+            if progress is not None:
+                progress(config.episodes)
+            yield stored, True
+        else:
+            yield run(config, out=run_dir, study=STUDY, progress=progress), False
+
+
+def summary_table(results: list[Results]) -> pd.DataFrame:
+    """Mean cumulative reward per configuration, with 95% bootstrap intervals over seeds.
+
+    ``behaviour``: the mean over all training episodes of the ε-greedy return, per seed (the paper's
+    "mean cumulative reward"). ``greedy``: the mean return of the final evaluation of the greedy
+    policy, per seed. ``success``: the share of those evaluation episodes that reached the goal.
+    """
+    rows = []
+    for result in results:
+        records = result.records
+        final = records.eval_returns[:, -1] if records.eval_returns.shape[1] else np.full((1, 1), np.nan)
+        success = records.eval_terminated[:, -1] if records.eval_terminated.shape[1] else final
+        rows.append({
+            "configuration": result.config.name,
+            "seeds": len(result.seeds),
+            "episodes": result.config.episodes,
+            "behaviour": mean_interval(records.returns.mean(axis=1)),
+            "greedy": mean_interval(final.mean(axis=1)),
+            "success": float(np.mean(success)),
+            "paper": PAPER_TABLE_II.get(result.config.name, np.nan),
+        })
+    return pd.DataFrame(rows)
