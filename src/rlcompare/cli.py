@@ -22,6 +22,7 @@ app = typer.Typer(
 )
 console = Console(width=None if Console().is_terminal else 120)
 _DEFAULTS = ExperimentConfig()
+_DEFAULT_SEEDS = len(_DEFAULTS.seeds)
 
 Seeds = Annotated[int, typer.Option(help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ...")]
 FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
@@ -77,9 +78,9 @@ def run(
     episodes: Annotated[int, typer.Option(help="Training episodes per seed.")] = _DEFAULTS.episodes,
     max_steps: Annotated[int, typer.Option(help="Episode limit (truncation).")] = _DEFAULTS.max_steps,
     truncation_as_terminal: Annotated[bool, typer.Option(
-        help="Treat the time limit as terminal (no bootstrap), as old Gym's done did.")]
+        "--truncation-as-terminal", help="Treat the time limit as terminal (no bootstrap), as old Gym's done did.")]
     = _DEFAULTS.truncation_as_terminal,
-    seeds: Seeds = len(_DEFAULTS.seeds),
+    seeds: Seeds = _DEFAULT_SEEDS,
     first_seed: FirstSeed = 0,
     eval_every: Annotated[int, typer.Option(help="Evaluate the greedy policy every N episodes (0: never).")]
     = _DEFAULTS.eval_every,

@@ -21,6 +21,6 @@ def constant_epsilon(episodes: int, epsilon: float) -> np.ndarray:
 
 def linear_decay_epsilon(episodes: int, start: float, end: float, fraction: float) -> np.ndarray:
     """ε from ``start`` at the first episode down to ``end`` after ``fraction`` of the episodes, then ``end``."""
-    decay_episodes = max(int(round(fraction * episodes)), 1)
+    decay_episodes = max(round(fraction * episodes), 1)
     progress = np.minimum(np.arange(episodes, dtype=np.float64) / decay_episodes, 1.0)
     return start + (end - start) * progress

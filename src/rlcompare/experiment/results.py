@@ -100,7 +100,7 @@ class Results:
             evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)
             with np.load(run_dir / store.QTABLES_FILE) as arrays:
                 tables = {key: arrays[key] for key in arrays.files}
-        except Exception as error:  # noqa: BLE001 - any decoding failure means a damaged file
+        except Exception as error:
             raise store.StoreError(f"{run_dir}: cannot read the stored records ({error})") from None
         runs, n_episodes = len(config.seeds), config.episodes
         rounds, per_round = config.evaluation_rounds, config.eval_episodes

@@ -1,0 +1,97 @@
+"""The command line: what reproduce writes, what run resolves, and one clear message for bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from rlcompare import Results, cli
+from rlcompare.experiment import store
+
+runner = CliRunner(env={"COLUMNS": "200"})
+
+
+def invoke(*args: str):
+    return runner.invoke(cli.app, list(args), prog_name="rlcompare")
+
+
+def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
+    result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--out", str(tmp_path))
+    assert result.exit_code == 0, result.output
+    names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+    for name in names:
+        assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(store.RUN_FILES)
+        assert name in result.output
+    loaded = Results.load(tmp_path / "sarsa-constant")
+    assert (loaded.config.seeds, loaded.config.episodes, loaded.config.epsilon) == ((0, 1), 100, 0.5)
+    assert loaded.meta["study"] == "paper"
+    assert "-262" in result.output  # the paper's Table II beside ours
+
+
+def test_reproduce_again_loads_instead_of_training(tmp_path: Path) -> None:
+    invoke("reproduce", "--seeds", "1", "--episodes", "20", "--out", str(tmp_path))
+    result = invoke("reproduce", "--seeds", "1", "--episodes", "20", "--out", str(tmp_path))
+    assert result.exit_code == 0
+    assert result.output.count("loaded (already complete)") == 5
+
+
+def test_run_resolves_every_option(tmp_path: Path) -> None:
+    result = invoke("run", "--algorithm", "sarsa", "--schedule", "constant", "--alpha", "0.1", "--gamma", "0.95",
+                    "--epsilon", "0.2", "--bins", "12", "--episodes", "30", "--max-steps", "300",
+                    "--truncation-as-terminal", "--seeds", "2", "--first-seed", "5", "--eval-every", "10",
+                    "--eval-episodes", "3", "--out", str(tmp_path / "run"))
+    assert result.exit_code == 0, result.output
+    config = Results.load(tmp_path / "run").config
+    assert (config.algorithm, config.schedule, config.alpha, config.gamma, config.epsilon, config.bins) == (
+        "sarsa", "constant", 0.1, 0.95, 0.2, 12)
+    assert (config.episodes, config.max_steps, config.truncation_as_terminal) == (30, 300, True)
+    assert (config.seeds, config.eval_every, config.eval_episodes) == ((5, 6), 10, 3)
+
+
+def test_run_help_explains_options() -> None:
+    result = invoke("run", "--help")
+    assert result.exit_code == 0
+    for option in ("--algorithm", "--schedule", "--alpha", "--gamma", "--bins", "--episodes", "--max-steps",
+                   "--truncation-as-terminal", "--seeds", "--eval-every", "--out"):
+        assert option in result.output
+    assert "Algorithm 1" in result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "option", "allowed"),
+    [
+        (["run", "--algorithm", "dqn"], "--algorithm", "q_learning"),
+        (["run", "--schedule", "cosine"], "--schedule", "constant, decay"),
+        (["run", "--alpha", "0"], "--alpha", "(0, 1]"),
+        (["run", "--alpha", "1.5"], "--alpha", "(0, 1]"),
+        (["run", "--gamma", "2"], "--gamma", "[0, 1]"),
+        (["run", "--episodes", "0"], "--episodes", ">= 1"),
+        (["run", "--episodes", "-3"], "--episodes", ">= 1"),
+        (["run", "--seeds", "0"], "--seeds", ">= 1"),
+        (["reproduce", "--seeds", "-1"], "--seeds", ">= 1"),
+        (["reproduce", "--episodes", "0"], "--episodes", ">= 1"),
+    ],
+)
+def test_bad_input_gets_one_clear_message_and_exit_code_2(
+    args: list[str], option: str, allowed: str, tmp_path: Path
+) -> None:
+    result = invoke(*args, "--out", str(tmp_path / "out"))
+    assert result.exit_code == 2
+    assert option in result.output
+    assert allowed in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "reproduce"])
+def test_output_path_that_is_a_file_is_refused(command: str, tmp_path: Path) -> None:
+    target = tmp_path / "file"
+    target.write_text("keep me")
+    result = invoke(command, "--episodes", "5", "--seeds", "1", "--out", str(target))
+    assert result.exit_code == 2
+    assert "--out" in result.output
+    assert "is a file" in result.output
+    assert target.read_text() == "keep me"

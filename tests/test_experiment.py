@@ -1,0 +1,135 @@
+"""run(config): run directories, atomic writes, resuming, and agents that act inside Gymnasium."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+import pytest
+
+from rlcompare import ExperimentConfig, Results, load_agent, run
+from rlcompare.experiment import store
+from rlcompare.experiment.runner import load_if_complete
+from rlcompare.studies.paper import paper_configs, reproduce
+
+
+def test_results_tables_are_long_format(small_config: ExperimentConfig) -> None:
+    results = run(small_config, study="unit")
+    episodes = results.episodes()
+    assert len(episodes) == 3 * 200
+    assert list(episodes.columns) == ["study", "env", "algorithm", "schedule", "seed", "episode", "epsilon",
+                                      "return", "length", "terminated"]
+    assert set(episodes["study"]) == {"unit"}
+    assert (episodes["return"] == -episodes["length"]).all()  # -1 per step, the last one included
+    assert episodes.groupby("seed")["episode"].apply(lambda e: list(e) == list(range(200))).all()
+    evaluations = results.evaluations()
+    assert len(evaluations) == 3 * 4 * 4  # seeds x rounds x episodes per round
+    assert sorted(set(evaluations["after_episode"])) == [50, 100, 150, 200]
+    assert episodes.loc[episodes["episode"] == 0, "epsilon"].eq(1.0).all()
+
+
+def test_run_directory_round_trip(tmp_path: Path, small_config: ExperimentConfig) -> None:
+    results = run(small_config, out=tmp_path / "run")
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(store.RUN_FILES)
+    loaded = Results.load(tmp_path / "run")
+    assert loaded.config == small_config
+    for name, array in results.records._asdict().items():
+        np.testing.assert_array_equal(getattr(loaded.records, name), array, err_msg=name)
+    pd.testing.assert_frame_equal(loaded.episodes(), results.episodes())
+    np.testing.assert_array_equal(loaded.q_table(2, "final"), results.records.snapshots[2, -1])
+
+
+def test_snapshots_are_taken_at_the_named_stages(small_config: ExperimentConfig) -> None:
+    config = dataclasses.replace(small_config, schedule="constant", stages=(("early", 0.1), ("final", 1.0)))
+    early = run(dataclasses.replace(config, episodes=20, stages=(("final", 1.0),)))  # same ε throughout
+    full = run(config)
+    np.testing.assert_array_equal(full.q_table(1, "early"), early.q_table(1, "final"))
+    assert not np.array_equal(full.q_table(1, "early"), full.q_table(1, "final"))
+
+
+def test_failed_write_leaves_nothing_that_looks_finished(
+    tmp_path: Path, small_config: ExperimentConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken_parquet(self, handle, **kwargs):
+        handle.write(b"PAR1 half a file")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pd.DataFrame, "to_parquet", broken_parquet)
+    with pytest.raises(OSError, match="disk full"):
+        run(small_config, out=tmp_path / "run")
+    left = sorted(p.name for p in (tmp_path / "run").iterdir())
+    assert left == [store.CONFIG_FILE]  # no parquet under its final name, no temporary file, no meta.json
+    assert not store.is_complete(tmp_path / "run")
+    assert load_if_complete(tmp_path / "run", small_config) is None
+
+
+def test_study_resumes_and_reruns_only_what_is_unfinished(tmp_path: Path) -> None:
+    configs = paper_configs((0, 1), episodes=60, eval_every=30, eval_episodes=2)
+    first = {r.config.name: reused for r, reused in reproduce(tmp_path, configs)}
+    assert first == dict.fromkeys(first, False)
+    os.remove(tmp_path / "sarsa-decay" / store.META_FILE)  # as if interrupted while writing
+    again = {r.config.name: (r, reused) for r, reused in reproduce(tmp_path, configs)}
+    assert [n for n, (_, reused) in again.items() if not reused] == ["sarsa-decay"]
+    rerun = again["sarsa-decay"][0]
+    np.testing.assert_array_equal(rerun.records.returns, Results.load(tmp_path / "sarsa-decay").records.returns)
+
+
+def test_changed_config_is_not_taken_for_a_finished_run(tmp_path: Path, small_config: ExperimentConfig) -> None:
+    run(small_config, out=tmp_path / "run")
+    assert load_if_complete(tmp_path / "run", small_config) is not None
+    assert load_if_complete(tmp_path / "run", dataclasses.replace(small_config, alpha=0.1)) is None
+
+
+def test_output_path_that_is_a_file_is_refused(tmp_path: Path, small_config: ExperimentConfig) -> None:
+    target = tmp_path / "taken"
+    target.write_text("not a directory")
+    with pytest.raises(store.StoreError, match="is a file"):
+        run(small_config, out=target)
+    assert target.read_text() == "not a directory"
+
+
+def test_loading_an_incomplete_directory_names_what_is_missing(tmp_path: Path) -> None:
+    (tmp_path / store.CONFIG_FILE).write_text("{}")
+    with pytest.raises(store.StoreError, match=r"missing episodes\.parquet"):
+        Results.load(tmp_path)
+
+
+def _gymnasium_eval_returns(agent, eval_stream: np.random.SeedSequence, episodes: int) -> list[float]:
+    """Returns of ``agent`` inside Gymnasium's own env, resets drawn from the evaluation stream."""
+    env = gym.make("MountainCar-v0", max_episode_steps=1000)
+    env.reset(seed=0)
+    env.unwrapped.np_random = np.random.Generator(np.random.PCG64(eval_stream))
+    returns = []
+    for _ in range(episodes):
+        observation, _ = env.reset()
+        total, done = 0.0, False
+        while not done:
+            observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
+            total += reward
+            done = terminated or truncated
+        returns.append(total)
+    return returns
+
+
+def test_loaded_agent_acts_in_gymnasium_exactly_as_in_our_evaluation(tmp_path: Path) -> None:
+    config = ExperimentConfig(algorithm="q_learning", schedule="decay", seeds=(7,), episodes=1500,
+                              eval_every=1500, eval_episodes=20)
+    results = run(config, out=tmp_path / "run")
+    agent = load_agent(tmp_path / "run", seed=7, stage="final")
+    _, eval_stream = np.random.SeedSequence(7).spawn(2)
+    ours = results.records.eval_returns[0, -1]
+    theirs = _gymnasium_eval_returns(agent, eval_stream, 20)
+    np.testing.assert_array_equal(theirs, ours)
+    assert (ours > -1000).mean() == results.records.eval_terminated[0, -1].mean()
+
+
+def test_load_agent_rejects_unknown_seed_and_stage(tmp_path: Path, small_config: ExperimentConfig) -> None:
+    run(small_config, out=tmp_path / "run")
+    with pytest.raises(KeyError, match="seed 9"):
+        load_agent(tmp_path / "run", seed=9)
+    with pytest.raises(KeyError, match="'late'"):
+        load_agent(tmp_path / "run", seed=0, stage="late")
