@@ -67,9 +67,7 @@ def _assert_same_cells(grid, wrapper, observations: np.ndarray) -> None:
     flat = np.array([cell_index(grid, o) for o in observations])
     flat_2d = np.array([cell_index_2d(grid, float(o[0]), float(o[1])) for o in observations])
     mismatch = np.flatnonzero((flat != expected) | (flat_2d != expected))
-    assert mismatch.size == 0, [
-        (observations[i].tolist(), expected[i], flat[i], flat_2d[i]) for i in mismatch[:5]
-    ]
+    assert mismatch.size == 0, [(observations[i].tolist(), expected[i], flat[i], flat_2d[i]) for i in mismatch[:5]]
     assert np.all((expected >= 0) & (expected < grid.n_cells))
 
 

@@ -122,9 +122,7 @@ def test_multiply_high_matches_big_integers(impl):
     fn = _implementation(impl, rng._multiply_high)
     generator = np.random.default_rng(0)
     pairs = [(a, b) for a in _HARD_FACTORS for b in _HARD_FACTORS]
-    pairs += [
-        tuple(int(x) for x in generator.integers(0, 2**64, size=2, dtype=np.uint64)) for _ in range(200)
-    ]
+    pairs += [tuple(int(x) for x in generator.integers(0, 2**64, size=2, dtype=np.uint64)) for _ in range(200)]
     with np.errstate(over="ignore"):
         for a, b in pairs:
             assert int(fn(np.uint64(a), np.uint64(b))) == (a * b) >> 64, (a, b)
