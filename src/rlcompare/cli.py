@@ -111,6 +111,7 @@ def reproduce(
     episodes: Annotated[int, typer.Option(help="Training episodes per seed (the paper gives none).")] = 5000,
     out: Annotated[Path, typer.Option(help="Study directory; one run directory per configuration.")]
     = Path("runs/paper"),
+    videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents into the report.")] = True,
 ) -> None:
     """Reproduce the paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1.
 
@@ -134,7 +135,36 @@ def reproduce(
             progress.console.print(f"{results.config.name:<20} {len(results.seeds)} seeds x "
                                    f"{results.config.episodes} episodes: {how}")
     _print_summary(finished)
-    console.print(f"Study directory: {out}")
+    _report(out, videos)
+
+
+@app.command()
+def report(
+    study_dir: Annotated[Path, typer.Argument(help="A study directory written by reproduce.")],
+    videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents.")] = True,
+) -> None:
+    """Rebuild the tables, verdicts, figures, videos and report.html of a study, without training."""
+    if not study_dir.is_dir():
+        raise typer.BadParameter(f"{study_dir} is not a directory; allowed: a study directory written by "
+                                 "'rlcompare reproduce'", param_hint="'STUDY_DIR'")
+    _report(study_dir, videos)
+
+
+def _report(study_dir: Path, videos: bool) -> None:
+    from rlcompare.studies.paper_report import build_report
+
+    try:
+        with console.status("Building the report"):
+            outcome = build_report(study_dir, videos=videos)
+    except StoreError as error:
+        console.print(f"[red]Error:[/red] {error}")
+        raise typer.Exit(2) from None
+    for problem in outcome.problems:
+        console.print(f"[yellow]Missing:[/yellow] {problem}")
+    timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in outcome.seconds.items())
+    console.print(f"Report: {outcome.path}  ({timings})")
+    if outcome.problems:
+        raise typer.Exit(1)
 
 
 @app.command()

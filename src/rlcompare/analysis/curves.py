@@ -1,0 +1,41 @@
+"""Learning curves over seeds: smoothing, thinning and a bootstrap band for the mean at every point."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def moving_average(values: np.ndarray, window: int) -> np.ndarray:
+    """Trailing mean over ``window`` points along the last axis; the first points average what exists."""
+    values = np.asarray(values, dtype=np.float64)
+    cumulative = np.cumsum(values, axis=-1)
+    shifted = np.zeros_like(cumulative)
+    shifted[..., window:] = cumulative[..., :-window]
+    counts = np.minimum(np.arange(1, values.shape[-1] + 1), window)
+    return (cumulative - shifted) / counts
+
+
+def thinned(n_points: int, max_points: int = 500) -> np.ndarray:
+    """At most ``max_points`` evenly spread indices of ``n_points``, the last one included."""
+    if n_points <= max_points:
+        return np.arange(n_points)
+    return np.unique(np.linspace(0, n_points - 1, max_points).round().astype(np.int64))
+
+
+def mean_band(
+    curves: np.ndarray, confidence: float = 0.95, n_resamples: int = 2000, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean over seeds (axis 0) at every point, with a percentile-bootstrap band resampling whole seeds.
+
+    Resampling seeds, not points, keeps each seed's curve intact (rliable's stratified bootstrap).
+    """
+    curves = np.asarray(curves, dtype=np.float64)
+    mean = curves.mean(axis=0)
+    if curves.shape[0] < 2:
+        return mean, mean.copy(), mean.copy()
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, curves.shape[0], size=(n_resamples, curves.shape[0]))
+    resampled = curves[picks].mean(axis=1)
+    tail = (1 - confidence) / 2 * 100
+    low, high = np.percentile(resampled, [tail, 100 - tail], axis=0)
+    return mean, low, high

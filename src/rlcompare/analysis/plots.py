@@ -1,0 +1,103 @@
+"""Figures of a comparison. Every function draws on the ``ax`` it is given and returns it; only a study
+or the command line saves files."""
+
+from __future__ import annotations
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
+
+from rlcompare.analysis.curves import mean_band, moving_average, thinned
+
+ACTION_NAMES = ("push left", "no push", "push right")
+ACTION_COLORS = ("#3b6fb6", "#bdbdbd", "#d1495b")
+EXTENT = (-1.2, 0.6, -0.07, 0.07)  # position x velocity, MountainCar's observation bounds
+
+
+def plot_return_curves(
+    ax: Axes, x: np.ndarray, curves: dict[str, np.ndarray], *, window: int = 100,
+    colors: dict[str, str] | None = None, ylabel: str = "return per episode",
+) -> Axes:
+    """Smoothed mean return over seeds with a shaded 95% bootstrap band, one line per label.
+
+    ``curves[label]`` is ``(seeds, points)``, plotted against ``x``; ``window`` smooths each seed first.
+    """
+    for label, values in curves.items():
+        smooth = moving_average(values, window) if window > 1 else np.asarray(values, dtype=np.float64)
+        keep = thinned(smooth.shape[1])
+        mean, low, high = mean_band(smooth[:, keep])
+        color = (colors or {}).get(label)
+        (line,) = ax.plot(x[keep], mean, label=label, color=color, linewidth=1.5)
+        ax.fill_between(x[keep], low, high, color=line.get_color(), alpha=0.25, linewidth=0)
+    ax.set_xlabel("episode")
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize="small")
+    return ax
+
+
+def _cell_grid(values: np.ndarray, bins: int) -> np.ndarray:
+    """Flat cells ``position_bin * bins + velocity_bin`` to an image with velocity on rows."""
+    return np.asarray(values).reshape(bins, bins).T
+
+
+def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int) -> Axes:
+    """Greedy action in each cell, by majority over seeds; cells no seed ever updated are left blank.
+
+    ``q_tables`` is ``(seeds, cells, actions)``. A fresh table holds zeros and every update with a reward
+    of -1 makes a value negative, so an all-zero row marks a cell that was never updated.
+    """
+    greedy = q_tables.argmax(axis=2)
+    counts = np.stack([(greedy == a).sum(axis=0) for a in range(q_tables.shape[2])])
+    majority = counts.argmax(axis=0).astype(np.float64)
+    majority[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
+    cmap = ListedColormap(ACTION_COLORS)
+    cmap.set_bad("white")
+    ax.imshow(_cell_grid(majority, bins), origin="lower", extent=EXTENT, aspect="auto", cmap=cmap,
+              norm=BoundaryNorm([-0.5, 0.5, 1.5, 2.5], cmap.N), interpolation="nearest")
+    handles = [mpl.patches.Patch(color=c, label=n) for c, n in zip(ACTION_COLORS, ACTION_NAMES, strict=True)]
+    ax.legend(handles=handles, loc="upper left", fontsize="x-small", framealpha=0.8)
+    ax.set_xlabel("position")
+    ax.set_ylabel("velocity")
+    return ax
+
+
+def plot_value_map(ax: Axes, q_tables: np.ndarray, bins: int, *, vmin: float | None = None) -> Axes:
+    """State value ``max_a Q(s, a)`` averaged over seeds; never-updated cells blank."""
+    values = q_tables.max(axis=2).mean(axis=0)
+    values[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
+    image = ax.imshow(_cell_grid(values, bins), origin="lower", extent=EXTENT, aspect="auto", cmap="viridis",
+                      vmin=vmin, vmax=0.0, interpolation="nearest")
+    ax.figure.colorbar(image, ax=ax, label="max_a Q(s, a)")
+    ax.set_xlabel("position")
+    ax.set_ylabel("velocity")
+    return ax
+
+
+def plot_visits(ax: Axes, visits: np.ndarray, bins: int) -> Axes:
+    """Training steps taken from each cell, summed over seeds, on a log scale; unvisited cells blank."""
+    total = visits.sum(axis=0).astype(np.float64)
+    total[total == 0] = np.nan
+    image = ax.imshow(_cell_grid(total, bins), origin="lower", extent=EXTENT, aspect="auto", cmap="magma",
+                      norm=LogNorm(), interpolation="nearest")
+    ax.figure.colorbar(image, ax=ax, label="steps from cell (all seeds)")
+    ax.set_xlabel("position")
+    ax.set_ylabel("velocity")
+    return ax
+
+
+def plot_first_actions(ax: Axes, shares: dict[str, np.ndarray]) -> Axes:
+    """Stacked bars: the share of start states from which each configuration's first greedy action is
+    left, none or right (``shares[label]`` sums to 1 over the three actions)."""
+    labels = list(shares)
+    bottom = np.zeros(len(labels))
+    for action, (name, color) in enumerate(zip(ACTION_NAMES, ACTION_COLORS, strict=True)):
+        heights = np.array([shares[label][action] for label in labels])
+        ax.bar(labels, heights, bottom=bottom, color=color, label=name)
+        bottom += heights
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("share of start states")
+    ax.legend(loc="upper right", fontsize="small")
+    ax.tick_params(axis="x", labelrotation=15)
+    return ax

@@ -1,0 +1,87 @@
+"""``report.html``: one offline page that gathers a study's tables, verdicts, figures and videos.
+
+The page links files by relative paths inside the study directory, so the directory can be copied or
+archived as a whole and opened without a server or a network.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from rlcompare.experiment.store import write_atomic
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2rem auto; max-width: 1200px; color: #222; line-height: 1.45; }
+h1 { font-size: 1.6rem; } h2 { border-bottom: 1px solid #ddd; padding-bottom: .2rem; margin-top: 2.2rem; }
+table { border-collapse: collapse; margin: .8rem 0; font-size: .9rem; }
+th, td { border: 1px solid #ccc; padding: .3rem .6rem; text-align: right; }
+th:first-child, td:first-child { text-align: left; }
+th { background: #f3f3f3; }
+figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #eee; }
+figcaption { font-size: .9rem; color: #555; }
+.videos { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr)); gap: 1rem; }
+.videos video { width: 100%; }
+.problems { background: #fff4e5; border: 1px solid #f0b45b; padding: .6rem 1rem; }
+.verdict-supported { color: #1a7f37; font-weight: 600; } .verdict-contradicted { color: #c62828; font-weight: 600; }
+code, pre { background: #f6f8fa; padding: .1rem .3rem; }
+"""
+
+
+@dataclass
+class Section:
+    """A heading with paragraphs, tables, figures and videos, in that order."""
+
+    title: str
+    paragraphs: list[str] = field(default_factory=list)
+    tables: list[tuple[str, pd.DataFrame]] = field(default_factory=list)
+    figures: list[tuple[str, str]] = field(default_factory=list)
+    """(relative path, caption)"""
+    videos: list[tuple[str, str, str]] = field(default_factory=list)
+    """(relative MP4 path, relative GIF path or "", caption)"""
+
+
+def _table_html(caption: str, frame: pd.DataFrame) -> str:
+    body = frame.to_html(index=False, escape=True, border=0, na_rep="", float_format=lambda v: f"{v:.3g}")
+    for verdict in ("supported", "contradicted"):
+        body = body.replace(f"<td>{verdict}</td>", f'<td class="verdict-{verdict}">{verdict}</td>')
+    return f"<h3>{html.escape(caption)}</h3>\n{body}"
+
+
+def _section_html(section: Section) -> str:
+    parts = [f"<h2>{html.escape(section.title)}</h2>"]
+    parts += [f"<p>{html.escape(text)}</p>" for text in section.paragraphs]
+    parts += [_table_html(caption, frame) for caption, frame in section.tables]
+    parts += [
+        f'<figure><img src="{html.escape(path)}" alt="{html.escape(caption)}">'
+        f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+        for path, caption in section.figures
+    ]
+    if section.videos:
+        cells = []
+        for mp4, gif, caption in section.videos:
+            fallback = f' <a href="{html.escape(gif)}">GIF</a>' if gif else ""
+            cells.append(f'<figure><video controls muted preload="auto" src="{html.escape(mp4)}"></video>'
+                         f"<figcaption>{html.escape(caption)}{fallback}</figcaption></figure>")
+        parts.append('<div class="videos">' + "\n".join(cells) + "</div>")
+    return "\n".join(parts)
+
+
+def render_report(title: str, sections: list[Section], problems: list[str]) -> str:
+    """The whole page as a string."""
+    warning = ""
+    if problems:
+        items = "".join(f"<li>{html.escape(p)}</li>" for p in problems)
+        warning = f'<div class="problems"><strong>Incomplete:</strong><ul>{items}</ul></div>'
+    body = "\n".join(_section_html(s) for s in sections)
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
+            f"<style>{_STYLE}</style></head>\n<body><h1>{html.escape(title)}</h1>\n{warning}\n{body}\n</body></html>\n")
+
+
+def write_report(path: Path, title: str, sections: list[Section], problems: list[str]) -> Path:
+    page = render_report(title, sections, problems).encode()
+    write_atomic(Path(path), lambda handle: handle.write(page))
+    return Path(path)

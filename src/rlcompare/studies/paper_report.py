@@ -1,0 +1,252 @@
+"""The paper study's tables, verdicts, figures, videos and ``report.html``, rebuilt from stored runs.
+
+Everything here reads run directories; nothing trains. A configuration whose directory is missing or
+damaged is named in the report and left out of what needs it; the rest is still built.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.analysis import plots
+from rlcompare.analysis.explain import first_action_shares
+from rlcompare.analysis.report import Section, write_report
+from rlcompare.analysis.tables import Claim, judge, per_seed_metrics, table_i, table_ii
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import make_grid
+from rlcompare.experiment import store
+from rlcompare.experiment.results import Results
+from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
+
+CONFIGURATIONS = ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant")
+LABELS = {"random": "random", "q_learning": "Q-Learning", "sarsa": "SARSA"}
+COLORS = {"random": "#7f7f7f", "q_learning": "#e07b00", "sarsa": "#2a9d8f"}
+SMOOTHING = 100
+FIGURES = (
+    ("fig3-random", ("random",), "Fig. 3: the random baseline"),
+    ("fig4-q_learning-constant", ("q_learning-constant",), "Fig. 4: Q-Learning with ε constant at 0.5"),
+    ("fig5-sarsa-constant", ("sarsa-constant",), "Fig. 5: SARSA with ε constant at 0.5"),
+    ("fig6-constant", ("q_learning-constant", "sarsa-constant"), "Fig. 6: Q-Learning and SARSA, ε constant"),
+    ("fig7-q_learning-decay", ("q_learning-decay",), "Fig. 7: Q-Learning with ε decaying from 1"),
+    ("fig8-sarsa-decay", ("sarsa-decay",), "Fig. 8: SARSA with ε decaying from 1"),
+    ("fig9-decay", ("q_learning-decay", "sarsa-decay"), "Fig. 9: Q-Learning and SARSA, ε decaying"),
+)
+CLAIMS = (
+    Claim("With ε decaying, SARSA converges faster than Q-Learning (Table I: about 4 times)", "decay",
+          "convergence_episode", sarsa_higher=False),
+    Claim("With ε constant, SARSA finds a better solution than Q-Learning (Table II: -176 vs -262)", "constant",
+          "behaviour_return", sarsa_higher=True),
+    Claim("With ε constant, SARSA's greedy policy is better than Q-Learning's", "constant", "greedy_return",
+          sarsa_higher=True),
+    Claim("With ε decaying, SARSA's mean cumulative reward is higher (Table II: -174 vs -191)", "decay",
+          "behaviour_return", sarsa_higher=True),
+    Claim("SARSA accelerates backwards first where Q-Learning accelerates forward (ε constant)", "constant",
+          "first_action_left", sarsa_higher=True),
+    Claim("SARSA accelerates backwards first where Q-Learning accelerates forward (ε decaying)", "decay",
+          "first_action_left", sarsa_higher=True),
+)
+
+
+@dataclass
+class ReportOutcome:
+    """Where the report went, what could not be built, and how long each part took."""
+
+    path: Path
+    problems: list[str] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def label(results: Results) -> str:
+    c = results.config
+    return LABELS[c.algorithm] if c.algorithm == "random" else f"{LABELS[c.algorithm]}, ε {c.schedule}"
+
+
+def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
+    """Every configuration that loads, and a line for each that does not."""
+    loaded, problems = {}, []
+    for name in CONFIGURATIONS:
+        run_dir = Path(study_dir) / name
+        if not run_dir.is_dir():
+            problems.append(f"{name}: no run directory at {run_dir}")
+            continue
+        try:
+            loaded[name] = Results.load(run_dir)
+        except (store.StoreError, ValueError, KeyError) as error:
+            problems.append(f"{name}: {error}")
+    return loaded, problems
+
+
+def _save(figure: Figure, path: Path) -> str:
+    store.write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=100))
+    return f"{path.parent.name}/{path.name}"
+
+
+def curve_figure(runs: list[Results], title: str) -> Figure:
+    """Behaviour return (smoothed) beside greedy-evaluation return, mean over seeds with 95% bands."""
+    figure = Figure(figsize=(12, 4.2), layout="constrained")
+    behaviour_ax, greedy_ax = figure.subplots(1, 2, sharey=True)
+    colors = {label(r): COLORS[r.config.algorithm] for r in runs}
+    episodes = np.arange(1, runs[0].config.episodes + 1)
+    plots.plot_return_curves(behaviour_ax, episodes, {label(r): r.records.returns for r in runs},
+                             window=SMOOTHING, colors=colors)
+    behaviour_ax.set_title(f"behaviour (ε-greedy) return, moving average of {SMOOTHING} episodes")
+    if runs[0].records.eval_returns.shape[1]:
+        after = np.arange(1, runs[0].config.evaluation_rounds + 1) * runs[0].config.eval_every
+        plots.plot_return_curves(greedy_ax, after, {label(r): r.records.eval_returns.mean(axis=2) for r in runs},
+                                 window=1, colors=colors, ylabel="greedy return")
+        greedy_ax.set_title(f"target policy, {runs[0].config.eval_episodes} episodes every "
+                            f"{runs[0].config.eval_every}")
+    figure.suptitle(f"{title}  ({len(runs[0].seeds)} seeds, mean and 95% bootstrap band)")
+    return figure
+
+
+def stages_figure(results: Results) -> Figure:
+    """Greedy action and state value over position x velocity at each named stage."""
+    stage_names = [name for name, _ in results.config.stages]
+    episodes = results.config.stage_episodes()
+    figure = Figure(figsize=(4.6 * len(stage_names), 7.5), layout="constrained")
+    axes = figure.subplots(2, len(stage_names), squeeze=False)
+    floor = float(results.records.snapshots.min())
+    for column, stage in enumerate(stage_names):
+        tables = results.records.snapshots[:, column]
+        plots.plot_policy_map(axes[0, column], tables, results.config.bins)
+        axes[0, column].set_title(f"{stage} (episode {episodes[stage]}): greedy action")
+        plots.plot_value_map(axes[1, column], tables, results.config.bins, vmin=floor)
+        axes[1, column].set_title(f"{stage}: state value")
+    figure.suptitle(f"{label(results)}: majority greedy action and mean value over {len(results.seeds)} seeds")
+    return figure
+
+
+def visits_figure(runs: list[Results]) -> Figure:
+    figure = Figure(figsize=(4.6 * len(runs), 3.8), layout="constrained")
+    for ax, results in zip(figure.subplots(1, len(runs), squeeze=False)[0], runs, strict=True):
+        plots.plot_visits(ax, results.records.visits, results.config.bins)
+        ax.set_title(label(results))
+    figure.suptitle("Where training spends its steps: state visits over all episodes and seeds")
+    return figure
+
+
+def first_actions_figure(runs: list[Results]) -> Figure:
+    figure = Figure(figsize=(7, 4), layout="constrained")
+    shares = {}
+    for results in runs:
+        grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, results.config.bins)
+        shares[label(results)] = first_action_shares(results.records.snapshots[:, -1], grid).mean(axis=0)
+    plots.plot_first_actions(figure.subplots(), shares)
+    figure.suptitle("First greedy action from the start region (final policies, all seeds)")
+    return figure
+
+
+def _write_table(frame: pd.DataFrame, directory: Path, name: str) -> None:
+    store.write_atomic(directory / f"{name}.csv", lambda handle: handle.write(frame.to_csv(index=False).encode()))
+    markdown = frame.to_markdown(index=False) + "\n"
+    store.write_atomic(directory / f"{name}.md", lambda handle: handle.write(markdown.encode()))
+
+
+def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None) -> ReportOutcome:
+    """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``."""
+    study_dir = Path(study_dir)
+    started = time.perf_counter()
+    runs, problems = load_study(study_dir)
+    if not runs:
+        raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
+                               + "; ".join(problems))
+    seconds: dict[str, float] = {}
+    learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
+    metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
+    tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
+    first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
+    claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)]
+    tables = {
+        "table_i": table_i(metrics, PAPER_TABLE_I),
+        "table_ii": table_ii(metrics, PAPER_TABLE_II),
+        "verdicts": judge(claims, metrics, episodes),
+    }
+    for name, frame in tables.items():
+        _write_table(frame, tables_dir, name)
+    seconds["tables and verdicts"] = time.perf_counter() - started
+
+    mark = time.perf_counter()
+    curve_figures = []
+    for file_name, names, title in FIGURES:
+        present = [runs[n] for n in names if n in runs]
+        if len(present) == len(names):
+            curve_figures.append((_save(curve_figure(present, title), figures_dir / f"{file_name}.png"), title))
+        else:
+            problems.append(f"{title}: left out, its runs are missing")
+    explanation_figures = [(_save(stages_figure(r), figures_dir / f"stages-{r.config.name}.png"),
+                            f"{label(r)}: greedy action and state value at each stage") for r in learners]
+    if learners:
+        explanation_figures += [
+            (_save(visits_figure(learners), figures_dir / "visits.png"), "State visits during training"),
+            (_save(first_actions_figure(learners), figures_dir / "first-actions.png"),
+             "First greedy action from the start region"),
+        ]
+    seconds["figures"] = time.perf_counter() - mark
+
+    mark = time.perf_counter()
+    video_cells = []
+    if videos:
+        from rlcompare.analysis.video import render_stage_videos
+
+        for name, results in runs.items():
+            seed = results.seeds[0] if video_seed is None else video_seed
+            paths = render_stage_videos(study_dir / name, study_dir / "videos", seed=seed)
+            mp4s = sorted(p for p in paths if p.suffix == ".mp4")
+            for mp4 in mp4s:
+                gif = mp4.with_suffix(".gif")
+                video_cells.append((f"videos/{mp4.name}", f"videos/{gif.name}" if gif.exists() else "",
+                                    f"{label(results)}, seed {seed}: {mp4.stem.rsplit('-', 1)[-1]}"))
+        seconds["videos"] = time.perf_counter() - mark
+
+    sections = _sections(first, runs, tables, curve_figures, explanation_figures, video_cells)
+    path = write_report(study_dir / "report.html", "On- and off-policy control on Mountain Car: the paper, "
+                        "reproduced", sections, problems)
+    seconds["total"] = time.perf_counter() - started
+    return ReportOutcome(path=path, problems=problems, seconds=seconds)
+
+
+def _sections(first, runs, tables, curve_figures, explanation_figures, video_cells) -> list[Section]:
+    c = first.config
+    setting = pd.DataFrame({
+        "setting": ["environment", "grid", "α", "γ", "episode limit", "ε constant", "ε decay", "episodes",
+                    "seeds", "evaluation", "time limit"],
+        "value": [c.env, f"{c.bins} x {c.bins} uniform cells", c.alpha, c.gamma, c.max_steps, c.epsilon,
+                  f"linear {c.epsilon_start} → {c.epsilon_end} over the first {c.decay_fraction:.0%} of episodes",
+                  c.episodes, f"{len(c.seeds)} ({c.seeds[0]}..{c.seeds[-1]})",
+                  f"greedy policy, {c.eval_episodes} episodes every {c.eval_every}",
+                  "truncation treated as terminal" if c.truncation_as_terminal else "truncation bootstraps"],
+    })
+    versions = pd.DataFrame(sorted(first.meta.get("versions", {}).items()), columns=["package", "version"])
+    return [
+        Section("Setting", ["Configurations read: " + ", ".join(runs) + "."],
+                tables=[("Configuration", setting.astype(str)), ("Versions", versions)]),
+        Section("Table I: time to converge", [
+            "A run has converged at the first episode after which its return, averaged over the previous 100 "
+            "episodes, stays within a band around its final level (the mean of the last 100 episodes) for the "
+            "rest of training; the band is 5% of the distance from the first to the final level, at least 10. "
+            "A run whose last 100 episodes reach the goal less than half the time never converged. Seconds are "
+            "CPU seconds of one run up to that episode. The paper's values have no unit."],
+            tables=[("Table I", tables["table_i"])]),
+        Section("Table II: mean cumulative reward", [
+            "Behaviour: the ε-greedy return averaged over every training episode of a seed. Greedy: the return "
+            "of the final greedy policy. Mean and interquartile mean over seeds, 95% bootstrap intervals."],
+            tables=[("Table II", tables["table_ii"])]),
+        Section("Verdicts on the paper's claims", [
+            "SARSA against Q-Learning on the same seeds (the same start states): the paired difference with its "
+            "95% bootstrap interval, the probability that the claim holds for a random pair of seeds, and the "
+            "Wilcoxon signed-rank p-value. A claim is supported when the interval excludes zero on its side and "
+            "p < 0.05, contradicted when both point the other way."],
+            tables=[("Verdicts", tables["verdicts"])]),
+        Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),
+        Section("Why: policies, values, visits and first actions", figures=explanation_figures),
+        Section("Videos of the greedy agents at three stages of learning",
+                ["Rendered by Gymnasium's own MountainCar-v0 renderer from the same start state."]
+                if video_cells else ["Videos were not rendered (--no-videos)."], videos=video_cells),
+    ]
