@@ -39,7 +39,7 @@ def seconds_per_step(results: Results) -> float:
 def per_seed_metrics(results: Results) -> pd.DataFrame:
     """One row per seed: the numbers every table, verdict and figure is built from."""
     records, config = results.records, results.config
-    converged = convergence_episodes(records.returns, max_steps=config.max_steps)
+    converged = convergence_episodes(records.returns, window=min(100, config.episodes), max_steps=config.max_steps)
     has_eval = records.eval_returns.shape[1] > 0
     final_q = results.records.snapshots[:, -1]
     grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, config.bins)

@@ -1,0 +1,442 @@
+"""Videos of the greedy agents at the stages of learning, drawn by Gymnasium's own renderer.
+
+The paper shows "three videos showing how the agents solve the problem in three stages of learning".
+For one run directory (one configuration) and one training seed, :func:`render_stage_videos` loads the
+stored Q-table of every stage (``config.stages``; by default early, middle and final), plays one episode
+of its greedy policy in ``gymnasium.make("MountainCar-v0", render_mode="rgb_array")`` from the start state
+of ``env.reset(seed=episode_seed)``, and writes an H.264 MP4 (and a small looping GIF) per stage. Every
+stage starts from the same start state, so the videos differ only by what the agent has learned.
+
+A caption strip is added above Gymnasium's 600x400 frame (the picture itself is left untouched): the
+algorithm, the exploration schedule, the stage with the number of training episodes behind it, and the
+return so far (the final return on the last frame); a second, smaller line gives the training seed, the
+start-state seed and the step, and on the last frame whether the car reached the flag or ran out of time.
+
+The random baseline does not learn, so its stages would all show the same policy: it gets one video,
+``random-seed{seed}.mp4``, of the uniform random policy (its action stream is seeded by the training seed,
+so the video is reproducible).
+
+Rendering needs no display: the first call that renders sets ``SDL_VIDEODRIVER=dummy`` (and hides
+pygame's banner) with ``os.environ.setdefault``, so a value set by the user wins. Importing this module
+changes nothing.
+
+Cost (measured on 2 cores, see the module's tests and the report): Gymnasium's renderer takes about
+3 ms a frame; the MP4 is encoded by ffmpeg in its own process while Python renders the next frames
+(``-preset veryfast -crf 28``), and the GIF is quantised to one shared palette, so a 1000-step episode
+takes about 4 s and a 150-step one well under 1 s.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from functools import lru_cache
+from multiprocessing import get_context
+from pathlib import Path
+from typing import NamedTuple, Protocol
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+from rlcompare.experiment import store
+from rlcompare.experiment.agent import load_agent
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
+
+DEFAULT_EPISODE_SEED = 10_000
+"""Seed of ``env.reset`` for the recorded episode: one start state shared by every video, apart from the
+start states of training (seed ``s`` trains from ``env.reset(seed=s)`` onwards)."""
+FPS = 30
+"""Frames per second of the MP4: Gymnasium's ``render_fps`` for MountainCar."""
+CAPTION_HEIGHT = 48
+"""Height in pixels of the caption strip above the frame (even, so H.264 frame sizes stay even)."""
+MP4_OPTIONS = ("-preset", "veryfast", "-crf", "28", "-threads", "1", "-movflags", "+faststart")
+"""x264 settings: fast to encode, small files (the picture is mostly flat white), one thread per encoder
+so the bytes do not depend on the number of cores; ``+faststart`` lets a browser play it while loading."""
+GIF_COLORS = 64
+GIF_HOLD_MS = 1000
+"""The GIF shows its last frame (with the final return) this much longer before it loops."""
+
+_ALGORITHM_LABELS = {"q_learning": "Q-Learning", "sarsa": "SARSA", "random": "Random"}
+_CAPTION_BACKGROUND = (255, 255, 255)
+_CAPTION_TEXT = (0, 0, 0)
+_CAPTION_DETAIL = (90, 90, 90)
+_CAPTION_RULE = (200, 200, 200)
+
+
+class Agent(Protocol):
+    def act(self, observation: np.ndarray) -> int: ...
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One recorded episode: ``length + 1`` frames, the start frame included."""
+
+    frames: list[np.ndarray]
+    """(H, W, 3) uint8 each: Gymnasium's (400, 600, 3), or (448, 600, 3) with a caption."""
+    returns: np.ndarray
+    """(length + 1,) return so far at each frame; 0 at the start frame."""
+    length: int
+    """Steps taken."""
+    terminated: bool
+    """The car reached the flag (else the step limit truncated the episode)."""
+
+    @property
+    def episode_return(self) -> float:
+        return float(self.returns[-1])
+
+
+class _Frame(NamedTuple):
+    image: np.ndarray
+    step: int
+    return_so_far: float
+    terminated: bool
+    truncated: bool
+
+
+def _headless() -> None:
+    """Let pygame render without a display and without its banner; a value the user set wins."""
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+
+def _play(agent: Agent, episode_seed: int, max_steps: int) -> Iterator[_Frame]:
+    """Step ``agent`` through one rendered episode, yielding the start frame and one frame per step."""
+    _headless()
+    import gymnasium as gym  # after _headless: gymnasium imports pygame when it first renders
+
+    env = gym.make("MountainCar-v0", render_mode="rgb_array", max_episode_steps=max_steps)
+    try:
+        observation, _ = env.reset(seed=episode_seed)
+        total, step, terminated, truncated = 0.0, 0, False, False
+        yield _Frame(env.render(), step, total, terminated, truncated)
+        while not (terminated or truncated):
+            observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
+            total += float(reward)
+            step += 1
+            yield _Frame(env.render(), step, total, bool(terminated), bool(truncated))
+    finally:
+        env.close()
+
+
+# --- captions -------------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=8)
+def _font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    """DejaVu Sans (shipped with matplotlib, a dependency): Pillow's default font has no ε."""
+    try:
+        import matplotlib
+
+        return ImageFont.truetype(str(Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"), size)
+    except (ImportError, OSError):  # pragma: no cover - matplotlib is a dependency
+        return ImageFont.load_default(size=size)
+
+
+_SPECIAL = {"ε": "epsilon", "·": "-"}
+
+
+@lru_cache(maxsize=8)
+def _missing_glyphs(size: int) -> tuple[str, ...]:
+    """The special characters of the captions that the font at ``size`` cannot draw."""
+    font = _font(size)
+    missing = font.getmask("\ufffe").getbbox()
+    return tuple(ch for ch in _SPECIAL if font.getmask(ch).getbbox() == missing)
+
+
+def _drawable(size: int, text: str) -> str:
+    for ch in _missing_glyphs(size):
+        text = text.replace(ch, _SPECIAL[ch])
+    return text
+
+
+def caption_strip(title: str, detail: str = "", *, width: int = 600, height: int = CAPTION_HEIGHT) -> np.ndarray:
+    """A ``(height, width, 3)`` uint8 strip: ``title`` in black, ``detail`` below it in grey."""
+    strip = Image.new("RGB", (width, height), _CAPTION_BACKGROUND)
+    draw = ImageDraw.Draw(strip)
+    big, small = max(8, round(height * 0.36)), max(8, round(height * 0.27))
+    draw.text((8, round(height * 0.06)), _drawable(big, title), font=_font(big), fill=_CAPTION_TEXT)
+    if detail:
+        draw.text((8, round(height * 0.56)), _drawable(small, detail), font=_font(small), fill=_CAPTION_DETAIL)
+    draw.line([(0, height - 1), (width, height - 1)], fill=_CAPTION_RULE)
+    return np.asarray(strip)
+
+
+def add_caption(frame: np.ndarray, title: str, detail: str = "", *, out: np.ndarray | None = None) -> np.ndarray:
+    """``frame`` under a caption strip: ``(H + CAPTION_HEIGHT, W, 3)``, the frame's pixels unchanged.
+
+    ``out`` (of that shape) is filled and returned instead of a new array.
+    """
+    height, width = frame.shape[:2]
+    if out is None:
+        out = np.empty((height + CAPTION_HEIGHT, width, 3), dtype=np.uint8)
+    out[:CAPTION_HEIGHT] = caption_strip(title, detail, width=width)
+    out[CAPTION_HEIGHT:] = frame
+    return out
+
+
+def _caption_lines(title: str, frame: _Frame, *, seed: int | None, episode_seed: int,
+                   max_steps: int) -> tuple[str, str]:
+    finished = frame.terminated or frame.truncated
+    ret = f"{'final return' if finished else 'return'} {frame.return_so_far:.0f}"
+    detail = [f"training seed {seed}"] if seed is not None else []
+    detail += [f"start state: reset(seed={episode_seed})", f"step {frame.step}/{max_steps}"]
+    if frame.terminated:
+        detail.append("reached the flag")
+    elif frame.truncated:
+        detail.append("out of time")
+    return f"{title} · {ret}", " · ".join(detail)
+
+
+def _captioned(frames: Iterable[_Frame], title: str, *, seed: int | None, episode_seed: int,
+               max_steps: int) -> Iterator[tuple[np.ndarray, _Frame]]:
+    """Each frame under its caption, in one reused buffer (copy it to keep it)."""
+    buffer = None
+    for frame in frames:
+        if buffer is None:
+            height, width = frame.image.shape[:2]
+            buffer = np.empty((height + CAPTION_HEIGHT, width, 3), dtype=np.uint8)
+        line, detail = _caption_lines(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps)
+        yield add_caption(frame.image, line, detail, out=buffer), frame
+
+
+def stage_title(config: ExperimentConfig, stage: str | None) -> str:
+    """``SARSA · ε decay · middle (episode 2500)``; the random baseline: ``Random · uniform actions``."""
+    algorithm = _ALGORITHM_LABELS.get(config.algorithm, config.algorithm)
+    if config.algorithm == "random" or stage is None:
+        return f"{algorithm} · uniform actions" if config.algorithm == "random" else algorithm
+    schedule = "ε decay" if config.schedule == "decay" else f"ε = {config.epsilon:g}"
+    return f"{algorithm} · {schedule} · {stage} (episode {config.stage_episodes()[stage]})"
+
+
+# --- recording ------------------------------------------------------------------------------------
+
+
+def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, title: str | None = None,
+                   seed: int | None = None) -> Episode:
+    """Play one episode of ``agent`` from ``env.reset(seed=episode_seed)`` and keep every frame.
+
+    Without ``title`` the frames are Gymnasium's own; with it each frame is captioned with the title
+    and the return so far (``seed``, the training seed, goes on the caption's second line). For long
+    episodes the frames take memory (about 0.8 MB each); :func:`render_stage_videos` streams instead.
+    """
+    frames: Iterable[_Frame] = _play(agent, episode_seed, max_steps)
+    images, returns = [], []
+    last: _Frame | None = None
+    if title is None:
+        for frame in frames:
+            images.append(np.ascontiguousarray(frame.image))
+            returns.append(frame.return_so_far)
+            last = frame
+    else:
+        for image, frame in _captioned(frames, title, seed=seed, episode_seed=episode_seed, max_steps=max_steps):
+            images.append(image.copy())
+            returns.append(frame.return_so_far)
+            last = frame
+    assert last is not None
+    return Episode(frames=images, returns=np.asarray(returns, dtype=np.float64), length=last.step,
+                   terminated=last.terminated)
+
+
+# --- writing --------------------------------------------------------------------------------------
+
+
+def _even(frame: np.ndarray) -> np.ndarray:
+    """Pad an odd height or width by repeating the last row or column (H.264 4:2:0 needs even sizes)."""
+    height, width = frame.shape[:2]
+    if height % 2 or width % 2:
+        return np.pad(frame, ((0, height % 2), (0, width % 2), (0, 0)), mode="edge")
+    return frame
+
+
+def _rgb(frame: np.ndarray) -> np.ndarray:
+    frame = np.asarray(frame)
+    if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+        raise ValueError(f"frames must be (H, W, 3) uint8; got {frame.shape} {frame.dtype}")
+    return frame
+
+
+@contextlib.contextmanager
+def _mp4_writer(path: Path, fps: float) -> Iterator:
+    """An imageio FFMPEG writer to a temporary file beside ``path``, renamed onto it when all went well."""
+    import imageio.v2 as imageio
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp.mp4")
+    writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", pixelformat="yuv420p",
+                                quality=None, macro_block_size=2, output_params=list(MP4_OPTIONS))
+    try:
+        yield writer
+        writer.close()
+        if not tmp.is_file():
+            raise OSError(f"{path}: ffmpeg wrote no file (were there no frames?)")
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(Exception):
+            writer.close()
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_mp4(frames: Iterable[np.ndarray], path: Path, fps: float = FPS) -> Path:
+    """Encode ``frames`` ((H, W, 3) uint8, any iterable) as an H.264 MP4 that browsers play.
+
+    libx264, yuv420p, ``+faststart``; odd sizes are padded to even ones. Written atomically.
+    """
+    path = Path(path)
+    count = 0
+    with _mp4_writer(path, fps) as writer:
+        for frame in frames:
+            writer.append_data(_even(_rgb(frame)))
+            count += 1
+        if count == 0:
+            raise ValueError("write_mp4: no frames")
+    return path
+
+
+class _GifFrames:
+    """Every ``every``-th frame (and the last), scaled by ``scale`` and mapped to one shared palette."""
+
+    def __init__(self, scale: float, every: int) -> None:
+        if not 0 < scale <= 1:
+            raise ValueError(f"scale must be in (0, 1]; got {scale}")
+        if every < 1:
+            raise ValueError(f"every must be >= 1; got {every}")
+        self.scale, self.every = scale, every
+        self.images: list[Image.Image] = []
+        self.palette: Image.Image | None = None
+        self.count = 0
+        self._pending: np.ndarray | None = None
+
+    def _reduce(self, frame: np.ndarray) -> Image.Image:
+        image = Image.fromarray(np.ascontiguousarray(frame))
+        if self.scale < 1:
+            size = (max(1, round(image.width * self.scale)), max(1, round(image.height * self.scale)))
+            image = image.resize(size, Image.Resampling.BOX)
+        if self.palette is None:
+            self.palette = image.quantize(colors=GIF_COLORS, method=Image.Quantize.MEDIANCUT,
+                                          dither=Image.Dither.NONE)
+        return image.quantize(palette=self.palette, dither=Image.Dither.NONE)
+
+    def add(self, frame: np.ndarray) -> None:
+        frame = _rgb(frame)
+        if self.count % self.every == 0:
+            self.images.append(self._reduce(frame))
+            self._pending = None
+        else:
+            self._pending = frame.copy()  # kept in case it is the last frame
+        self.count += 1
+
+    def finish(self) -> list[Image.Image]:
+        if self._pending is not None:
+            self.images.append(self._reduce(self._pending))
+            self._pending = None
+        return self.images
+
+    def save(self, path: Path, fps: float) -> Path:
+        images = self.finish()
+        if not images:
+            raise ValueError("write_gif: no frames")
+        step_ms = round(1000 * self.every / fps)
+        durations = [step_ms] * len(images)
+        durations[-1] += GIF_HOLD_MS
+        store.write_atomic(Path(path), lambda handle: images[0].save(
+            handle, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0,
+            optimize=False, disposal=1))
+        return Path(path)
+
+
+def write_gif(frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale: float = 0.5,
+              every: int = 2) -> Path:
+    """A small looping GIF of ``frames``: every ``every``-th frame (and the last), scaled by ``scale``.
+
+    It plays at ``fps / every`` frames per second, so it keeps the real-time speed of an MP4 at ``fps``,
+    and holds the last frame one second longer before it loops. Written atomically.
+    """
+    gif = _GifFrames(scale, every)
+    for frame in frames:
+        gif.add(frame)
+    return gif.save(path, fps)
+
+
+# --- stage videos ---------------------------------------------------------------------------------
+
+
+class _Job(NamedTuple):
+    run_dir: Path
+    seed: int
+    stage: str
+    title: str
+    mp4: Path
+    gif: Path | None
+    episode_seed: int
+    max_steps: int
+    fps: float
+
+
+def _render_job(job: _Job) -> list[Path]:
+    """Play, caption and encode one video in a single pass; the MP4 encoder runs while Python renders."""
+    agent = load_agent(job.run_dir, seed=job.seed, stage=job.stage)
+    gif = _GifFrames(0.5, 2) if job.gif is not None else None
+    frames = _captioned(_play(agent, job.episode_seed, job.max_steps), job.title, seed=job.seed,
+                        episode_seed=job.episode_seed, max_steps=job.max_steps)
+    with _mp4_writer(job.mp4, job.fps) as writer:
+        for image, _ in frames:
+            writer.append_data(image)
+            if gif is not None:
+                gif.add(image)
+    if gif is None or job.gif is None:
+        return [job.mp4]
+    return [job.mp4, gif.save(job.gif, job.fps)]
+
+
+def render_stage_videos(
+    run_dir: Path,
+    out_dir: Path,
+    *,
+    seed: int,
+    stages: Sequence[str] | None = None,
+    episode_seed: int = DEFAULT_EPISODE_SEED,
+    max_steps: int | None = None,
+    gif: bool = True,
+    fps: float = FPS,
+    workers: int = 1,
+) -> list[Path]:
+    """One MP4 (and GIF) per stage of learning of training seed ``seed`` in ``run_dir``.
+
+    Files are ``{config.name}-seed{seed}-{stage}.mp4`` / ``.gif`` in ``out_dir``, returned in stage
+    order, each MP4 followed by its GIF. ``stages`` defaults to the run's ``config.stages``;
+    ``max_steps`` to the run's episode limit. The random baseline gets one video,
+    ``random-seed{seed}.mp4`` (``stages`` is then ignored), since its policy does not change.
+    ``workers > 1`` renders stages in that many processes; each video depends only on its own stage,
+    so the files are the same whatever the number of workers.
+    """
+    run_dir, out_dir = Path(run_dir), Path(out_dir)
+    config = Results.load(run_dir).config
+    known = [name for name, _ in config.stages]
+    if seed not in config.seeds:
+        raise KeyError(f"seed {seed} is not in this run; seeds: {list(config.seeds)}")
+    limit = config.max_steps if max_steps is None else int(max_steps)
+    if config.algorithm == "random":
+        plan = [(known[-1], stage_title(config, None), f"{config.name}-seed{seed}")]
+    else:
+        chosen = known if stages is None else list(stages)
+        unknown = [name for name in chosen if name not in known]
+        if unknown:
+            raise KeyError(f"stage {unknown[0]!r} is not in this run; stages: {known}")
+        plan = [(name, stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
+    store.prepare_directory(out_dir)
+    jobs = [_Job(run_dir, seed, stage, title, out_dir / f"{stem}.mp4", out_dir / f"{stem}.gif" if gif else None,
+                 int(episode_seed), limit, fps) for stage, title, stem in plan]
+    if workers <= 1 or len(jobs) == 1:
+        written = [_render_job(job) for job in jobs]
+    else:
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=get_context("spawn")) as pool:
+            written = list(pool.map(_render_job, jobs))
+    return [path for paths in written for path in paths]
