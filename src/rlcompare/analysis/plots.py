@@ -52,8 +52,7 @@ def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int) -> Axes:
     counts = np.stack([(greedy == a).sum(axis=0) for a in range(q_tables.shape[2])])
     majority = counts.argmax(axis=0).astype(np.float64)
     majority[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
-    cmap = ListedColormap(ACTION_COLORS)
-    cmap.set_bad("white")
+    cmap = ListedColormap(ACTION_COLORS).with_extremes(bad="white")
     ax.imshow(_cell_grid(majority, bins), origin="lower", extent=EXTENT, aspect="auto", cmap=cmap,
               norm=BoundaryNorm([-0.5, 0.5, 1.5, 2.5], cmap.N), interpolation="nearest")
     handles = [mpl.patches.Patch(color=c, label=n) for c, n in zip(ACTION_COLORS, ACTION_NAMES, strict=True)]

@@ -1,0 +1,106 @@
+"""Figures are checked for what they show: lines, bands, labels and the values behind each image."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
+
+from rlcompare.analysis import plots
+from rlcompare.analysis.curves import mean_band, moving_average, thinned
+
+
+@pytest.fixture
+def ax():
+    return Figure().subplots()
+
+
+def test_moving_average_on_a_hand_example() -> None:
+    np.testing.assert_allclose(moving_average(np.array([2.0, 4.0, 6.0, 8.0]), 2), [2.0, 3.0, 5.0, 7.0])
+    np.testing.assert_allclose(moving_average(np.array([[1.0, 2.0, 3.0]]), 5), [[1.0, 1.5, 2.0]])
+
+
+def test_thinned_keeps_ends_and_bounds_the_count() -> None:
+    keep = thinned(5000, 500)
+    assert len(keep) <= 500
+    assert (keep[0], keep[-1]) == (0, 4999)
+    np.testing.assert_array_equal(thinned(7, 500), np.arange(7))
+
+
+def test_mean_band_brackets_the_mean_and_shrinks_with_agreement() -> None:
+    rng = np.random.default_rng(0)
+    noisy = rng.normal(0, 10, size=(30, 50))
+    mean, low, high = mean_band(noisy)
+    np.testing.assert_allclose(mean, noisy.mean(axis=0))
+    assert np.all(low <= mean)
+    assert np.all(mean <= high)
+    half_width = (high - low).mean() / 2
+    assert 1.96 * 10 / np.sqrt(30) * 0.7 < half_width < 1.96 * 10 / np.sqrt(30) * 1.3  # about the normal width
+    _, same_low, same_high = mean_band(np.ones((5, 10)))
+    np.testing.assert_array_equal(same_low, same_high)
+
+
+def test_return_curves_draw_one_line_and_one_band_per_label(ax) -> None:
+    rng = np.random.default_rng(1)
+    curves = {"Q-Learning": rng.normal(-300, 20, (6, 400)), "SARSA": rng.normal(-200, 20, (6, 400))}
+    plots.plot_return_curves(ax, np.arange(1, 401), curves, window=10)
+    assert [line.get_label() for line in ax.get_lines()] == ["Q-Learning", "SARSA"]
+    assert sum(isinstance(c, PolyCollection) for c in ax.collections) == 2
+    assert ax.get_xlabel() == "episode"
+    assert "return" in ax.get_ylabel()
+    sarsa_y = ax.get_lines()[1].get_ydata()
+    assert abs(np.mean(sarsa_y) + 200) < 10
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["Q-Learning", "SARSA"]
+
+
+def _tables_with_greedy(actions: list[int], cells: int = 4, seeds: int = 3) -> np.ndarray:
+    q = np.zeros((seeds, cells, 3))
+    for cell, action in enumerate(actions):
+        q[:, cell] = -5.0
+        q[:, cell, action] = -1.0
+    return q
+
+
+def test_policy_map_shows_the_majority_action_and_blanks_unvisited_cells(ax) -> None:
+    q = _tables_with_greedy([2, 0, 1])  # cell 3 never updated
+    q[0, 0] = [-1.0, -5.0, -5.0]  # one seed of three disagrees in cell 0
+    plots.plot_policy_map(ax, q, bins=2)
+    image = ax.get_images()[0].get_array()
+    # cells are position_bin * 2 + velocity_bin; the image has velocity on rows
+    assert image[0, 0] == 2  # cell 0: two seeds of three push right
+    assert image[1, 0] == 0  # cell 1
+    assert image[0, 1] == 1  # cell 2
+    assert np.ma.is_masked(image[1, 1]) or np.isnan(image[1, 1])  # cell 3: blank
+    assert ax.get_xlabel() == "position"
+    assert ax.get_ylabel() == "velocity"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == list(plots.ACTION_NAMES)
+
+
+def test_value_map_averages_the_best_value_over_seeds(ax) -> None:
+    q = _tables_with_greedy([0, 1, 2])
+    q[1, :3] -= 2.0  # seed 1 values every visited cell 2 lower
+    plots.plot_value_map(ax, q, bins=2)
+    image = ax.get_images()[0].get_array()
+    assert image[0, 0] == pytest.approx((-1 - 3 - 1) / 3)
+    assert np.ma.is_masked(image[1, 1]) or np.isnan(image[1, 1])
+
+
+def test_visits_are_summed_over_seeds(ax) -> None:
+    visits = np.array([[1, 0, 5, 0], [2, 0, 5, 0]])
+    plots.plot_visits(ax, visits, bins=2)
+    image = ax.get_images()[0].get_array()
+    assert image[0, 0] == 3
+    assert image[0, 1] == 10
+    assert np.ma.is_masked(image[1, 0]) or np.isnan(image[1, 0])
+
+
+def test_first_actions_stack_to_one(ax) -> None:
+    shares = {"Q-Learning": np.array([0.2, 0.1, 0.7]), "SARSA": np.array([0.6, 0.0, 0.4])}
+    plots.plot_first_actions(ax, shares)
+    bars = ax.patches
+    assert len(bars) == 6
+    tops = {}
+    for bar in bars:
+        tops[bar.get_x()] = max(tops.get(bar.get_x(), 0), bar.get_y() + bar.get_height())
+    assert all(top == pytest.approx(1.0) for top in tops.values())

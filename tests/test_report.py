@@ -1,0 +1,112 @@
+"""The paper study's report: tables and verdicts from stored runs, and what happens when runs are damaged."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from rlcompare import cli
+from rlcompare.analysis.tables import Claim, judge
+from rlcompare.experiment import store
+from rlcompare.studies.paper import paper_configs, reproduce
+from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report
+
+runner = CliRunner(env={"COLUMNS": "200"})
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small paper study: 4 seeds x 400 episodes of every configuration, trained once for the module."""
+    path = tmp_path_factory.mktemp("study")
+    list(reproduce(path, paper_configs((0, 1, 2, 3), episodes=400, eval_every=50, eval_episodes=3)))
+    return path
+
+
+@pytest.fixture
+def study_copy(study: Path, tmp_path: Path) -> Path:
+    return Path(shutil.copytree(study, tmp_path / "study"))
+
+
+def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
+    outcome = build_report(study_copy, videos=False)
+    assert outcome.problems == []
+    for name in ("table_i", "table_ii", "verdicts"):
+        assert (study_copy / "tables" / f"{name}.csv").is_file()
+        assert (study_copy / "tables" / f"{name}.md").read_text().startswith("| ")
+    table_ii = pd.read_csv(study_copy / "tables" / "table_ii.csv")
+    assert list(table_ii["configuration"]) == list(CONFIGURATIONS)
+    assert table_ii.set_index("configuration").loc["sarsa-constant", "paper (Table II)"] == -176
+    verdicts = pd.read_csv(study_copy / "tables" / "verdicts.csv")
+    assert len(verdicts) == len(CLAIMS)
+    assert set(verdicts["verdict"]) <= {"supported", "contradicted", "not resolved at this number of seeds"}
+    for file_name, _, _ in FIGURES:
+        assert (study_copy / "figures" / f"{file_name}.png").stat().st_size > 10_000
+    page = (study_copy / "report.html").read_text()
+    assert page.count("<img ") == len(list((study_copy / "figures").glob("*.png")))
+    assert "Table I" in page
+    assert "Incomplete" not in page
+
+
+def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_copy: Path) -> None:
+    (study_copy / "sarsa-decay" / store.EPISODES_FILE).unlink()
+    (study_copy / "q_learning-constant" / store.QTABLES_FILE).write_bytes(b"not a zip file")
+    shutil.rmtree(study_copy / "random")
+    result = runner.invoke(cli.app, ["report", str(study_copy), "--no-videos"])
+    assert result.exit_code == 1
+    assert "sarsa-decay" in result.output
+    assert "episodes.parquet" in result.output
+    assert "q_learning-constant" in result.output
+    assert "random: no run directory" in result.output
+    assert "Traceback" not in result.output
+    table_ii = pd.read_csv(study_copy / "tables" / "table_ii.csv")
+    assert list(table_ii["configuration"]) == ["q_learning-decay", "sarsa-constant"]
+    assert (study_copy / "figures" / "stages-sarsa-constant.png").is_file()
+    assert not (study_copy / "figures" / "fig3-random.png").exists()
+    page = (study_copy / "report.html").read_text()
+    assert "Incomplete" in page
+    assert "sarsa-decay" in page
+
+
+def test_report_on_a_directory_with_no_runs_is_a_clear_error(tmp_path: Path) -> None:
+    result = runner.invoke(cli.app, ["report", str(tmp_path), "--no-videos"])
+    assert result.exit_code == 2
+    assert "no configuration of the paper study could be read" in result.output
+    result = runner.invoke(cli.app, ["report", str(tmp_path / "absent")])
+    assert result.exit_code == 2
+    assert "STUDY_DIR" in result.output
+
+
+def _metrics(sarsa: list[float], q: list[float], metric: str = "behaviour_return") -> dict[str, pd.DataFrame]:
+    seeds = np.arange(len(sarsa))
+    return {"sarsa-constant": pd.DataFrame({"seed": seeds, metric: sarsa}),
+            "q_learning-constant": pd.DataFrame({"seed": seeds, metric: q})}
+
+
+def test_judge_reads_the_direction_of_each_claim() -> None:
+    rng = np.random.default_rng(0)
+    q = rng.normal(-300, 5, 20)
+    better = Claim("SARSA higher", "constant", "behaviour_return", sarsa_higher=True)
+    lower = Claim("SARSA lower", "constant", "behaviour_return", sarsa_higher=False)
+    clear = judge([better, lower], _metrics(list(q + 20), list(q)), episodes=100)
+    assert list(clear["verdict"]) == ["supported", "contradicted"]
+    noise = judge([better], _metrics(list(q + rng.normal(0, 5, 20)), list(q)), episodes=100)
+    assert list(noise["verdict"]) == ["not resolved at this number of seeds"]
+
+
+def test_judge_counts_a_run_that_never_converged_as_the_last_episode() -> None:
+    claim = Claim("SARSA faster", "constant", "convergence_episode", sarsa_higher=False)
+    row = judge([claim], _metrics([100.0, 120.0, 110.0], [np.nan, 400.0, 390.0], "convergence_episode"),
+                episodes=500).iloc[0]
+    assert row["Q-Learning"] == pytest.approx((500 + 400 + 390) / 3)
+
+
+def test_judge_refuses_unpaired_seeds() -> None:
+    metrics = _metrics([1.0, 2.0], [1.0, 2.0])
+    metrics["q_learning-constant"]["seed"] = [5, 6]
+    with pytest.raises(ValueError, match="different seeds"):
+        judge([CLAIMS[1]], metrics, episodes=10)
