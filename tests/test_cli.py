@@ -18,10 +18,10 @@ def invoke(*args: str):
 
 
 def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
-    result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--out", str(tmp_path))
+    result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--no-videos", "--out", str(tmp_path))
     assert result.exit_code == 0, result.output
     names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html"])
     for name in names:
         assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(store.RUN_FILES)
         assert name in result.output
@@ -32,8 +32,8 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
 
 
 def test_reproduce_again_loads_instead_of_training(tmp_path: Path) -> None:
-    invoke("reproduce", "--seeds", "1", "--episodes", "20", "--out", str(tmp_path))
-    result = invoke("reproduce", "--seeds", "1", "--episodes", "20", "--out", str(tmp_path))
+    invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
+    result = invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
     assert result.exit_code == 0
     assert result.output.count("loaded (already complete)") == 5
 

@@ -20,22 +20,24 @@ Rendering needs no display: the first call that renders sets ``SDL_VIDEODRIVER=d
 pygame's banner) with ``os.environ.setdefault``, so a value set by the user wins. Importing this module
 changes nothing.
 
-Cost (measured on 2 cores, see the module's tests and the report): Gymnasium's renderer takes about
-3 ms a frame; the MP4 is encoded by ffmpeg in its own process while Python renders the next frames
-(``-preset veryfast -crf 28``), and the GIF is quantised to one shared palette, so a 1000-step episode
-takes about 4 s and a 150-step one well under 1 s.
+Cost, measured on 2 cores: Gymnasium's renderer takes about 1.7 ms a frame and the whole Python side
+(step, render, caption, GIF frame) about 2.6 ms; ffmpeg encodes the MP4 in its own process meanwhile
+(about 2.4 ms of CPU a frame), so one pass over an episode does everything. A 1000-step video (MP4 and
+GIF) takes about 3.3 s, a 150-step one about 0.5 s; the five paper configurations (random and 4 x 3
+stages) took 13.5 s in all.
 """
 
 from __future__ import annotations
 
 import contextlib
+import itertools
+import math
 import os
+import re
 import secrets
 from collections.abc import Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
-from multiprocessing import get_context
 from pathlib import Path
 from typing import NamedTuple, Protocol
 
@@ -54,10 +56,14 @@ FPS = 30
 """Frames per second of the MP4: Gymnasium's ``render_fps`` for MountainCar."""
 CAPTION_HEIGHT = 48
 """Height in pixels of the caption strip above the frame (even, so H.264 frame sizes stay even)."""
-MP4_OPTIONS = ("-preset", "veryfast", "-crf", "28", "-threads", "1", "-movflags", "+faststart")
-"""x264 settings: fast to encode, small files (the picture is mostly flat white), one thread per encoder
-so the bytes do not depend on the number of cores; ``+faststart`` lets a browser play it while loading."""
+MP4_OPTIONS = ("-preset", "veryfast", "-crf", "23", "-threads", "1", "-movflags", "+faststart")
+"""x264 settings: fast to encode and small files (the picture is mostly flat white). CRF 23 rather than 28:
+at 28 the digits of the caption smear into those of the frame before; 23 costs no time and keeps a
+1000-step video near 300 kB. One thread per encoder, so the bytes do not depend on the number of cores
+(the encoder runs beside the renderer anyway); ``+faststart`` lets a browser play it while it loads."""
 GIF_COLORS = 64
+GIF_SCALE = 0.5
+GIF_EVERY = 2
 GIF_HOLD_MS = 1000
 """The GIF shows its last frame (with the final return) this much longer before it loops."""
 
@@ -66,6 +72,8 @@ _CAPTION_BACKGROUND = (255, 255, 255)
 _CAPTION_TEXT = (0, 0, 0)
 _CAPTION_DETAIL = (90, 90, 90)
 _CAPTION_RULE = (200, 200, 200)
+_PAD = 2
+_DIGITS = re.compile(r"\d|\D+")
 
 
 class Agent(Protocol):
@@ -154,16 +162,61 @@ def _drawable(size: int, text: str) -> str:
     return text
 
 
+@lru_cache(maxsize=4096)
+def _text_image(text: str, size: int, color: tuple[int, int, int]) -> tuple[np.ndarray, float]:
+    """``text`` in ``color`` on the caption background, and how far it advances the pen."""
+    font = _font(size)
+    text = _drawable(size, text)
+    advance = font.getlength(text)
+    image = Image.new("RGB", (math.ceil(advance) + 2 * _PAD, round(size * 1.4)), _CAPTION_BACKGROUND)
+    ImageDraw.Draw(image).text((_PAD, 0), text, font=font, fill=color)
+    pixels = np.asarray(image)
+    pixels.flags.writeable = False
+    return pixels, advance
+
+
+@lru_cache(maxsize=8)
+def _blank_strip(width: int, height: int) -> np.ndarray:
+    strip = np.empty((height, width, 3), dtype=np.uint8)
+    strip[:] = _CAPTION_BACKGROUND
+    strip[-1] = _CAPTION_RULE
+    strip.flags.writeable = False
+    return strip
+
+
+_Line = tuple[Sequence[str], int, tuple[int, int, int]]
+"""A caption line: its pieces (drawn one after the other), font size and colour."""
+
+
+def _draw(strip: np.ndarray, x: float, y: int, line: _Line) -> None:
+    """Draw a line's pieces on the strip, one after the other.
+
+    Each piece is rasterised once and cached: a caption whose numbers change every frame is split into a
+    fixed head and single digits (DejaVu Sans has tabular digits, no kerning), so it costs a few array
+    copies. Text is darker than the background, so where pieces overlap the darker pixel is kept.
+    """
+    pieces, size, color = line
+    for piece in pieces:
+        pixels, advance = _text_image(piece, size, color)
+        left = round(x) - _PAD
+        h, w = min(pixels.shape[0], strip.shape[0] - 1 - y), min(pixels.shape[1], strip.shape[1] - left)
+        if h > 0 and w > 0:
+            region = strip[y:y + h, left:left + w]
+            np.minimum(region, pixels[:h, :w], out=region)
+        x += advance
+
+
+def _strip(width: int, height: int, title: Sequence[str], detail: Sequence[str]) -> np.ndarray:
+    strip = _blank_strip(width, height).copy()
+    big, small = max(8, round(height * 0.36)), max(8, round(height * 0.27))
+    _draw(strip, 8, round(height * 0.06), (title, big, _CAPTION_TEXT))
+    _draw(strip, 8, round(height * 0.56), (detail, small, _CAPTION_DETAIL))
+    return strip
+
+
 def caption_strip(title: str, detail: str = "", *, width: int = 600, height: int = CAPTION_HEIGHT) -> np.ndarray:
     """A ``(height, width, 3)`` uint8 strip: ``title`` in black, ``detail`` below it in grey."""
-    strip = Image.new("RGB", (width, height), _CAPTION_BACKGROUND)
-    draw = ImageDraw.Draw(strip)
-    big, small = max(8, round(height * 0.36)), max(8, round(height * 0.27))
-    draw.text((8, round(height * 0.06)), _drawable(big, title), font=_font(big), fill=_CAPTION_TEXT)
-    if detail:
-        draw.text((8, round(height * 0.56)), _drawable(small, detail), font=_font(small), fill=_CAPTION_DETAIL)
-    draw.line([(0, height - 1), (width, height - 1)], fill=_CAPTION_RULE)
-    return np.asarray(strip)
+    return _strip(width, height, (title,), (detail,) if detail else ())
 
 
 def add_caption(frame: np.ndarray, title: str, detail: str = "", *, out: np.ndarray | None = None) -> np.ndarray:
@@ -171,25 +224,31 @@ def add_caption(frame: np.ndarray, title: str, detail: str = "", *, out: np.ndar
 
     ``out`` (of that shape) is filled and returned instead of a new array.
     """
+    return _stack(frame, (title,), (detail,) if detail else (), out)
+
+
+def _stack(frame: np.ndarray, title: Sequence[str], detail: Sequence[str], out: np.ndarray | None) -> np.ndarray:
     height, width = frame.shape[:2]
     if out is None:
         out = np.empty((height + CAPTION_HEIGHT, width, 3), dtype=np.uint8)
-    out[:CAPTION_HEIGHT] = caption_strip(title, detail, width=width)
+    out[:CAPTION_HEIGHT] = _strip(width, CAPTION_HEIGHT, title, detail)
     out[CAPTION_HEIGHT:] = frame
     return out
 
 
-def _caption_lines(title: str, frame: _Frame, *, seed: int | None, episode_seed: int,
-                   max_steps: int) -> tuple[str, str]:
+def _caption_pieces(title: str, frame: _Frame, *, seed: int | None, episode_seed: int,
+                    max_steps: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The two caption lines of a frame, split into a fixed head (cached once drawn) and what changes."""
     finished = frame.terminated or frame.truncated
     ret = f"{'final return' if finished else 'return'} {frame.return_so_far:.0f}"
-    detail = [f"training seed {seed}"] if seed is not None else []
-    detail += [f"start state: reset(seed={episode_seed})", f"step {frame.step}/{max_steps}"]
+    head = f"training seed {seed} · " if seed is not None else ""
+    head += f"start state: reset(seed={episode_seed}) · "
+    detail = [head, *_DIGITS.findall(f"step {frame.step}/{max_steps}")]
     if frame.terminated:
-        detail.append("reached the flag")
+        detail.append(" · reached the flag")
     elif frame.truncated:
-        detail.append("out of time")
-    return f"{title} · {ret}", " · ".join(detail)
+        detail.append(" · out of time")
+    return (f"{title} · ", *_DIGITS.findall(ret)), tuple(detail)
 
 
 def _captioned(frames: Iterable[_Frame], title: str, *, seed: int | None, episode_seed: int,
@@ -197,11 +256,9 @@ def _captioned(frames: Iterable[_Frame], title: str, *, seed: int | None, episod
     """Each frame under its caption, in one reused buffer (copy it to keep it)."""
     buffer = None
     for frame in frames:
-        if buffer is None:
-            height, width = frame.image.shape[:2]
-            buffer = np.empty((height + CAPTION_HEIGHT, width, 3), dtype=np.uint8)
-        line, detail = _caption_lines(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps)
-        yield add_caption(frame.image, line, detail, out=buffer), frame
+        line, detail = _caption_pieces(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps)
+        buffer = _stack(frame.image, line, detail, buffer)
+        yield buffer, frame
 
 
 def stage_title(config: ExperimentConfig, stage: str | None) -> str:
@@ -310,6 +367,8 @@ class _GifFrames:
             raise ValueError(f"every must be >= 1; got {every}")
         self.scale, self.every = scale, every
         self.images: list[Image.Image] = []
+        self.indices: list[int] = []
+        """Index in the source of each kept frame."""
         self.palette: Image.Image | None = None
         self.count = 0
         self._pending: np.ndarray | None = None
@@ -318,7 +377,7 @@ class _GifFrames:
         image = Image.fromarray(np.ascontiguousarray(frame))
         if self.scale < 1:
             size = (max(1, round(image.width * self.scale)), max(1, round(image.height * self.scale)))
-            image = image.resize(size, Image.Resampling.BOX)
+            image = image.resize(size, Image.Resampling.BOX, reducing_gap=1.0)  # 0.5: a fast 2x2 mean
         if self.palette is None:
             self.palette = image.quantize(colors=GIF_COLORS, method=Image.Quantize.MEDIANCUT,
                                           dither=Image.Dither.NONE)
@@ -328,6 +387,7 @@ class _GifFrames:
         frame = _rgb(frame)
         if self.count % self.every == 0:
             self.images.append(self._reduce(frame))
+            self.indices.append(self.count)
             self._pending = None
         else:
             self._pending = frame.copy()  # kept in case it is the last frame
@@ -336,28 +396,36 @@ class _GifFrames:
     def finish(self) -> list[Image.Image]:
         if self._pending is not None:
             self.images.append(self._reduce(self._pending))
+            self.indices.append(self.count - 1)
             self._pending = None
         return self.images
+
+    def durations(self, fps: float) -> list[int]:
+        """Milliseconds each kept frame is shown, so the GIF keeps real time although GIF delays are whole
+        centiseconds: each frame starts at its source time rounded to 10 ms."""
+        starts = [10 * round(100 * index / fps) for index in [*self.indices, self.count]]
+        durations = [b - a for a, b in itertools.pairwise(starts)]
+        durations[-1] += GIF_HOLD_MS
+        return durations
 
     def save(self, path: Path, fps: float) -> Path:
         images = self.finish()
         if not images:
             raise ValueError("write_gif: no frames")
-        step_ms = round(1000 * self.every / fps)
-        durations = [step_ms] * len(images)
-        durations[-1] += GIF_HOLD_MS
+        durations = self.durations(fps)
         store.write_atomic(Path(path), lambda handle: images[0].save(
             handle, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0,
             optimize=False, disposal=1))
         return Path(path)
 
 
-def write_gif(frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale: float = 0.5,
-              every: int = 2) -> Path:
+def write_gif(frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale: float = GIF_SCALE,
+              every: int = GIF_EVERY) -> Path:
     """A small looping GIF of ``frames``: every ``every``-th frame (and the last), scaled by ``scale``.
 
-    It plays at ``fps / every`` frames per second, so it keeps the real-time speed of an MP4 at ``fps``,
-    and holds the last frame one second longer before it loops. Written atomically.
+    It shows each frame as long as ``every`` frames last at ``fps`` (to the centisecond GIF delays
+    allow), so it keeps the real-time speed of an MP4 at ``fps``, and holds the last frame one second
+    longer before it loops. Written atomically.
     """
     gif = _GifFrames(scale, every)
     for frame in frames:
@@ -368,32 +436,21 @@ def write_gif(frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale:
 # --- stage videos ---------------------------------------------------------------------------------
 
 
-class _Job(NamedTuple):
-    run_dir: Path
-    seed: int
-    stage: str
-    title: str
-    mp4: Path
-    gif: Path | None
-    episode_seed: int
-    max_steps: int
-    fps: float
-
-
-def _render_job(job: _Job) -> list[Path]:
-    """Play, caption and encode one video in a single pass; the MP4 encoder runs while Python renders."""
-    agent = load_agent(job.run_dir, seed=job.seed, stage=job.stage)
-    gif = _GifFrames(0.5, 2) if job.gif is not None else None
-    frames = _captioned(_play(agent, job.episode_seed, job.max_steps), job.title, seed=job.seed,
-                        episode_seed=job.episode_seed, max_steps=job.max_steps)
-    with _mp4_writer(job.mp4, job.fps) as writer:
+def _render_video(agent: Agent, title: str, mp4: Path, gif: Path | None, *, seed: int, episode_seed: int,
+                  max_steps: int, fps: float) -> list[Path]:
+    """Play, caption and encode one video in a single pass: ffmpeg encodes in its own process while
+    Python renders the next frames, and no more than one frame is held in memory (plus the GIF's)."""
+    frames = _captioned(_play(agent, episode_seed, max_steps), title, seed=seed, episode_seed=episode_seed,
+                        max_steps=max_steps)
+    small = _GifFrames(GIF_SCALE, GIF_EVERY) if gif is not None else None
+    with _mp4_writer(mp4, fps) as writer:
         for image, _ in frames:
             writer.append_data(image)
-            if gif is not None:
-                gif.add(image)
-    if gif is None or job.gif is None:
-        return [job.mp4]
-    return [job.mp4, gif.save(job.gif, job.fps)]
+            if small is not None:
+                small.add(image)
+    if small is None or gif is None:
+        return [mp4]
+    return [mp4, small.save(gif, fps)]
 
 
 def render_stage_videos(
@@ -406,16 +463,17 @@ def render_stage_videos(
     max_steps: int | None = None,
     gif: bool = True,
     fps: float = FPS,
-    workers: int = 1,
 ) -> list[Path]:
     """One MP4 (and GIF) per stage of learning of training seed ``seed`` in ``run_dir``.
 
     Files are ``{config.name}-seed{seed}-{stage}.mp4`` / ``.gif`` in ``out_dir``, returned in stage
-    order, each MP4 followed by its GIF. ``stages`` defaults to the run's ``config.stages``;
-    ``max_steps`` to the run's episode limit. The random baseline gets one video,
-    ``random-seed{seed}.mp4`` (``stages`` is then ignored), since its policy does not change.
-    ``workers > 1`` renders stages in that many processes; each video depends only on its own stage,
-    so the files are the same whatever the number of workers.
+    order, each MP4 followed by its GIF. ``stages`` defaults to the run's ``config.stages``; ``max_steps``
+    to the run's episode limit. The random baseline gets one video, ``random-seed{seed}.mp4`` (``stages``
+    is then ignored), since its policy does not change with training.
+
+    Stages are rendered one after the other: the MP4 encoder already runs beside the renderer, so on
+    two cores extra processes only add start-up time (each has to import Gymnasium and compile the
+    grid lookup). To use more cores, render several configurations at once.
     """
     run_dir, out_dir = Path(run_dir), Path(out_dir)
     config = Results.load(run_dir).config
@@ -432,11 +490,9 @@ def render_stage_videos(
             raise KeyError(f"stage {unknown[0]!r} is not in this run; stages: {known}")
         plan = [(name, stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
     store.prepare_directory(out_dir)
-    jobs = [_Job(run_dir, seed, stage, title, out_dir / f"{stem}.mp4", out_dir / f"{stem}.gif" if gif else None,
-                 int(episode_seed), limit, fps) for stage, title, stem in plan]
-    if workers <= 1 or len(jobs) == 1:
-        written = [_render_job(job) for job in jobs]
-    else:
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=get_context("spawn")) as pool:
-            written = list(pool.map(_render_job, jobs))
-    return [path for paths in written for path in paths]
+    written: list[Path] = []
+    for stage, title, stem in plan:
+        agent = load_agent(run_dir, seed=seed, stage=stage)
+        written += _render_video(agent, title, out_dir / f"{stem}.mp4", out_dir / f"{stem}.gif" if gif else None,
+                                 seed=seed, episode_seed=int(episode_seed), max_steps=limit, fps=fps)
+    return written

@@ -69,7 +69,7 @@ def cell_index_2d(grid: UniformGrid, x0: float, x1: float) -> int:
     return b0 * grid.bins[1] + b1
 
 
-@njit
+@njit(cache=True)
 def cell_index(grid: UniformGrid, observation: np.ndarray) -> int:
     """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
     flat = 0

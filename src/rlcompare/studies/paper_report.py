@@ -197,12 +197,13 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
 
         for name, results in runs.items():
             seed = results.seeds[0] if video_seed is None else video_seed
-            paths = render_stage_videos(study_dir / name, study_dir / "videos", seed=seed)
-            mp4s = sorted(p for p in paths if p.suffix == ".mp4")
-            for mp4 in mp4s:
+            stages = iter([None] if results.config.algorithm == "random" else [n for n, _ in results.config.stages])
+            for mp4 in (p for p in render_stage_videos(study_dir / name, study_dir / "videos", seed=seed)
+                        if p.suffix == ".mp4"):
                 gif = mp4.with_suffix(".gif")
+                stage = next(stages) or "random policy"
                 video_cells.append((f"videos/{mp4.name}", f"videos/{gif.name}" if gif.exists() else "",
-                                    f"{label(results)}, seed {seed}: {mp4.stem.rsplit('-', 1)[-1]}"))
+                                    f"{label(results)}, seed {seed}: {stage}"))
         seconds["videos"] = time.perf_counter() - mark
 
     sections = _sections(first, runs, tables, curve_figures, explanation_figures, video_cells)

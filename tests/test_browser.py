@@ -1,0 +1,67 @@
+"""report.html in a real headless browser: Debian's Chromium, driven by Playwright.
+
+The test command (``scripts/test``) installs Chromium on a fresh machine; in CI its absence is a failure,
+on a developer's machine without it the test is skipped.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rlcompare.studies.paper import paper_configs, reproduce
+from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, build_report
+
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-sync",
+                 "--disable-background-networking", "--disable-component-update"]
+
+
+@pytest.fixture(scope="module")
+def chromium() -> str:
+    path = shutil.which("chromium")
+    if path is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is not installed; scripts/test installs it on a fresh machine")
+        pytest.skip("chromium is not installed (scripts/test installs it)")
+    return path
+
+
+def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_path: Path) -> None:
+    sync_playwright = pytest.importorskip("playwright.sync_api").sync_playwright
+    configs = paper_configs((0, 1, 2), episodes=300, max_steps=300, eval_every=50, eval_episodes=3)
+    list(reproduce(tmp_path, configs))
+    outcome = build_report(tmp_path, videos=True)
+    assert outcome.problems == []
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.goto(outcome.path.resolve().as_uri())
+        page.wait_for_function("() => [...document.images].every(i => i.complete)", timeout=30_000)
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('video')].every(v => v.readyState >= 2 && v.duration > 0)",
+            timeout=60_000,
+        )
+        images = page.evaluate("() => [...document.images].map(i => [i.getAttribute('src'), i.naturalWidth])")
+        videos = page.evaluate(
+            "() => [...document.querySelectorAll('video')].map(v => [v.getAttribute('src'), v.readyState, v.duration,"
+            " v.videoWidth])"
+        )
+        tables = page.evaluate(
+            "() => Object.fromEntries([...document.querySelectorAll('h3')].map(h => [h.textContent,"
+            " [...h.nextElementSibling.querySelectorAll('tbody tr')].map(r => r.cells[0].textContent)]))"
+        )
+        page.screenshot(path=str(tmp_path / "report.png"), full_page=True)
+        browser.close()
+
+    assert len(images) >= 7 + 4 + 2  # figures 3-9, a stage figure per learner, visits, first actions
+    assert all(width > 0 for _, width in images), images
+    assert len(videos) == 1 + 4 * 3  # the random baseline once, each learner at three stages
+    assert all(state >= 2 and duration > 0 and width > 0 for _, state, duration, width in videos), videos
+    assert tables["Table I"] == list(CONFIGURATIONS)
+    assert tables["Table II"] == list(CONFIGURATIONS)
+    assert tables["Verdicts"] == [claim.text for claim in CLAIMS]
+    assert (tmp_path / "report.png").stat().st_size > 50_000
