@@ -8,7 +8,7 @@ import pytest
 from gymnasium.wrappers import DiscretizeObservation
 
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import cell_index, cell_index_2d, make_grid
+from rlcompare.envs.discretize import cell_index, cell_index_2d, cell_indices, make_grid
 
 BINS = [20, 7, 2, (10, 13), (1, 5)]
 
@@ -66,7 +66,8 @@ def _assert_same_cells(grid, wrapper, observations: np.ndarray) -> None:
     expected = np.array([wrapper.observation(o) for o in observations])
     flat = np.array([cell_index(grid, o) for o in observations])
     flat_2d = np.array([cell_index_2d(grid, float(o[0]), float(o[1])) for o in observations])
-    mismatch = np.flatnonzero((flat != expected) | (flat_2d != expected))
+    vectorised = cell_indices(grid, observations)
+    mismatch = np.flatnonzero((flat != expected) | (flat_2d != expected) | (vectorised != expected))
     assert mismatch.size == 0, [(observations[i].tolist(), expected[i], flat[i], flat_2d[i]) for i in mismatch[:5]]
     assert np.all((expected >= 0) & (expected < grid.n_cells))
 

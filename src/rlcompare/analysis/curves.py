@@ -33,9 +33,9 @@ def mean_band(
     mean = curves.mean(axis=0)
     if curves.shape[0] < 2:
         return mean, mean.copy(), mean.copy()
-    rng = np.random.default_rng(seed)
-    picks = rng.integers(0, curves.shape[0], size=(n_resamples, curves.shape[0]))
-    resampled = curves[picks].mean(axis=1)
+    seeds = curves.shape[0]
+    counts = np.random.default_rng(seed).multinomial(seeds, np.full(seeds, 1 / seeds), size=n_resamples)
+    resampled = counts @ curves / seeds  # each row: the mean of one resample of whole seeds
     tail = (1 - confidence) / 2 * 100
     low, high = np.percentile(resampled, [tail, 100 - tail], axis=0)
     return mean, low, high

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import UniformGrid, cell_index_2d
+from rlcompare.envs.discretize import UniformGrid, cell_indices
 
 
 def start_cells(grid: UniformGrid, points: int = 2001) -> np.ndarray:
     """Cells of start states ``(p, 0)`` for ``p`` evenly spread over the reset range [-0.6, -0.4]."""
     positions = np.linspace(mountain_car.RESET_LOW, mountain_car.RESET_HIGH, points)
-    return np.array([cell_index_2d(grid, p, 0.0) for p in positions])
+    return cell_indices(grid, np.column_stack([positions, np.zeros(points)]))
 
 
 def first_action_shares(q_tables: np.ndarray, grid: UniformGrid) -> np.ndarray:

@@ -49,6 +49,15 @@ def make_grid(low: np.ndarray, high: np.ndarray, bins: int | tuple[int, ...]) ->
     return UniformGrid(edges=edges, low=low64, scale=scale, bins=per_dim)
 
 
+def cell_indices(grid: UniformGrid, observations: np.ndarray) -> np.ndarray:
+    """Flat cells of many observations ``(n, dims)`` at once, in numpy: ``np.digitize`` per dimension."""
+    observations = np.asarray(observations, dtype=np.float32).reshape(-1, grid.bins.size)
+    flat = np.zeros(observations.shape[0], dtype=np.int64)
+    for dim, bins in enumerate(grid.bins):
+        flat = flat * bins + np.searchsorted(grid.edges[dim, : bins - 1], observations[:, dim], side="right")
+    return flat
+
+
 @njit(inline="always")
 def _bin(edges: np.ndarray, low: float, scale: float, bins: int, x: float) -> int:
     """Number of inner edges ``<= x``: ``np.digitize(x, edges)``."""
