@@ -41,6 +41,7 @@ RESET_HIGH = -0.4
 REWARD = -1.0
 OBSERVATION_LOW = np.array([MIN_POSITION, -MAX_SPEED], dtype=np.float32)
 OBSERVATION_HIGH = np.array([MAX_POSITION, MAX_SPEED], dtype=np.float32)
+BOOK_MAX_POSITION = 0.5
 
 
 @njit(inline="always")
@@ -50,12 +51,19 @@ def reset(rng_state: np.ndarray) -> tuple[float, float]:
 
 
 @njit(inline="always")
-def step(position: float, velocity: float, action: int) -> tuple[float, float, bool]:
-    """One transition: the new ``(position, velocity)`` and whether the car reached the goal."""
+def step(
+    position: float, velocity: float, action: int, max_position: float = MAX_POSITION
+) -> tuple[float, float, bool]:
+    """One transition: the new ``(position, velocity)`` and whether the car reached the goal.
+
+    ``max_position`` is Gymnasium's right bound, 0.6; the book's variant (Sutton and Barto, Example 10.1)
+    bounds the position at 0.5, where the goal is, which changes no trajectory but the bounds a tile coder
+    spans.
+    """
     velocity = velocity + ((action - 1) * FORCE + math.cos(3 * position) * (-GRAVITY))
     velocity = min(max(velocity, -MAX_SPEED), MAX_SPEED)
     position = position + velocity
-    position = min(max(position, MIN_POSITION), MAX_POSITION)
+    position = min(max(position, MIN_POSITION), max_position)
     if position == MIN_POSITION and velocity < 0:
         velocity = 0.0
     terminated = position >= GOAL_POSITION and velocity >= GOAL_VELOCITY

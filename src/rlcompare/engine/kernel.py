@@ -1,0 +1,563 @@
+"""Fused training kernels: every algorithm, many runs at once, one core each.
+
+A run is one seed of one configuration. :func:`train_runs` spreads runs over threads with ``prange``;
+each run owns its weights and three random streams (environment resets, the agent's choices, evaluation
+resets), so a run's result is the same whatever thread runs it, however many threads there are, and
+however the episodes are split into chunks between calls. The environment stream only draws start states
+(and the outcomes of stochastic table environments), so every algorithm sees the same start state at the
+same episode of the same seed: common random numbers for paired comparisons.
+
+Values are linear in binary features, ``q(s, a) = sum of w[i, a] over the active features i of s``
+(Sutton and Barto, 9.5 and 10.1). With the uniform grid one feature is active and ``w`` is the Q-table of
+the paper; with tile coding one feature per tiling is active; a table environment's state is its own
+feature. One episode loop per family of methods:
+
+- one-step: Q-Learning (6.5, Algorithm 1), SARSA (6.4, Algorithm 2), Expected SARSA (6.6), Double
+  Q-Learning (6.7) and the random baseline;
+- n-step SARSA (7.2);
+- SARSA(λ) and Watkins's Q(λ) with accumulating or replacing traces (12.7, 12.10);
+- REINFORCE, with or without a learned state-value baseline (13.3, 13.4; the paper's Algorithm 3).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
+from rlcompare.algorithms.softmax import sample_softmax, softmax
+from rlcompare.algorithms.td import (
+    double_q_target,
+    expected_sarsa_target,
+    q_learning_target,
+    sarsa_target,
+)
+from rlcompare.envs import mountain_car, table
+from rlcompare.envs.discretize import UniformGrid, cell_index_2d
+from rlcompare.envs.table import TableEnv
+from rlcompare.envs.tiles import TileCoding, active_tiles
+from rlcompare.rng import next_double, stream_state
+
+RANDOM, Q_LEARNING, SARSA, EXPECTED_SARSA, DOUBLE_Q, N_STEP_SARSA, SARSA_LAMBDA, Q_LAMBDA, REINFORCE = range(9)
+ALGORITHM_CODES = {
+    "random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA, "expected_sarsa": EXPECTED_SARSA,
+    "double_q_learning": DOUBLE_Q, "n_step_sarsa": N_STEP_SARSA, "sarsa_lambda": SARSA_LAMBDA,
+    "q_lambda": Q_LAMBDA, "reinforce": REINFORCE,
+}
+MOUNTAIN_CAR, TABLE = 0, 1
+GRID, TILES, ONE_HOT = 0, 1, 2
+ENV_STREAM, AGENT_STREAM, EVAL_STREAM = 0, 1, 2
+
+
+class Env(NamedTuple):
+    """Which dynamics to step: Mountain Car (with its right bound) or a table."""
+
+    kind: int
+    max_position: float
+    table: TableEnv
+    n_actions: int
+
+
+class Features(NamedTuple):
+    """How a state becomes active feature indices."""
+
+    kind: int
+    grid: UniformGrid
+    tiles: TileCoding
+    n_features: int
+    n_active: int
+
+
+class Settings(NamedTuple):
+    """Scalars of one configuration, as the kernel reads them."""
+
+    algorithm: int
+    alpha: float
+    gamma: float
+    max_steps: int
+    truncation_is_terminal: bool
+    eval_every: int
+    n: int  # n-step SARSA's n
+    lam: float  # λ of the trace methods
+    replacing: bool  # replacing traces instead of accumulating ones
+    target_epsilon: float  # Expected SARSA's target-policy ε; negative: the behaviour ε (on-policy)
+    baseline_alpha: float  # REINFORCE's baseline step size; 0: no baseline
+
+
+class Records(NamedTuple):
+    """What training writes, indexed by run first; filled in place, chunk by chunk."""
+
+    returns: np.ndarray  # (runs, episodes) float64: behaviour return of each episode
+    lengths: np.ndarray  # (runs, episodes) int64
+    terminated: np.ndarray  # (runs, episodes) bool: reached a terminal state before the limit
+    eval_returns: np.ndarray  # (runs, rounds, eval_episodes) float64: target-policy returns
+    eval_lengths: np.ndarray  # (runs, rounds, eval_episodes) int64
+    eval_terminated: np.ndarray  # (runs, rounds, eval_episodes) bool
+    snapshots: np.ndarray  # (runs, stages, features, actions) float64: weights at named stages
+    snapshot_episodes: np.ndarray  # (stages,) int64: episodes completed when each snapshot is taken
+    visits: np.ndarray  # (runs, features) int64: training steps taken with each feature active
+
+
+class RunState(NamedTuple):
+    """What carries over from one chunk of episodes to the next."""
+
+    w: np.ndarray  # (runs, features, actions) float64, initialised to 0 as in the paper
+    w2: np.ndarray  # (runs, features, actions): Double Q-Learning's second estimate; REINFORCE's baseline in [:, :, 0]
+    rng: np.ndarray  # (runs, 3, 4) uint64: the environment, agent and evaluation streams of each run
+
+
+def initial_state(seeds: list[int], n_features: int, n_actions: int) -> RunState:
+    """Zero weights and per-run streams. The environment stream of seed ``s`` is ``PCG64(s)``, so its
+    start states are those of Gymnasium's ``env.reset(seed=s)`` followed by plain resets."""
+    rng = np.empty((len(seeds), 3, 4), dtype=np.uint64)
+    for run, seed in enumerate(seeds):
+        agent, evaluation = np.random.SeedSequence(seed).spawn(2)
+        rng[run, ENV_STREAM] = stream_state(seed)
+        rng[run, AGENT_STREAM] = stream_state(agent)
+        rng[run, EVAL_STREAM] = stream_state(evaluation)
+    shape = (len(seeds), n_features, n_actions)
+    return RunState(w=np.zeros(shape), w2=np.zeros(shape), rng=rng)
+
+
+def allocate_records(
+    runs: int, episodes: int, rounds: int, eval_episodes: int, snapshot_episodes: np.ndarray, w_shape: tuple
+) -> Records:
+    return Records(
+        returns=np.zeros((runs, episodes)),
+        lengths=np.zeros((runs, episodes), dtype=np.int64),
+        terminated=np.zeros((runs, episodes), dtype=np.bool_),
+        eval_returns=np.zeros((runs, rounds, eval_episodes)),
+        eval_lengths=np.zeros((runs, rounds, eval_episodes), dtype=np.int64),
+        eval_terminated=np.zeros((runs, rounds, eval_episodes), dtype=np.bool_),
+        snapshots=np.zeros((runs, snapshot_episodes.size, *w_shape)),
+        snapshot_episodes=np.asarray(snapshot_episodes, dtype=np.int64),
+        visits=np.zeros((runs, w_shape[0]), dtype=np.int64),
+    )
+
+
+# --- environment and features -------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def env_reset(env: Env, state: np.ndarray, rng: np.ndarray) -> None:
+    """Write a start state into ``state`` (Mountain Car: position, velocity; a table: the state index)."""
+    if env.kind == MOUNTAIN_CAR:
+        state[0], state[1] = mountain_car.reset(rng)
+    else:
+        state[0] = table.reset(env.table, rng)
+
+
+@njit(inline="always")
+def env_step(env: Env, state: np.ndarray, action: int, rng: np.ndarray) -> tuple[float, bool]:
+    """Advance ``state`` in place by one action; ``(reward, terminated)``."""
+    if env.kind == MOUNTAIN_CAR:
+        state[0], state[1], terminated = mountain_car.step(state[0], state[1], action, env.max_position)
+        return mountain_car.REWARD, terminated
+    next_state, reward, ends = table.step(env.table, int(state[0]), action, rng)
+    state[0] = next_state
+    return reward, ends
+
+
+@njit(inline="always")
+def observe(features: Features, state: np.ndarray, active: np.ndarray) -> None:
+    """Write the indices of the features active in ``state`` into ``active``."""
+    if features.kind == GRID:
+        active[0] = cell_index_2d(features.grid, state[0], state[1])
+    elif features.kind == TILES:
+        active_tiles(features.tiles, state[0], state[1], active)
+    else:
+        active[0] = int(state[0])
+
+
+# --- linear values --------------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def action_values(w: np.ndarray, active: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``q(s, a)`` for every action: the sum of the active features' weights."""
+    for a in range(w.shape[1]):
+        total = 0.0
+        for i in active:
+            total += w[i, a]
+        out[a] = total
+    return out
+
+
+@njit(inline="always")
+def action_value(w: np.ndarray, active: np.ndarray, action: int) -> float:
+    """``q(s, action)`` alone."""
+    total = 0.0
+    for i in active:
+        total += w[i, action]
+    return total
+
+
+@njit(inline="always")
+def add_to_action(w: np.ndarray, active: np.ndarray, action: int, amount: float) -> None:
+    """Semi-gradient step on ``q(s, action)``: its gradient is 1 on each active feature (9.5)."""
+    for i in active:
+        w[i, action] += amount
+
+
+# --- one-step methods -----------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _behaviour_values(settings: Settings, w: np.ndarray, w2: np.ndarray, active: np.ndarray, q: np.ndarray,
+                      scratch: np.ndarray) -> np.ndarray:
+    """The values the behaviour policy is greedy in: ``Q1 + Q2`` for Double Q-Learning, else ``q``."""
+    action_values(w, active, q)
+    if settings.algorithm == DOUBLE_Q:
+        q += action_values(w2, active, scratch)
+    return q
+
+
+@njit
+def one_step_episode(
+    settings: Settings, env: Env, features: Features, w: np.ndarray, w2: np.ndarray, epsilon: float,
+    env_rng: np.ndarray, agent_rng: np.ndarray, visits: np.ndarray,
+) -> tuple[float, int, bool]:
+    """One episode of Q-Learning, SARSA, Expected SARSA, Double Q-Learning or the random baseline.
+
+    SARSA draws the next action before its update, from the values it bootstraps on (Algorithm 2); the
+    others draw it after the update, at the top of the loop (Algorithm 1).
+    """
+    algorithm, alpha, gamma = settings.algorithm, settings.alpha, settings.gamma
+    n_actions, n_active = w.shape[1], features.n_active
+    target_epsilon = epsilon if settings.target_epsilon < 0 else settings.target_epsilon
+    state = np.zeros(2)
+    active, next_active = np.empty(n_active, np.int64), np.empty(n_active, np.int64)
+    q, scratch = np.empty(n_actions), np.empty(n_actions)
+    env_reset(env, state, env_rng)
+    observe(features, state, active)
+    if algorithm == RANDOM:
+        action = uniform_action(n_actions, agent_rng)
+    else:
+        action = epsilon_greedy_action(_behaviour_values(settings, w, w2, active, q, scratch), epsilon, agent_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while True:
+        for i in active:
+            visits[i] += 1
+        reward, terminated = env_step(env, state, action, env_rng)
+        episode_return += reward
+        steps += 1
+        truncated = not terminated and steps >= settings.max_steps
+        terminal = terminated or (truncated and settings.truncation_is_terminal)
+        observe(features, state, next_active)
+        if algorithm == RANDOM:
+            if terminated or truncated:
+                break
+            action = uniform_action(n_actions, agent_rng)
+        else:
+            learner, other = w, w2
+            if algorithm == DOUBLE_Q and next_double(agent_rng) >= 0.5:
+                learner, other = w2, w
+            q_next = action_values(learner, next_active, q)
+            next_action = 0
+            if algorithm == SARSA:
+                next_action = 0 if terminal else epsilon_greedy_action(q_next, epsilon, agent_rng)
+                target = sarsa_target(reward, q_next[next_action], gamma, terminal)
+            elif algorithm == Q_LEARNING:
+                target = q_learning_target(reward, q_next, gamma, terminal)
+            elif algorithm == EXPECTED_SARSA:
+                target = expected_sarsa_target(reward, q_next, target_epsilon, gamma, terminal)
+            else:
+                target = double_q_target(reward, q_next, action_values(other, next_active, scratch), gamma, terminal)
+            add_to_action(learner, active, action, alpha * (target - action_value(learner, active, action)))
+            if terminated or truncated:
+                break
+            if algorithm != SARSA:
+                next_action = epsilon_greedy_action(_behaviour_values(settings, w, w2, next_active, q, scratch),
+                                                    epsilon, agent_rng)
+            action = next_action
+        active, next_active = next_active, active
+    return episode_return, steps, terminated
+
+
+# --- n-step SARSA ---------------------------------------------------------------------------------------
+
+
+@njit
+def n_step_sarsa_episode(
+    settings: Settings, env: Env, features: Features, w: np.ndarray, epsilon: float,
+    env_rng: np.ndarray, agent_rng: np.ndarray, visits: np.ndarray,
+) -> tuple[float, int, bool]:
+    """n-step SARSA (7.2): ``G = R_{τ+1} + γ R_{τ+2} + ... + γ^n q(S_{τ+n}, A_{τ+n})`` updates ``q(S_τ, A_τ)``.
+
+    States, actions and rewards live in ring buffers of ``n + 1`` entries. A time-limit cut bootstraps
+    from ``q(S_T, A_T)``, with ``A_T`` drawn from the behaviour policy, unless it is treated as terminal.
+    """
+    n, alpha, gamma = settings.n, settings.alpha, settings.gamma
+    n_actions, n_active = w.shape[1], features.n_active
+    size = n + 1
+    actives = np.empty((size, n_active), np.int64)
+    actions = np.zeros(size, np.int64)
+    rewards = np.zeros(size)
+    state, q = np.zeros(2), np.empty(n_actions)
+    env_reset(env, state, env_rng)
+    observe(features, state, actives[0])
+    actions[0] = epsilon_greedy_action(action_values(w, actives[0], q), epsilon, agent_rng)
+    horizon = np.iinfo(np.int64).max  # T
+    bootstrap_end = False  # whether the return at T is completed by q(S_T, A_T) (a time-limit cut)
+    episode_return, t, terminated = 0.0, 0, False
+    while True:
+        if t < horizon:
+            now, later = t % size, (t + 1) % size
+            for i in actives[now]:
+                visits[i] += 1
+            reward, terminated = env_step(env, state, actions[now], env_rng)
+            episode_return += reward
+            rewards[later] = reward
+            observe(features, state, actives[later])
+            truncated = not terminated and t + 1 >= settings.max_steps
+            if terminated or truncated:
+                horizon = t + 1
+                bootstrap_end = truncated and not settings.truncation_is_terminal
+            if not terminated and not (truncated and settings.truncation_is_terminal):
+                actions[later] = epsilon_greedy_action(action_values(w, actives[later], q), epsilon, agent_rng)
+        tau = t - n + 1
+        if tau >= 0:
+            ret = 0.0
+            for k in range(tau + 1, min(tau + n, horizon) + 1):
+                ret += gamma ** (k - tau - 1) * rewards[k % size]
+            end = min(tau + n, horizon)
+            if tau + n < horizon or bootstrap_end:
+                ret += gamma ** (end - tau) * action_value(w, actives[end % size], actions[end % size])
+            start = tau % size
+            q_tau = action_value(w, actives[start], actions[start])
+            add_to_action(w, actives[start], actions[start], alpha * (ret - q_tau))
+        if tau == horizon - 1:
+            break
+        t += 1
+    return episode_return, horizon, terminated
+
+
+# --- eligibility traces ---------------------------------------------------------------------------------
+
+
+@njit
+def lambda_episode(
+    settings: Settings, env: Env, features: Features, w: np.ndarray, z: np.ndarray, touched: np.ndarray,
+    listed: np.ndarray, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, visits: np.ndarray,
+) -> tuple[float, int, bool]:
+    """SARSA(λ) (12.7) or Watkins's Q(λ) (12.10) with binary features, accumulating or replacing traces.
+
+    ``z`` holds the traces; only the pairs listed in ``touched`` (flagged in ``listed``) can be non-zero, so
+    decaying or cutting the traces costs the number of pairs visited in the episode, not the size of ``w``.
+    Q(λ) cuts every trace after an exploratory (non-greedy) action.
+    """
+    alpha, gamma, lam = settings.alpha, settings.gamma, settings.lam
+    watkins = settings.algorithm == Q_LAMBDA
+    n_actions, n_active = w.shape[1], features.n_active
+    state = np.zeros(2)
+    active, next_active = np.empty(n_active, np.int64), np.empty(n_active, np.int64)
+    q_next = np.empty(n_actions)
+    n_touched = 0
+    env_reset(env, state, env_rng)
+    observe(features, state, active)
+    action = epsilon_greedy_action(action_values(w, active, q_next), epsilon, agent_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while True:
+        for i in active:
+            visits[i] += 1
+        reward, terminated = env_step(env, state, action, env_rng)
+        episode_return += reward
+        steps += 1
+        truncated = not terminated and steps >= settings.max_steps
+        terminal = terminated or (truncated and settings.truncation_is_terminal)
+        delta = reward - action_value(w, active, action)
+        for i in active:
+            if not listed[i * n_actions + action]:
+                listed[i * n_actions + action] = True
+                touched[n_touched] = i * n_actions + action
+                n_touched += 1
+            z[i, action] = 1.0 if settings.replacing else z[i, action] + 1.0
+        observe(features, state, next_active)
+        next_action = 0
+        if not terminal:
+            action_values(w, next_active, q_next)
+            next_action = epsilon_greedy_action(q_next, epsilon, agent_rng)
+            delta += gamma * (q_next.max() if watkins else q_next[next_action])
+        step_size = alpha * delta
+        for k in range(n_touched):
+            i, a = divmod(touched[k], n_actions)
+            w[i, a] += step_size * z[i, a]
+        if terminated or truncated:
+            break
+        if watkins and q_next[next_action] < q_next.max():
+            n_touched = _clear_traces(z, touched, listed, n_touched)
+        else:
+            decay = gamma * lam
+            for k in range(n_touched):
+                i, a = divmod(touched[k], n_actions)
+                z[i, a] *= decay
+        active, next_active = next_active, active
+        action = next_action
+    _clear_traces(z, touched, listed, n_touched)  # fresh traces for the next episode
+    return episode_return, steps, terminated
+
+
+@njit(inline="always")
+def _clear_traces(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int) -> int:
+    for k in range(n_touched):
+        i, a = divmod(touched[k], z.shape[1])
+        z[i, a] = 0.0
+        listed[touched[k]] = False
+    return 0
+
+
+# --- REINFORCE ------------------------------------------------------------------------------------------
+
+
+@njit
+def reinforce_episode(
+    settings: Settings, env: Env, features: Features, theta: np.ndarray, baseline: np.ndarray,
+    env_rng: np.ndarray, agent_rng: np.ndarray, visits: np.ndarray,
+) -> tuple[float, int, bool]:
+    """REINFORCE (13.3; the paper's Algorithm 3) with a softmax policy over action preferences
+    ``h(s, a) = sum of theta[i, a]`` over active features, and optionally a learned state-value baseline
+    ``v(s) = sum of baseline[i, 0]`` (13.4). A time-limit cut ends the return where it is."""
+    alpha, gamma, baseline_alpha = settings.alpha, settings.gamma, settings.baseline_alpha
+    n_actions, n_active, limit = theta.shape[1], features.n_active, settings.max_steps
+    actives = np.empty((limit, n_active), np.int64)
+    actions = np.empty(limit, np.int64)
+    rewards = np.empty(limit)
+    state, h, pi = np.zeros(2), np.empty(n_actions), np.empty(n_actions)
+    env_reset(env, state, env_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while not terminated and steps < limit:
+        observe(features, state, actives[steps])
+        for i in actives[steps]:
+            visits[i] += 1
+        action = sample_softmax(action_values(theta, actives[steps], h), pi, agent_rng)
+        actions[steps] = action
+        reward, terminated = env_step(env, state, action, env_rng)
+        rewards[steps] = reward
+        episode_return += reward
+        steps += 1
+    ret = 0.0
+    returns = np.empty(steps)
+    for t in range(steps - 1, -1, -1):
+        ret = rewards[t] + gamma * ret
+        returns[t] = ret
+    discount = 1.0
+    for t in range(steps):
+        active = actives[t]
+        delta = returns[t]
+        if baseline_alpha > 0.0:
+            value = 0.0
+            for i in active:
+                value += baseline[i, 0]
+            delta -= value
+            for i in active:
+                baseline[i, 0] += baseline_alpha * delta
+        softmax(action_values(theta, active, h), pi)
+        scale = alpha * discount * delta
+        for a in range(n_actions):
+            gradient = (1.0 if a == actions[t] else 0.0) - pi[a]  # d ln pi(A_t | S_t) / d h(S_t, a)
+            add_to_action(theta, active, a, scale * gradient)
+        discount *= gamma
+    return episode_return, steps, terminated
+
+
+# --- evaluation and the run loop ------------------------------------------------------------------------
+
+
+@njit
+def evaluation_episode(
+    settings: Settings, env: Env, features: Features, w: np.ndarray, w2: np.ndarray, eval_rng: np.ndarray
+) -> tuple[float, int, bool]:
+    """One episode of the target policy: greedy (first maximum) in the learned values, the softmax policy
+    for REINFORCE, uniform for the baseline."""
+    n_actions, n_active = w.shape[1], features.n_active
+    state, active = np.zeros(2), np.empty(n_active, np.int64)
+    q, scratch = np.empty(n_actions), np.empty(n_actions)
+    env_reset(env, state, eval_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while not terminated and steps < settings.max_steps:
+        observe(features, state, active)
+        if settings.algorithm == RANDOM:
+            action = uniform_action(n_actions, eval_rng)
+        elif settings.algorithm == REINFORCE:
+            action = sample_softmax(action_values(w, active, q), scratch, eval_rng)
+        else:
+            action = greedy_action(_behaviour_values(settings, w, w2, active, q, scratch))
+        reward, terminated = env_step(env, state, action, eval_rng)
+        episode_return += reward
+        steps += 1
+    return episode_return, steps, terminated
+
+
+@njit
+def train_episode(
+    settings: Settings, env: Env, features: Features, w: np.ndarray, w2: np.ndarray, z: np.ndarray,
+    touched: np.ndarray, listed: np.ndarray, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray,
+    visits: np.ndarray,
+) -> tuple[float, int, bool]:
+    """One training episode of the configured algorithm."""
+    algorithm = settings.algorithm
+    if algorithm == N_STEP_SARSA:
+        return n_step_sarsa_episode(settings, env, features, w, epsilon, env_rng, agent_rng, visits)
+    if algorithm in (SARSA_LAMBDA, Q_LAMBDA):
+        return lambda_episode(settings, env, features, w, z, touched, listed, epsilon, env_rng, agent_rng, visits)
+    if algorithm == REINFORCE:
+        return reinforce_episode(settings, env, features, w, w2, env_rng, agent_rng, visits)
+    return one_step_episode(settings, env, features, w, w2, epsilon, env_rng, agent_rng, visits)
+
+
+@njit(cache=True)
+def train_run(
+    run: int, settings: Settings, env: Env, features: Features, state: RunState, epsilons: np.ndarray,
+    first_episode: int, stop_episode: int, records: Records,
+) -> None:
+    """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
+    w, w2 = state.w[run], state.w2[run]
+    env_rng, agent_rng, eval_rng = state.rng[run, 0], state.rng[run, 1], state.rng[run, 2]
+    traces = settings.algorithm == SARSA_LAMBDA or settings.algorithm == Q_LAMBDA
+    z = np.zeros(w.shape) if traces else np.zeros((1, 1))
+    touched, listed = np.empty(z.size, np.int64), np.zeros(z.size, np.bool_)
+    eval_episodes = records.eval_returns.shape[2]
+    for episode in range(first_episode, stop_episode):
+        ret, length, terminated = train_episode(
+            settings, env, features, w, w2, z, touched, listed, epsilons[episode], env_rng, agent_rng,
+            records.visits[run],
+        )
+        records.returns[run, episode] = ret
+        records.lengths[run, episode] = length
+        records.terminated[run, episode] = terminated
+        completed = episode + 1
+        if settings.eval_every > 0 and completed % settings.eval_every == 0:
+            round_ = completed // settings.eval_every - 1
+            for k in range(eval_episodes):
+                ret, length, terminated = evaluation_episode(settings, env, features, w, w2, eval_rng)
+                records.eval_returns[run, round_, k] = ret
+                records.eval_lengths[run, round_, k] = length
+                records.eval_terminated[run, round_, k] = terminated
+        for stage in range(records.snapshot_episodes.size):
+            if records.snapshot_episodes[stage] == completed:
+                records.snapshots[run, stage] = w + w2 if settings.algorithm == DOUBLE_Q else w
+
+
+@njit(parallel=True, cache=True)
+def _train_runs(
+    settings: Settings, env_kind: int, max_position: float, n_actions: int, table_env: TableEnv,
+    features_kind: int, grid: UniformGrid, tiles: TileCoding, n_features: int, n_active: int,
+    state: RunState, epsilons: np.ndarray, first_episode: int, stop_episode: int, records: Records,
+) -> None:
+    for run in prange(state.w.shape[0]):
+        # Numba's parallel loops take flat tuples of arrays only, so the nested ones are built here.
+        env = Env(env_kind, max_position, table_env, n_actions)
+        features = Features(features_kind, grid, tiles, n_features, n_active)
+        train_run(run, settings, env, features, state, epsilons, first_episode, stop_episode, records)
+
+
+def train_runs(
+    settings: Settings, env: Env, features: Features, state: RunState, epsilons: np.ndarray,
+    first_episode: int, stop_episode: int, records: Records,
+) -> None:
+    """Every run over episodes ``[first_episode, stop_episode)``, runs spread over threads."""
+    _train_runs(settings, env.kind, env.max_position, env.n_actions, env.table, features.kind, features.grid,
+                features.tiles, features.n_features, features.n_active, state, epsilons, first_episode,
+                stop_episode, records)

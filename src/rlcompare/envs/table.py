@@ -1,0 +1,99 @@
+"""Finite MDPs as precomputed tables, stepped by compiled code.
+
+Each state-action pair has a few outcomes, each with a probability, a next state, a reward and whether
+it ends the episode. Deterministic pairs have one outcome and draw nothing from the random stream.
+Small problems with known answers (a chain, a two-armed bandit) are written this way for tests, and so
+is any gridworld whose dynamics fit in a table.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from rlcompare.rng import next_double
+
+
+class TableEnv(NamedTuple):
+    """``(states, actions, outcomes)`` tables; unused outcomes have probability 0."""
+
+    next_state: np.ndarray  # int64
+    reward: np.ndarray  # float64
+    ends: np.ndarray  # bool: the outcome ends the episode (the next state is terminal)
+    cumulative: np.ndarray  # float64, cumulative probability over outcomes; the last used one is 1
+    start: np.ndarray  # (states,) float64 cumulative start distribution
+
+    @property
+    def n_states(self) -> int:
+        return self.next_state.shape[0]
+
+    @property
+    def n_actions(self) -> int:
+        return self.next_state.shape[1]
+
+
+def make_table_env(
+    outcomes: dict[tuple[int, int], list[tuple[float, int, float, bool]]], n_states: int, n_actions: int,
+    start: dict[int, float],
+) -> TableEnv:
+    """Build from ``{(state, action): [(probability, next_state, reward, ends), ...]}``; missing pairs
+    stay in place with reward 0."""
+    width = max(len(v) for v in outcomes.values())
+    shape = (n_states, n_actions, width)
+    next_state = np.repeat(np.arange(n_states)[:, None, None], n_actions, axis=1).repeat(width, axis=2)
+    reward, ends = np.zeros(shape), np.zeros(shape, dtype=np.bool_)
+    cumulative = np.ones(shape)
+    for (state, action), options in outcomes.items():
+        probabilities = np.array([p for p, *_ in options])
+        if not np.isclose(probabilities.sum(), 1.0):
+            raise ValueError(f"outcomes of ({state}, {action}) sum to {probabilities.sum()}, not 1")
+        for k, (_, target, r, done) in enumerate(options):
+            next_state[state, action, k], reward[state, action, k], ends[state, action, k] = target, r, done
+        cumulative[state, action, : len(options)] = np.cumsum(probabilities)
+        cumulative[state, action, len(options) - 1 :] = 1.0
+    start_cumulative = np.cumsum([start.get(s, 0.0) for s in range(n_states)])
+    start_cumulative[-1] = 1.0
+    return TableEnv(next_state, reward, ends, cumulative, start_cumulative)
+
+
+def chain(length: int = 5, reward: float = 1.0) -> TableEnv:
+    """States ``0 .. length - 1`` in a row, start at 0; action 1 moves right, action 0 stays. Leaving the
+    last state to the right ends the episode with ``reward``; every other step gives 0. With discount γ,
+    ``q*(s, right) = γ^(length - 1 - s) * reward`` and ``q*(s, stay) = γ q*(s, right)``."""
+    outcomes = {}
+    for s in range(length):
+        outcomes[(s, 0)] = [(1.0, s, 0.0, False)]
+        outcomes[(s, 1)] = [(1.0, s + 1, 0.0, False)] if s < length - 1 else [(1.0, s, reward, True)]
+    return make_table_env(outcomes, length, 2, {0: 1.0})
+
+
+def two_armed_bandit(p_left: float = 0.2, p_right: float = 0.8) -> TableEnv:
+    """One state, two arms; arm ``a`` pays 1 with probability ``p_a``, else 0, and the episode ends."""
+    outcomes = {(0, a): [(p, 0, 1.0, True), (1 - p, 0, 0.0, True)] for a, p in enumerate((p_left, p_right))}
+    return make_table_env(outcomes, 1, 2, {0: 1.0})
+
+
+@njit(inline="always")
+def _draw(cumulative: np.ndarray, rng_state: np.ndarray) -> int:
+    if cumulative.size == 1 or cumulative[0] >= 1.0:
+        return 0
+    u = next_double(rng_state)
+    k = 0
+    while k < cumulative.size - 1 and u >= cumulative[k]:
+        k += 1
+    return k
+
+
+@njit(inline="always")
+def reset(env: TableEnv, rng_state: np.ndarray) -> int:
+    """A start state drawn from the start distribution (no draw when it is a single state)."""
+    return _draw(env.start, rng_state)
+
+
+@njit(inline="always")
+def step(env: TableEnv, state: int, action: int, rng_state: np.ndarray) -> tuple[int, float, bool]:
+    """``(next_state, reward, ends)`` of one transition."""
+    k = _draw(env.cumulative[state, action], rng_state)
+    return env.next_state[state, action, k], env.reward[state, action, k], env.ends[state, action, k]
