@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -82,8 +85,20 @@ def test_bad_input_gets_one_clear_message_and_exit_code_2(
     assert result.exit_code == 2
     assert option in result.output
     assert allowed in result.output
-    assert "Traceback" not in result.output
+    assert isinstance(result.exception, SystemExit)  # a usage error, not an exception escaping
     assert not (tmp_path / "out").exists()
+
+
+def test_console_script_reports_bad_input_without_a_traceback(tmp_path: Path) -> None:
+    """The installed ``rlcompare`` command, as a user runs it."""
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for args, option in ((["run", "--alpha", "2"], "--alpha"), (["run", "--out", str(blocker / "sub")], "--out")):
+        completed = subprocess.run([sys.executable, "-m", "rlcompare.cli", *args, "--episodes", "2", "--seeds", "1"],
+                                   capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"}, check=False)
+        assert completed.returncode == 2
+        assert option in completed.stderr
+        assert "Traceback" not in completed.stderr + completed.stdout
 
 
 @pytest.mark.parametrize("command", ["run", "reproduce"])

@@ -43,6 +43,30 @@ def test_run_directory_round_trip(tmp_path: Path, small_config: ExperimentConfig
     np.testing.assert_array_equal(loaded.q_table(2, "final"), results.records.snapshots[2, -1])
 
 
+def test_round_trip_keeps_the_order_of_seeds(tmp_path: Path, small_config: ExperimentConfig) -> None:
+    results = run(dataclasses.replace(small_config, seeds=(5, 3, 9)), out=tmp_path / "run")
+    loaded = Results.load(tmp_path / "run")
+    np.testing.assert_array_equal(loaded.records.returns, results.records.returns)
+    np.testing.assert_array_equal(loaded.records.eval_returns, results.records.eval_returns)
+
+
+def test_failed_rewrite_of_a_finished_run_is_not_taken_for_finished(
+    tmp_path: Path, small_config: ExperimentConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    run(small_config, out=tmp_path / "run")
+    changed = dataclasses.replace(small_config, alpha=0.5)
+
+    def broken_savez(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez_compressed", broken_savez)
+    with pytest.raises(OSError, match="disk full"):
+        run(changed, out=tmp_path / "run")
+    assert not store.is_complete(tmp_path / "run")
+    assert load_if_complete(tmp_path / "run", changed) is None
+    assert load_if_complete(tmp_path / "run", small_config) is None
+
+
 def test_snapshots_are_taken_at_the_named_stages(small_config: ExperimentConfig) -> None:
     config = dataclasses.replace(small_config, schedule="constant", stages=(("early", 0.1), ("final", 1.0)))
     early = run(dataclasses.replace(config, episodes=20, stages=(("final", 1.0),)))  # same ε throughout

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Annotated
 
@@ -11,8 +10,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from rlcompare.experiment.config import ConfigError, ExperimentConfig
-from rlcompare.experiment.store import StoreError
+from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig
+from rlcompare.experiment.store import StoreError, prepare_directory
 
 app = typer.Typer(
     help="Run, measure and explain comparisons of reinforcement-learning algorithms.",
@@ -37,7 +36,8 @@ def _seeds(count: int, first: int) -> tuple[int, ...]:
 
 
 def _option_name(field_name: str) -> str:
-    return "'--seeds'" if field_name == "seeds" else f"'--{field_name.replace('_', '-')}'"
+    special = {"seeds": "'--seeds'", "stages": "'--stage'"}
+    return special.get(field_name, f"'--{field_name.replace('_', '-')}'")
 
 
 def _config(**values) -> ExperimentConfig:
@@ -50,9 +50,29 @@ def _config(**values) -> ExperimentConfig:
 
 
 def _check_out(out: Path) -> None:
+    """Create the output directory before any training, so a bad path costs nothing computed."""
     if out.exists() and not out.is_dir():
         raise typer.BadParameter(f"{out} is a file; allowed: a directory (new or existing)",
                                  param_hint="'--out'")
+    try:
+        prepare_directory(out)
+    except StoreError as error:
+        raise typer.BadParameter(f"{error}; allowed: a writable directory path", param_hint="'--out'") from None
+
+
+def _stages(specs: list[str]) -> tuple[tuple[str, float], ...]:
+    """``name=share`` pairs from ``--stage``; none given: the defaults."""
+    if not specs:
+        return DEFAULT_STAGES
+    stages = []
+    for spec in specs:
+        name, _, share = spec.partition("=")
+        try:
+            stages.append((name.strip(), float(share)))
+        except ValueError:
+            raise typer.BadParameter(f"got {spec!r}; allowed: NAME=SHARE with SHARE in (0, 1], e.g. early=0.1",
+                                     param_hint="'--stage'") from None
+    return tuple(stages)
 
 
 def _progress() -> Progress:
@@ -65,6 +85,8 @@ def _progress() -> Progress:
 def run(
     algorithm: Annotated[str, typer.Option(help="q_learning (Algorithm 1), sarsa (Algorithm 2) or random.")]
     = _DEFAULTS.algorithm,
+    env: Annotated[str, typer.Option(help="Environment: MountainCar-v0 (Gymnasium's, ported exactly).")]
+    = _DEFAULTS.env,
     schedule: Annotated[str, typer.Option(help="ε schedule: constant or decay.")] = _DEFAULTS.schedule,
     alpha: Annotated[float, typer.Option(help="Step size α in (0, 1].")] = _DEFAULTS.alpha,
     gamma: Annotated[float, typer.Option(help="Discount γ in [0, 1].")] = _DEFAULTS.gamma,
@@ -85,22 +107,26 @@ def run(
     eval_every: Annotated[int, typer.Option(help="Evaluate the greedy policy every N episodes (0: never).")]
     = _DEFAULTS.eval_every,
     eval_episodes: Annotated[int, typer.Option(help="Episodes per evaluation.")] = _DEFAULTS.eval_episodes,
+    stage: Annotated[list[str] | None, typer.Option(
+        help="Keep the Q-table at NAME=SHARE of training; repeat the option. Default: early=0.1 middle=0.5 "
+             "final=1.0.")] = None,
     out: Annotated[Path, typer.Option(help="Run directory to write.")] = Path("runs/run"),
 ) -> None:
     """Train one configuration over many seeds and write its run directory."""
     from rlcompare.experiment.runner import run as run_experiment
 
     config = _config(
-        algorithm=algorithm, schedule=schedule, alpha=alpha, gamma=gamma, epsilon=epsilon,
+        algorithm=algorithm, env=env, schedule=schedule, alpha=alpha, gamma=gamma, epsilon=epsilon,
         epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=bins,
         episodes=episodes, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
         seeds=_seeds(seeds, first_seed), eval_every=eval_every, eval_episodes=eval_episodes,
+        stages=_stages(stage or []),
     )
     _check_out(out)
     with _progress() as progress:
         task = progress.add_task(config.name, total=config.episodes)
         results = run_experiment(config, out=out, progress=lambda n: progress.advance(task, n))
-    _print_summary([results])
+    _print_summary([results], paper=False)
     console.print(f"Run directory: {out}")
 
 
@@ -120,11 +146,10 @@ def reproduce(
     from rlcompare.studies.paper import paper_configs
     from rlcompare.studies.paper import reproduce as reproduce_study
 
-    seed_list = _seeds(seeds, first_seed)
-    _check_out(out)
     if episodes < 1:
         raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
-    configs = [dataclasses.replace(c) for c in paper_configs(seed_list, episodes)]
+    configs = paper_configs(_seeds(seeds, first_seed), episodes)
+    _check_out(out)
     finished = []
     with _progress() as progress:
         task = progress.add_task("paper", total=sum(c.episodes for c in configs))
@@ -134,7 +159,7 @@ def reproduce(
             how = "loaded (already complete)" if reused else f"{seconds:.1f} s"
             progress.console.print(f"{results.config.name:<20} {len(results.seeds)} seeds x "
                                    f"{results.config.episodes} episodes: {how}")
-    _print_summary(finished)
+    _print_summary(finished, paper=True)
     _report(out, videos)
 
 
@@ -184,18 +209,20 @@ def bench() -> None:
     console.print(table)
 
 
-def _print_summary(results) -> None:
-    from rlcompare.studies.paper import summary_table
+def _print_summary(results, *, paper: bool) -> None:
+    from rlcompare.analysis.tables import per_seed_metrics, table_ii
+    from rlcompare.studies.paper import PAPER_TABLE_II
 
-    frame = summary_table(results)
-    table = Table(title="Mean cumulative reward, mean over seeds [95% bootstrap interval]",
+    frame = table_ii({r.config.name: per_seed_metrics(r) for r in results}, PAPER_TABLE_II if paper else {})
+    columns = ["configuration", "behaviour mean", "greedy mean", "greedy success"]
+    frame = frame[[*columns, "paper (Table II)"] if paper else columns]
+    table = Table(title="Mean cumulative reward over seeds [95% bootstrap interval]",
                   caption="behaviour: ε-greedy return averaged over all training episodes; greedy: return of "
                           "the final greedy policy; success: its episodes that reached the goal")
-    for column in ("configuration", "seeds", "behaviour", "greedy", "success", "paper"):
+    for column in frame.columns:
         table.add_column(column, justify="left" if column == "configuration" else "right", no_wrap=True)
-    for row in frame.itertuples():
-        table.add_row(row.configuration, str(row.seeds), row.behaviour.format(), row.greedy.format(),
-                      f"{row.success:.0%}", "" if row.paper != row.paper else f"{row.paper:.0f}")
+    for row in frame.itertuples(index=False):
+        table.add_row(*(str(value) for value in row))
     console.print(table)
 
 
@@ -206,3 +233,7 @@ def main() -> None:
     except StoreError as error:
         console.print(f"[red]Error:[/red] {error}")
         raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    main()

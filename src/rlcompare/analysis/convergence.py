@@ -16,9 +16,9 @@ stays within a band around its final value. For a run of ``episodes`` per-episod
    episodes.
 5. A run that does not solve the task by the end has nothing to converge *to*: when fewer than
    ``min_success`` of its last ``window`` episodes ended before the step limit (return ``> -max_steps``)
-   it is reported as never converged, NaN. So is a run whose smoothed curve is still outside the band
-   in its last episode (impossible by construction, since the last smoothed value *is* the final level;
-   kept as a guard).
+   it is reported as never converged, NaN. So is a run that has not stayed in the band for the last
+   ``settled_share`` of its episodes (10%) and at least ``settled_windows`` windows: the last smoothed
+   value *is* the final level, so a curve still climbing would otherwise "converge" shortly before the end.
 
 The trailing average lags the raw curve, so the settling time is late by up to one ``window`` compared
 with where the raw (noise-free) curve settles: a step change at episode ``t`` is detected at about
@@ -50,6 +50,8 @@ def convergence_episodes(
     min_band: float = 10.0,
     max_steps: int = 1000,
     min_success: float = 0.5,
+    settled_windows: int = 2,
+    settled_share: float = 0.1,
 ) -> np.ndarray:
     """Settling time of each run, in episodes (rule in the module docstring); NaN for never converged.
 
@@ -69,7 +71,8 @@ def convergence_episodes(
     last_outside = np.where(outside.any(axis=1), episodes - 1 - np.argmax(outside[:, ::-1], axis=1), -1)
     settled = last_outside + 2.0  # first index inside for good is last_outside + 1; as a count, + 1 more
     solved = (last > -max_steps).mean(axis=1) >= min_success
-    never = ~solved | (last_outside == episodes - 1)
+    shortest_stay = max(settled_windows * window, settled_share * episodes)
+    never = ~solved | (settled > episodes - shortest_stay + 1)
     return np.where(never, np.nan, settled)
 
 

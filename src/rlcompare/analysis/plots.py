@@ -43,13 +43,14 @@ def _cell_grid(values: np.ndarray, bins: int) -> np.ndarray:
 
 
 def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int) -> Axes:
-    """Greedy action in each cell, by majority over seeds; cells no seed ever updated are left blank.
+    """Greedy action in each cell, by majority over the seeds that updated it; cells none updated are blank.
 
     ``q_tables`` is ``(seeds, cells, actions)``. A fresh table holds zeros and every update with a reward
     of -1 makes a value negative, so an all-zero row marks a cell that was never updated.
     """
     greedy = q_tables.argmax(axis=2)
-    counts = np.stack([(greedy == a).sum(axis=0) for a in range(q_tables.shape[2])])
+    updated = np.any(q_tables != 0, axis=2)  # a seed that never updated a cell has no say in it
+    counts = np.stack([((greedy == a) & updated).sum(axis=0) for a in range(q_tables.shape[2])])
     majority = counts.argmax(axis=0).astype(np.float64)
     majority[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
     cmap = ListedColormap(ACTION_COLORS).with_extremes(bad="white")

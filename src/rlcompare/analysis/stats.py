@@ -211,3 +211,43 @@ def verdict(difference: Estimate, p_value: float, claimed_sign: int, level: floa
     else:
         return NOT_RESOLVED
     return SUPPORTED if observed == claimed_sign else CONTRADICTED
+
+
+def ratio_of_means(
+    a: np.ndarray, b: np.ndarray, confidence: float = 0.95, n_resamples: int = 10_000, seed: int = 0
+) -> Estimate:
+    """``mean(a) / mean(b)`` over paired seeds, with a percentile bootstrap interval resampling pairs."""
+    a, b = _per_seed(a), _per_seed(b)
+    if a.shape != b.shape:
+        raise ValueError(f"paired values need the same seeds: shapes {a.shape} and {b.shape} differ")
+    ratio = float(a.mean() / b.mean())
+    if a.size < 2:
+        return Estimate(ratio, np.nan, np.nan)
+    picks = np.random.default_rng(seed).integers(0, a.size, size=(n_resamples, a.size))
+    resampled = a[picks].mean(axis=1) / b[picks].mean(axis=1)
+    tail = (1 - confidence) / 2
+    low, high = np.quantile(resampled, [tail, 1 - tail])
+    return Estimate(ratio, float(low), float(high))
+
+
+def equivalence_verdict(difference: Estimate, margin: float) -> Verdict:
+    """Whether two methods are the same within ``margin``: supported when the whole interval of the
+    difference lies inside ``[-margin, margin]`` (two one-sided tests at the interval's level),
+    contradicted when it lies wholly outside, otherwise not resolved."""
+    if np.isnan(difference.low) or np.isnan(difference.high):
+        return NOT_RESOLVED
+    if -margin < difference.low and difference.high < margin:
+        return SUPPORTED
+    if difference.low > margin or difference.high < -margin:
+        return CONTRADICTED
+    return NOT_RESOLVED
+
+
+def ratio_verdict(ratio: Estimate, claimed: float) -> Verdict:
+    """Whether a ratio is "about" ``claimed``: supported when its interval holds ``claimed`` and excludes
+    1 (no difference), contradicted when it excludes ``claimed``, otherwise not resolved."""
+    if np.isnan(ratio.low) or np.isnan(ratio.high):
+        return NOT_RESOLVED
+    if not ratio.low <= claimed <= ratio.high:
+        return CONTRADICTED
+    return SUPPORTED if not ratio.low <= 1.0 <= ratio.high else NOT_RESOLVED

@@ -16,10 +16,13 @@ import pandas as pd
 from rlcompare.analysis.convergence import convergence_episodes, episodes_to_seconds
 from rlcompare.analysis.explain import first_action_shares
 from rlcompare.analysis.stats import (
+    equivalence_verdict,
     interval,
     paired_difference,
     probability_of_improvement,
     rank_test,
+    ratio_of_means,
+    ratio_verdict,
     verdict,
 )
 from rlcompare.envs import mountain_car
@@ -58,15 +61,18 @@ def _fmt(estimate, digits: int = 1) -> str:
     return estimate.format(digits) if not np.isnan(estimate.value) else "n/a"
 
 
-def table_i(metrics: dict[str, pd.DataFrame], paper: dict[str, float]) -> pd.DataFrame:
-    """Time to converge: episodes and seconds, mean [95% CI] over converged seeds, and how many never did."""
+def table_i(metrics: dict[str, pd.DataFrame], paper: dict[str, float], episodes: int) -> pd.DataFrame:
+    """Time to converge: episodes and seconds, mean [95% CI] over converged seeds, how many never did, and
+    the episodes with those counted at the last episode (a censored mean, free of the selection)."""
     rows = []
     for name, m in metrics.items():
         done = m.dropna(subset=["convergence_episode"])
+        censored = m["convergence_episode"].fillna(episodes).to_numpy()
         rows.append({
             "configuration": name,
             "episodes to converge": _fmt(interval(done["convergence_episode"].to_numpy()), 0)
             if len(done) else "n/a",
+            "censored at the last episode": _fmt(interval(censored), 0),
             "seconds to converge": _fmt(interval(done["convergence_seconds"].to_numpy()), 3) if len(done) else "n/a",
             "never converged": f"{len(m) - len(done)} of {len(m)}",
             "paper (Table I)": paper.get(name, ""),
@@ -93,42 +99,72 @@ def table_ii(metrics: dict[str, pd.DataFrame], paper: dict[str, float]) -> pd.Da
 
 @dataclass(frozen=True)
 class Claim:
-    """A sentence of the paper, and the paired comparison that tests it."""
+    """A sentence of the paper, and the comparison over seeds that tests it.
+
+    ``kind`` says what is tested on ``metric`` under ``schedule``:
+
+    - ``direction``: SARSA minus Q-Learning on the same seeds has the sign ``sign``;
+    - ``ratio``: Q-Learning's mean over SARSA's is about ``value``;
+    - ``same``: SARSA and Q-Learning differ by less than ``value`` (an equivalence margin);
+    - ``level``: ``method``'s mean lies on side ``sign`` of ``value``.
+    """
 
     text: str
     schedule: str
     metric: str
-    sarsa_higher: bool
-    """Whether the claim says SARSA's value of ``metric`` is the higher one."""
+    kind: str = "direction"
+    sign: int = 1
+    value: float = 0.0
+    method: str = "sarsa"
+
+
+def _paired(metrics: dict[str, pd.DataFrame], claim: Claim, episodes: int) -> tuple[np.ndarray, np.ndarray]:
+    sarsa = metrics[f"sarsa-{claim.schedule}"].sort_values("seed")
+    q = metrics[f"q_learning-{claim.schedule}"].sort_values("seed")
+    if not np.array_equal(sarsa["seed"], q["seed"]):
+        raise ValueError(f"{claim.schedule}: SARSA and Q-Learning were run on different seeds")
+    a, b = sarsa[claim.metric].to_numpy(), q[claim.metric].to_numpy()
+    if claim.metric == "convergence_episode":
+        a, b = np.nan_to_num(a, nan=episodes), np.nan_to_num(b, nan=episodes)
+    return a, b
+
+
+def _judge_one(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> dict[str, object]:
+    a, b = _paired(metrics, claim, episodes)
+    row: dict[str, object] = {"claim": claim.text, "metric": claim.metric, "SARSA": float(np.mean(a)),
+                              "Q-Learning": float(np.mean(b))}
+    if claim.kind == "direction":
+        difference, p_value = paired_difference(a, b), rank_test(a, b, paired=True)
+        better = probability_of_improvement(a, b) if claim.sign > 0 else probability_of_improvement(b, a)
+        return row | {"test": "SARSA - Q-Learning", "estimate": _fmt(difference, 2),
+                      "P(claim holds for a random pair)": _fmt(better, 2), "Wilcoxon p": p_value,
+                      "verdict": verdict(difference, p_value, claim.sign)}
+    if claim.kind == "ratio":
+        ratio = ratio_of_means(b, a)
+        return row | {"test": f"Q-Learning / SARSA, about {claim.value:.2g}?", "estimate": _fmt(ratio, 2),
+                      "Wilcoxon p": rank_test(a, b, paired=True), "verdict": ratio_verdict(ratio, claim.value)}
+    if claim.kind == "same":
+        difference = paired_difference(a, b)
+        return row | {"test": f"|SARSA - Q-Learning| < {claim.value:g}", "estimate": _fmt(difference, 2),
+                      "verdict": equivalence_verdict(difference, claim.value)}
+    values = a if claim.method == "sarsa" else b
+    reference = np.full_like(values, claim.value)
+    shift = paired_difference(values, reference)
+    p_value = rank_test(values, reference, paired=True)
+    side = ">" if claim.sign > 0 else "<"
+    return row | {"test": f"{LABEL[claim.method]} {side} {claim.value:g}", "estimate": _fmt(shift, 2),
+                  "Wilcoxon p": p_value, "verdict": verdict(shift, p_value, claim.sign)}
+
+
+LABEL = {"sarsa": "SARSA", "q_learning": "Q-Learning"}
 
 
 def judge(claims: list[Claim], metrics: dict[str, pd.DataFrame], episodes: int) -> pd.DataFrame:
-    """SARSA minus Q-Learning on the same seeds, for every claim: difference, P(improvement), p, verdict.
+    """Every claim tested on the same seeds of SARSA and Q-Learning, with its verdict.
 
-    A run that never converged counts as converging at the last episode (a censored value, which only
-    understates the gap when the faster method is the one that converged).
+    A run that never converged counts as converging at the last episode (a censored value, which can
+    only understate the gap in favour of the method that converged).
     """
-    rows = []
-    for claim in claims:
-        sarsa = metrics[f"sarsa-{claim.schedule}"].sort_values("seed")
-        q = metrics[f"q_learning-{claim.schedule}"].sort_values("seed")
-        if not np.array_equal(sarsa["seed"], q["seed"]):
-            raise ValueError(f"{claim.schedule}: SARSA and Q-Learning were run on different seeds")
-        a, b = sarsa[claim.metric].to_numpy(), q[claim.metric].to_numpy()
-        if claim.metric == "convergence_episode":
-            a, b = np.nan_to_num(a, nan=episodes), np.nan_to_num(b, nan=episodes)
-        sign = 1 if claim.sarsa_higher else -1
-        difference = paired_difference(a, b)
-        p_value = rank_test(a, b, paired=True)
-        better = probability_of_improvement(a, b) if claim.sarsa_higher else probability_of_improvement(b, a)
-        rows.append({
-            "claim": claim.text,
-            "metric": claim.metric,
-            "SARSA": float(np.mean(a)),
-            "Q-Learning": float(np.mean(b)),
-            "SARSA - Q-Learning": _fmt(difference, 2),
-            "P(claim holds for a random pair of seeds)": _fmt(better, 2),
-            "Wilcoxon p": p_value,
-            "verdict": verdict(difference, p_value, sign),
-        })
-    return pd.DataFrame(rows)
+    columns = ["claim", "metric", "SARSA", "Q-Learning", "test", "estimate", "P(claim holds for a random pair)",
+               "Wilcoxon p", "verdict"]
+    return pd.DataFrame([_judge_one(c, metrics, episodes) for c in claims], columns=columns)

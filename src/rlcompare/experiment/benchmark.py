@@ -34,7 +34,7 @@ class Measurement:
 
 
 def kernel_steps_per_second(
-    algorithm: str, threads: int, runs: int = 8, episodes: int = 400, repeats: int = 3
+    algorithm: str, threads: int, runs: int = 8, episodes: int = 2000, repeats: int = 3
 ) -> Measurement:
     """Median over ``repeats`` of a training call with ε = 0.5, no evaluation, on ``threads`` threads."""
     grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, 20)

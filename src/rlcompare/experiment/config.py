@@ -152,7 +152,7 @@ def _check_counts(c: ExperimentConfig) -> None:
         _require(_is_count(getattr(c, name), 1), name, getattr(c, name), "an integer >= 1")
     _require(_is_count(c.eval_every, 0), "eval_every", c.eval_every, "an integer >= 0 (0: no evaluation)")
     _require(len(c.seeds) >= 1, "seeds", c.seeds, "at least one seed")
-    _require(all(s >= 0 for s in c.seeds), "seeds", c.seeds, "integers >= 0")
+    _require(all(0 <= s < 2**63 for s in c.seeds), "seeds", c.seeds, "integers in [0, 2**63)")
     _require(len(set(c.seeds)) == len(c.seeds), "seeds", c.seeds, "distinct integers")
 
 

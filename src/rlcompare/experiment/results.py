@@ -75,6 +75,7 @@ class Results:
     def save(self, run_dir: Path) -> Path:
         """Write the run directory, ``meta.json`` last."""
         run_dir = store.prepare_directory(Path(run_dir))
+        (run_dir / store.META_FILE).unlink(missing_ok=True)  # the run is complete again only when rewritten
         store.write_json_atomic(run_dir / store.CONFIG_FILE, self.config.to_dict())
         for name, frame in ((store.EPISODES_FILE, self.episodes()), (store.EVALUATIONS_FILE, self.evaluations())):
             store.write_atomic(run_dir / name, lambda handle, f=frame: f.to_parquet(handle, index=False))
@@ -104,8 +105,13 @@ class Results:
             raise store.StoreError(f"{run_dir}: cannot read the stored records ({error})") from None
         runs, n_episodes = len(config.seeds), config.episodes
         rounds, per_round = config.evaluation_rounds, config.eval_episodes
-        episodes = episodes.sort_values(["seed", "episode"])
-        evaluations = evaluations.sort_values(["seed", "round"], kind="stable")
+        if len(episodes) != runs * n_episodes or len(evaluations) != runs * rounds * per_round:
+            raise store.StoreError(f"{run_dir}: the stored records do not match config.json "
+                                   f"({len(episodes)} episode rows for {runs} seeds x {n_episodes} episodes)")
+        order = {seed: position for position, seed in enumerate(config.seeds)}
+        episodes = episodes.assign(run=episodes["seed"].map(order)).sort_values(["run", "episode"])
+        evaluations = evaluations.assign(run=evaluations["seed"].map(order)).sort_values(["run", "round"],
+                                                                                         kind="stable")
         records = Records(
             returns=episodes["return"].to_numpy().reshape(runs, n_episodes),
             lengths=episodes["length"].to_numpy().reshape(runs, n_episodes),

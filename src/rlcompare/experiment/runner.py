@@ -55,6 +55,7 @@ def run(
         max_steps=int(config.max_steps), truncation_is_terminal=bool(config.truncation_as_terminal),
         eval_every=int(config.eval_every),
     )
+    train_runs(settings, state, grid, epsilons, 0, 0, records)  # compile or load the kernel outside the clock
     started = time.perf_counter()
     for first in range(0, config.episodes, CHUNK_EPISODES):
         stop = min(first + CHUNK_EPISODES, config.episodes)
@@ -78,7 +79,7 @@ def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_st
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "command": sys.argv,
         "timings": {"wall_seconds": wall, "training_steps": steps, "evaluation_steps": eval_steps,
-                    "threads": numba.get_num_threads(),
+                    "threads": min(numba.get_num_threads(), len(config.seeds)),
                     "steps_per_second": (steps + eval_steps) / wall if wall > 0 else None},
         "versions": {"python": platform.python_version(), "platform": platform.platform(),
                      **{pkg: _version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}},

@@ -7,7 +7,7 @@ A run directory holds everything needed to rebuild every table and figure withou
 | ``config.json``     | the resolved :class:`ExperimentConfig`                                     |
 | ``episodes.parquet``| one row per seed x episode: ε, behaviour return, length, terminated        |
 | ``evaluations.parquet`` | one row per seed x evaluation round x episode of the greedy policy      |
-| ``qtables.npz``     | Q-tables at the named stages, state-visit counts, seeds, grid bounds      |
+| ``qtables.npz``     | Q-tables at the named stages and their episodes, state-visit counts, seeds, ε per episode |
 | ``meta.json``       | versions, seeds, timings, command line; written last, so it marks the run complete |
 
 Every file is written to a temporary name in the same directory and renamed into place, so a reader never

@@ -11,10 +11,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
-from rlcompare.analysis.stats import mean_interval
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import load_if_complete, run
@@ -61,27 +57,3 @@ def reproduce(
             yield stored, True
         else:
             yield run(config, out=run_dir, study=STUDY, progress=progress), False
-
-
-def summary_table(results: list[Results]) -> pd.DataFrame:
-    """Mean cumulative reward per configuration, with 95% bootstrap intervals over seeds.
-
-    ``behaviour``: the mean over all training episodes of the ε-greedy return, per seed (the paper's
-    "mean cumulative reward"). ``greedy``: the mean return of the final evaluation of the greedy
-    policy, per seed. ``success``: the share of those evaluation episodes that reached the goal.
-    """
-    rows = []
-    for result in results:
-        records = result.records
-        final = records.eval_returns[:, -1] if records.eval_returns.shape[1] else np.full((1, 1), np.nan)
-        success = records.eval_terminated[:, -1] if records.eval_terminated.shape[1] else final
-        rows.append({
-            "configuration": result.config.name,
-            "seeds": len(result.seeds),
-            "episodes": result.config.episodes,
-            "behaviour": mean_interval(records.returns.mean(axis=1)),
-            "greedy": mean_interval(final.mean(axis=1)),
-            "success": float(np.mean(success)),
-            "paper": PAPER_TABLE_II.get(result.config.name, np.nan),
-        })
-    return pd.DataFrame(rows)
