@@ -141,77 +141,83 @@ def allocate_records(
 
 
 @njit(inline="always")
-def env_reset(env: Env, state: np.ndarray, rng: np.ndarray) -> None:
-    """Write a start state into ``state`` (Mountain Car: position, velocity; a table: the state index)."""
+def env_reset(env: Env, rng: np.ndarray) -> tuple[float, float]:
+    """A start state as two numbers: Mountain Car's position and velocity, or a table's state index and 0."""
     if env.kind == MOUNTAIN_CAR:
-        state[0], state[1] = mountain_car.reset(rng)
-    else:
-        state[0] = table.reset(env.table, rng)
+        return mountain_car.reset(rng)
+    return float(table.reset(env.table, rng)), 0.0
 
 
 @njit(inline="always")
-def env_step(env: Env, state: np.ndarray, action: int, rng: np.ndarray) -> tuple[float, bool]:
-    """Advance ``state`` in place by one action; ``(reward, terminated)``."""
+def env_step(env: Env, x0: float, x1: float, action: int, rng: np.ndarray) -> tuple[float, float, float, bool]:
+    """One transition from state ``(x0, x1)``: ``(x0', x1', reward, terminated)``."""
     if env.kind == MOUNTAIN_CAR:
-        state[0], state[1], terminated = mountain_car.step(state[0], state[1], action, env.max_position)
-        return mountain_car.REWARD, terminated
-    next_state, reward, ends = table.step(env.table, int(state[0]), action, rng)
-    state[0] = next_state
-    return reward, ends
+        x0, x1, terminated = mountain_car.step(x0, x1, action, env.max_position)
+        return x0, x1, mountain_car.REWARD, terminated
+    next_state, reward, ends = table.step(env.table, int(x0), action, rng)
+    return float(next_state), 0.0, reward, ends
 
 
 @njit(inline="always")
-def observe(features: Features, state: np.ndarray, active: np.ndarray) -> None:
-    """Write the indices of the features active in ``state`` into ``active``."""
+def observe(features: Features, x0: float, x1: float, actives: np.ndarray, row: int) -> None:
+    """Write the indices of the features active in state ``(x0, x1)`` into ``actives[row]``.
+
+    Feature lists live as rows of one array and are addressed by row: taking a view of a row on every step
+    costs as much as the rest of a tabular step.
+    """
     if features.kind == GRID:
-        active[0] = cell_index_2d(features.grid, state[0], state[1])
+        actives[row, 0] = cell_index_2d(features.grid, x0, x1)
     elif features.kind == TILES:
-        active_tiles(features.tiles, state[0], state[1], active)
+        active_tiles(features.tiles, x0, x1, actives[row])
     else:
-        active[0] = int(state[0])
+        actives[row, 0] = int(x0)
 
 
 # --- linear values --------------------------------------------------------------------------------------
 
 
 @njit(inline="always")
-def action_values(w: np.ndarray, active: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """``q(s, a)`` for every action: the sum of the active features' weights."""
-    for a in range(w.shape[1]):
-        total = 0.0
-        for i in active:
-            total += w[i, a]
-        out[a] = total
-    return out
-
-
-@njit(inline="always")
-def action_value(w: np.ndarray, active: np.ndarray, action: int) -> float:
-    """``q(s, action)`` alone."""
+def action_value(w: np.ndarray, actives: np.ndarray, row: int, action: int) -> float:
+    """``q(s, action)``: the sum of the weights of the features active in ``s``."""
     total = 0.0
-    for i in active:
-        total += w[i, action]
+    for k in range(actives.shape[1]):
+        total += w[actives[row, k], action]
     return total
 
 
 @njit(inline="always")
-def add_to_action(w: np.ndarray, active: np.ndarray, action: int, amount: float) -> None:
+def action_values(w: np.ndarray, actives: np.ndarray, row: int, out: np.ndarray) -> np.ndarray:
+    """``q(s, a)`` for every action."""
+    for a in range(w.shape[1]):
+        out[a] = action_value(w, actives, row, a)
+    return out
+
+
+@njit(inline="always")
+def add_to_action(w: np.ndarray, actives: np.ndarray, row: int, action: int, amount: float) -> None:
     """Semi-gradient step on ``q(s, action)``: its gradient is 1 on each active feature (9.5)."""
-    for i in active:
-        w[i, action] += amount
+    for k in range(actives.shape[1]):
+        w[actives[row, k], action] += amount
+
+
+@njit(inline="always")
+def count_visit(visits: np.ndarray, actives: np.ndarray, row: int) -> None:
+    for k in range(actives.shape[1]):
+        visits[actives[row, k]] += 1
+
+
+@njit(inline="always")
+def _behaviour_values(settings: Settings, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: int,
+                      q: np.ndarray, scratch: np.ndarray) -> np.ndarray:
+    """The values the behaviour policy is greedy in: ``Q1 + Q2`` for Double Q-Learning, else ``q``."""
+    action_values(w, actives, row, q)
+    if settings.algorithm == DOUBLE_Q:
+        q += action_values(w2, actives, row, scratch)
+    return q
 
 
 # --- one-step methods -----------------------------------------------------------------------------------
 
-
-@njit(inline="always")
-def _behaviour_values(settings: Settings, w: np.ndarray, w2: np.ndarray, active: np.ndarray, q: np.ndarray,
-                      scratch: np.ndarray) -> np.ndarray:
-    """The values the behaviour policy is greedy in: ``Q1 + Q2`` for Double Q-Learning, else ``q``."""
-    action_values(w, active, q)
-    if settings.algorithm == DOUBLE_Q:
-        q += action_values(w2, active, scratch)
-    return q
 
 
 @njit
@@ -225,55 +231,71 @@ def one_step_episode(
     others draw it after the update, at the top of the loop (Algorithm 1).
     """
     algorithm, alpha, gamma = settings.algorithm, settings.alpha, settings.gamma
-    n_actions, n_active = w.shape[1], features.n_active
+    n_actions = w.shape[1]
     target_epsilon = epsilon if settings.target_epsilon < 0 else settings.target_epsilon
-    state = np.zeros(2)
-    active, next_active = np.empty(n_active, np.int64), np.empty(n_active, np.int64)
-    q, scratch = np.empty(n_actions), np.empty(n_actions)
-    env_reset(env, state, env_rng)
-    observe(features, state, active)
+    actives = np.empty((2, features.n_active), np.int64)  # rows ``now`` and ``1 - now``: S and S'
+    q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
+    now = 0
+    x0, x1 = env_reset(env, env_rng)
+    observe(features, x0, x1, actives, now)
     if algorithm == RANDOM:
         action = uniform_action(n_actions, agent_rng)
     else:
-        action = epsilon_greedy_action(_behaviour_values(settings, w, w2, active, q, scratch), epsilon, agent_rng)
+        action = epsilon_greedy_action(_behaviour_values(settings, w, w2, actives, now, q, scratch), epsilon,
+                                       agent_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while True:
-        for i in active:
-            visits[i] += 1
-        reward, terminated = env_step(env, state, action, env_rng)
+        then = 1 - now
+        count_visit(visits, actives, now)
+        x0, x1, reward, terminated = env_step(env, x0, x1, action, env_rng)
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= settings.max_steps
         terminal = terminated or (truncated and settings.truncation_is_terminal)
-        observe(features, state, next_active)
+        observe(features, x0, x1, actives, then)
         if algorithm == RANDOM:
             if terminated or truncated:
                 break
             action = uniform_action(n_actions, agent_rng)
+        elif algorithm == DOUBLE_Q:
+            if next_double(agent_rng) < 0.5:
+                _double_q_update(w, w2, actives, now, action, reward, alpha, gamma, terminal, q_next, scratch)
+            else:
+                _double_q_update(w2, w, actives, now, action, reward, alpha, gamma, terminal, q_next, scratch)
+            if terminated or truncated:
+                break
+            action = epsilon_greedy_action(_behaviour_values(settings, w, w2, actives, then, q, scratch), epsilon,
+                                           agent_rng)
         else:
-            learner, other = w, w2
-            if algorithm == DOUBLE_Q and next_double(agent_rng) >= 0.5:
-                learner, other = w2, w
-            q_next = action_values(learner, next_active, q)
+            action_values(w, actives, then, q_next)
             next_action = 0
             if algorithm == SARSA:
                 next_action = 0 if terminal else epsilon_greedy_action(q_next, epsilon, agent_rng)
                 target = sarsa_target(reward, q_next[next_action], gamma, terminal)
             elif algorithm == Q_LEARNING:
                 target = q_learning_target(reward, q_next, gamma, terminal)
-            elif algorithm == EXPECTED_SARSA:
-                target = expected_sarsa_target(reward, q_next, target_epsilon, gamma, terminal)
             else:
-                target = double_q_target(reward, q_next, action_values(other, next_active, scratch), gamma, terminal)
-            add_to_action(learner, active, action, alpha * (target - action_value(learner, active, action)))
+                target = expected_sarsa_target(reward, q_next, target_epsilon, gamma, terminal)
+            add_to_action(w, actives, now, action, alpha * (target - action_value(w, actives, now, action)))
             if terminated or truncated:
                 break
-            if algorithm != SARSA:
-                next_action = epsilon_greedy_action(_behaviour_values(settings, w, w2, next_active, q, scratch),
-                                                    epsilon, agent_rng)
+            if algorithm != SARSA:  # after the update, which may have changed q(S', .)
+                next_action = epsilon_greedy_action(action_values(w, actives, then, q), epsilon, agent_rng)
             action = next_action
-        active, next_active = next_active, active
+        now = then
     return episode_return, steps, terminated
+
+
+@njit(inline="always")
+def _double_q_update(
+    learner: np.ndarray, other: np.ndarray, actives: np.ndarray, now: int, action: int, reward: float,
+    alpha: float, gamma: float, terminal: bool, q_next: np.ndarray, scratch: np.ndarray,
+) -> None:
+    """Double Q-Learning (6.7): ``learner`` picks the next action, ``other`` values it."""
+    then = 1 - now
+    target = double_q_target(reward, action_values(learner, actives, then, q_next),
+                             action_values(other, actives, then, scratch), gamma, terminal)
+    add_to_action(learner, actives, now, action, alpha * (target - action_value(learner, actives, now, action)))
 
 
 # --- n-step SARSA ---------------------------------------------------------------------------------------
@@ -295,28 +317,27 @@ def n_step_sarsa_episode(
     actives = np.empty((size, n_active), np.int64)
     actions = np.zeros(size, np.int64)
     rewards = np.zeros(size)
-    state, q = np.zeros(2), np.empty(n_actions)
-    env_reset(env, state, env_rng)
-    observe(features, state, actives[0])
-    actions[0] = epsilon_greedy_action(action_values(w, actives[0], q), epsilon, agent_rng)
+    q = np.empty(n_actions)
+    x0, x1 = env_reset(env, env_rng)
+    observe(features, x0, x1, actives, 0)
+    actions[0] = epsilon_greedy_action(action_values(w, actives, 0, q), epsilon, agent_rng)
     horizon = np.iinfo(np.int64).max  # T
     bootstrap_end = False  # whether the return at T is completed by q(S_T, A_T) (a time-limit cut)
     episode_return, t, terminated = 0.0, 0, False
     while True:
         if t < horizon:
             now, later = t % size, (t + 1) % size
-            for i in actives[now]:
-                visits[i] += 1
-            reward, terminated = env_step(env, state, actions[now], env_rng)
+            count_visit(visits, actives, now)
+            x0, x1, reward, terminated = env_step(env, x0, x1, actions[now], env_rng)
             episode_return += reward
             rewards[later] = reward
-            observe(features, state, actives[later])
+            observe(features, x0, x1, actives, later)
             truncated = not terminated and t + 1 >= settings.max_steps
             if terminated or truncated:
                 horizon = t + 1
                 bootstrap_end = truncated and not settings.truncation_is_terminal
             if not terminated and not (truncated and settings.truncation_is_terminal):
-                actions[later] = epsilon_greedy_action(action_values(w, actives[later], q), epsilon, agent_rng)
+                actions[later] = epsilon_greedy_action(action_values(w, actives, later, q), epsilon, agent_rng)
         tau = t - n + 1
         if tau >= 0:
             ret = 0.0
@@ -324,10 +345,10 @@ def n_step_sarsa_episode(
                 ret += gamma ** (k - tau - 1) * rewards[k % size]
             end = min(tau + n, horizon)
             if tau + n < horizon or bootstrap_end:
-                ret += gamma ** (end - tau) * action_value(w, actives[end % size], actions[end % size])
+                ret += gamma ** (end - tau) * action_value(w, actives, end % size, actions[end % size])
             start = tau % size
-            q_tau = action_value(w, actives[start], actions[start])
-            add_to_action(w, actives[start], actions[start], alpha * (ret - q_tau))
+            q_tau = action_value(w, actives, start, actions[start])
+            add_to_action(w, actives, start, actions[start], alpha * (ret - q_tau))
         if tau == horizon - 1:
             break
         t += 1
@@ -351,33 +372,33 @@ def lambda_episode(
     alpha, gamma, lam = settings.alpha, settings.gamma, settings.lam
     watkins = settings.algorithm == Q_LAMBDA
     n_actions, n_active = w.shape[1], features.n_active
-    state = np.zeros(2)
-    active, next_active = np.empty(n_active, np.int64), np.empty(n_active, np.int64)
+    actives = np.empty((2, n_active), np.int64)  # rows ``now`` and ``1 - now``: S and S'
     q_next = np.empty(n_actions)
-    n_touched = 0
-    env_reset(env, state, env_rng)
-    observe(features, state, active)
-    action = epsilon_greedy_action(action_values(w, active, q_next), epsilon, agent_rng)
+    n_touched, now = 0, 0
+    x0, x1 = env_reset(env, env_rng)
+    observe(features, x0, x1, actives, now)
+    action = epsilon_greedy_action(action_values(w, actives, now, q_next), epsilon, agent_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while True:
-        for i in active:
-            visits[i] += 1
-        reward, terminated = env_step(env, state, action, env_rng)
+        then = 1 - now
+        count_visit(visits, actives, now)
+        x0, x1, reward, terminated = env_step(env, x0, x1, action, env_rng)
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= settings.max_steps
         terminal = terminated or (truncated and settings.truncation_is_terminal)
-        delta = reward - action_value(w, active, action)
-        for i in active:
+        delta = reward - action_value(w, actives, now, action)
+        for k in range(n_active):
+            i = actives[now, k]
             if not listed[i * n_actions + action]:
                 listed[i * n_actions + action] = True
                 touched[n_touched] = i * n_actions + action
                 n_touched += 1
             z[i, action] = 1.0 if settings.replacing else z[i, action] + 1.0
-        observe(features, state, next_active)
+        observe(features, x0, x1, actives, then)
         next_action = 0
         if not terminal:
-            action_values(w, next_active, q_next)
+            action_values(w, actives, then, q_next)
             next_action = epsilon_greedy_action(q_next, epsilon, agent_rng)
             delta += gamma * (q_next.max() if watkins else q_next[next_action])
         step_size = alpha * delta
@@ -393,8 +414,7 @@ def lambda_episode(
             for k in range(n_touched):
                 i, a = divmod(touched[k], n_actions)
                 z[i, a] *= decay
-        active, next_active = next_active, active
-        action = next_action
+        now, action = then, next_action
     _clear_traces(z, touched, listed, n_touched)  # fresh traces for the next episode
     return episode_return, steps, terminated
 
@@ -424,16 +444,15 @@ def reinforce_episode(
     actives = np.empty((limit, n_active), np.int64)
     actions = np.empty(limit, np.int64)
     rewards = np.empty(limit)
-    state, h, pi = np.zeros(2), np.empty(n_actions), np.empty(n_actions)
-    env_reset(env, state, env_rng)
+    h, pi = np.empty(n_actions), np.empty(n_actions)
+    x0, x1 = env_reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < limit:
-        observe(features, state, actives[steps])
-        for i in actives[steps]:
-            visits[i] += 1
-        action = sample_softmax(action_values(theta, actives[steps], h), pi, agent_rng)
+        observe(features, x0, x1, actives, steps)
+        count_visit(visits, actives, steps)
+        action = sample_softmax(action_values(theta, actives, steps, h), pi, agent_rng)
         actions[steps] = action
-        reward, terminated = env_step(env, state, action, env_rng)
+        x0, x1, reward, terminated = env_step(env, x0, x1, action, env_rng)
         rewards[steps] = reward
         episode_return += reward
         steps += 1
@@ -444,20 +463,15 @@ def reinforce_episode(
         returns[t] = ret
     discount = 1.0
     for t in range(steps):
-        active = actives[t]
         delta = returns[t]
         if baseline_alpha > 0.0:
-            value = 0.0
-            for i in active:
-                value += baseline[i, 0]
-            delta -= value
-            for i in active:
-                baseline[i, 0] += baseline_alpha * delta
-        softmax(action_values(theta, active, h), pi)
+            delta -= action_value(baseline, actives, t, 0)
+            add_to_action(baseline, actives, t, 0, baseline_alpha * delta)
+        softmax(action_values(theta, actives, t, h), pi)
         scale = alpha * discount * delta
         for a in range(n_actions):
             gradient = (1.0 if a == actions[t] else 0.0) - pi[a]  # d ln pi(A_t | S_t) / d h(S_t, a)
-            add_to_action(theta, active, a, scale * gradient)
+            add_to_action(theta, actives, t, a, scale * gradient)
         discount *= gamma
     return episode_return, steps, terminated
 
@@ -472,19 +486,19 @@ def evaluation_episode(
     """One episode of the target policy: greedy (first maximum) in the learned values, the softmax policy
     for REINFORCE, uniform for the baseline."""
     n_actions, n_active = w.shape[1], features.n_active
-    state, active = np.zeros(2), np.empty(n_active, np.int64)
+    actives = np.empty((1, n_active), np.int64)
     q, scratch = np.empty(n_actions), np.empty(n_actions)
-    env_reset(env, state, eval_rng)
+    x0, x1 = env_reset(env, eval_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < settings.max_steps:
-        observe(features, state, active)
+        observe(features, x0, x1, actives, 0)
         if settings.algorithm == RANDOM:
             action = uniform_action(n_actions, eval_rng)
         elif settings.algorithm == REINFORCE:
-            action = sample_softmax(action_values(w, active, q), scratch, eval_rng)
+            action = sample_softmax(action_values(w, actives, 0, q), scratch, eval_rng)
         else:
-            action = greedy_action(_behaviour_values(settings, w, w2, active, q, scratch))
-        reward, terminated = env_step(env, state, action, eval_rng)
+            action = greedy_action(_behaviour_values(settings, w, w2, actives, 0, q, scratch))
+        x0, x1, reward, terminated = env_step(env, x0, x1, action, eval_rng)
         episode_return += reward
         steps += 1
     return episode_return, steps, terminated
@@ -537,7 +551,7 @@ def train_run(
                 records.eval_terminated[run, round_, k] = terminated
         for stage in range(records.snapshot_episodes.size):
             if records.snapshot_episodes[stage] == completed:
-                records.snapshots[run, stage] = w + w2 if settings.algorithm == DOUBLE_Q else w
+                records.snapshots[run, stage] = (w + w2) / 2 if settings.algorithm == DOUBLE_Q else w
 
 
 @njit(parallel=True, cache=True)
