@@ -79,7 +79,7 @@ def train(
     state = initial_state(list(seeds), GRID.n_cells, mountain_car.N_ACTIONS)
     rounds = episodes // eval_every if eval_every else 0
     snapshots = np.array([e for e in SNAPSHOT_EPISODES if e <= episodes], dtype=np.int64)
-    records = allocate_records(len(seeds), episodes, rounds, eval_episodes, snapshots, state.q.shape[1:])
+    records = allocate_records(len(seeds), episodes, rounds, eval_episodes, snapshots, state.w.shape[1:])
     for first, stop in chunks or [(0, episodes)]:
         train_runs(settings, state, GRID, epsilons, first, stop, records)
     return state, records
@@ -92,7 +92,7 @@ def assert_records_equal(a: Records, b: Records, fields=Records._fields) -> None
 
 def assert_results_equal(a, b) -> None:
     (state_a, records_a), (state_b, records_b) = a, b
-    np.testing.assert_array_equal(state_a.q, state_b.q)
+    np.testing.assert_array_equal(state_a.w, state_b.w)
     np.testing.assert_array_equal(state_a.rng, state_b.rng)
     assert_records_equal(records_a, records_b)
 
@@ -172,14 +172,14 @@ def test_different_seeds_differ(algorithm, results):
             assert not np.array_equal(records.visits[i], records.visits[j]), (i, j)
             if algorithm != "random":
                 assert not np.array_equal(records.returns[i], records.returns[j]), (i, j)
-                assert not np.array_equal(state.q[i], state.q[j]), (i, j)
+                assert not np.array_equal(state.w[i], state.w[j]), (i, j)
 
 
 def test_sarsa_and_q_learning_differ(q_learning_result, sarsa_result):
     """Same seeds, same start states, different rules: different tables and returns for every seed."""
     (q_state, q_records), (s_state, s_records) = q_learning_result, sarsa_result
     for run in range(len(SEEDS)):
-        assert not np.array_equal(q_state.q[run], s_state.q[run])
+        assert not np.array_equal(q_state.w[run], s_state.w[run])
         assert not np.array_equal(q_records.returns[run], s_records.returns[run])
 
 
@@ -188,10 +188,10 @@ def test_learners_reach_the_goal_random_does_not_learn(q_learning_result, sarsa_
     never touches its table."""
     for state, records in (q_learning_result, sarsa_result):
         assert records.terminated.sum() > 0
-        assert np.all(state.q <= 0.0)  # every reward is -1 and the table starts at 0
-        assert np.any(state.q < 0.0)
+        assert np.all(state.w <= 0.0)  # every reward is -1 and the table starts at 0
+        assert np.any(state.w < 0.0)
     random_state, random_records = random_result
-    assert np.all(random_state.q == 0.0)
+    assert np.all(random_state.w == 0.0)
     assert np.all(random_records.snapshots == 0.0)
 
 
@@ -211,7 +211,7 @@ def test_records_are_consistent(results):
     assert np.all(records.eval_lengths[~records.eval_terminated] == MAX_STEPS)
     assert records.eval_returns.shape == (len(SEEDS), EPISODES // EVAL_EVERY, EVAL_EPISODES)
     assert np.all(records.eval_lengths >= 1)
-    np.testing.assert_array_equal(records.snapshots[:, -1], state.q)
+    np.testing.assert_array_equal(records.snapshots[:, -1], state.w)
 
 
 @pytest.mark.parametrize("algorithm", ["q_learning", "sarsa"])
@@ -219,7 +219,7 @@ def test_snapshot_is_the_table_after_its_episode(algorithm):
     """The snapshot at episode 100 is the table of a training stopped after 100 episodes."""
     state_100, _ = train(algorithm, episodes=100)
     _, records = train(algorithm)
-    np.testing.assert_array_equal(records.snapshots[:, 0], state_100.q)
+    np.testing.assert_array_equal(records.snapshots[:, 0], state_100.w)
     assert not np.array_equal(records.snapshots[:, 0], records.snapshots[:, 1])
 
 
@@ -282,8 +282,8 @@ def test_initial_streams_are_seeded_as_documented():
     """Environment stream ``PCG64(seed)``; agent and evaluation streams the two children of
     ``SeedSequence(seed)``; all distinct."""
     state = initial_state([7, 8], 4, 3)
-    assert state.q.shape == (2, 4, 3)
-    assert np.all(state.q == 0.0)
+    assert state.w.shape == (2, 4, 3)
+    assert np.all(state.w == 0.0)
     for run, seed in enumerate([7, 8]):
         agent, evaluation = np.random.SeedSequence(seed).spawn(2)
         np.testing.assert_array_equal(state.rng[run, ENV_STREAM], stream_state(seed))
@@ -303,7 +303,7 @@ def test_evaluation_does_not_change_training(algorithm, results, eval_every, eva
     state, records = train(algorithm, eval_every=eval_every, eval_episodes=eval_episodes)
     reference_state, reference_records = results
     assert_records_equal(records, reference_records, TRAINING_FIELDS)
-    np.testing.assert_array_equal(state.q, reference_state.q)
+    np.testing.assert_array_equal(state.w, reference_state.w)
     np.testing.assert_array_equal(state.rng[:, :EVAL_STREAM], reference_state.rng[:, :EVAL_STREAM])
     assert not np.array_equal(state.rng[:, EVAL_STREAM], reference_state.rng[:, EVAL_STREAM])
     if eval_every == 0:
@@ -335,7 +335,7 @@ def test_truncation_as_terminal_changes_learning_only(algorithm):
     common = {"max_steps": 200, "eval_every": 0}
     bootstrap_state, bootstrap = train(algorithm, episodes=100, **common)
     terminal_state, terminal = train(algorithm, episodes=100, truncation_is_terminal=True, **common)
-    assert not np.array_equal(bootstrap_state.q, terminal_state.q)
+    assert not np.array_equal(bootstrap_state.w, terminal_state.w)
     assert not np.array_equal(bootstrap.visits, terminal.visits)
     for run, seed in enumerate(SEEDS):
         assert not np.array_equal(bootstrap.visits[run], terminal.visits[run])
@@ -409,12 +409,12 @@ def test_kernel_equals_python_episodes(algorithm, max_steps, truncation_is_termi
     episodes, epsilon, seed = 3, 0.3, 11
     state = initial_state([seed], GRID.n_cells, mountain_car.N_ACTIONS)
     if q_init == "random":  # distinct negative values: few ties, so the max and the taken action matter
-        state.q[:] = -np.random.default_rng(1).uniform(0.0, 5.0, size=state.q.shape)
+        state.w[:] = -np.random.default_rng(1).uniform(0.0, 5.0, size=state.w.shape)
     elif q_init == "bang_bang":  # greedy pushes along the velocity: episodes reach the goal
-        q_table = state.q[0].reshape(BINS, BINS, mountain_car.N_ACTIONS)
+        q_table = state.w[0].reshape(BINS, BINS, mountain_car.N_ACTIONS)
         q_table[:, : BINS // 2, 1:] = -1.0  # negative velocity: push left
         q_table[:, BINS // 2 :, :2] = -1.0  # positive velocity: push right
-    initial_q = state.q[0].copy()
+    initial_q = state.w[0].copy()
     q = initial_q.copy()
     env_rng, agent_rng = state.rng[0, ENV_STREAM].copy(), state.rng[0, AGENT_STREAM].copy()
     visits = np.zeros(GRID.n_cells, dtype=np.int64)
@@ -430,7 +430,7 @@ def test_kernel_equals_python_episodes(algorithm, max_steps, truncation_is_termi
     records = allocate_records(1, episodes, 0, 0, np.zeros(0, dtype=np.int64), q.shape)
     train_run(0, settings, state, GRID, np.full(episodes, epsilon), 0, episodes, records)
 
-    np.testing.assert_array_equal(state.q[0], q)
+    np.testing.assert_array_equal(state.w[0], q)
     np.testing.assert_array_equal(records.visits[0], visits)
     np.testing.assert_array_equal(state.rng[0, ENV_STREAM], env_rng)
     np.testing.assert_array_equal(state.rng[0, AGENT_STREAM], agent_rng)

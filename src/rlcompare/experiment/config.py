@@ -14,10 +14,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rlcompare.algorithms.schedules import SCHEDULES
-from rlcompare.engine.tabular import ALGORITHM_CODES
+from rlcompare.engine.kernel import ALGORITHM_CODES
 
-ENVIRONMENTS = ("MountainCar-v0",)
-ALGORITHMS = tuple(ALGORITHM_CODES)
+ENVIRONMENTS = ("MountainCar-v0", "MountainCar-book")
+ALGORITHMS = (*ALGORITHM_CODES, "reinforce_baseline")
+FEATURES = ("grid", "tiles")
+TRACES = ("replacing", "accumulating")
 DEFAULT_STAGES = (("early", 0.1), ("middle", 0.5), ("final", 1.0))
 
 
@@ -34,11 +36,32 @@ class ExperimentConfig:
     """One configuration, run once per seed. Frozen and validated on creation."""
 
     algorithm: str = "q_learning"
-    """Learning rule: ``q_learning`` (Algorithm 1), ``sarsa`` (Algorithm 2) or ``random`` (the baseline)."""
+    """Learning rule: ``q_learning`` (Algorithm 1), ``sarsa`` (Algorithm 2), ``random`` (the baseline),
+    ``expected_sarsa``, ``double_q_learning``, ``n_step_sarsa``, ``sarsa_lambda``, ``q_lambda`` (Watkins),
+    ``reinforce`` (Algorithm 3) or ``reinforce_baseline``."""
     schedule: str = "decay"
     """Exploration: ``constant`` (ε fixed) or ``decay`` (linear from ``epsilon_start`` to ``epsilon_end``)."""
     env: str = "MountainCar-v0"
-    """Environment id; the fast engine ports Gymnasium's MountainCar-v0."""
+    """``MountainCar-v0`` (Gymnasium's, ported exactly) or ``MountainCar-book`` (Sutton and Barto's Example
+    10.1: the same dynamics with the position bounded at the goal, 0.5)."""
+    features: str = "grid"
+    """``grid``: one cell of ``bins`` per dimension (the paper); ``tiles``: tile coding (9.5.4)."""
+    tilings: int = 8
+    """Tilings of the tile coder, >= 1."""
+    tiles: int = 8
+    """Tiles per dimension in each tiling, >= 1."""
+    hash_size: int = 0
+    """Hash the tiles into this many features; 0: no hashing."""
+    n: int = 4
+    """n of n-step SARSA, >= 1."""
+    lam: float = 0.9
+    """λ of SARSA(λ) and Q(λ), in [0, 1]."""
+    trace: str = "replacing"
+    """Eligibility traces: ``replacing`` or ``accumulating``."""
+    target_epsilon: float | None = None
+    """ε of Expected SARSA's target policy: None for the behaviour's ε (on-policy), 0 for greedy."""
+    baseline_alpha: float = 0.01
+    """Step size of REINFORCE's state-value baseline (``reinforce_baseline``), in (0, 1]."""
     alpha: float = 0.05
     """Step size α, in (0, 1]."""
     gamma: float = 0.9
@@ -133,6 +156,8 @@ def _check_choices(c: ExperimentConfig) -> None:
     _require(c.algorithm in ALGORITHMS, "algorithm", c.algorithm, ", ".join(ALGORITHMS))
     _require(c.schedule in SCHEDULES, "schedule", c.schedule, ", ".join(SCHEDULES))
     _require(c.env in ENVIRONMENTS, "env", c.env, ", ".join(ENVIRONMENTS))
+    _require(c.features in FEATURES, "features", c.features, ", ".join(FEATURES))
+    _require(c.trace in TRACES, "trace", c.trace, ", ".join(TRACES))
 
 
 def _check_rates(c: ExperimentConfig) -> None:
@@ -143,13 +168,19 @@ def _check_rates(c: ExperimentConfig) -> None:
         _require(_is_number(value) and 0 <= value <= 1, name, value, "a number in [0, 1]")
     _require(_is_number(c.decay_fraction) and 0 < c.decay_fraction <= 1, "decay_fraction",
              c.decay_fraction, "a number in (0, 1]")
+    _require(_is_number(c.lam) and 0 <= c.lam <= 1, "lam", c.lam, "a number in [0, 1]")
+    _require(c.target_epsilon is None or (_is_number(c.target_epsilon) and 0 <= c.target_epsilon <= 1),
+             "target_epsilon", c.target_epsilon, "none, or a number in [0, 1]")
+    _require(_is_number(c.baseline_alpha) and 0 < c.baseline_alpha <= 1, "baseline_alpha", c.baseline_alpha,
+             "a number in (0, 1]")
     _require(isinstance(c.truncation_as_terminal, bool), "truncation_as_terminal",
              c.truncation_as_terminal, "true or false")
 
 
 def _check_counts(c: ExperimentConfig) -> None:
-    for name in ("bins", "episodes", "max_steps", "eval_episodes"):
+    for name in ("bins", "episodes", "max_steps", "eval_episodes", "n", "tilings", "tiles"):
         _require(_is_count(getattr(c, name), 1), name, getattr(c, name), "an integer >= 1")
+    _require(_is_count(c.hash_size, 0), "hash_size", c.hash_size, "an integer >= 0 (0: no hashing)")
     _require(_is_count(c.eval_every, 0), "eval_every", c.eval_every, "an integer >= 0 (0: no evaluation)")
     _require(len(c.seeds) >= 1, "seeds", c.seeds, "at least one seed")
     _require(all(0 <= s < 2**63 for s in c.seeds), "seeds", c.seeds, "integers in [0, 2**63)")
@@ -162,4 +193,16 @@ def _check_stages(c: ExperimentConfig) -> None:
     _require(all(0 < f <= 1 for _, f in c.stages), "stages", c.stages, "shares of the episodes in (0, 1]")
 
 
-_CHECKS = (_check_choices, _check_rates, _check_counts, _check_stages)
+def _check_tiles(c: ExperimentConfig) -> None:
+    if c.features != "tiles":
+        return
+    from rlcompare.experiment.problem import tiles_of
+
+    try:
+        tiles_of(c.env, c.tilings, c.tiles, c.hash_size)
+    except ValueError as error:
+        raise ConfigError("tiles", (c.tilings, c.tiles, c.hash_size),
+                          f"a layout that fits the bounds ({error})") from None
+
+
+_CHECKS = (_check_choices, _check_rates, _check_counts, _check_stages, _check_tiles)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rlcompare.engine.tabular import Records
+from rlcompare.engine.kernel import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 

@@ -14,11 +14,11 @@ import numba
 import numpy as np
 
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
-from rlcompare.engine.tabular import ALGORITHM_CODES, Settings, allocate_records, initial_state, train_runs
+from rlcompare.engine import kernel, tabular
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import make_grid
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.problem import make_env, make_features
 from rlcompare.experiment.results import Results
 
 CHUNK_EPISODES = 250
@@ -44,22 +44,19 @@ def run(
 
     ``progress`` is called with the number of episodes (per seed) finished since its last call.
     """
-    grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, config.bins)
     epsilons = epsilon_schedule(config)
-    state = initial_state(list(config.seeds), grid.n_cells, mountain_car.N_ACTIONS)
+    features = make_features(config.env, config.features, config.bins, config.tilings, config.tiles,
+                             config.hash_size)
+    state = kernel.initial_state(list(config.seeds), features.n_features, mountain_car.N_ACTIONS)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
-    records = allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
-                               config.eval_episodes, stage_episodes, state.q.shape[1:])
-    settings = Settings(
-        algorithm=ALGORITHM_CODES[config.algorithm], alpha=float(config.alpha), gamma=float(config.gamma),
-        max_steps=int(config.max_steps), truncation_is_terminal=bool(config.truncation_as_terminal),
-        eval_every=int(config.eval_every),
-    )
-    train_runs(settings, state, grid, epsilons, 0, 0, records)  # compile or load the kernel outside the clock
+    records = kernel.allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
+                                      config.eval_episodes, stage_episodes, state.w.shape[1:])
+    train = _trainer(config, features, state, epsilons, records)
+    train(0, 0)  # compile or load the kernel outside the clock
     started = time.perf_counter()
     for first in range(0, config.episodes, CHUNK_EPISODES):
         stop = min(first + CHUNK_EPISODES, config.episodes)
-        train_runs(settings, state, grid, epsilons, first, stop, records)
+        train(first, stop)
         if progress is not None:
             progress(stop - first)
     wall = time.perf_counter() - started
@@ -69,6 +66,31 @@ def run(
     if out is not None:
         results.save(out)
     return results
+
+
+def uses_fast_path(config: ExperimentConfig) -> bool:
+    """The paper's configurations run on the specialised tabular kernel; everything else on the general one."""
+    return (config.features == "grid" and config.env == "MountainCar-v0"
+            and config.algorithm in tabular.ALGORITHM_CODES)
+
+
+def _trainer(config: ExperimentConfig, features: kernel.Features, state: kernel.RunState, epsilons: np.ndarray,
+             records: kernel.Records) -> Callable[[int, int], None]:
+    """``train(first, stop)``: episodes ``[first, stop)`` of every seed, in place."""
+    common = {"max_steps": int(config.max_steps), "truncation_is_terminal": bool(config.truncation_as_terminal),
+              "alpha": float(config.alpha), "gamma": float(config.gamma), "eval_every": int(config.eval_every)}
+    if uses_fast_path(config):
+        settings = tabular.Settings(algorithm=tabular.ALGORITHM_CODES[config.algorithm], **common)
+        return lambda first, stop: tabular.train_runs(settings, state, features.grid, epsilons, first, stop, records)
+    baseline = config.algorithm == "reinforce_baseline"
+    settings = kernel.Settings(
+        algorithm=kernel.REINFORCE if baseline else kernel.ALGORITHM_CODES[config.algorithm], **common,
+        n=int(config.n), lam=float(config.lam), replacing=config.trace == "replacing",
+        target_epsilon=-1.0 if config.target_epsilon is None else float(config.target_epsilon),
+        baseline_alpha=float(config.baseline_alpha) if baseline else 0.0,
+    )
+    env = make_env(config.env)
+    return lambda first, stop: kernel.train_runs(settings, env, features, state, epsilons, first, stop, records)
 
 
 def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:
