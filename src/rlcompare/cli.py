@@ -83,10 +83,27 @@ def _progress() -> Progress:
 
 @app.command()
 def run(
-    algorithm: Annotated[str, typer.Option(help="q_learning (Algorithm 1), sarsa (Algorithm 2) or random.")]
+    algorithm: Annotated[str, typer.Option(
+        help="q_learning (Algorithm 1), sarsa (Algorithm 2), random, expected_sarsa, double_q_learning, "
+             "n_step_sarsa, sarsa_lambda, q_lambda, reinforce (Algorithm 3) or reinforce_baseline.")]
     = _DEFAULTS.algorithm,
-    env: Annotated[str, typer.Option(help="Environment: MountainCar-v0 (Gymnasium's, ported exactly).")]
+    env: Annotated[str, typer.Option(
+        help="MountainCar-v0 (Gymnasium's, ported exactly) or MountainCar-book (Sutton and Barto's bounds).")]
     = _DEFAULTS.env,
+    features: Annotated[str, typer.Option(help="grid (the paper) or tiles (tile coding, 9.5.4).")]
+    = _DEFAULTS.features,
+    tilings: Annotated[int, typer.Option(help="Tilings of the tile coder.")] = _DEFAULTS.tilings,
+    tiles: Annotated[int, typer.Option(help="Tiles per dimension in each tiling.")] = _DEFAULTS.tiles,
+    hash_size: Annotated[int, typer.Option(help="Hash tiles into this many features (0: no hashing).")]
+    = _DEFAULTS.hash_size,
+    n: Annotated[int, typer.Option("--n", help="n of n-step SARSA.")] = _DEFAULTS.n,
+    lam: Annotated[float, typer.Option(help="λ of sarsa_lambda and q_lambda, in [0, 1].")] = _DEFAULTS.lam,
+    trace: Annotated[str, typer.Option(help="Eligibility traces: replacing or accumulating.")] = _DEFAULTS.trace,
+    target_epsilon: Annotated[float | None, typer.Option(
+        help="ε of Expected SARSA's target policy (default: the behaviour's ε, on-policy; 0: off-policy, "
+             "greedy).")] = None,
+    baseline_alpha: Annotated[float, typer.Option(help="Step size of reinforce_baseline's value baseline.")]
+    = _DEFAULTS.baseline_alpha,
     schedule: Annotated[str, typer.Option(help="ε schedule: constant or decay.")] = _DEFAULTS.schedule,
     alpha: Annotated[float, typer.Option(help="Step size α in (0, 1].")] = _DEFAULTS.alpha,
     gamma: Annotated[float, typer.Option(help="Discount γ in [0, 1].")] = _DEFAULTS.gamma,
@@ -116,7 +133,9 @@ def run(
     from rlcompare.experiment.runner import run as run_experiment
 
     config = _config(
-        algorithm=algorithm, env=env, schedule=schedule, alpha=alpha, gamma=gamma, epsilon=epsilon,
+        algorithm=algorithm, env=env, features=features, tilings=tilings, tiles=tiles, hash_size=hash_size, n=n,
+        lam=lam, trace=trace, target_epsilon=target_epsilon, baseline_alpha=baseline_alpha, schedule=schedule,
+        alpha=alpha, gamma=gamma, epsilon=epsilon,
         epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=bins,
         episodes=episodes, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
         seeds=_seeds(seeds, first_seed), eval_every=eval_every, eval_episodes=eval_episodes,
