@@ -16,9 +16,11 @@ import gymnasium as gym
 import numba
 import numpy as np
 
-from rlcompare.engine.tabular import ALGORITHM_CODES, Settings, allocate_records, initial_state, train_runs
-from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import make_grid
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.runner import run, uses_fast_path
+
+GENERAL_ALGORITHMS = ("expected_sarsa", "double_q_learning", "n_step_sarsa", "sarsa_lambda", "q_lambda",
+                      "reinforce", "reinforce_baseline")
 
 
 @dataclass(frozen=True)
@@ -34,26 +36,24 @@ class Measurement:
 
 
 def kernel_steps_per_second(
-    algorithm: str, threads: int, runs: int = 8, episodes: int = 2000, repeats: int = 3
+    algorithm: str, threads: int, *, features: str = "grid", runs: int = 8, episodes: int = 2000, repeats: int = 3
 ) -> Measurement:
-    """Median over ``repeats`` of a training call with ε = 0.5, no evaluation, on ``threads`` threads."""
-    grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, 20)
-    settings = Settings(ALGORITHM_CODES[algorithm], 0.05, 0.9, 1000, False, 0)
-    epsilons = np.full(episodes, 0.5)
+    """Median over ``repeats`` of training ``runs`` seeds with ε = 0.5 and no evaluation, on ``threads``
+    threads, through :func:`rlcompare.run` (which compiles before it starts the clock)."""
+    config = ExperimentConfig(
+        algorithm=algorithm, schedule="constant", epsilon=0.5, features=features,
+        alpha=0.05 if features == "grid" else 0.5 / 8, seeds=tuple(range(runs)), episodes=episodes,
+        eval_every=0, stages=(("final", 1.0),),
+    )
     previous = numba.get_num_threads()
     numba.set_num_threads(threads)
     try:
-        timings, steps = [], 0
-        for _ in range(repeats + 1):  # the first call may compile; it is not timed
-            state = initial_state(list(range(runs)), grid.n_cells, mountain_car.N_ACTIONS)
-            records = allocate_records(runs, episodes, 0, 1, np.zeros(0, dtype=np.int64), state.q.shape[1:])
-            started = time.perf_counter()
-            train_runs(settings, state, grid, epsilons, 0, episodes, records)
-            timings.append(time.perf_counter() - started)
-            steps = int(records.lengths.sum())
+        timings = [run(config).meta["timings"] for _ in range(repeats)]
     finally:
         numba.set_num_threads(previous)
-    return Measurement(f"{algorithm} kernel", threads, steps, statistics.median(timings[1:]))
+    path = "fast" if uses_fast_path(config) else "general"
+    return Measurement(f"{algorithm} ({features}, {path} kernel)", threads, timings[0]["training_steps"],
+                       statistics.median(t["wall_seconds"] for t in timings))
 
 
 def gymnasium_steps_per_second(steps: int = 60_000, seed: int = 0) -> Measurement:
@@ -74,12 +74,16 @@ def gymnasium_steps_per_second(steps: int = 60_000, seed: int = 0) -> Measuremen
 
 
 def run_benchmark(report: Callable[[Measurement], None] = lambda m: None) -> list[Measurement]:
-    """Every measurement, reported as it is taken."""
-    threads = numba.config.NUMBA_NUM_THREADS
+    """Every measurement, reported as it is taken: the Gymnasium loop, the paper's algorithms on the fast
+    kernel, then every algorithm on the general kernel (shorter runs, as it is slower)."""
+    threads = sorted({1, numba.config.NUMBA_NUM_THREADS})
+    plan = [(algorithm, "grid", 2000) for algorithm in ("q_learning", "sarsa")]
+    plan += [(algorithm, "grid", 300) for algorithm in GENERAL_ALGORITHMS]
+    plan += [(algorithm, "tiles", 300) for algorithm in ("sarsa", "sarsa_lambda")]
     measurements = [gymnasium_steps_per_second()]
     report(measurements[-1])
-    for algorithm in ("q_learning", "sarsa"):
-        for n in sorted({1, threads}):
-            measurements.append(kernel_steps_per_second(algorithm, n))
+    for algorithm, features, episodes in plan:
+        for n in threads:
+            measurements.append(kernel_steps_per_second(algorithm, n, features=features, episodes=episodes))
             report(measurements[-1])
     return measurements
