@@ -149,37 +149,92 @@ def run(
     console.print(f"Run directory: {out}")
 
 
+STUDY_NAMES = ("paper", "book-10.2", "book-12.10")
+
+
 @app.command()
 def reproduce(
+    study: Annotated[str, typer.Argument(help="Which study: paper (default), book-10.2 or book-12.10.")] = "paper",
     seeds: Seeds = 30,
     first_seed: FirstSeed = 0,
-    episodes: Annotated[int, typer.Option(help="Training episodes per seed (the paper gives none).")] = 5000,
-    out: Annotated[Path, typer.Option(help="Study directory; one run directory per configuration.")]
-    = Path("runs/paper"),
+    episodes: Annotated[int, typer.Option(help="Training episodes per seed (paper study; the paper gives none).")]
+    = 5000,
+    algorithms: Annotated[str, typer.Option(
+        help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
+             "one. Each adds rows to Tables I and II.")] = "q_learning,sarsa",
+    out: Annotated[Path | None, typer.Option(
+        help="Study directory; one run directory per configuration. Default: runs/STUDY.")] = None,
     videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents into the report.")] = True,
+    list_studies: Annotated[bool, typer.Option("--list", help="List the studies and exit.")] = False,
 ) -> None:
-    """Reproduce the paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1.
+    """Reproduce a study. The paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1.
 
     Configurations already complete in OUT are loaded, not trained again.
     """
+    from rlcompare.studies.book import STUDIES
+
+    if list_studies:
+        console.print("paper        the paper: Q-Learning vs SARSA on MountainCar-v0, ε constant and decaying")
+        for name, book_study in STUDIES.items():
+            console.print(f"{name:<12} {book_study.title}")
+        return
+    if study not in STUDY_NAMES:
+        raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
+    out = out if out is not None else Path("runs") / study
+    if study == "paper":
+        _reproduce_paper(_seeds(seeds, first_seed), episodes, _algorithms(algorithms), out, videos)
+    else:
+        _reproduce_book(STUDIES[study], _seeds(seeds, first_seed), out)
+
+
+def _algorithms(spec: str) -> tuple[str, ...]:
+    from rlcompare.experiment.config import ALGORITHMS
+
+    learners = tuple(a for a in ALGORITHMS if a != "random")
+    chosen = learners if spec.strip() == "all" else tuple(a.strip() for a in spec.split(",") if a.strip())
+    unknown = [a for a in chosen if a not in learners]
+    if unknown or not chosen:
+        raise typer.BadParameter(f"got {spec!r}; allowed: 'all' or a comma-separated list of "
+                                 f"{', '.join(learners)}", param_hint="'--algorithms'")
+    return chosen
+
+
+def _reproduce_paper(seeds: tuple[int, ...], episodes: int, algorithms: tuple[str, ...], out: Path,
+                     videos: bool) -> None:
     from rlcompare.studies.paper import paper_configs
     from rlcompare.studies.paper import reproduce as reproduce_study
 
     if episodes < 1:
         raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
-    configs = paper_configs(_seeds(seeds, first_seed), episodes)
+    configs = paper_configs(seeds, episodes, algorithms)
     _check_out(out)
     finished = []
     with _progress() as progress:
         task = progress.add_task("paper", total=sum(c.episodes for c in configs))
         for results, reused in reproduce_study(out, configs, progress=lambda n: progress.advance(task, n)):
             finished.append(results)
-            seconds = results.meta["timings"]["wall_seconds"]
-            how = "loaded (already complete)" if reused else f"{seconds:.1f} s"
-            progress.console.print(f"{results.config.name:<20} {len(results.seeds)} seeds x "
-                                   f"{results.config.episodes} episodes: {how}")
+            _print_done(progress, results.config.name, results, reused)
     _print_summary(finished, paper=True)
     _report(out, videos)
+
+
+def _reproduce_book(study, seeds: tuple[int, ...], out: Path) -> None:
+    from rlcompare.studies.book import run_study
+
+    configs = study.configs(seeds)
+    _check_out(out)
+    runs = {}
+    with _progress() as progress:
+        task = progress.add_task(study.name, total=sum(c.episodes for c in configs.values()))
+        for name, results, reused in run_study(study, out, seeds, progress=lambda n: progress.advance(task, n)):
+            runs[name] = results
+            _print_done(progress, name, results, reused)
+    console.print(f"Report: {study.report(out, runs)}")
+
+
+def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
+    how = "loaded (already complete)" if reused else f"{results.meta['timings']['wall_seconds']:.1f} s"
+    progress.console.print(f"{name:<24} {len(results.seeds)} seeds x {results.config.episodes} episodes: {how}")
 
 
 @app.command()

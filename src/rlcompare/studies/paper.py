@@ -27,13 +27,21 @@ PAPER_TABLE_II = {"q_learning-decay": -191.0, "q_learning-constant": -262.0, "sa
 """Table II, mean cumulative reward, as printed."""
 
 
-def paper_configs(seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES, **overrides) -> list[ExperimentConfig]:
-    """The five configurations of the paper, in the order of its tables, baseline first."""
+PAPER_ALGORITHMS = ("q_learning", "sarsa")
+
+
+def paper_configs(
+    seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES, algorithms: tuple[str, ...] = PAPER_ALGORITHMS,
+    **overrides,
+) -> list[ExperimentConfig]:
+    """The paper's configurations, in the order of its tables, baseline first: each algorithm under ε
+    decaying and ε constant with the paper's settings (Q-Learning and SARSA by default; any other
+    algorithm adds its row to Tables I and II)."""
     base = ExperimentConfig(seeds=seeds, episodes=episodes, **overrides)
     return [
         replace(base, algorithm="random", schedule="constant"),
         *(replace(base, algorithm=algorithm, schedule=schedule)
-          for algorithm in ("q_learning", "sarsa") for schedule in ("decay", "constant")),
+          for algorithm in algorithms for schedule in ("decay", "constant")),
     ]
 
 
@@ -42,14 +50,16 @@ def reproduce(
     configs: list[ExperimentConfig],
     *,
     progress: Callable[[int], None] | None = None,
+    directory: str | None = None,
 ) -> Iterator[tuple[Results, bool]]:
     """Run each configuration into ``out / config.name``, or load it if that run already finished.
 
     Yields ``(results, reused)`` as each configuration completes, so an interrupted study resumes where
-    it stopped and loses nothing finished.
+    it stopped and loses nothing finished. ``directory`` names the run directory instead of the
+    configuration's name.
     """
     for config in configs:
-        run_dir = Path(out) / config.name
+        run_dir = Path(out) / (directory or config.name)
         stored = load_if_complete(run_dir, config)
         if stored is not None:
             if progress is not None:

@@ -77,13 +77,17 @@ class ReportOutcome:
 
 def label(results: Results) -> str:
     c = results.config
-    return LABELS[c.algorithm] if c.algorithm == "random" else f"{LABELS[c.algorithm]}, ε {c.schedule}"
+    name = LABELS.get(c.algorithm, c.algorithm.replace("_", " "))
+    return name if c.algorithm == "random" else f"{name}, ε {c.schedule}"
 
 
 def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
-    """Every configuration that loads, and a line for each that does not."""
+    """Every configuration that loads, and a line for each that does not: the paper's five, then any other
+    algorithm run on the paper's grid (``reproduce --algorithms``), which adds rows to the tables."""
     loaded, problems = {}, []
-    for name in CONFIGURATIONS:
+    extra = sorted(p.name for p in Path(study_dir).glob("*/") if (p / store.CONFIG_FILE).is_file()
+                   and p.name not in CONFIGURATIONS) if Path(study_dir).is_dir() else []
+    for name in (*CONFIGURATIONS, *extra):
         run_dir = Path(study_dir) / name
         if not run_dir.is_dir():
             problems.append(f"{name}: no run directory at {run_dir}")
@@ -104,7 +108,7 @@ def curve_figure(runs: list[Results], title: str) -> Figure:
     """Behaviour return (smoothed) beside greedy-evaluation return, mean over seeds with 95% bands."""
     figure = Figure(figsize=(12, 4.2), layout="constrained")
     behaviour_ax, greedy_ax = figure.subplots(1, 2, sharey=True)
-    colors = {label(r): COLORS[r.config.algorithm] for r in runs}
+    colors = {label(r): COLORS.get(r.config.algorithm) for r in runs}
     episodes = np.arange(1, runs[0].config.episodes + 1)
     plots.plot_return_curves(behaviour_ax, episodes, {label(r): r.records.returns for r in runs},
                              window=SMOOTHING, colors=colors)
@@ -171,7 +175,8 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
         raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
                                + "; ".join(problems))
     seconds: dict[str, float] = {}
-    learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
+    learners = [r for n, r in runs.items() if n != "random"]
+    paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
     for stale in figures_dir.glob("*.png"):  # figures of runs that are gone must not linger
@@ -197,10 +202,10 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
             problems.append(f"{title}: left out, its runs are missing")
     explanation_figures = [(_save(stages_figure(r), figures_dir / f"stages-{r.config.name}.png"),
                             f"{label(r)}: greedy action and state value at each stage") for r in learners]
-    if learners:
+    if paper_learners:
         explanation_figures += [
-            (_save(visits_figure(learners), figures_dir / "visits.png"), "State visits during training"),
-            (_save(first_actions_figure(learners), figures_dir / "first-actions.png"),
+            (_save(visits_figure(paper_learners), figures_dir / "visits.png"), "State visits during training"),
+            (_save(first_actions_figure(paper_learners), figures_dir / "first-actions.png"),
              "First greedy action from the start region"),
         ]
     seconds["figures"] = time.perf_counter() - mark
@@ -210,7 +215,7 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     if videos:
         from rlcompare.analysis.video import render_stage_videos
 
-        for name, results in runs.items():
+        for name, results in ((n, r) for n, r in runs.items() if n in CONFIGURATIONS):
             seed = results.seeds[0] if video_seed is None else video_seed
             stages = iter([None] if results.config.algorithm == "random" else [n for n, _ in results.config.stages])
             for mp4 in (p for p in render_stage_videos(study_dir / name, study_dir / "videos", seed=seed)

@@ -1,0 +1,142 @@
+"""Sutton and Barto's Mountain Car results with tile coding, reproduced as studies.
+
+- ``book-10.2``: semi-gradient SARSA with 8 tilings of 8 x 8 tiles, ε = 0 (the zero start is optimistic),
+  γ = 1, α = 0.1/8, 0.2/8, 0.5/8: steps per episode over 500 episodes (Figure 10.2).
+- ``book-12.10``: SARSA(λ) with replacing traces, the same features, λ = 0, 0.5, 0.95, 0.99 over a range
+  of α: steps per episode averaged over the first 50 episodes (Figure 12.10).
+
+Both use ``MountainCar-book`` (Example 10.1: Gymnasium's dynamics, position bounded at the goal, 0.5; the
+tiles span [-1.2, 0.5] x [-0.07, 0.07]). The book gives no step limit; episodes are cut at 10,000 steps,
+which only the worst step sizes of Figure 12.10 reach.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.analysis.curves import mean_band
+from rlcompare.analysis.report import Section, write_report
+from rlcompare.analysis.stats import interval
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
+from rlcompare.studies.paper import reproduce
+
+BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
+        "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0, "stages": (("final", 1.0),)}
+FIG_10_2_ALPHAS = (0.1, 0.2, 0.5)  # times 1/8
+FIG_12_10_LAMBDAS = (0.0, 0.5, 0.95, 0.99)
+FIG_12_10_ALPHAS = (0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4)  # times 1/8
+FIG_12_10_EPISODES = 50
+
+
+@dataclass(frozen=True)
+class Study:
+    """A named set of configurations, each run into its own directory, and how to report them."""
+
+    name: str
+    title: str
+    configs: Callable[[tuple[int, ...]], dict[str, ExperimentConfig]]
+    report: Callable[[Path, dict[str, Results]], Path]
+
+
+def fig_10_2_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
+    return {f"alpha-{a:g}of8": ExperimentConfig(algorithm="sarsa", alpha=a / 8, episodes=500, seeds=seeds, **BOOK)
+            for a in FIG_10_2_ALPHAS}
+
+
+def fig_12_10_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
+    return {f"lambda-{lam:g}-alpha-{a:g}of8": ExperimentConfig(
+        algorithm="sarsa_lambda", lam=lam, trace="replacing", alpha=a / 8, episodes=FIG_12_10_EPISODES,
+        seeds=seeds, **BOOK) for lam in FIG_12_10_LAMBDAS for a in FIG_12_10_ALPHAS}
+
+
+def run_study(study: Study, out: Path, seeds: tuple[int, ...],
+              progress: Callable[[int], None] | None = None) -> Iterator[tuple[str, Results, bool]]:
+    """Each configuration into ``out / name``, or loaded when already complete there."""
+    for name, config in study.configs(seeds).items():
+        for results, reused in reproduce(Path(out), [config], progress=progress, directory=name):
+            yield name, results, reused
+
+
+def _save(figure: Figure, path: Path) -> str:
+    store.write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=100))
+    return f"{path.parent.name}/{path.name}"
+
+
+def report_10_2(out: Path, runs: dict[str, Results]) -> Path:
+    """Figure 10.2: mean steps per episode (log scale) with 95% bands, one line per step size."""
+    figure = Figure(figsize=(7.5, 5), layout="constrained")
+    ax = figure.subplots()
+    rows = []
+    for results in runs.values():
+        lengths = results.records.lengths.astype(np.float64)
+        mean, low, high = mean_band(lengths)
+        episodes = np.arange(1, lengths.shape[1] + 1)
+        (line,) = ax.plot(episodes, mean, label=f"α = {results.config.alpha * 8:g}/8")
+        ax.fill_between(episodes, low, high, color=line.get_color(), alpha=0.25, linewidth=0)
+        rows.append({"α": f"{results.config.alpha * 8:g}/8", "seeds": len(results.seeds),
+                     "first episode": interval(lengths[:, 0]).format(0),
+                     "episodes 1-50": interval(lengths[:, :50].mean(axis=1)).format(0),
+                     "episodes 451-500": interval(lengths[:, -50:].mean(axis=1)).format(0)})
+    ax.set_yscale("log")
+    ax.set_xlabel("episode")
+    ax.set_ylabel("steps per episode (log scale)")
+    ax.legend()
+    ax.grid(alpha=0.3, which="both")
+    figure.suptitle("Semi-gradient SARSA, 8 tilings, Mountain Car (Sutton and Barto, Figure 10.2)")
+    image = _save(figure, Path(out) / "figures" / "fig10_2.png")
+    table = pd.DataFrame(rows)
+    return write_report(Path(out) / "report.html", "Figure 10.2: semi-gradient SARSA on Mountain Car", [
+        Section("Steps per episode", [
+            "MountainCar-book, 8 tilings of 8 x 8 tiles with asymmetric offsets, ε = 0, γ = 1, weights start at "
+            "0. Mean over seeds with 95% bootstrap intervals. The book shows about 1000 steps in the first "
+            "episodes falling to about 150-200 by episode 500, fastest for α = 0.5/8."],
+            tables=[("Steps per episode", table)], figures=[(image, "Figure 10.2, redrawn")]),
+    ], [])
+
+
+def report_12_10(out: Path, runs: dict[str, Results]) -> Path:
+    """Figure 12.10: steps per episode averaged over the first 50 episodes, against α x 8, per λ."""
+    figure = Figure(figsize=(7.5, 5), layout="constrained")
+    ax = figure.subplots()
+    rows = []
+    for lam in FIG_12_10_LAMBDAS:
+        chosen = [r for r in runs.values() if r.config.lam == lam]
+        if not chosen:
+            continue
+        alphas = np.array([r.config.alpha * 8 for r in chosen])
+        estimates = [interval(r.records.lengths[:, :FIG_12_10_EPISODES].mean(axis=1)) for r in chosen]
+        ax.errorbar(alphas, [e.value for e in estimates], yerr=np.array(
+            [[e.value - e.low for e in estimates], [e.high - e.value for e in estimates]]), marker="o",
+            capsize=3, label=f"λ = {lam:g}")
+        rows += [{"λ": lam, "α x 8": a, "mean steps per episode": e.format(0)} for a, e in zip(alphas, estimates,
+                                                                                                 strict=True)]
+    ax.set_xlabel("α x number of tilings (8)")
+    ax.set_ylabel(f"steps per episode, averaged over the first {FIG_12_10_EPISODES} episodes")
+    ax.set_ylim(top=min(ax.get_ylim()[1], 600))
+    ax.legend()
+    ax.grid(alpha=0.3)
+    figure.suptitle("SARSA(λ) with replacing traces on Mountain Car (Sutton and Barto, Figure 12.10)")
+    image = _save(figure, Path(out) / "figures" / "fig12_10.png")
+    return write_report(Path(out) / "report.html", "Figure 12.10: SARSA(λ) on Mountain Car", [
+        Section("Early performance against the step size", [
+            "MountainCar-book, 8 tilings, replacing traces, ε = 0, γ = 1. The book finds intermediate λ best "
+            "(about 0.9), with a best α that shrinks as λ grows, and large α making high λ diverge."],
+            tables=[("Mean steps per episode over the first 50 episodes", pd.DataFrame(rows))],
+            figures=[(image, "Figure 12.10, redrawn")]),
+    ], [])
+
+
+STUDIES = {
+    "book-10.2": Study("book-10.2", "Semi-gradient SARSA with tile coding (Figure 10.2)", fig_10_2_configs,
+                       report_10_2),
+    "book-12.10": Study("book-12.10", "SARSA(λ) with replacing traces (Figure 12.10)", fig_12_10_configs,
+                        report_12_10),
+}
