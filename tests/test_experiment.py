@@ -157,3 +157,17 @@ def test_load_agent_rejects_unknown_seed_and_stage(tmp_path: Path, small_config:
         load_agent(tmp_path / "run", seed=9)
     with pytest.raises(KeyError, match="'late'"):
         load_agent(tmp_path / "run", seed=0, stage="late")
+
+
+def test_tile_coded_agent_acts_in_gymnasium_as_in_our_evaluation(tmp_path: Path) -> None:
+    """Tiles read the float64 state here and Gymnasium's float32 observation there; a point within a float32
+    rounding of a tile boundary could differ, so the returns are compared episode by episode."""
+    config = ExperimentConfig(algorithm="sarsa", features="tiles", schedule="constant", epsilon=0.0, gamma=1.0,
+                              alpha=0.5 / 8, seeds=(3,), episodes=200, eval_every=200, eval_episodes=20)
+    results = run(config, out=tmp_path / "run")
+    agent = load_agent(tmp_path / "run", seed=3)
+    _, eval_stream = np.random.SeedSequence(3).spawn(2)
+    ours = results.records.eval_returns[0, -1]
+    theirs = np.array(_gymnasium_eval_returns(agent, eval_stream, 20))
+    assert (ours > -1000).all()
+    assert np.mean(theirs == ours) >= 0.9, (theirs, ours)

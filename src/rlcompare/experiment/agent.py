@@ -7,26 +7,38 @@ from pathlib import Path
 
 import numpy as np
 
+from rlcompare.engine.kernel import GRID, Features
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import UniformGrid, cell_index, make_grid
+from rlcompare.envs.discretize import cell_index
+from rlcompare.envs.tiles import active_tiles_nd
+from rlcompare.experiment.problem import make_features
 from rlcompare.experiment.results import Results
 
 
 @dataclass
 class GreedyAgent:
-    """The greedy policy of a stored Q-table: ``act(observation) -> int``, ties to the first action."""
+    """The greedy policy of stored weights: ``act(observation) -> int``, ties to the first action.
 
-    q_table: np.ndarray
-    grid: UniformGrid
+    With the grid the weights are the Q-table; with tiles, ``q(s, a)`` sums the active tiles' weights.
+    A REINFORCE agent acts on its preferences: the most probable action of its softmax policy.
+    """
+
+    weights: np.ndarray
+    features: Features
     seed: int
     stage: str
 
-    def cell(self, observation: np.ndarray) -> int:
-        """The grid cell of an observation, as ``DiscretizeObservation`` would give it."""
-        return cell_index(self.grid, np.asarray(observation, dtype=np.float64))
+    def active(self, observation: np.ndarray) -> np.ndarray:
+        """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling."""
+        observation = np.asarray(observation, dtype=np.float64)
+        if self.features.kind == GRID:
+            return np.array([cell_index(self.features.grid, observation)])
+        out = np.empty(self.features.n_active, dtype=np.int64)
+        active_tiles_nd(self.features.tiles, observation, out)
+        return out
 
     def act(self, observation: np.ndarray) -> int:
-        return int(np.argmax(self.q_table[self.cell(observation)]))
+        return int(np.argmax(self.weights[self.active(observation)].sum(axis=0)))
 
 
 @dataclass
@@ -47,8 +59,9 @@ class RandomAgent:
 def load_agent(run_dir: Path, *, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent:
     """The agent of ``seed`` at ``stage`` in a run directory, ready for ``gymnasium.make("MountainCar-v0")``."""
     results = Results.load(Path(run_dir))
-    q_table = results.q_table(seed, stage)
-    if results.config.algorithm == "random":
+    weights = results.q_table(seed, stage)
+    c = results.config
+    if c.algorithm == "random":
         return RandomAgent(seed=seed, stage=stage)
-    grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, results.config.bins)
-    return GreedyAgent(q_table=q_table, grid=grid, seed=seed, stage=stage)
+    features = make_features(c.env, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+    return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage)
