@@ -61,6 +61,10 @@ def _fmt(estimate, digits: int = 1) -> str:
     return estimate.format(digits) if not np.isnan(estimate.value) else "n/a"
 
 
+def _paper(paper: dict[str, float], name: str) -> str:
+    return f"{paper[name]:g}" if name in paper else ""
+
+
 def table_i(metrics: dict[str, pd.DataFrame], paper: dict[str, float], episodes: int) -> pd.DataFrame:
     """Time to converge: episodes and seconds, mean [95% CI] over converged seeds, how many never did, and
     the episodes with those counted at the last episode (a censored mean, free of the selection)."""
@@ -75,7 +79,7 @@ def table_i(metrics: dict[str, pd.DataFrame], paper: dict[str, float], episodes:
             "censored at the last episode": _fmt(interval(censored), 0),
             "seconds to converge": _fmt(interval(done["convergence_seconds"].to_numpy()), 3) if len(done) else "n/a",
             "never converged": f"{len(m) - len(done)} of {len(m)}",
-            "paper (Table I)": paper.get(name, ""),
+            "paper (Table I)": _paper(paper, name),
         })
     return pd.DataFrame(rows)
 
@@ -92,7 +96,7 @@ def table_ii(metrics: dict[str, pd.DataFrame], paper: dict[str, float]) -> pd.Da
             "greedy mean": _fmt(interval(greedy)) if np.isfinite(greedy).all() else "n/a",
             "greedy IQM": _fmt(interval(greedy, statistic="iqm")) if np.isfinite(greedy).all() else "n/a",
             "greedy success": f"{np.mean(m['greedy_success']):.0%}" if np.isfinite(greedy).all() else "n/a",
-            "paper (Table II)": paper.get(name, ""),
+            "paper (Table II)": _paper(paper, name),
         })
     return pd.DataFrame(rows)
 
