@@ -76,6 +76,14 @@ def test_run_help_explains_options() -> None:
         (["run", "--seeds", "0"], "--seeds", ">= 1"),
         (["reproduce", "--seeds", "-1"], "--seeds", ">= 1"),
         (["reproduce", "--episodes", "0"], "--episodes", ">= 1"),
+        (["reproduce", "--algorithms", "dqn"], "--algorithms", "expected_sarsa"),
+        (["reproduce", "cliff"], "STUDY", "book-10.2"),
+        (["run", "--algorithm", "sarsa_lambda", "--lam", "1.5"], "--lam", "[0, 1]"),
+        (["run", "--algorithm", "n_step_sarsa", "--n", "0"], "--n", ">= 1"),
+        (["run", "--features", "tiles", "--tiles", "0"], "--tiles", ">= 1"),
+        (["run", "--features", "tiles", "--hash-size", "-1"], "--hash-size", ">= 0"),
+        (["run", "--features", "coarse"], "--features", "grid, tiles"),
+        (["run", "--trace", "dutch"], "--trace", "replacing, accumulating"),
     ],
 )
 def test_bad_input_gets_one_clear_message_and_exit_code_2(
