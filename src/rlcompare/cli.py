@@ -149,12 +149,13 @@ def run(
     console.print(f"Run directory: {out}")
 
 
-STUDY_NAMES = ("paper", "book-10.2", "book-12.10")
+STUDY_NAMES = ("paper", "book-10.2", "book-12.10", "cliff")
 
 
 @app.command()
 def reproduce(
-    study: Annotated[str, typer.Argument(help="Which study: paper (default), book-10.2 or book-12.10.")] = "paper",
+    study: Annotated[str, typer.Argument(
+        help="Which study: paper (default), book-10.2, book-12.10 or cliff (see --list).")] = "paper",
     seeds: Seeds = 30,
     first_seed: FirstSeed = 0,
     episodes: Annotated[int, typer.Option(help="Training episodes per seed (paper study; the paper gives none).")]

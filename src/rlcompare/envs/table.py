@@ -58,6 +58,18 @@ def make_table_env(
     return TableEnv(next_state, reward, ends, cumulative, start_cumulative)
 
 
+def from_gymnasium(env_id: str, **kwargs) -> TableEnv:
+    """The table of a Gymnasium toy-text environment (CliffWalking-v1, FrozenLake-v1, Taxi-v3, ...), read
+    from its own transition model ``P`` and start distribution, so stepping it equals stepping Gymnasium."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kwargs).unwrapped
+    outcomes = {(s, a): [(p, int(target), float(r), bool(done)) for p, target, r, done in env.P[s][a]]
+                for s in env.P for a in env.P[s]}
+    start = {s: float(p) for s, p in enumerate(env.initial_state_distrib) if p > 0}
+    return make_table_env(outcomes, env.observation_space.n, env.action_space.n, start)
+
+
 def chain(length: int = 5, reward: float = 1.0) -> TableEnv:
     """States ``0 .. length - 1`` in a row, start at 0; action 1 moves right, action 0 stays. Leaving the
     last state to the right ends the episode with ``reward``; every other step gives 0. With discount γ,

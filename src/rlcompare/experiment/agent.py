@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rlcompare.engine.kernel import GRID, Features
+from rlcompare.engine.kernel import GRID, ONE_HOT, Features
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import cell_index
 from rlcompare.envs.tiles import active_tiles_nd
@@ -30,6 +30,8 @@ class GreedyAgent:
 
     def active(self, observation: np.ndarray) -> np.ndarray:
         """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling."""
+        if self.features.kind == ONE_HOT:
+            return np.array([int(observation)])
         observation = np.asarray(observation, dtype=np.float64)
         if self.features.kind == GRID:
             return np.array([cell_index(self.features.grid, observation)])
@@ -52,16 +54,19 @@ class RandomAgent:
     def __post_init__(self) -> None:
         self.rng = np.random.default_rng(self.seed)
 
+    n_actions: int = mountain_car.N_ACTIONS
+
     def act(self, observation: np.ndarray) -> int:
-        return int(self.rng.integers(mountain_car.N_ACTIONS))
+        return int(self.rng.integers(self.n_actions))
 
 
 def load_agent(run_dir: Path, *, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent:
-    """The agent of ``seed`` at ``stage`` in a run directory, ready for ``gymnasium.make("MountainCar-v0")``."""
+    """The agent of ``seed`` at ``stage`` in a run directory, ready for ``gymnasium.make(config.env)``
+    (``MountainCar-v0`` for the book's variant too, whose trajectories are the same)."""
     results = Results.load(Path(run_dir))
     weights = results.q_table(seed, stage)
     c = results.config
     if c.algorithm == "random":
-        return RandomAgent(seed=seed, stage=stage)
+        return RandomAgent(seed=seed, stage=stage, n_actions=weights.shape[1])
     features = make_features(c.env, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
     return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage)

@@ -15,7 +15,6 @@ import numpy as np
 
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.engine import kernel, tabular
-from rlcompare.envs import mountain_car
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import make_env, make_features
@@ -47,11 +46,12 @@ def run(
     epsilons = epsilon_schedule(config)
     features = make_features(config.env, config.features, config.bins, config.tilings, config.tiles,
                              config.hash_size)
-    state = kernel.initial_state(list(config.seeds), features.n_features, mountain_car.N_ACTIONS)
+    env = make_env(config.env)
+    state = kernel.initial_state(list(config.seeds), features.n_features, env.n_actions)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
     records = kernel.allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
                                       config.eval_episodes, stage_episodes, state.w.shape[1:])
-    train = _trainer(config, features, state, epsilons, records)
+    train = _trainer(config, env, features, state, epsilons, records)
     train(0, 0)  # compile or load the kernel outside the clock
     started = time.perf_counter()
     for first in range(0, config.episodes, CHUNK_EPISODES):
@@ -74,8 +74,8 @@ def uses_fast_path(config: ExperimentConfig) -> bool:
             and config.algorithm in tabular.ALGORITHM_CODES)
 
 
-def _trainer(config: ExperimentConfig, features: kernel.Features, state: kernel.RunState, epsilons: np.ndarray,
-             records: kernel.Records) -> Callable[[int, int], None]:
+def _trainer(config: ExperimentConfig, env: kernel.Env, features: kernel.Features, state: kernel.RunState,
+             epsilons: np.ndarray, records: kernel.Records) -> Callable[[int, int], None]:
     """``train(first, stop)``: episodes ``[first, stop)`` of every seed, in place."""
     common = {"max_steps": int(config.max_steps), "truncation_is_terminal": bool(config.truncation_as_terminal),
               "alpha": float(config.alpha), "gamma": float(config.gamma), "eval_every": int(config.eval_every)}
@@ -89,7 +89,6 @@ def _trainer(config: ExperimentConfig, features: kernel.Features, state: kernel.
         target_epsilon=-1.0 if config.target_epsilon is None else float(config.target_epsilon),
         baseline_alpha=float(config.baseline_alpha) if baseline else 0.0,
     )
-    env = make_env(config.env)
     return lambda first, stop: kernel.train_runs(settings, env, features, state, epsilons, first, stop, records)
 
 

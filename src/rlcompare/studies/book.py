@@ -1,4 +1,4 @@
-"""Sutton and Barto's Mountain Car results with tile coding, reproduced as studies.
+"""Sutton and Barto's results, reproduced as studies: Mountain Car with tile coding, and Cliff Walking.
 
 - ``book-10.2``: semi-gradient SARSA with 8 tilings of 8 x 8 tiles, ε = 0 (the zero start is optimistic),
   γ = 1, α = 0.1/8, 0.2/8, 0.5/8: steps per episode over 500 episodes (Figure 10.2).
@@ -8,6 +8,11 @@
 Both use ``MountainCar-book`` (Example 10.1: Gymnasium's dynamics, position bounded at the goal, 0.5; the
 tiles span [-1.2, 0.5] x [-0.07, 0.07]). The book gives no step limit; episodes are cut at 10,000 steps,
 which only the worst step sizes of Figure 12.10 reach.
+
+- ``cliff``: Example 6.6 (Figure 6.4) on Gymnasium's ``CliffWalking-v1``: SARSA, Q-Learning and Expected
+  SARSA with ε = 0.1, α = 0.5, γ = 1, 500 episodes, 50 runs. The book's contrast with the paper: on the
+  cliff Q-Learning learns the optimal edge path (return -13) but falls off while exploring, so SARSA,
+  which learns the safe path, collects more reward online.
 """
 
 from __future__ import annotations
@@ -134,9 +139,87 @@ def report_12_10(out: Path, runs: dict[str, Results]) -> Path:
     ], [])
 
 
+CLIFF = {"env": "CliffWalking-v1", "schedule": "constant", "epsilon": 0.1, "alpha": 0.5, "gamma": 1.0,
+         "episodes": 500, "max_steps": 1000, "eval_every": 500, "eval_episodes": 1, "stages": (("final", 1.0),)}
+CLIFF_ALGORITHMS = {"sarsa": "SARSA", "q_learning": "Q-Learning", "expected_sarsa": "Expected SARSA"}
+CLIFF_SHAPE, CLIFF_START, CLIFF_MOVES = (4, 12), 36, {0: (-1, 0), 1: (0, 1), 2: (1, 0), 3: (0, -1)}
+
+
+def cliff_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
+    return {name: ExperimentConfig(algorithm=name, seeds=seeds, **CLIFF) for name in CLIFF_ALGORITHMS}
+
+
+def greedy_path(q_table: np.ndarray, limit: int = 100) -> list[int]:
+    """States visited by the greedy policy (first maximum) from the start until the goal or ``limit``."""
+    state, path = CLIFF_START, [CLIFF_START]
+    for _ in range(limit):
+        row, col = divmod(state, CLIFF_SHAPE[1])
+        d_row, d_col = CLIFF_MOVES[int(np.argmax(q_table[state]))]
+        row = min(max(row + d_row, 0), CLIFF_SHAPE[0] - 1)
+        col = min(max(col + d_col, 0), CLIFF_SHAPE[1] - 1)
+        state = CLIFF_START if row == 3 and 0 < col < 11 else row * CLIFF_SHAPE[1] + col
+        path.append(state)
+        if state == 47:
+            break
+    return path
+
+
+def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
+    """Online return per episode with bands (Figure 6.4), greedy paths on the grid, and a table."""
+    figure = Figure(figsize=(12, 4.5), layout="constrained")
+    curves_ax, paths_ax = figure.subplots(1, 2, width_ratios=(1.2, 1))
+    paths_ax.imshow(_cliff_mask(), cmap="Greys", vmin=0, vmax=1.5, origin="upper")
+    rows = []
+    for offset, (name, results) in enumerate(runs.items()):
+        label = CLIFF_ALGORITHMS.get(name, name)
+        returns = results.records.returns
+        smooth = np.stack([np.convolve(r, np.ones(10) / 10, mode="valid") for r in returns])
+        mean, low, high = mean_band(smooth)
+        episodes = np.arange(10, returns.shape[1] + 1)
+        (line,) = curves_ax.plot(episodes, mean, label=label)
+        curves_ax.fill_between(episodes, low, high, color=line.get_color(), alpha=0.25, linewidth=0)
+        path = greedy_path(results.records.snapshots[0, -1])
+        cols = [p % 12 + (offset - 1) * 0.12 for p in path]
+        paths_ax.plot(cols, [p // 12 + (offset - 1) * 0.12 for p in path], color=line.get_color(), linewidth=2,
+                      label=label)
+        greedy = results.records.eval_returns[:, -1, 0]
+        rows.append({"method": label, "seeds": len(results.seeds),
+                     "online return, last 100 episodes": interval(returns[:, -100:].mean(axis=1)).format(1),
+                     "greedy return of the final policy": interval(greedy).format(1),
+                     "seeds whose greedy path is optimal (-13)": f"{int(np.sum(greedy == -13))} of {len(greedy)}"})
+    curves_ax.set_ylim(-100, 0)
+    curves_ax.set_xlabel("episode")
+    curves_ax.set_ylabel("sum of rewards during episode (10-episode mean)")
+    curves_ax.legend(loc="lower right")
+    curves_ax.grid(alpha=0.3)
+    paths_ax.set_title("greedy path of the first seed (cliff shaded)")
+    paths_ax.set_xticks(range(12))
+    paths_ax.set_yticks(range(4))
+    paths_ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize="small")
+    figure.suptitle("Cliff Walking, ε = 0.1, α = 0.5 (Sutton and Barto, Example 6.6 and Figure 6.4)")
+    image = _save(figure, Path(out) / "figures" / "cliff.png")
+    return write_report(Path(out) / "report.html", "Example 6.6: Cliff Walking", [
+        Section("SARSA against Q-Learning where the optimal path is dangerous", [
+            "Gymnasium's CliffWalking-v1 (stepping into the cliff costs -100 and sends the agent back to the "
+            "start without ending the episode), ε-greedy with ε = 0.1, α = 0.5, γ = 1, 500 episodes. The paper "
+            "found SARSA better on Mountain Car and explained it by the kind of problem; here the book's "
+            "contrast: Q-Learning learns the optimal edge path but falls off while exploring, so its online "
+            "return is lower, while SARSA learns a safer path."],
+            tables=[("Online and greedy returns", pd.DataFrame(rows))], figures=[(image, "Figure 6.4, redrawn")]),
+    ], [])
+
+
+def _cliff_mask() -> np.ndarray:
+    mask = np.zeros(CLIFF_SHAPE)
+    mask[3, 1:11] = 1.0
+    return mask
+
+
 STUDIES = {
     "book-10.2": Study("book-10.2", "Semi-gradient SARSA with tile coding (Figure 10.2)", fig_10_2_configs,
                        report_10_2),
     "book-12.10": Study("book-12.10", "SARSA(λ) with replacing traces (Figure 12.10)", fig_12_10_configs,
                         report_12_10),
+    "cliff": Study("cliff", "Cliff Walking: SARSA, Q-Learning and Expected SARSA (Example 6.6)", cliff_configs,
+                   report_cliff),
 }
