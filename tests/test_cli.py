@@ -77,7 +77,7 @@ def test_run_help_explains_options() -> None:
         (["reproduce", "--seeds", "-1"], "--seeds", ">= 1"),
         (["reproduce", "--episodes", "0"], "--episodes", ">= 1"),
         (["reproduce", "--algorithms", "dqn"], "--algorithms", "expected_sarsa"),
-        (["reproduce", "cliff"], "STUDY", "book-10.2"),
+        (["reproduce", "mars"], "STUDY", "book-10.2"),
         (["run", "--algorithm", "sarsa_lambda", "--lam", "1.5"], "--lam", "[0, 1]"),
         (["run", "--algorithm", "n_step_sarsa", "--n", "0"], "--n", ">= 1"),
         (["run", "--features", "tiles", "--tiles", "0"], "--tiles", ">= 1"),
