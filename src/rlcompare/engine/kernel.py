@@ -71,7 +71,9 @@ class Features(NamedTuple):
 
 
 class Settings(NamedTuple):
-    """Scalars of one configuration, as the kernel reads them."""
+    """Scalars of one configuration, as the kernels read them (the fast tabular one reads the first six).
+
+    Keep the types as annotated: another type compiles the kernels anew."""
 
     algorithm: int
     alpha: float
@@ -79,11 +81,11 @@ class Settings(NamedTuple):
     max_steps: int
     truncation_is_terminal: bool
     eval_every: int
-    n: int  # n-step SARSA's n
-    lam: float  # λ of the trace methods
-    replacing: bool  # replacing traces instead of accumulating ones
-    target_epsilon: float  # Expected SARSA's target-policy ε; negative: the behaviour ε (on-policy)
-    baseline_alpha: float  # REINFORCE's baseline step size; 0: no baseline
+    n: int = 1  # n-step SARSA's n
+    lam: float = 0.0  # λ of the trace methods
+    replacing: bool = True  # replacing traces instead of accumulating ones
+    target_epsilon: float = -1.0  # Expected SARSA's target-policy ε; negative: the behaviour ε (on-policy)
+    baseline_alpha: float = 0.0  # REINFORCE's baseline step size; 0: no baseline
 
 
 class Records(NamedTuple):

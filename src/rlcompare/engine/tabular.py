@@ -15,8 +15,6 @@ random numbers for paired comparisons.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 from numba import njit, prange
 
@@ -28,6 +26,7 @@ from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records 
     EVAL_STREAM,
     Records,
     RunState,
+    Settings,
     allocate_records,
     initial_state,
 )
@@ -36,17 +35,6 @@ from rlcompare.envs.discretize import UniformGrid, cell_index_2d
 
 RANDOM, Q_LEARNING, SARSA = 0, 1, 2  # the same codes as the general kernel's
 ALGORITHM_CODES = {"random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA}
-
-
-class Settings(NamedTuple):
-    """Scalars of one configuration, as the kernel reads them."""
-
-    algorithm: int
-    alpha: float
-    gamma: float
-    max_steps: int
-    truncation_is_terminal: bool
-    eval_every: int
 
 
 @njit(cache=True)

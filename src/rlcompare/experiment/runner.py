@@ -80,7 +80,7 @@ def _trainer(config: ExperimentConfig, env: kernel.Env, features: kernel.Feature
     common = {"max_steps": int(config.max_steps), "truncation_is_terminal": bool(config.truncation_as_terminal),
               "alpha": float(config.alpha), "gamma": float(config.gamma), "eval_every": int(config.eval_every)}
     if uses_fast_path(config):
-        settings = tabular.Settings(algorithm=tabular.ALGORITHM_CODES[config.algorithm], **common)
+        settings = kernel.Settings(algorithm=tabular.ALGORITHM_CODES[config.algorithm], **common)
         return lambda first, stop: tabular.train_runs(settings, state, features.grid, epsilons, first, stop, records)
     baseline = config.algorithm == "reinforce_baseline"
     settings = kernel.Settings(
