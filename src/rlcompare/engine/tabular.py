@@ -1,8 +1,9 @@
-"""The fast path: the paper's tabular Q-Learning, SARSA and random baseline on Mountain Car's grid.
+"""The fast path: one-step tabular control on Mountain Car's grid, the paper's setting.
 
 The general kernel (:mod:`rlcompare.engine.kernel`) runs every algorithm on any features; this one runs
-only what the paper runs, with the state as two scalars and the cell as one integer, which makes it about
-twice as fast per step (``rlcompare bench``). Both give bit-identical results for these configurations
+the one-step tabular methods (Q-Learning, SARSA, Expected SARSA, Double Q-Learning and the random
+baseline) with the state as two scalars and the cell as one integer, which makes it two to three times
+as fast per step (``rlcompare bench``). Both give bit-identical results for these configurations
 (tested), share the run state and records, and draw from the same streams in the same order.
 
 A run is one seed of one configuration. :func:`train_runs` spreads runs over threads with ``prange``;
@@ -19,7 +20,13 @@ import numpy as np
 from numba import njit, prange
 
 from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
-from rlcompare.algorithms.td import q_learning_target, sarsa_target, td_update
+from rlcompare.algorithms.td import (
+    double_q_target,
+    expected_sarsa_target,
+    q_learning_target,
+    sarsa_target,
+    td_update,
+)
 from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records are shared by both kernels
     AGENT_STREAM,
     ENV_STREAM,
@@ -32,28 +39,36 @@ from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records 
 )
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_index_2d
+from rlcompare.rng import next_double
 
-RANDOM, Q_LEARNING, SARSA = 0, 1, 2  # the same codes as the general kernel's
-ALGORITHM_CODES = {"random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA}
+RANDOM, Q_LEARNING, SARSA, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3, 4  # the same codes as the general kernel's
+ALGORITHM_CODES = {"random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA, "expected_sarsa": EXPECTED_SARSA,
+                   "double_q_learning": DOUBLE_Q}
 
 
 @njit(cache=True)
 def train_episode(
     settings: Settings,
     q: np.ndarray,
+    q2: np.ndarray,
     grid: UniformGrid,
     epsilon: float,
     env_rng: np.ndarray,
     agent_rng: np.ndarray,
     visits: np.ndarray,
 ) -> tuple[float, int, bool]:
-    """One training episode of Algorithm 1 (Q-Learning), Algorithm 2 (SARSA) or the random baseline."""
+    """One training episode of Algorithm 1 (Q-Learning), Algorithm 2 (SARSA), Expected SARSA (6.6), Double
+    Q-Learning (6.7, with ``q2``) or the random baseline."""
     algorithm, alpha, gamma = settings.algorithm, settings.alpha, settings.gamma
     n_actions = q.shape[1]
+    target_epsilon = epsilon if settings.target_epsilon < 0 else settings.target_epsilon
+    both = np.empty(n_actions)  # Double Q-Learning's behaviour values, Q1 + Q2
     position, velocity = mountain_car.reset(env_rng)
     state = cell_index_2d(grid, position, velocity)
     if algorithm == RANDOM:
         action = uniform_action(n_actions, agent_rng)
+    elif algorithm == DOUBLE_Q:
+        action = epsilon_greedy_action(_sum_rows(q[state], q2[state], both), epsilon, agent_rng)
     else:
         action = epsilon_greedy_action(q[state], epsilon, agent_rng)
     episode_return, steps = 0.0, 0
@@ -77,6 +92,19 @@ def train_episode(
             if terminated or truncated:
                 break
             action = next_action
+        elif algorithm == EXPECTED_SARSA:
+            target = expected_sarsa_target(reward, q[next_state], target_epsilon, gamma, terminal)
+            td_update(q, state, action, target, alpha)
+            if terminated or truncated:
+                break
+            action = epsilon_greedy_action(q[next_state], epsilon, agent_rng)
+        elif algorithm == DOUBLE_Q:
+            learner, other = (q, q2) if next_double(agent_rng) < 0.5 else (q2, q)
+            target = double_q_target(reward, learner[next_state], other[next_state], gamma, terminal)
+            td_update(learner, state, action, target, alpha)
+            if terminated or truncated:
+                break
+            action = epsilon_greedy_action(_sum_rows(q[next_state], q2[next_state], both), epsilon, agent_rng)
         else:
             if terminated or truncated:
                 break
@@ -85,11 +113,19 @@ def train_episode(
     return episode_return, steps, terminated
 
 
+@njit(inline="always")
+def _sum_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
+    for action in range(out.size):
+        out[action] = a[action] + b[action]
+    return out
+
+
 @njit(cache=True)
 def evaluation_episode(
     algorithm: int, q: np.ndarray, grid: UniformGrid, max_steps: int, eval_rng: np.ndarray
 ) -> tuple[float, int, bool]:
-    """One episode of the target policy: greedy (first maximum) for the learners, uniform for the baseline."""
+    """One episode of the target policy: greedy (first maximum) in ``q`` for the learners (Double
+    Q-Learning passes ``Q1 + Q2``), uniform for the baseline."""
     position, velocity = mountain_car.reset(eval_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < max_steps:
@@ -115,12 +151,13 @@ def train_run(
     records: Records,
 ) -> None:
     """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
-    q = state.w[run]
+    q, q2 = state.w[run], state.w2[run]
+    double = settings.algorithm == DOUBLE_Q
     env_rng, agent_rng, eval_rng = state.rng[run, 0], state.rng[run, 1], state.rng[run, 2]
     eval_episodes = records.eval_returns.shape[2]
     for episode in range(first_episode, stop_episode):
         ret, length, terminated = train_episode(
-            settings, q, grid, epsilons[episode], env_rng, agent_rng, records.visits[run]
+            settings, q, q2, grid, epsilons[episode], env_rng, agent_rng, records.visits[run]
         )
         records.returns[run, episode] = ret
         records.lengths[run, episode] = length
@@ -128,16 +165,17 @@ def train_run(
         completed = episode + 1
         if settings.eval_every > 0 and completed % settings.eval_every == 0:
             round_ = completed // settings.eval_every - 1
+            greedy_in = q + q2 if double else q
             for k in range(eval_episodes):
                 ret, length, terminated = evaluation_episode(
-                    settings.algorithm, q, grid, settings.max_steps, eval_rng
+                    settings.algorithm, greedy_in, grid, settings.max_steps, eval_rng
                 )
                 records.eval_returns[run, round_, k] = ret
                 records.eval_lengths[run, round_, k] = length
                 records.eval_terminated[run, round_, k] = terminated
         for stage in range(records.snapshot_episodes.size):
             if records.snapshot_episodes[stage] == completed:
-                records.snapshots[run, stage] = q
+                records.snapshots[run, stage] = (q + q2) / 2 if double else q
 
 
 @njit(parallel=True, cache=True)
