@@ -14,7 +14,6 @@ from rlcompare.analysis.stats import (
     Estimate,
     interval,
     iqm,
-    mean_interval,
     paired_difference,
     probability_of_improvement,
     rank_test,
@@ -81,11 +80,6 @@ def test_wider_confidence_gives_a_wider_interval():
     narrow = interval(values, confidence=0.8, n_resamples=2000)
     wide = interval(values, confidence=0.99, n_resamples=2000)
     assert wide.low < narrow.low < narrow.high < wide.high
-
-
-def test_mean_interval_is_the_mean_interval():
-    values = np.random.default_rng(8).normal(size=12)
-    assert mean_interval(values, n_resamples=2000, seed=3) == interval(values, "mean", n_resamples=2000, seed=3)
 
 
 def test_degenerate_inputs():

@@ -93,13 +93,6 @@ def interval(
     return Estimate(value, low, high)
 
 
-def mean_interval(
-    per_seed: np.ndarray, confidence: float = 0.95, n_resamples: int = 10_000, seed: int = 0
-) -> Estimate:
-    """Mean over seeds with a BCa bootstrap interval: ``interval(per_seed, "mean", ...)``."""
-    return interval(per_seed, "mean", confidence=confidence, n_resamples=n_resamples, seed=seed)
-
-
 def _bootstrap(data: tuple[np.ndarray, ...], function, method: str, confidence: float, n_resamples: int,
                seed: int) -> tuple[float, float]:
     """``scipy.stats.bootstrap`` bounds; BCa that cannot be computed falls back to the percentile interval.
