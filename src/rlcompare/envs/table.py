@@ -59,7 +59,7 @@ def make_table_env(
 
 
 def from_gymnasium(env_id: str, **kwargs) -> TableEnv:
-    """The table of a Gymnasium toy-text environment (CliffWalking-v1, FrozenLake-v1, Taxi-v3, ...), read
+    """The table of a Gymnasium toy-text environment (CliffWalking-v1, FrozenLake-v1, Taxi-v4, ...), read
     from its own transition model ``P`` and start distribution, so stepping it equals stepping Gymnasium."""
     import gymnasium as gym
 

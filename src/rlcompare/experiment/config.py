@@ -16,7 +16,7 @@ from typing import Any
 from rlcompare.algorithms.schedules import SCHEDULES
 from rlcompare.engine.kernel import ALGORITHM_CODES
 
-ENVIRONMENTS = ("MountainCar-v0", "MountainCar-book", "CliffWalking-v1")
+ENVIRONMENTS = ("MountainCar-v0", "MountainCar-book", "CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
 ALGORITHMS = (*ALGORITHM_CODES, "reinforce_baseline")
 FEATURES = ("grid", "tiles")
 TRACES = ("replacing", "accumulating")
@@ -43,8 +43,9 @@ class ExperimentConfig:
     """Exploration: ``constant`` (ε fixed) or ``decay`` (linear from ``epsilon_start`` to ``epsilon_end``)."""
     env: str = "MountainCar-v0"
     """``MountainCar-v0`` (Gymnasium's, ported exactly), ``MountainCar-book`` (Sutton and Barto's Example
-    10.1: the same dynamics with the position bounded at the goal, 0.5) or ``CliffWalking-v1`` (Example 6.6,
-    stepped from Gymnasium's own transition table)."""
+    10.1: the same dynamics with the position bounded at the goal, 0.5), or a toy-text environment stepped
+    from Gymnasium's own transition table: ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4,
+    slippery), ``Taxi-v4``."""
     features: str = "grid"
     """``grid``: one cell of ``bins`` per dimension (the paper); ``tiles``: tile coding (9.5.4)."""
     tilings: int = 8

@@ -11,7 +11,7 @@ from rlcompare.envs.table import chain, from_gymnasium
 from rlcompare.envs.tiles import TileCoding, make_tile_coding
 
 _NO_TABLE = chain(1)  # the kernels' table slot, unused by Mountain Car
-TABLE_ENVIRONMENTS = ("CliffWalking-v1",)
+TABLE_ENVIRONMENTS = ("CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
 """Finite environments stepped from their Gymnasium transition tables; their state is their feature."""
 
 
