@@ -540,20 +540,38 @@ def train_run(
             settings, env, features, w, w2, z, touched, listed, epsilons[episode], env_rng, agent_rng,
             records.visits[run],
         )
-        records.returns[run, episode] = ret
-        records.lengths[run, episode] = length
-        records.terminated[run, episode] = terminated
+        record_episode(records.returns, records.lengths, records.terminated, (run, episode), ret, length, terminated)
         completed = episode + 1
-        if settings.eval_every > 0 and completed % settings.eval_every == 0:
-            round_ = completed // settings.eval_every - 1
+        round_ = evaluation_round(settings, completed)
+        if round_ >= 0:
             for k in range(eval_episodes):
                 ret, length, terminated = evaluation_episode(settings, env, features, w, w2, eval_rng)
-                records.eval_returns[run, round_, k] = ret
-                records.eval_lengths[run, round_, k] = length
-                records.eval_terminated[run, round_, k] = terminated
-        for stage in range(records.snapshot_episodes.size):
-            if records.snapshot_episodes[stage] == completed:
-                records.snapshots[run, stage] = (w + w2) / 2 if settings.algorithm == DOUBLE_Q else w
+                record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated, (run, round_, k),
+                               ret, length, terminated)
+        keep_snapshots(records, run, completed, w, w2, settings.algorithm == DOUBLE_Q)
+
+
+@njit(inline="always")
+def record_episode(returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, at: tuple, ret: float,
+                   length: int, ended: bool) -> None:
+    """Write one episode's return, length and termination at index ``at`` (training or evaluation)."""
+    returns[at], lengths[at], terminated[at] = ret, length, ended
+
+
+@njit(inline="always")
+def evaluation_round(settings: Settings, completed: int) -> int:
+    """The evaluation round due after ``completed`` episodes, or -1 when none is."""
+    if settings.eval_every > 0 and completed % settings.eval_every == 0:
+        return completed // settings.eval_every - 1
+    return -1
+
+
+@njit(inline="always")
+def keep_snapshots(records: Records, run: int, completed: int, w: np.ndarray, w2: np.ndarray, double: bool) -> None:
+    """Copy the weights at every stage whose episode count is ``completed`` (Double Q-Learning: their mean)."""
+    for stage in range(records.snapshot_episodes.size):
+        if records.snapshot_episodes[stage] == completed:
+            records.snapshots[run, stage] = (w + w2) / 2 if double else w
 
 
 @njit(parallel=True, cache=True)

@@ -35,7 +35,10 @@ from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records 
     RunState,
     Settings,
     allocate_records,
+    evaluation_round,
     initial_state,
+    keep_snapshots,
+    record_episode,
 )
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_index_2d
@@ -159,23 +162,18 @@ def train_run(
         ret, length, terminated = train_episode(
             settings, q, q2, grid, epsilons[episode], env_rng, agent_rng, records.visits[run]
         )
-        records.returns[run, episode] = ret
-        records.lengths[run, episode] = length
-        records.terminated[run, episode] = terminated
+        record_episode(records.returns, records.lengths, records.terminated, (run, episode), ret, length, terminated)
         completed = episode + 1
-        if settings.eval_every > 0 and completed % settings.eval_every == 0:
-            round_ = completed // settings.eval_every - 1
+        round_ = evaluation_round(settings, completed)
+        if round_ >= 0:
             greedy_in = q + q2 if double else q
             for k in range(eval_episodes):
                 ret, length, terminated = evaluation_episode(
                     settings.algorithm, greedy_in, grid, settings.max_steps, eval_rng
                 )
-                records.eval_returns[run, round_, k] = ret
-                records.eval_lengths[run, round_, k] = length
-                records.eval_terminated[run, round_, k] = terminated
-        for stage in range(records.snapshot_episodes.size):
-            if records.snapshot_episodes[stage] == completed:
-                records.snapshots[run, stage] = (q + q2) / 2 if double else q
+                record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated, (run, round_, k),
+                               ret, length, terminated)
+        keep_snapshots(records, run, completed, q, q2, double)
 
 
 @njit(parallel=True, cache=True)
