@@ -1,0 +1,114 @@
+"""The compiled CartPole and Acrobot against Gymnasium's ``CartPole-v1`` and ``Acrobot-v1``, step by step."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from rlcompare.envs import acrobot, cartpole
+from rlcompare.rng import stream_state
+
+ROLLOUT_STEPS = 60_000
+
+
+def _numpy_trigonometry_is_libm() -> bool:
+    """Gymnasium's Acrobot uses NumPy's sin and cos, the port the C library's; some NumPy builds use SIMD
+    kernels (AVX-512) that differ from it in the last bit."""
+    x = np.random.default_rng(0).uniform(-10, 10, 20_000)
+    return all(np.cos(v) == math.cos(v) and np.sin(v) == math.sin(v) for v in x)
+
+
+def _cartpole_policy(kind: str, state: np.ndarray, generator: np.random.Generator) -> int:
+    """Random pushes, or a balancing controller that keeps the pole up and lets the cart drift off the track
+    (or reach the time limit), with 20% random pushes."""
+    if kind == "random" or generator.random() < 0.2:
+        return int(generator.integers(2))
+    return int(state[2] + 0.5 * state[3] > 0.0)
+
+
+def _acrobot_policy(kind: str, state: np.ndarray, generator: np.random.Generator) -> int:
+    """Random torques, or pumping energy (torque along the second joint's velocity): reaches the goal."""
+    if kind == "random" or generator.random() < 0.1:
+        return int(generator.integers(3))
+    return 2 if state[3] >= 0 else 0
+
+
+@pytest.mark.parametrize(("port", "policy"), [(cartpole, _cartpole_policy), (acrobot, _acrobot_policy)],
+                         ids=["CartPole-v1", "Acrobot-v1"])
+def test_transitions_equal_gymnasium(port, policy) -> None:
+    """Long rollouts from many seeds: start state, every state, observation, reward and termination equal
+    (``==``) to Gymnasium's, episodes ending both ways (the goal or failure, and the time limit)."""
+    if port is acrobot and not _numpy_trigonometry_is_libm():
+        pytest.skip("this NumPy's sin and cos differ from the C library's; Gymnasium's Acrobot cannot be matched")
+    limit = 500
+    env = gym.make(port.ENV_ID, max_episode_steps=limit)
+    generator = np.random.default_rng(7)
+    state, rng = np.empty(port.STATE_SIZE), None
+    total = episodes = terminations = truncations = 0
+    while total < ROLLOUT_STEPS:
+        if episodes % 3 == 0:
+            seed = int(generator.integers(2**31))
+            observation, _ = env.reset(seed=seed)
+            rng = stream_state(seed)
+        else:
+            observation, _ = env.reset()
+        port.reset(state, rng)
+        np.testing.assert_array_equal(state, env.unwrapped.state)
+        _assert_observation(port, state, observation, first=True)
+        kind = "random" if episodes % 2 else "controlled"
+        for steps in range(1, limit + 1):
+            action = policy(kind, state, generator)
+            observation, reward, terminated, truncated, _ = env.step(action)
+            if port is acrobot:
+                our_reward, done = acrobot.step(state, action)
+            else:
+                our_reward, done = cartpole.REWARD, cartpole.step(state, action)
+            total += 1
+            assert np.array_equal(state, env.unwrapped.state), (episodes, steps)
+            _assert_observation(port, state, observation)
+            assert (our_reward, done) == (reward, terminated)
+            if terminated or truncated:
+                terminations += terminated
+                truncations += truncated
+                break
+        episodes += 1
+    assert terminations > 30
+    assert truncations > 3
+
+
+def _assert_observation(port, state: np.ndarray, observation: np.ndarray, first: bool = False) -> None:
+    """Equal, but for Acrobot's first observation: Gymnasium computes it from the float32 start state with
+    NumPy's float32 sin and cos (SIMD approximations), the port in float64 rounded once; they may differ in
+    the last bit of the float32 (about 0.2% of resets; the start state itself is equal)."""
+    if port is acrobot:
+        ours = np.empty(acrobot.OBSERVATION_SIZE)
+        acrobot.observe(state, ours)
+    else:
+        ours = state
+    if port is acrobot and first:
+        np.testing.assert_array_max_ulp(observation, ours.astype(np.float32), maxulp=1)
+    else:
+        np.testing.assert_array_equal(observation, ours.astype(np.float32))
+
+
+def test_acrobot_clips_velocities_and_wraps_angles() -> None:
+    """From a fast spin the port clips ``dtheta2`` at 9 pi and keeps the angles in [-pi, pi]."""
+    state = np.array([3.0, 3.1, 4 * math.pi, 9 * math.pi])
+    for _ in range(20):
+        acrobot.step(state, 2)
+        assert -math.pi <= state[0] <= math.pi
+        assert -math.pi <= state[1] <= math.pi
+        assert abs(state[2]) <= acrobot.MAX_VEL_1
+        assert abs(state[3]) <= acrobot.MAX_VEL_2
+    env = gym.make("Acrobot-v1").unwrapped
+    env.reset(seed=0)
+    env.state = np.array([3.0, 3.1, 4 * math.pi, 9 * math.pi])
+    ours = env.state.copy()
+    for _ in range(20):
+        env.step(2)
+        acrobot.step(ours, 2)
+    if _numpy_trigonometry_is_libm():
+        np.testing.assert_array_equal(ours, env.state)
