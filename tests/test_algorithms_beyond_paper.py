@@ -71,7 +71,7 @@ def _episode_impl(name: str, fn):
 
 
 def _table_problem(table_env: TableEnv) -> tuple[kernel.Env, kernel.Features]:
-    env = kernel.Env(kernel.TABLE, 0.0, table_env, table_env.n_actions)
+    env = kernel.Env(kernel.TABLE, 0.0, table_env, table_env.n_actions, 1, 1)
     features = kernel.Features(kernel.ONE_HOT, GRID_STUB, TILES_STUB, table_env.n_states, 1)
     return env, features
 
@@ -142,7 +142,7 @@ class Episode:
         self.ret, self.steps, self.terminated = float(out[0]), int(out[1]), bool(out[2])
 
     def _train_run(self, settings, env, features, epsilon):
-        rng = np.stack([self.env_rng, self.agent_rng, stream_state(ENV_SEED + 1)])[None]
+        rng = np.stack([self.env_rng, self.agent_rng, stream_state(ENV_SEED + 1), stream_state(ENV_SEED + 2)])[None]
         state = kernel.RunState(w=self.w[None].copy(), w2=self.w2[None].copy(), rng=rng)
         records = kernel.allocate_records(1, 1, 0, 1, np.array([1], np.int64), self.w.shape)
         kernel.train_run(0, settings, env, features, state, np.array([epsilon]), 0, 1, records)

@@ -13,7 +13,8 @@ from rlcompare.engine.tabular import (
     AGENT_STREAM,
     ALGORITHM_CODES,
     ENV_STREAM,
-    EVAL_STREAM,
+    EVAL_AGENT_STREAM,
+    EVAL_ENV_STREAM,
     Records,
     Settings,
     allocate_records,
@@ -279,17 +280,18 @@ def test_environment_stream_is_gymnasiums():
 
 
 def test_initial_streams_are_seeded_as_documented():
-    """Environment stream ``PCG64(seed)``; agent and evaluation streams the two children of
-    ``SeedSequence(seed)``; all distinct."""
+    """Environment stream ``PCG64(seed)``; agent, evaluation environment and evaluation agent streams the
+    three children of ``SeedSequence(seed)``; all distinct."""
     state = initial_state([7, 8], 4, 3)
     assert state.w.shape == (2, 4, 3)
     assert np.all(state.w == 0.0)
     for run, seed in enumerate([7, 8]):
-        agent, evaluation = np.random.SeedSequence(seed).spawn(2)
+        agent, eval_env, eval_agent = np.random.SeedSequence(seed).spawn(3)
         np.testing.assert_array_equal(state.rng[run, ENV_STREAM], stream_state(seed))
         np.testing.assert_array_equal(state.rng[run, AGENT_STREAM], stream_state(agent))
-        np.testing.assert_array_equal(state.rng[run, EVAL_STREAM], stream_state(evaluation))
-    assert len({tuple(row) for row in state.rng.reshape(-1, 4).tolist()}) == 6
+        np.testing.assert_array_equal(state.rng[run, EVAL_ENV_STREAM], stream_state(eval_env))
+        np.testing.assert_array_equal(state.rng[run, EVAL_AGENT_STREAM], stream_state(eval_agent))
+    assert len({tuple(row) for row in state.rng.reshape(-1, 4).tolist()}) == 8
 
 
 # --- evaluation and truncation -------------------------------------------------------------------------
@@ -299,13 +301,16 @@ def test_initial_streams_are_seeded_as_documented():
 @pytest.mark.parametrize(("eval_every", "eval_episodes"), [(0, EVAL_EPISODES), (100, 1), (50, 2)])
 def test_evaluation_does_not_change_training(algorithm, results, eval_every, eval_episodes):
     """Evaluating, or not, or with other settings, leaves every training record, table and the
-    environment and agent streams unchanged; only the evaluation stream moves differently."""
+    environment and agent streams unchanged; only the evaluation streams move differently (the evaluation
+    agent stream only for the random baseline, whose evaluation draws its actions)."""
     state, records = train(algorithm, eval_every=eval_every, eval_episodes=eval_episodes)
     reference_state, reference_records = results
     assert_records_equal(records, reference_records, TRAINING_FIELDS)
     np.testing.assert_array_equal(state.w, reference_state.w)
-    np.testing.assert_array_equal(state.rng[:, :EVAL_STREAM], reference_state.rng[:, :EVAL_STREAM])
-    assert not np.array_equal(state.rng[:, EVAL_STREAM], reference_state.rng[:, EVAL_STREAM])
+    np.testing.assert_array_equal(state.rng[:, :EVAL_ENV_STREAM], reference_state.rng[:, :EVAL_ENV_STREAM])
+    assert not np.array_equal(state.rng[:, EVAL_ENV_STREAM], reference_state.rng[:, EVAL_ENV_STREAM])
+    moved = not np.array_equal(state.rng[:, EVAL_AGENT_STREAM], reference_state.rng[:, EVAL_AGENT_STREAM])
+    assert moved == (algorithm == "random")
     if eval_every == 0:
         assert records.eval_returns.shape[1] == 0
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rlcompare.envs import mountain_car
-from rlcompare.envs.tiles import TileCoding, active_tiles, active_tiles_nd, make_tile_coding
+from rlcompare.envs.tiles import TileCoding, active_tiles_at, active_tiles_nd, make_tile_coding
 
 MC_LOW = mountain_car.OBSERVATION_LOW
 MC_HIGH = mountain_car.OBSERVATION_HIGH
@@ -37,10 +37,11 @@ def _features(coding: TileCoding, points: np.ndarray, function=active_tiles_nd) 
     return out
 
 
-def _features_2d(coding: TileCoding, points: np.ndarray, function=active_tiles) -> np.ndarray:
+def _features_at(coding: TileCoding, points: np.ndarray, function=active_tiles_at) -> np.ndarray:
+    """The same, written row by row into one array, as the kernels do."""
     out = np.zeros((len(points), coding.n_tilings), dtype=np.int64)
-    for i, (x0, x1) in enumerate(points):
-        function(coding, float(x0), float(x1), out[i])
+    for i, point in enumerate(points):
+        function(coding, np.ascontiguousarray(point, dtype=np.float64), out, i)
     return out
 
 
@@ -124,7 +125,7 @@ def test_near_points_share_one_minus_distance_of_their_tilings(axis, distance):
     points = generator.uniform(coding.low + width, _high(coding) - 2 * width, (1000, 2))
     moved = points.copy()
     moved[:, axis] += distance * width[axis]
-    shared = np.mean(_features_2d(coding, points) == _features_2d(coding, moved))
+    shared = np.mean(_features_at(coding, points) == _features_at(coding, moved))
     assert shared == pytest.approx(1.0 - distance, abs=0.1)
 
 
@@ -139,7 +140,7 @@ def test_points_a_tile_apart_share_nothing(axis, distance):
     moved = points.copy()
     moved[:, axis] += np.where(points[:, axis] < (coding.low[axis] + _high(coding)[axis]) / 2, 1, -1) * (
         distance * width[axis])
-    assert not np.any(_features_2d(coding, points) == _features_2d(coding, moved))
+    assert not np.any(_features_at(coding, points) == _features_at(coding, moved))
 
 
 def test_offsets_are_the_books_asymmetric_displacement():
@@ -172,21 +173,18 @@ def test_hand_computed_example():
     np.testing.assert_array_equal(coding.strides, [3, 1])
     assert (coding.per_tiling, coding.n_features) == (9, 18)
     out = np.full(2, -1, dtype=np.int64)
-    active_tiles(coding, 0.3, 0.8, out)
-    np.testing.assert_array_equal(out, [1, 14])
-    out[:] = -1
     active_tiles_nd(coding, np.array([0.3, 0.8]), out)
     np.testing.assert_array_equal(out, [1, 14])
 
 
 @pytest.mark.parametrize("hash_size", [None, 4096, 7])
-def test_fast_path_and_python_equal_the_compiled_nd_function(hash_size):
-    """``active_tiles`` == ``active_tiles_nd``, and each compiled function equals its ``.py_func``."""
+def test_row_writer_and_python_equal_the_compiled_nd_function(hash_size):
+    """``active_tiles_at`` == ``active_tiles_nd``, and each compiled function equals its ``.py_func``."""
     coding = make_tile_coding(MC_LOW, MC_HIGH, hash_size=hash_size)
     points = _test_points(coding.low, _high(coding), seed=3)[::3]
     nd = _features(coding, points)
-    np.testing.assert_array_equal(_features_2d(coding, points), nd)
-    np.testing.assert_array_equal(_features_2d(coding, points, active_tiles.py_func), nd)
+    np.testing.assert_array_equal(_features_at(coding, points), nd)
+    np.testing.assert_array_equal(_features_at(coding, points, active_tiles_at.py_func), nd)
     np.testing.assert_array_equal(_features(coding, points, active_tiles_nd.py_func), nd)
     # float32 observations, as Gymnasium returns them, give the features of their float64 values.
     observations = points[np.all(np.isfinite(points), axis=1)].astype(np.float32)

@@ -1,11 +1,16 @@
 """Fused training kernels: every algorithm, many runs at once, one core each.
 
-A run is one seed of one configuration. :func:`train_runs` spreads runs over threads with ``prange``;
-each run owns its weights and three random streams (environment resets, the agent's choices, evaluation
-resets), so a run's result is the same whatever thread runs it, however many threads there are, and
-however the episodes are split into chunks between calls. The environment stream only draws start states
-(and the outcomes of stochastic table environments), so every algorithm sees the same start state at the
-same episode of the same seed: common random numbers for paired comparisons.
+A run is one seed of one configuration. :func:`train_runs` spreads runs over threads (the compiled runs
+release the GIL); each run owns its weights and four random streams (environment resets, the agent's
+choices, and the same two for evaluation), so a run's result is the same whatever thread runs it, however
+many threads there are, and however the episodes are split into chunks between calls. The environment
+stream only draws start states (and the outcomes of stochastic table environments), so every algorithm
+sees the same start state at the same episode of the same seed: common random numbers for paired
+comparisons.
+
+The environment is a port (Mountain Car, CartPole, Acrobot, a table) stepped here, or any other Gymnasium
+environment stepped through its own API (:mod:`rlcompare.envs.gymnasium_env`); its state is a small
+float64 vector ``x`` and what the agent sees is Gymnasium's observation of it, rounded to float32.
 
 Values are linear in binary features, ``q(s, a) = sum of w[i, a] over the active features i of s``
 (Sutton and Barto, 9.5 and 10.1). With the uniform grid one feature is active and ``w`` is the Q-table of
@@ -21,10 +26,13 @@ feature. One episode loop per family of methods:
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
+import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit, objmode
 
 from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
 from rlcompare.algorithms.softmax import sample_softmax, softmax
@@ -34,10 +42,10 @@ from rlcompare.algorithms.td import (
     q_learning_target,
     sarsa_target,
 )
-from rlcompare.envs import mountain_car, table
-from rlcompare.envs.discretize import UniformGrid, cell_index_2d
+from rlcompare.envs import acrobot, cartpole, gymnasium_env, mountain_car, table
+from rlcompare.envs.discretize import UniformGrid, cell_of
 from rlcompare.envs.table import TableEnv
-from rlcompare.envs.tiles import TileCoding, active_tiles
+from rlcompare.envs.tiles import TileCoding, active_tiles_at
 from rlcompare.rng import next_double, stream_state
 
 RANDOM, Q_LEARNING, SARSA, EXPECTED_SARSA, DOUBLE_Q, N_STEP_SARSA, SARSA_LAMBDA, Q_LAMBDA, REINFORCE = range(9)
@@ -46,18 +54,23 @@ ALGORITHM_CODES = {
     "double_q_learning": DOUBLE_Q, "n_step_sarsa": N_STEP_SARSA, "sarsa_lambda": SARSA_LAMBDA,
     "q_lambda": Q_LAMBDA, "reinforce": REINFORCE,
 }
-MOUNTAIN_CAR, TABLE = 0, 1
+MOUNTAIN_CAR, TABLE, CARTPOLE, ACROBOT, GYMNASIUM = range(5)
 GRID, TILES, ONE_HOT = 0, 1, 2
-ENV_STREAM, AGENT_STREAM, EVAL_STREAM = 0, 1, 2
+ENV_STREAM, AGENT_STREAM, EVAL_ENV_STREAM, EVAL_AGENT_STREAM = range(4)
+STREAMS = 4
 
 
 class Env(NamedTuple):
-    """Which dynamics to step: Mountain Car (with its right bound) or a table."""
+    """Which dynamics to step: a port, or a Gymnasium environment through the adapter."""
 
     kind: int
-    max_position: float
+    max_position: float  # Mountain Car's right bound
     table: TableEnv
     n_actions: int
+    state_size: int = 2  # length of the state vector ``x``
+    observation_size: int = 2  # length of the observation the features read
+    handle: int = -1  # GYMNASIUM: the environments opened by ``gymnasium_env.opened``
+    instance: int = 0  # GYMNASIUM: which of them, ``2 * run`` training and ``2 * run + 1`` evaluation
 
 
 class Features(NamedTuple):
@@ -107,18 +120,21 @@ class RunState(NamedTuple):
 
     w: np.ndarray  # (runs, features, actions) float64, initialised to 0 as in the paper
     w2: np.ndarray  # (runs, features, actions): Double Q-Learning's second estimate; REINFORCE's baseline in [:, :, 0]
-    rng: np.ndarray  # (runs, 3, 4) uint64: the environment, agent and evaluation streams of each run
+    rng: np.ndarray  # (runs, 4, 4) uint64: the environment, agent, evaluation environment and evaluation agent
+    # streams of each run
 
 
 def initial_state(seeds: list[int], n_features: int, n_actions: int) -> RunState:
     """Zero weights and per-run streams. The environment stream of seed ``s`` is ``PCG64(s)``, so its
-    start states are those of Gymnasium's ``env.reset(seed=s)`` followed by plain resets."""
-    rng = np.empty((len(seeds), 3, 4), dtype=np.uint64)
+    start states are those of Gymnasium's ``env.reset(seed=s)`` followed by plain resets; the others are
+    the children of ``SeedSequence(s)``."""
+    rng = np.empty((len(seeds), STREAMS, 4), dtype=np.uint64)
     for run, seed in enumerate(seeds):
-        agent, evaluation = np.random.SeedSequence(seed).spawn(2)
+        agent, eval_env, eval_agent = np.random.SeedSequence(seed).spawn(3)
         rng[run, ENV_STREAM] = stream_state(seed)
         rng[run, AGENT_STREAM] = stream_state(agent)
-        rng[run, EVAL_STREAM] = stream_state(evaluation)
+        rng[run, EVAL_ENV_STREAM] = stream_state(eval_env)
+        rng[run, EVAL_AGENT_STREAM] = stream_state(eval_agent)
     shape = (len(seeds), n_features, n_actions)
     return RunState(w=np.zeros(shape), w2=np.zeros(shape), rng=rng)
 
@@ -143,36 +159,69 @@ def allocate_records(
 
 
 @njit(inline="always")
-def env_reset(env: Env, rng: np.ndarray) -> tuple[float, float]:
-    """A start state as two numbers: Mountain Car's position and velocity, or a table's state index and 0."""
+def env_reset(env: Env, x: np.ndarray, rng: np.ndarray) -> None:
+    """Write a start state into ``x``."""
     if env.kind == MOUNTAIN_CAR:
-        return mountain_car.reset(rng)
-    return float(table.reset(env.table, rng)), 0.0
+        x[0], x[1] = mountain_car.reset(rng)
+    elif env.kind == TABLE:
+        x[0] = table.reset(env.table, rng)
+    elif env.kind == CARTPOLE:
+        cartpole.reset(x, rng)
+    elif env.kind == ACROBOT:
+        acrobot.reset(x, rng)
+    else:
+        _gymnasium_reset(env.handle, env.instance, x)
 
 
 @njit(inline="always")
-def env_step(env: Env, x0: float, x1: float, action: int, rng: np.ndarray) -> tuple[float, float, float, bool]:
-    """One transition from state ``(x0, x1)``: ``(x0', x1', reward, terminated)``."""
+def env_step(env: Env, x: np.ndarray, action: int, rng: np.ndarray) -> tuple[float, bool]:
+    """One transition of ``x`` in place: ``(reward, terminated)``."""
     if env.kind == MOUNTAIN_CAR:
-        x0, x1, terminated = mountain_car.step(x0, x1, action, env.max_position)
-        return x0, x1, mountain_car.REWARD, terminated
-    next_state, reward, ends = table.step(env.table, int(x0), action, rng)
-    return float(next_state), 0.0, reward, ends
+        x[0], x[1], terminated = mountain_car.step(x[0], x[1], action, env.max_position)
+        return mountain_car.REWARD, terminated
+    if env.kind == TABLE:
+        next_state, reward, ends = table.step(env.table, int(x[0]), action, rng)
+        x[0] = next_state
+        return reward, ends
+    if env.kind == CARTPOLE:
+        return cartpole.REWARD, cartpole.step(x, action)
+    if env.kind == ACROBOT:
+        return acrobot.step(x, action)
+    return _gymnasium_step(env.handle, env.instance, action, x)
+
+
+@njit
+def _gymnasium_reset(handle: int, instance: int, x: np.ndarray) -> None:
+    with objmode():
+        gymnasium_env.reset(handle, instance, x)
+
+
+@njit
+def _gymnasium_step(handle: int, instance: int, action: int, x: np.ndarray) -> tuple[float, bool]:
+    with objmode(reward="float64", terminated="boolean"):
+        reward, terminated = gymnasium_env.step(handle, instance, action, x)
+    return reward, terminated
 
 
 @njit(inline="always")
-def observe(features: Features, x0: float, x1: float, actives: np.ndarray, row: int) -> None:
-    """Write the indices of the features active in state ``(x0, x1)`` into ``actives[row]``.
+def observe(env: Env, features: Features, x: np.ndarray, obs: np.ndarray, actives: np.ndarray, row: int) -> None:
+    """Write Gymnasium's observation of state ``x`` into ``obs``, and the indices of its active features into
+    ``actives[row]``.
 
     Feature lists live as rows of one array and are addressed by row: taking a view of a row on every step
     costs as much as the rest of a tabular step.
     """
-    if features.kind == GRID:
-        actives[row, 0] = cell_index_2d(features.grid, x0, x1)
-    elif features.kind == TILES:
-        active_tiles(features.tiles, x0, x1, actives[row])
+    if env.kind == ACROBOT:
+        acrobot.observe(x, obs)
     else:
-        actives[row, 0] = int(x0)
+        for k in range(obs.size):
+            obs[k] = np.float32(x[k])
+    if features.kind == GRID:
+        actives[row, 0] = cell_of(features.grid, obs)
+    elif features.kind == TILES:
+        active_tiles_at(features.tiles, obs, actives, row)
+    else:
+        actives[row, 0] = int(obs[0])
 
 
 # --- linear values --------------------------------------------------------------------------------------
@@ -238,8 +287,9 @@ def one_step_episode(
     actives = np.empty((2, features.n_active), np.int64)  # rows ``now`` and ``1 - now``: S and S'
     q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
     now = 0
-    x0, x1 = env_reset(env, env_rng)
-    observe(features, x0, x1, actives, now)
+    x, obs = np.empty(env.state_size), np.empty(env.observation_size)
+    env_reset(env, x, env_rng)
+    observe(env, features, x, obs, actives, now)
     if algorithm == RANDOM:
         action = uniform_action(n_actions, agent_rng)
     else:
@@ -249,12 +299,12 @@ def one_step_episode(
     while True:
         then = 1 - now
         count_visit(visits, actives, now)
-        x0, x1, reward, terminated = env_step(env, x0, x1, action, env_rng)
+        reward, terminated = env_step(env, x, action, env_rng)
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= settings.max_steps
         terminal = terminated or (truncated and settings.truncation_is_terminal)
-        observe(features, x0, x1, actives, then)
+        observe(env, features, x, obs, actives, then)
         if algorithm == RANDOM:
             if terminated or truncated:
                 break
@@ -320,8 +370,9 @@ def n_step_sarsa_episode(
     actions = np.zeros(size, np.int64)
     rewards = np.zeros(size)
     q = np.empty(n_actions)
-    x0, x1 = env_reset(env, env_rng)
-    observe(features, x0, x1, actives, 0)
+    x, obs = np.empty(env.state_size), np.empty(env.observation_size)
+    env_reset(env, x, env_rng)
+    observe(env, features, x, obs, actives, 0)
     actions[0] = epsilon_greedy_action(action_values(w, actives, 0, q), epsilon, agent_rng)
     horizon = np.iinfo(np.int64).max  # T
     bootstrap_end = False  # whether the return at T is completed by q(S_T, A_T) (a time-limit cut)
@@ -330,10 +381,10 @@ def n_step_sarsa_episode(
         if t < horizon:
             now, later = t % size, (t + 1) % size
             count_visit(visits, actives, now)
-            x0, x1, reward, terminated = env_step(env, x0, x1, actions[now], env_rng)
+            reward, terminated = env_step(env, x, actions[now], env_rng)
             episode_return += reward
             rewards[later] = reward
-            observe(features, x0, x1, actives, later)
+            observe(env, features, x, obs, actives, later)
             truncated = not terminated and t + 1 >= settings.max_steps
             if terminated or truncated:
                 horizon = t + 1
@@ -377,14 +428,15 @@ def lambda_episode(
     actives = np.empty((2, n_active), np.int64)  # rows ``now`` and ``1 - now``: S and S'
     q_next = np.empty(n_actions)
     n_touched, now = 0, 0
-    x0, x1 = env_reset(env, env_rng)
-    observe(features, x0, x1, actives, now)
+    x, obs = np.empty(env.state_size), np.empty(env.observation_size)
+    env_reset(env, x, env_rng)
+    observe(env, features, x, obs, actives, now)
     action = epsilon_greedy_action(action_values(w, actives, now, q_next), epsilon, agent_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while True:
         then = 1 - now
         count_visit(visits, actives, now)
-        x0, x1, reward, terminated = env_step(env, x0, x1, action, env_rng)
+        reward, terminated = env_step(env, x, action, env_rng)
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= settings.max_steps
@@ -397,7 +449,7 @@ def lambda_episode(
                 touched[n_touched] = i * n_actions + action
                 n_touched += 1
             z[i, action] = 1.0 if settings.replacing else z[i, action] + 1.0
-        observe(features, x0, x1, actives, then)
+        observe(env, features, x, obs, actives, then)
         next_action = 0
         if not terminal:
             action_values(w, actives, then, q_next)
@@ -447,14 +499,15 @@ def reinforce_episode(
     actions = np.empty(limit, np.int64)
     rewards = np.empty(limit)
     h, pi = np.empty(n_actions), np.empty(n_actions)
-    x0, x1 = env_reset(env, env_rng)
+    x, obs = np.empty(env.state_size), np.empty(env.observation_size)
+    env_reset(env, x, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < limit:
-        observe(features, x0, x1, actives, steps)
+        observe(env, features, x, obs, actives, steps)
         count_visit(visits, actives, steps)
         action = sample_softmax(action_values(theta, actives, steps, h), pi, agent_rng)
         actions[steps] = action
-        x0, x1, reward, terminated = env_step(env, x0, x1, action, env_rng)
+        reward, terminated = env_step(env, x, action, env_rng)
         rewards[steps] = reward
         episode_return += reward
         steps += 1
@@ -483,24 +536,27 @@ def reinforce_episode(
 
 @njit
 def evaluation_episode(
-    settings: Settings, env: Env, features: Features, w: np.ndarray, w2: np.ndarray, eval_rng: np.ndarray
+    settings: Settings, env: Env, features: Features, w: np.ndarray, w2: np.ndarray, env_rng: np.ndarray,
+    agent_rng: np.ndarray,
 ) -> tuple[float, int, bool]:
     """One episode of the target policy: greedy (first maximum) in the learned values, the softmax policy
-    for REINFORCE, uniform for the baseline."""
+    for REINFORCE, uniform for the baseline. The environment and the policy draw from the evaluation's own
+    two streams."""
     n_actions, n_active = w.shape[1], features.n_active
     actives = np.empty((1, n_active), np.int64)
     q, scratch = np.empty(n_actions), np.empty(n_actions)
-    x0, x1 = env_reset(env, eval_rng)
+    x, obs = np.empty(env.state_size), np.empty(env.observation_size)
+    env_reset(env, x, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < settings.max_steps:
-        observe(features, x0, x1, actives, 0)
+        observe(env, features, x, obs, actives, 0)
         if settings.algorithm == RANDOM:
-            action = uniform_action(n_actions, eval_rng)
+            action = uniform_action(n_actions, agent_rng)
         elif settings.algorithm == REINFORCE:
-            action = sample_softmax(action_values(w, actives, 0, q), scratch, eval_rng)
+            action = sample_softmax(action_values(w, actives, 0, q), scratch, agent_rng)
         else:
             action = greedy_action(_behaviour_values(settings, w, w2, actives, 0, q, scratch))
-        x0, x1, reward, terminated = env_step(env, x0, x1, action, eval_rng)
+        reward, terminated = env_step(env, x, action, env_rng)
         episode_return += reward
         steps += 1
     return episode_return, steps, terminated
@@ -523,32 +579,40 @@ def train_episode(
     return one_step_episode(settings, env, features, w, w2, epsilon, env_rng, agent_rng, visits)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def train_run(
     run: int, settings: Settings, env: Env, features: Features, state: RunState, epsilons: np.ndarray,
     first_episode: int, stop_episode: int, records: Records,
 ) -> None:
     """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
-    w, w2 = state.w[run], state.w2[run]
-    env_rng, agent_rng, eval_rng = state.rng[run, 0], state.rng[run, 1], state.rng[run, 2]
+    w, w2, rng = state.w[run], state.w2[run], state.rng[run]
+    training, evaluation = env_instance(env, 2 * run), env_instance(env, 2 * run + 1)
     traces = settings.algorithm == SARSA_LAMBDA or settings.algorithm == Q_LAMBDA
     z = np.zeros(w.shape) if traces else np.zeros((1, 1))
     touched, listed = np.empty(z.size, np.int64), np.zeros(z.size, np.bool_)
     eval_episodes = records.eval_returns.shape[2]
     for episode in range(first_episode, stop_episode):
         ret, length, terminated = train_episode(
-            settings, env, features, w, w2, z, touched, listed, epsilons[episode], env_rng, agent_rng,
-            records.visits[run],
+            settings, training, features, w, w2, z, touched, listed, epsilons[episode], rng[ENV_STREAM],
+            rng[AGENT_STREAM], records.visits[run],
         )
         record_episode(records.returns, records.lengths, records.terminated, (run, episode), ret, length, terminated)
         completed = episode + 1
         round_ = evaluation_round(settings, completed)
         if round_ >= 0:
             for k in range(eval_episodes):
-                ret, length, terminated = evaluation_episode(settings, env, features, w, w2, eval_rng)
+                ret, length, terminated = evaluation_episode(settings, evaluation, features, w, w2,
+                                                             rng[EVAL_ENV_STREAM], rng[EVAL_AGENT_STREAM])
                 record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated, (run, round_, k),
                                ret, length, terminated)
         keep_snapshots(records, run, completed, w, w2, settings.algorithm == DOUBLE_Q)
+
+
+@njit(inline="always")
+def env_instance(env: Env, instance: int) -> Env:
+    """``env`` naming one of the Gymnasium environments opened for it (ports ignore the instance)."""
+    return Env(env.kind, env.max_position, env.table, env.n_actions, env.state_size, env.observation_size,
+               env.handle, instance)
 
 
 @njit(inline="always")
@@ -574,24 +638,23 @@ def keep_snapshots(records: Records, run: int, completed: int, w: np.ndarray, w2
             records.snapshots[run, stage] = (w + w2) / 2 if double else w
 
 
-@njit(parallel=True, cache=True)
-def _train_runs(
-    settings: Settings, env_kind: int, max_position: float, n_actions: int, table_env: TableEnv,
-    features_kind: int, grid: UniformGrid, tiles: TileCoding, n_features: int, n_active: int,
-    state: RunState, epsilons: np.ndarray, first_episode: int, stop_episode: int, records: Records,
-) -> None:
-    for run in prange(state.w.shape[0]):
-        # Numba's parallel loops take flat tuples of arrays only, so the nested ones are built here.
-        env = Env(env_kind, max_position, table_env, n_actions)
-        features = Features(features_kind, grid, tiles, n_features, n_active)
-        train_run(run, settings, env, features, state, epsilons, first_episode, stop_episode, records)
-
-
 def train_runs(
     settings: Settings, env: Env, features: Features, state: RunState, epsilons: np.ndarray,
     first_episode: int, stop_episode: int, records: Records,
 ) -> None:
     """Every run over episodes ``[first_episode, stop_episode)``, runs spread over threads."""
-    _train_runs(settings, env.kind, env.max_position, env.n_actions, env.table, features.kind, features.grid,
-                features.tiles, features.n_features, features.n_active, state, epsilons, first_episode,
-                stop_episode, records)
+    over_runs(lambda run: train_run(run, settings, env, features, state, epsilons, first_episode, stop_episode,
+                                    records), state.w.shape[0])
+
+
+def over_runs(train: Callable[[int], None], runs: int) -> None:
+    """Call ``train(run)`` for every run on ``numba.get_num_threads()`` threads; the compiled runs release
+    the GIL, and each writes only its own slices, so the order does not matter."""
+    threads = min(numba.get_num_threads(), runs)
+    if threads <= 1:
+        for run in range(runs):
+            train(run)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        for future in [pool.submit(train, run) for run in range(runs)]:
+            future.result()

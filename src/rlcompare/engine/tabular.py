@@ -6,18 +6,18 @@ baseline) with the state as two scalars and the cell as one integer, which makes
 as fast per step (``rlcompare bench``). Both give bit-identical results for these configurations
 (tested), share the run state and records, and draw from the same streams in the same order.
 
-A run is one seed of one configuration. :func:`train_runs` spreads runs over threads with ``prange``;
-each run owns its Q-table and three random streams (environment resets, the agent's choices, evaluation
-resets), so a run's result is the same whatever thread runs it, however many threads there are, and
-however the episodes are split into chunks between calls. Because the environment stream only draws
-start states, every algorithm sees the same start state at the same episode of the same seed: common
-random numbers for paired comparisons.
+A run is one seed of one configuration. :func:`train_runs` spreads runs over threads (the compiled runs
+release the GIL); each run owns its Q-table and four random streams (environment resets, the agent's
+choices, and the same two for evaluation), so a run's result is the same whatever thread runs it, however
+many threads there are, and however the episodes are split into chunks between calls. Because the
+environment stream only draws start states, every algorithm sees the same start state at the same episode
+of the same seed: common random numbers for paired comparisons.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
 from rlcompare.algorithms.td import (
@@ -30,7 +30,8 @@ from rlcompare.algorithms.td import (
 from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records are shared by both kernels
     AGENT_STREAM,
     ENV_STREAM,
-    EVAL_STREAM,
+    EVAL_AGENT_STREAM,
+    EVAL_ENV_STREAM,
     Records,
     RunState,
     Settings,
@@ -38,6 +39,7 @@ from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records 
     evaluation_round,
     initial_state,
     keep_snapshots,
+    over_runs,
     record_episode,
 )
 from rlcompare.envs import mountain_car
@@ -125,15 +127,15 @@ def _sum_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def evaluation_episode(
-    algorithm: int, q: np.ndarray, grid: UniformGrid, max_steps: int, eval_rng: np.ndarray
+    algorithm: int, q: np.ndarray, grid: UniformGrid, max_steps: int, env_rng: np.ndarray, agent_rng: np.ndarray
 ) -> tuple[float, int, bool]:
     """One episode of the target policy: greedy (first maximum) in ``q`` for the learners (Double
     Q-Learning passes ``Q1 + Q2``), uniform for the baseline."""
-    position, velocity = mountain_car.reset(eval_rng)
+    position, velocity = mountain_car.reset(env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < max_steps:
         if algorithm == RANDOM:
-            action = uniform_action(q.shape[1], eval_rng)
+            action = uniform_action(q.shape[1], agent_rng)
         else:
             action = greedy_action(q[cell_index_2d(grid, position, velocity)])
         position, velocity, terminated = mountain_car.step(position, velocity, action)
@@ -142,7 +144,7 @@ def evaluation_episode(
     return episode_return, steps, terminated
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def train_run(
     run: int,
     settings: Settings,
@@ -156,7 +158,8 @@ def train_run(
     """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
     q, q2 = state.w[run], state.w2[run]
     double = settings.algorithm == DOUBLE_Q
-    env_rng, agent_rng, eval_rng = state.rng[run, 0], state.rng[run, 1], state.rng[run, 2]
+    env_rng, agent_rng = state.rng[run, ENV_STREAM], state.rng[run, AGENT_STREAM]
+    eval_env_rng, eval_agent_rng = state.rng[run, EVAL_ENV_STREAM], state.rng[run, EVAL_AGENT_STREAM]
     eval_episodes = records.eval_returns.shape[2]
     for episode in range(first_episode, stop_episode):
         ret, length, terminated = train_episode(
@@ -169,14 +172,13 @@ def train_run(
             greedy_in = q + q2 if double else q
             for k in range(eval_episodes):
                 ret, length, terminated = evaluation_episode(
-                    settings.algorithm, greedy_in, grid, settings.max_steps, eval_rng
+                    settings.algorithm, greedy_in, grid, settings.max_steps, eval_env_rng, eval_agent_rng
                 )
                 record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated, (run, round_, k),
                                ret, length, terminated)
         keep_snapshots(records, run, completed, q, q2, double)
 
 
-@njit(parallel=True, cache=True)
 def train_runs(
     settings: Settings,
     state: RunState,
@@ -187,5 +189,5 @@ def train_runs(
     records: Records,
 ) -> None:
     """Every run over episodes ``[first_episode, stop_episode)``, runs spread over threads."""
-    for run in prange(state.w.shape[0]):
-        train_run(run, settings, state, grid, epsilons, first_episode, stop_episode, records)
+    over_runs(lambda run: train_run(run, settings, state, grid, epsilons, first_episode, stop_episode, records),
+              state.w.shape[0])

@@ -59,13 +59,14 @@ def cell_indices(grid: UniformGrid, observations: np.ndarray) -> np.ndarray:
 
 
 @njit(inline="always")
-def _bin(edges: np.ndarray, low: float, scale: float, bins: int, x: float) -> int:
-    """Number of inner edges ``<= x``: ``np.digitize(x, edges)``."""
-    guess = (x - low) * scale
+def _bin(grid: UniformGrid, dim: int, x: float) -> int:
+    """Number of inner edges of dimension ``dim`` that are ``<= x``: ``np.digitize(x, edges)``."""
+    bins = grid.bins[dim]
+    guess = (x - grid.low[dim]) * grid.scale[dim]
     cell = 0 if guess < 0.0 else (bins - 1 if guess >= bins - 1 else int(guess))
-    while cell > 0 and x < edges[cell - 1]:
+    while cell > 0 and x < grid.edges[dim, cell - 1]:
         cell -= 1
-    while cell < bins - 1 and x >= edges[cell]:
+    while cell < bins - 1 and x >= grid.edges[dim, cell]:
         cell += 1
     return cell
 
@@ -73,16 +74,19 @@ def _bin(edges: np.ndarray, low: float, scale: float, bins: int, x: float) -> in
 @njit(inline="always")
 def cell_index_2d(grid: UniformGrid, x0: float, x1: float) -> int:
     """Flat cell of a two-dimensional observation, each coordinate first rounded to float32."""
-    b0 = _bin(grid.edges[0], grid.low[0], grid.scale[0], grid.bins[0], np.float32(x0))
-    b1 = _bin(grid.edges[1], grid.low[1], grid.scale[1], grid.bins[1], np.float32(x1))
-    return b0 * grid.bins[1] + b1
+    return _bin(grid, 0, np.float32(x0)) * grid.bins[1] + _bin(grid, 1, np.float32(x1))
+
+
+@njit(inline="always")
+def cell_of(grid: UniformGrid, observation: np.ndarray) -> int:
+    """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
+    flat = 0
+    for dim in range(grid.bins.size):
+        flat = flat * grid.bins[dim] + _bin(grid, dim, np.float32(observation[dim]))
+    return flat
 
 
 @njit(cache=True)
 def cell_index(grid: UniformGrid, observation: np.ndarray) -> int:
-    """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
-    flat = 0
-    for dim in range(grid.bins.size):
-        x = np.float32(observation[dim])
-        flat = flat * grid.bins[dim] + _bin(grid.edges[dim], grid.low[dim], grid.scale[dim], grid.bins[dim], x)
-    return flat
+    """:func:`cell_of`, compiled once for callers outside the kernels."""
+    return cell_of(grid, observation)

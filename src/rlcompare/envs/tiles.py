@@ -197,25 +197,8 @@ def _hash_step(state: int, coordinate: int) -> int:
 
 
 @njit(inline="always")
-def active_tiles(coding: TileCoding, x0: float, x1: float, out: np.ndarray) -> None:
-    """Write the ``n_tilings`` active features of the two-dimensional point ``(x0, x1)`` into ``out``.
-
-    The fast path of :func:`active_tiles_nd` for a coding of two dimensions (not checked); equal to it.
-    """
-    v0 = (x0 - coding.low[0]) * coding.scale[0]
-    v1 = (x1 - coding.low[1]) * coding.scale[1]
-    for t in range(coding.offsets.shape[0]):
-        c0 = _coordinate(v0 + coding.offsets[t, 0], coding.tiles[0])
-        c1 = _coordinate(v1 + coding.offsets[t, 1], coding.tiles[1])
-        if coding.hashed:
-            out[t] = _hash_step(_hash_step(_hash_start(t), c0), c1) % coding.n_features
-        else:
-            out[t] = t * coding.per_tiling + c0 * coding.strides[0] + c1 * coding.strides[1]
-
-
-@njit(cache=True)
-def active_tiles_nd(coding: TileCoding, x: np.ndarray, out: np.ndarray) -> None:
-    """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``) into ``out``."""
+def active_tiles_at(coding: TileCoding, x: np.ndarray, out: np.ndarray, row: int) -> None:
+    """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``) into ``out[row]``."""
     dims = coding.low.shape[0]
     for t in range(coding.offsets.shape[0]):
         flat = 0
@@ -226,4 +209,10 @@ def active_tiles_nd(coding: TileCoding, x: np.ndarray, out: np.ndarray) -> None:
                 state = _hash_step(state, c)
             else:
                 flat += c * coding.strides[d]
-        out[t] = state % coding.n_features if coding.hashed else t * coding.per_tiling + flat
+        out[row, t] = state % coding.n_features if coding.hashed else t * coding.per_tiling + flat
+
+
+@njit(cache=True)
+def active_tiles_nd(coding: TileCoding, x: np.ndarray, out: np.ndarray) -> None:
+    """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``) into ``out``."""
+    active_tiles_at(coding, x, out.reshape((1, out.size)), 0)

@@ -2,7 +2,8 @@
 
 Defaults are the paper's setting (Section IV): MountainCar-v0, 20 bins per dimension, α = 0.05, γ = 0.9,
 a 1000-step limit, Q-tables initialised to zero. What the paper leaves open (episodes, seeds, the decay
-rule, evaluation) is documented in ``docs/departures.md``.
+rule, evaluation) is documented in ``docs/departures.md``; other environments have their own default grid
+and limit (``docs/environments.md``), filled in on creation so that a configuration always says what ran.
 """
 
 from __future__ import annotations
@@ -15,8 +16,13 @@ from typing import Any
 
 from rlcompare.algorithms.schedules import SCHEDULES
 from rlcompare.engine.kernel import ALGORITHM_CODES
+from rlcompare.envs.gymnasium_env import UnsupportedEnvironment
+from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, Environment, environment, feature_count
 
-ENVIRONMENTS = ("MountainCar-v0", "MountainCar-book", "CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
+ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS)
+"""Environments stepped by compiled code; any other registered Gymnasium environment runs through the adapter."""
+MAX_WEIGHT_BYTES = 4 * 2**30
+"""Weights, second estimates and snapshots of all seeds together may take at most this much memory."""
 ALGORITHMS = (*ALGORITHM_CODES, "reinforce_baseline")
 FEATURES = ("grid", "tiles")
 TRACES = ("replacing", "accumulating")
@@ -43,9 +49,11 @@ class ExperimentConfig:
     """Exploration: ``constant`` (ε fixed) or ``decay`` (linear from ``epsilon_start`` to ``epsilon_end``)."""
     env: str = "MountainCar-v0"
     """``MountainCar-v0`` (Gymnasium's, ported exactly), ``MountainCar-book`` (Sutton and Barto's Example
-    10.1: the same dynamics with the position bounded at the goal, 0.5), or a toy-text environment stepped
-    from Gymnasium's own transition table: ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4,
-    slippery), ``Taxi-v4``."""
+    10.1: the same dynamics with the position bounded at the goal, 0.5), ``CartPole-v1`` and ``Acrobot-v1``
+    (ported exactly), a toy-text environment stepped from Gymnasium's own transition table:
+    ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4, slippery), ``Taxi-v4``; or any other
+    registered Gymnasium environment with Discrete actions and Discrete or Box observations, stepped
+    through Gymnasium's API at Python speed."""
     features: str = "grid"
     """``grid``: one cell of ``bins`` per dimension (the paper); ``tiles``: tile coding (9.5.4)."""
     tilings: int = 8
@@ -76,12 +84,18 @@ class ExperimentConfig:
     """ε once the ``decay`` schedule has run its course, in [0, 1]."""
     decay_fraction: float = 0.5
     """Share of the episodes over which ``decay`` goes from start to end, in (0, 1]."""
-    bins: int = 20
-    """Cells per observation dimension of the uniform grid (``DiscretizeObservation(env, bins)``), >= 1."""
+    bins: int | tuple[int, ...] | None = None
+    """Cells per observation dimension of the uniform grid (``DiscretizeObservation(env, bins)``), >= 1; one
+    number for every dimension or one per dimension. None: the environment's default (the paper's 20 for
+    Mountain Car). Finite environments ignore it: each state is its own feature."""
+    bounds: tuple[tuple[float, float], ...] | None = None
+    """``(low, high)`` per observation dimension for the grid and the tiles; None: the environment's
+    defaults (its observation box, with chosen bounds where the box is unbounded)."""
     episodes: int = 5000
     """Training episodes per seed, >= 1."""
-    max_steps: int = 1000
-    """Episode limit; reaching it truncates the episode (the paper's 1000 moves), >= 1."""
+    max_steps: int | None = None
+    """Episode limit; reaching it truncates the episode, >= 1. None: the environment's default (the paper's
+    1000 moves for Mountain Car, Gymnasium's registered limit for the others)."""
     truncation_as_terminal: bool = False
     """Treat the time limit as a terminal state (old Gym ``done``) instead of bootstrapping through it."""
     seeds: tuple[int, ...] = tuple(range(30))
@@ -102,8 +116,32 @@ class ExperimentConfig:
             object.__setattr__(self, "stages", tuple((str(n), float(f)) for n, f in self.stages))
         except (TypeError, ValueError):
             raise ConfigError("stages", self.stages, "pairs of (name, share of the episodes)") from None
+        if isinstance(self.bins, list | tuple):
+            object.__setattr__(self, "bins", tuple(self.bins))
+        if self.bounds is not None:
+            try:
+                object.__setattr__(self, "bounds", tuple((float(low), float(high)) for low, high in self.bounds))
+            except (TypeError, ValueError):
+                raise ConfigError("bounds", self.bounds, "pairs of numbers (low, high), one per observation "
+                                  "dimension") from None
+        _check_choices(self)
+        env = self.environment
+        if self.bins is None:
+            object.__setattr__(self, "bins", env.bins)
+        if self.max_steps is None:
+            object.__setattr__(self, "max_steps", env.max_steps)
         for check in _CHECKS:
             check(self)
+
+    @property
+    def environment(self) -> Environment:
+        """What is known of ``env``: how it is stepped and its defaults."""
+        try:
+            return environment(self.env)
+        except UnsupportedEnvironment as error:
+            raise ConfigError("env", self.env, f"{', '.join(ENVIRONMENTS)}, or a registered Gymnasium "
+                              f"environment with Discrete actions and Discrete or Box observations ({error})"
+                              ) from None
 
     @property
     def name(self) -> str:
@@ -119,8 +157,7 @@ class ExperimentConfig:
         return {name: max(1, round(share * self.episodes)) for name, share in self.stages}
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: (list(map(list, v)) if k == "stages" else list(v) if k == "seeds" else v)
-                for k, v in dataclasses.asdict(self).items()}
+        return json.loads(json.dumps(dataclasses.asdict(self)))  # tuples as lists, as config.json holds them
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ExperimentConfig:
@@ -157,7 +194,8 @@ def _is_count(value: Any, minimum: int) -> bool:
 def _check_choices(c: ExperimentConfig) -> None:
     _require(c.algorithm in ALGORITHMS, "algorithm", c.algorithm, ", ".join(ALGORITHMS))
     _require(c.schedule in SCHEDULES, "schedule", c.schedule, ", ".join(SCHEDULES))
-    _require(c.env in ENVIRONMENTS, "env", c.env, ", ".join(ENVIRONMENTS))
+    _require(isinstance(c.env, str) and c.env != "", "env", c.env, ", ".join(ENVIRONMENTS)
+             + ", or a registered Gymnasium environment id")
     _require(c.features in FEATURES, "features", c.features, ", ".join(FEATURES))
     _require(c.trace in TRACES, "trace", c.trace, ", ".join(TRACES))
 
@@ -180,7 +218,7 @@ def _check_rates(c: ExperimentConfig) -> None:
 
 
 def _check_counts(c: ExperimentConfig) -> None:
-    for name in ("bins", "episodes", "max_steps", "eval_episodes", "n", "tilings", "tiles"):
+    for name in ("episodes", "max_steps", "eval_episodes", "n", "tilings", "tiles"):
         _require(_is_count(getattr(c, name), 1), name, getattr(c, name), "an integer >= 1")
     _require(_is_count(c.hash_size, 0), "hash_size", c.hash_size, "an integer >= 0 (0: no hashing)")
     _require(_is_count(c.eval_every, 0), "eval_every", c.eval_every, "an integer >= 0 (0: no evaluation)")
@@ -195,16 +233,40 @@ def _check_stages(c: ExperimentConfig) -> None:
     _require(all(0 < f <= 1 for _, f in c.stages), "stages", c.stages, "shares of the episodes in (0, 1]")
 
 
+def _check_grid(c: ExperimentConfig) -> None:
+    """Bins and bounds that fit the observations, and weights that fit in memory."""
+    env = c.environment
+    dims = env.observation_size
+    per_dim = c.bins if isinstance(c.bins, tuple) else (c.bins,)
+    _require(all(_is_count(b, 1) for b in per_dim) and len(per_dim) in (1, dims) and len(per_dim) >= 1, "bins",
+             c.bins, f"an integer >= 1, or {dims} of them (one per observation dimension of {c.env})")
+    if env.n_states:
+        return
+    if c.bounds is None:
+        unbounded = [d for d in range(dims) if not (math.isfinite(env.low[d]) and math.isfinite(env.high[d]))]
+        _require(not unbounded, "bounds", None, f"(low, high) for each of the {dims} observation dimensions of "
+                 f"{c.env}: its observation box is unbounded in dimensions {unbounded}")
+    else:
+        _require(len(c.bounds) == dims and all(math.isfinite(lo) and math.isfinite(hi) and lo < hi
+                                               for lo, hi in c.bounds), "bounds", c.bounds,
+                 f"{dims} pairs of finite numbers (low, high) with low < high, one per observation dimension")
+    features = feature_count(env, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+    needed = features * env.n_actions * len(c.seeds) * (2 + len(c.stages)) * 8
+    _require(needed <= MAX_WEIGHT_BYTES, "bins" if c.features == "grid" else "tiles", c.bins if c.features == "grid"
+             else c.tiles, f"a layout whose {features:,} features x {env.n_actions} actions x {len(c.seeds)} seeds "
+             f"fit in {MAX_WEIGHT_BYTES / 2**30:g} GiB with their snapshots (they need {needed / 2**30:.1f} GiB)")
+
+
 def _check_tiles(c: ExperimentConfig) -> None:
-    if c.features != "tiles":
+    if c.features != "tiles" or c.environment.n_states:
         return
     from rlcompare.experiment.problem import tiles_of
 
     try:
-        tiles_of(c.env, c.tilings, c.tiles, c.hash_size)
+        tiles_of(c.env, c.tilings, c.tiles, c.hash_size, c.bounds)
     except ValueError as error:
         raise ConfigError("tiles", (c.tilings, c.tiles, c.hash_size),
                           f"a layout that fits the bounds ({error})") from None
 
 
-_CHECKS = (_check_choices, _check_rates, _check_counts, _check_stages, _check_tiles)
+_CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles)

@@ -1,56 +1,191 @@
-"""From a configuration to what the kernels step: the environment and the features of its states."""
+"""From a configuration to what the kernels step: the environment, its defaults, and the features of its states.
+
+| environment          | stepped by                        | features              | default grid    | limit |
+|----------------------|-----------------------------------|-----------------------|-----------------|-------|
+| ``MountainCar-v0``   | the port (the paper)              | grid or tiles         | 20 x 20         | 1000  |
+| ``MountainCar-book`` | the port, position bounded at 0.5 | grid or tiles         | 20 x 20         | 1000  |
+| ``CartPole-v1``      | the port                          | grid or tiles         | 1 x 1 x 6 x 12  | 500   |
+| ``Acrobot-v1``       | the port                          | grid or tiles         | 6 per dimension | 500   |
+| ``CliffWalking-v1``  | Gymnasium's transition table      | one per state         |                 | 1000  |
+| ``FrozenLake-v1``    | Gymnasium's transition table      | one per state         |                 | 100   |
+| ``Taxi-v4``          | Gymnasium's transition table      | one per state         |                 | 200   |
+| any other            | Gymnasium, through the adapter    | one per state, or grid or tiles over a Box; 10 bins per |
+|                      |                                   | dimension; Gymnasium's registered limit, else 1000     |
+
+The grid and the tiles span the observation box, except where it is unbounded (CartPole's velocities) or
+where the episode ends before its edge (CartPole's position and angle): ``docs/environments.md`` gives
+every default and why. ``bounds`` in the configuration replaces them.
+"""
 
 from __future__ import annotations
 
+import functools
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
-from rlcompare.engine.kernel import GRID, MOUNTAIN_CAR, ONE_HOT, TABLE, TILES, Env, Features
-from rlcompare.envs import mountain_car
+from rlcompare.engine.kernel import (
+    ACROBOT,
+    CARTPOLE,
+    GRID,
+    GYMNASIUM,
+    MOUNTAIN_CAR,
+    ONE_HOT,
+    TABLE,
+    TILES,
+    Env,
+    Features,
+)
+from rlcompare.envs import acrobot, cartpole, gymnasium_env, mountain_car
 from rlcompare.envs.discretize import UniformGrid, make_grid
-from rlcompare.envs.table import chain, from_gymnasium
+from rlcompare.envs.table import TableEnv, chain, from_gymnasium
 from rlcompare.envs.tiles import TileCoding, make_tile_coding
 
-_NO_TABLE = chain(1)  # the kernels' table slot, unused by Mountain Car
+PORTS = ("MountainCar-v0", "MountainCar-book", "CartPole-v1", "Acrobot-v1")
 TABLE_ENVIRONMENTS = ("CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
 """Finite environments stepped from their Gymnasium transition tables; their state is their feature."""
+SUCCESS_RULES = ("terminated", "truncated", "positive_return")
+_NO_TABLE = chain(1)  # the kernels' table slot, unused but by table environments
+_CARTPOLE_VELOCITY = 3.0  # m/s; see docs/environments.md
+_CARTPOLE_ANGULAR_VELOCITY = 3.5  # rad/s
 
 
-def observation_bounds(env: str) -> tuple[np.ndarray, np.ndarray]:
-    """Gymnasium's float32 observation box, with the book's right bound (0.5) for its variant."""
-    high = mountain_car.OBSERVATION_HIGH.copy()
-    if env == "MountainCar-book":
-        high[0] = np.float32(mountain_car.BOOK_MAX_POSITION)
-    return mountain_car.OBSERVATION_LOW.copy(), high
+@dataclass(frozen=True)
+class Environment:
+    """What rlcompare knows of an environment: how the kernels step it and its defaults."""
+
+    name: str
+    kind: int
+    """The kernels' code for its dynamics."""
+    n_actions: int
+    n_states: int
+    """Number of states of a finite environment (each its own feature); 0 for a box of observations."""
+    low: np.ndarray
+    """``(dims,)`` float64 default lower bounds of the grid and tiles (finite, or -inf where none is known)."""
+    high: np.ndarray
+    state_size: int
+    max_steps: int
+    """The default episode limit."""
+    bins: int | tuple[int, ...]
+    """The default grid."""
+    success: str
+    """When an episode counts as solved: ``terminated`` (the goal), ``truncated`` (survived to the limit)
+    or ``positive_return``."""
+    max_position: float = mountain_car.MAX_POSITION
+
+    @property
+    def observation_size(self) -> int:
+        return 1 if self.n_states else self.low.size
+
+    @property
+    def is_ported(self) -> bool:
+        """Stepped by compiled code; otherwise by Gymnasium at Python speed."""
+        return self.kind != GYMNASIUM
 
 
-def make_env(env: str) -> Env:
-    if env in TABLE_ENVIRONMENTS:
-        table = from_gymnasium(env)
-        return Env(TABLE, 0.0, table, table.n_actions)
-    right = mountain_car.BOOK_MAX_POSITION if env == "MountainCar-book" else mountain_car.MAX_POSITION
-    return Env(MOUNTAIN_CAR, right, _NO_TABLE, mountain_car.N_ACTIONS)
+def _mountain_car(name: str, right: float) -> Environment:
+    low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
+    high[0] = np.float32(right)
+    return Environment(name, MOUNTAIN_CAR, mountain_car.N_ACTIONS, 0, low, high, 2, 1000, 20, "terminated",
+                       max_position=right)
 
 
-def grid_of(env: str, bins: int) -> UniformGrid:
-    return make_grid(*observation_bounds(env), bins)
+def _cartpole() -> Environment:
+    theta = np.float32(cartpole.THETA_THRESHOLD)
+    high = np.array([np.float32(cartpole.X_THRESHOLD), _CARTPOLE_VELOCITY, theta, _CARTPOLE_ANGULAR_VELOCITY])
+    return Environment(cartpole.ENV_ID, CARTPOLE, cartpole.N_ACTIONS, 0, -high, high, cartpole.STATE_SIZE, 500,
+                       (1, 1, 6, 12), "truncated")
 
 
-def tiles_of(env: str, tilings: int, tiles: int, hash_size: int) -> TileCoding:
-    low, high = observation_bounds(env)
-    return make_tile_coding(low.astype(np.float64), high.astype(np.float64), tilings=tilings, tiles=tiles,
-                            hash_size=hash_size or None)
+def _acrobot() -> Environment:
+    return Environment(acrobot.ENV_ID, ACROBOT, acrobot.N_ACTIONS, 0, acrobot.OBSERVATION_LOW.astype(np.float64),
+                       acrobot.OBSERVATION_HIGH.astype(np.float64), acrobot.STATE_SIZE, 500, 6, "terminated")
 
 
-def make_features(env: str, features: str, bins: int, tilings: int, tiles: int, hash_size: int) -> Features:
+_TABLE_DEFAULTS = {"CliffWalking-v1": (1000, "terminated"), "FrozenLake-v1": (100, "positive_return"),
+                   "Taxi-v4": (200, "terminated")}
+
+
+@functools.cache
+def environment(name: str) -> Environment:
+    """The environment called ``name``: a port, a table, or any Gymnasium environment the adapter can run
+    (:class:`rlcompare.envs.gymnasium_env.UnsupportedEnvironment` otherwise)."""
+    if name == "MountainCar-v0":
+        return _mountain_car(name, mountain_car.MAX_POSITION)
+    if name == "MountainCar-book":
+        return _mountain_car(name, mountain_car.BOOK_MAX_POSITION)
+    if name == "CartPole-v1":
+        return _cartpole()
+    if name == "Acrobot-v1":
+        return _acrobot()
+    if name in TABLE_ENVIRONMENTS:
+        table = table_of(name)
+        limit, success = _TABLE_DEFAULTS[name]
+        return Environment(name, TABLE, table.n_actions, table.n_states, np.zeros(1), np.ones(1), 1, limit, 1,
+                           success)
+    spaces = gymnasium_env.describe(name)
+    return Environment(name, GYMNASIUM, spaces.n_actions, spaces.n_states, spaces.low, spaces.high,
+                       spaces.observation_size, spaces.max_episode_steps or 1000, 10, "terminated")
+
+
+@functools.cache
+def table_of(name: str) -> TableEnv:
+    return from_gymnasium(name)
+
+
+def grid_bounds(env: Environment, bounds: tuple[tuple[float, float], ...] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The box the grid and the tiles span: ``bounds`` if given, else the environment's defaults."""
+    if bounds is None:
+        return env.low, env.high
+    return np.array([low for low, _ in bounds], dtype=np.float64), np.array([high for _, high in bounds],
+                                                                            dtype=np.float64)
+
+
+def make_env(name: str, handle: int = -1) -> Env:
+    """The kernels' description of ``name``; ``handle`` names the Gymnasium environments opened for the adapter."""
+    env = environment(name)
+    table = table_of(name) if env.kind == TABLE else _NO_TABLE
+    return Env(env.kind, env.max_position, table, env.n_actions, env.state_size, env.observation_size, handle, 0)
+
+
+def make_features(name: str, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int, hash_size: int,
+                  bounds: tuple[tuple[float, float], ...] | None = None) -> Features:
     """The grid (one active cell) or the tile coder (one active tile per tiling); the other slot is a stub.
-    A table environment's state is its only active feature, whatever ``features`` says."""
-    if env in TABLE_ENVIRONMENTS:
-        table = from_gymnasium(env)
-        return Features(ONE_HOT, grid_of("MountainCar-v0", 1), tiles_of("MountainCar-v0", 1, 1, 0),
-                        table.n_states, 1)
-    grid = grid_of(env, bins if features == "grid" else 1)
-    coding = tiles_of(env, tilings if features == "tiles" else 1, tiles if features == "tiles" else 1,
-                      hash_size if features == "tiles" else 0)
+    A finite environment's state is its only active feature, whatever ``features`` says."""
+    env = environment(name)
+    if env.n_states:
+        return Features(ONE_HOT, _STUB_GRID, _STUB_TILES, env.n_states, 1)
+    low, high = grid_bounds(env, bounds)
     if features == "grid":
-        return Features(GRID, grid, coding, grid.n_cells, 1)
-    return Features(TILES, grid, coding, coding.n_features, coding.offsets.shape[0])
+        grid = make_grid(low, high, bins)
+        return Features(GRID, grid, _STUB_TILES, grid.n_cells, 1)
+    coding = make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
+    return Features(TILES, _STUB_GRID, coding, coding.n_features, coding.offsets.shape[0])
+
+
+def grid_of(name: str, bins: int | tuple[int, ...], bounds: tuple[tuple[float, float], ...] | None = None
+            ) -> UniformGrid:
+    return make_grid(*grid_bounds(environment(name), bounds), bins)
+
+
+def tiles_of(name: str, tilings: int, tiles: int, hash_size: int,
+             bounds: tuple[tuple[float, float], ...] | None = None) -> TileCoding:
+    low, high = grid_bounds(environment(name), bounds)
+    return make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
+
+
+def feature_count(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,
+                  hash_size: int) -> int:
+    """How many features a configuration has, without building them."""
+    if env.n_states:
+        return env.n_states
+    if features == "grid":
+        return math.prod(np.broadcast_to(np.asarray(bins), env.low.shape).tolist())
+    if hash_size:
+        return hash_size
+    return tilings * math.prod(t + 1 for t in np.broadcast_to(np.asarray(tiles), env.low.shape).tolist())
+
+
+_STUB_GRID = make_grid(np.zeros(1), np.ones(1), 1)
+_STUB_TILES = make_tile_coding(np.zeros(1), np.ones(1), tilings=1, tiles=1)

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import platform
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
@@ -15,6 +16,7 @@ import numpy as np
 
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.engine import kernel, tabular
+from rlcompare.envs import gymnasium_env
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import make_env, make_features
@@ -45,27 +47,39 @@ def run(
     """
     epsilons = epsilon_schedule(config)
     features = make_features(config.env, config.features, config.bins, config.tilings, config.tiles,
-                             config.hash_size)
-    env = make_env(config.env)
-    state = kernel.initial_state(list(config.seeds), features.n_features, env.n_actions)
+                             config.hash_size, config.bounds)
+    state = kernel.initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
     records = kernel.allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
                                       config.eval_episodes, stage_episodes, state.w.shape[1:])
-    train = _trainer(config, env, features, state, epsilons, records)
-    train(0, 0)  # compile or load the kernel outside the clock
-    started = time.perf_counter()
-    for first in range(0, config.episodes, CHUNK_EPISODES):
-        stop = min(first + CHUNK_EPISODES, config.episodes)
-        train(first, stop)
-        if progress is not None:
-            progress(stop - first)
-    wall = time.perf_counter() - started
+    with stepped_env(config, state) as env:
+        train = _trainer(config, env, features, state, epsilons, records)
+        train(0, 0)  # compile or load the kernel outside the clock
+        started = time.perf_counter()
+        for first in range(0, config.episodes, CHUNK_EPISODES):
+            stop = min(first + CHUNK_EPISODES, config.episodes)
+            train(first, stop)
+            if progress is not None:
+                progress(stop - first)
+        wall = time.perf_counter() - started
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
     results = Results(config=config, epsilons=epsilons, records=records, meta=meta)
     if out is not None:
         results.save(out)
     return results
+
+
+@contextlib.contextmanager
+def stepped_env(config: ExperimentConfig, state: kernel.RunState) -> Iterator[kernel.Env]:
+    """The environment the kernels step: a port, or Gymnasium environments opened for every run (each
+    generator a copy of the run's environment or evaluation stream) and closed afterwards."""
+    if config.environment.is_ported:
+        yield make_env(config.env)
+        return
+    with gymnasium_env.opened(config.env, state.rng[:, kernel.ENV_STREAM], state.rng[:, kernel.EVAL_ENV_STREAM],
+                              config.max_steps) as handle:
+        yield make_env(config.env, handle)
 
 
 def uses_fast_path(config: ExperimentConfig) -> bool:
@@ -97,6 +111,7 @@ def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_st
         "study": study,
         "name": config.name,
         "seeds": list(config.seeds),
+        "stepped_by": "compiled port" if config.environment.is_ported else "Gymnasium adapter (Python speed)",
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "command": sys.argv,
         "timings": {"wall_seconds": wall, "training_steps": steps, "evaluation_steps": eval_steps,
