@@ -34,13 +34,13 @@ from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import make_grid
 from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
 from rlcompare.envs.tiles import make_tile_coding
-from rlcompare.experiment.problem import make_env, make_features
+from rlcompare.experiment.problem import environment, make_env, make_features
 from rlcompare.rng import next_double, stream_state
 
 IMPLS = ["compiled", "py_func"]
 ALPHA, GAMMA = 0.5, 0.5
 W0 = [[0.25, 0.2], [0.1, 0.6]]  # state 0 prefers "stay" (0.25 > 0.2) until one update lowers it; state 1 "right"
-ENV_SEED = 1000  # the chain draws nothing from the environment stream, whatever its seed
+ENV_SEED = 1000  # the chain's one start and deterministic steps do not depend on the environment stream
 
 # Unused stubs for the grid and tile slots of one-hot features.
 GRID_STUB = make_grid(np.array([0.0, 0.0], np.float32), np.array([1.0, 1.0], np.float32), 1)
@@ -153,14 +153,14 @@ class Episode:
         return records.returns[0, 0], records.lengths[0, 0], records.terminated[0, 0]
 
     def check(self, *, steps: int, visits, w, w2=None, draws: int, seed: int = 0) -> None:
-        """Every episode here reaches the goal once (return 1); the environment stream is untouched; the
-        agent stream made exactly ``draws`` draws."""
+        """Every episode here reaches the goal once (return 1); the environment stream made one draw per reset
+        and per step, as Gymnasium's tables do; the agent stream made exactly ``draws`` draws."""
         assert (self.ret, self.steps, self.terminated) == (1.0, steps, True)
         np.testing.assert_array_equal(self.visits, visits)
         np.testing.assert_allclose(self.w, w, rtol=1e-12, atol=1e-15)
         if w2 is not None:
             np.testing.assert_allclose(self.w2, w2, rtol=1e-12, atol=1e-15)
-        np.testing.assert_array_equal(self.env_rng, stream_state(ENV_SEED))
+        np.testing.assert_array_equal(self.env_rng, _advanced(ENV_SEED, 1 + steps))
         np.testing.assert_array_equal(self.agent_rng, _advanced(seed, draws))
         assert np.all(self.z == 0.0)  # traces are left fresh for the next episode
         assert not self.listed.any()
@@ -508,7 +508,7 @@ def _train_mountain_car(algorithm: str, *, fast: bool = False, features: str = "
                         replacing: bool = True) -> tuple[kernel.RunState, kernel.Records]:
     """Mountain Car with 20 bins (or 4x4 tiles x 4 tilings), on the tabular kernel (``fast``) or the general
     one; ε from 1 to 0.01 over half the episodes; evaluation every 50 episodes; snapshots at 100 and 200."""
-    feats = make_features("MountainCar-v0", features, 20, 4, 4, 0)
+    feats = make_features(environment("MountainCar-v0"), features, 20, 4, 4, 0)
     epsilons = linear_decay_epsilon(episodes, 1.0, 0.01, 0.5)
     state = kernel.initial_state(MC_SEEDS, feats.n_features, mountain_car.N_ACTIONS)
     stages = np.array([e for e in (100, 200) if e <= episodes], dtype=np.int64)
@@ -520,7 +520,8 @@ def _train_mountain_car(algorithm: str, *, fast: bool = False, features: str = "
         tabular.train_runs(settings, state, feats.grid, epsilons, 0, episodes, records)
     else:
         settings = _settings(kernel.ALGORITHM_CODES[algorithm], n=n, lam=lam, replacing=replacing, **common)
-        kernel.train_runs(settings, make_env("MountainCar-v0"), feats, state, epsilons, 0, episodes, records)
+        env = make_env(environment("MountainCar-v0"))
+        kernel.train_runs(settings, env, feats, state, epsilons, 0, episodes, records)
     return state, records
 
 

@@ -75,6 +75,36 @@ def _stages(specs: list[str]) -> tuple[tuple[str, float], ...]:
     return tuple(stages)
 
 
+def _bins(spec: str | None) -> int | tuple[int, ...] | None:
+    """``20`` or ``1,1,6,12`` from ``--bins``; none given: the environment's default."""
+    if spec is None:
+        return None
+    try:
+        values = tuple(int(part) for part in spec.split(","))
+    except ValueError:
+        raise typer.BadParameter(f"got {spec!r}; allowed: an integer >= 1, or one per observation dimension "
+                                 "separated by commas, e.g. 1,1,6,12", param_hint="'--bins'") from None
+    return values[0] if len(values) == 1 else values
+
+
+def _bounds(spec: str | None) -> tuple[tuple[float, float], ...] | None:
+    """``LOW:HIGH,LOW:HIGH,...`` from ``--bounds``, one pair per observation dimension."""
+    if spec is None:
+        return None
+    try:
+        return tuple((float(low), float(high)) for low, high in (pair.split(":") for pair in spec.split(",")))
+    except ValueError:
+        raise typer.BadParameter(f"got {spec!r}; allowed: LOW:HIGH per observation dimension, separated by "
+                                 "commas, e.g. -2.4:2.4,-3:3,-0.21:0.21,-3.5:3.5", param_hint="'--bounds'") from None
+
+
+def progress_label(config: ExperimentConfig) -> str:
+    """A configuration's name, and how its environment is stepped when that is at Python speed."""
+    if config.environment.is_ported:
+        return config.name
+    return f"{config.name} ({config.env} through Gymnasium's API: Python speed)"
+
+
 def _progress() -> Progress:
     """A progress bar on a terminal; nothing but the per-configuration lines in a log."""
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
@@ -88,8 +118,13 @@ def run(
              "n_step_sarsa, sarsa_lambda, q_lambda, reinforce (Algorithm 3) or reinforce_baseline.")]
     = _DEFAULTS.algorithm,
     env: Annotated[str, typer.Option(
-        help="MountainCar-v0 (Gymnasium's, ported exactly) or MountainCar-book (Sutton and Barto's bounds).")]
+        help="MountainCar-v0 (the paper), MountainCar-book (Sutton and Barto's bounds), CartPole-v1, Acrobot-v1 "
+             "(compiled ports), CliffWalking-v1, FrozenLake-v1, Taxi-v4 (Gymnasium's tables), or any other "
+             "Gymnasium environment with discrete actions (through Gymnasium's API, at Python speed).")]
     = _DEFAULTS.env,
+    adapter: Annotated[bool, typer.Option(
+        "--adapter", help="Step even a ported environment through Gymnasium's API (same results, Python speed).")]
+    = False,
     features: Annotated[str, typer.Option(help="grid (the paper) or tiles (tile coding, 9.5.4).")]
     = _DEFAULTS.features,
     tilings: Annotated[int, typer.Option(help="Tilings of the tile coder.")] = _DEFAULTS.tilings,
@@ -113,9 +148,16 @@ def run(
     epsilon_end: Annotated[float, typer.Option(help="ε at the end of decay.")] = _DEFAULTS.epsilon_end,
     decay_fraction: Annotated[float, typer.Option(help="Share of the episodes over which ε decays.")]
     = _DEFAULTS.decay_fraction,
-    bins: Annotated[int, typer.Option(help="Grid cells per observation dimension.")] = _DEFAULTS.bins,
+    bins: Annotated[str | None, typer.Option(
+        help="Grid cells per observation dimension: one number, or one per dimension (1,1,6,12). "
+             "Default: the environment's (20 for Mountain Car).")] = None,
+    bounds: Annotated[str | None, typer.Option(
+        help="Grid and tile bounds, LOW:HIGH per observation dimension separated by commas. Default: the "
+             "environment's (see docs/environments.md).")] = None,
     episodes: Annotated[int, typer.Option(help="Training episodes per seed.")] = _DEFAULTS.episodes,
-    max_steps: Annotated[int, typer.Option(help="Episode limit (truncation).")] = _DEFAULTS.max_steps,
+    max_steps: Annotated[int | None, typer.Option(
+        help="Episode limit (truncation). Default: the environment's (1000 for Mountain Car, as in the paper; "
+             "Gymnasium's registered limit elsewhere).")] = None,
     truncation_as_terminal: Annotated[bool, typer.Option(
         "--truncation-as-terminal", help="Treat the time limit as terminal (no bootstrap), as old Gym's done did.")]
     = _DEFAULTS.truncation_as_terminal,
@@ -133,33 +175,37 @@ def run(
     from rlcompare.experiment.runner import run as run_experiment
 
     config = _config(
-        algorithm=algorithm, env=env, features=features, tilings=tilings, tiles=tiles, hash_size=hash_size, n=n,
+        algorithm=algorithm, env=env, adapter=adapter, features=features, tilings=tilings, tiles=tiles,
+        hash_size=hash_size, bounds=_bounds(bounds), n=n,
         lam=lam, trace=trace, target_epsilon=target_epsilon, baseline_alpha=baseline_alpha, schedule=schedule,
         alpha=alpha, gamma=gamma, epsilon=epsilon,
-        epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=bins,
+        epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=_bins(bins),
         episodes=episodes, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
         seeds=_seeds(seeds, first_seed), eval_every=eval_every, eval_episodes=eval_episodes,
         stages=_stages(stage or []),
     )
     _check_out(out)
+    if not config.environment.is_ported:
+        console.print(progress_label(config))
     with _progress() as progress:
-        task = progress.add_task(config.name, total=config.episodes)
+        task = progress.add_task(progress_label(config), total=config.episodes)
         results = run_experiment(config, out=out, progress=lambda n: progress.advance(task, n))
     _print_summary([results], paper=False)
     console.print(f"Run directory: {out}")
 
 
-STUDY_NAMES = ("paper", "book-10.2", "book-12.10", "cliff")
+STUDY_NAMES = ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff")
 
 
 @app.command()
 def reproduce(
     study: Annotated[str, typer.Argument(
-        help="Which study: paper (default), book-10.2, book-12.10 or cliff (see --list).")] = "paper",
+        help="Which study: paper (default), cartpole, acrobot, book-10.2, book-12.10 or cliff (see --list).")]
+    = "paper",
     seeds: Seeds = 30,
     first_seed: FirstSeed = 0,
-    episodes: Annotated[int, typer.Option(help="Training episodes per seed (paper study; the paper gives none).")]
-    = 5000,
+    episodes: Annotated[int, typer.Option(
+        help="Training episodes per seed (paper, cartpole and acrobot; the paper gives none).")] = 5000,
     algorithms: Annotated[str, typer.Option(
         help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
              "one. Each adds rows to Tables I and II.")] = "q_learning,sarsa",
@@ -168,22 +214,26 @@ def reproduce(
     videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents into the report.")] = True,
     list_studies: Annotated[bool, typer.Option("--list", help="List the studies and exit.")] = False,
 ) -> None:
-    """Reproduce a study. The paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1.
+    """Reproduce a study. The paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1;
+    cartpole and acrobot ask the paper's question there with the same settings.
 
     Configurations already complete in OUT are loaded, not trained again.
     """
     from rlcompare.studies.book import STUDIES
+    from rlcompare.studies.paper import ENV_STUDIES
 
     if list_studies:
         console.print("paper        the paper: Q-Learning vs SARSA on MountainCar-v0, ε constant and decaying")
+        for name, env in ENV_STUDIES.items():
+            console.print(f"{name:<12} the paper's grid of configurations on {env}")
         for name, book_study in STUDIES.items():
             console.print(f"{name:<12} {book_study.title}")
         return
     if study not in STUDY_NAMES:
         raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
     out = out if out is not None else Path("runs") / study
-    if study == "paper":
-        _reproduce_paper(_seeds(seeds, first_seed), episodes, _algorithms(algorithms), out, videos)
+    if study == "paper" or study in ENV_STUDIES:
+        _reproduce_paper(study, _seeds(seeds, first_seed), episodes, _algorithms(algorithms), out, videos)
     else:
         _reproduce_book(STUDIES[study], _seeds(seeds, first_seed), out)
 
@@ -200,22 +250,24 @@ def _algorithms(spec: str) -> tuple[str, ...]:
     return chosen
 
 
-def _reproduce_paper(seeds: tuple[int, ...], episodes: int, algorithms: tuple[str, ...], out: Path,
+def _reproduce_paper(study: str, seeds: tuple[int, ...], episodes: int, algorithms: tuple[str, ...], out: Path,
                      videos: bool) -> None:
-    from rlcompare.studies.paper import paper_configs
+    from rlcompare.studies.paper import ENV_STUDIES, paper_configs
     from rlcompare.studies.paper import reproduce as reproduce_study
 
+    env = ENV_STUDIES.get(study, "MountainCar-v0")
     if episodes < 1:
         raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
-    configs = paper_configs(seeds, episodes, algorithms)
+    configs = paper_configs(seeds, episodes, algorithms, env=env)
     _check_out(out)
     finished = []
     with _progress() as progress:
-        task = progress.add_task("paper", total=sum(c.episodes for c in configs))
-        for results, reused in reproduce_study(out, configs, progress=lambda n: progress.advance(task, n)):
+        task = progress.add_task(env, total=sum(c.episodes for c in configs))
+        for results, reused in reproduce_study(out, configs, progress=lambda n: progress.advance(task, n),
+                                               study=study):
             finished.append(results)
             _print_done(progress, results.config.name, results, reused)
-    _print_summary(finished, paper=True)
+    _print_summary(finished, paper=env == "MountainCar-v0")
     _report(out, videos)
 
 

@@ -15,8 +15,9 @@ stays within a band around its final value. For a run of ``episodes`` per-episod
    ``final ± band`` at every episode from ``e`` to the end; it is reported as a count, ``e + 1``
    episodes.
 5. A run that does not solve the task by the end has nothing to converge *to*: when fewer than
-   ``min_success`` of its last ``window`` episodes ended before the step limit (return ``> -max_steps``)
-   it is reported as never converged, NaN. So is a run that has not stayed in the band for the last
+   ``min_success`` of its last ``window`` episodes were solved (by default: ended before the step limit,
+   return ``> -max_steps``, as on Mountain Car; other environments pass which episodes they count as
+   solved) it is reported as never converged, NaN. So is a run that has not stayed in the band for the last
    ``settled_share`` of its episodes (10%) and at least ``settled_windows`` windows: the last smoothed
    value *is* the final level, so a curve still climbing would otherwise "converge" shortly before the end.
 
@@ -52,12 +53,13 @@ def convergence_episodes(
     min_success: float = 0.5,
     settled_windows: int = 2,
     settled_share: float = 0.1,
+    solved: np.ndarray | None = None,
 ) -> np.ndarray:
     """Settling time of each run, in episodes (rule in the module docstring); NaN for never converged.
 
-    ``returns``: ``(runs, episodes)`` per-episode returns. Returns ``(runs,)`` float: the number of
-    episodes until the smoothed curve stays within the band around the final level, in
-    ``1 .. episodes``, or NaN.
+    ``returns``: ``(runs, episodes)`` per-episode returns; ``solved``: the same shape, whether each episode
+    solved the task (default: ``returns > -max_steps``). Returns ``(runs,)`` float: the number of episodes
+    until the smoothed curve stays within the band around the final level, in ``1 .. episodes``, or NaN.
     """
     values = _runs(returns, window)
     smooth = moving_average(values, window)
@@ -70,7 +72,8 @@ def convergence_episodes(
     # Index of the last episode outside the band, -1 when the curve never leaves it.
     last_outside = np.where(outside.any(axis=1), episodes - 1 - np.argmax(outside[:, ::-1], axis=1), -1)
     settled = last_outside + 2.0  # first index inside for good is last_outside + 1; as a count, + 1 more
-    solved = (last > -max_steps).mean(axis=1) >= min_success
+    solved_last = last > -max_steps if solved is None else np.asarray(solved, dtype=bool)[:, -window:]
+    solved = solved_last.mean(axis=1) >= min_success
     shortest_stay = max(settled_windows * window, settled_share * episodes)
     never = ~solved | (settled > episodes - shortest_stay + 1)
     return np.where(never, np.nan, settled)

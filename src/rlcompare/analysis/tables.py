@@ -25,8 +25,8 @@ from rlcompare.analysis.stats import (
     ratio_verdict,
     verdict,
 )
-from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import make_grid
+from rlcompare.experiment.problem import grid_bounds
 from rlcompare.experiment.results import Results
 
 LEFT = 0
@@ -39,21 +39,40 @@ def seconds_per_step(results: Results) -> float:
     return timings["wall_seconds"] * timings["threads"] / steps
 
 
+def solved(rule: str, returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, max_steps: int
+           ) -> np.ndarray:
+    """Which episodes solved the task, by the environment's rule: ``terminated`` (reached the goal),
+    ``truncated`` (survived to the step limit, as on CartPole) or ``positive_return`` (FrozenLake)."""
+    if rule == "truncated":
+        return ~terminated & (lengths >= max_steps)
+    if rule == "positive_return":
+        return returns > 0
+    return np.asarray(terminated, dtype=bool)
+
+
 def per_seed_metrics(results: Results) -> pd.DataFrame:
-    """One row per seed: the numbers every table, verdict and figure is built from."""
+    """One row per seed: the numbers every table, verdict and figure is built from. The first greedy
+    action from the start states is Mountain Car's (NaN elsewhere)."""
     records, config = results.records, results.config
-    converged = convergence_episodes(records.returns, window=min(100, config.episodes), max_steps=config.max_steps)
+    rule = config.environment.success
+    converged = convergence_episodes(records.returns, window=min(100, config.episodes), max_steps=config.max_steps,
+                                     solved=solved(rule, records.returns, records.lengths, records.terminated,
+                                                   config.max_steps))
     has_eval = records.eval_returns.shape[1] > 0
-    final_q = results.records.snapshots[:, -1]
-    grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, config.bins)
+    greedy_solved = solved(rule, records.eval_returns[:, -1], records.eval_lengths[:, -1],
+                           records.eval_terminated[:, -1], config.max_steps) if has_eval else None
+    first_left = np.full(len(results.seeds), np.nan)
+    if config.env.startswith("MountainCar") and config.features == "grid":
+        grid = make_grid(*grid_bounds(config.environment, config.bounds), config.bins)
+        first_left = first_action_shares(results.records.snapshots[:, -1], grid)[:, LEFT]
     return pd.DataFrame({
         "seed": np.asarray(results.seeds),
         "behaviour_return": records.returns.mean(axis=1),
         "greedy_return": records.eval_returns[:, -1].mean(axis=1) if has_eval else np.nan,
-        "greedy_success": records.eval_terminated[:, -1].mean(axis=1) if has_eval else np.nan,
+        "greedy_success": greedy_solved.mean(axis=1) if has_eval else np.nan,
         "convergence_episode": converged,
         "convergence_seconds": episodes_to_seconds(converged, records.lengths, seconds_per_step(results)),
-        "first_action_left": first_action_shares(final_q, grid)[:, LEFT],
+        "first_action_left": first_left,
     })
 
 

@@ -3,7 +3,8 @@
 The paper shows "three videos showing how the agents solve the problem in three stages of learning".
 For one run directory (one configuration) and one training seed, :func:`render_stage_videos` loads the
 stored Q-table of every stage (``config.stages``; by default early, middle and final), plays one episode
-of its greedy policy in ``gymnasium.make("MountainCar-v0", render_mode="rgb_array")`` from the start state
+of its greedy policy in ``gymnasium.make(env_id, render_mode="rgb_array")`` (``MountainCar-v0`` for the
+paper and the book's variant, whose trajectories are the same) from the start state
 of ``env.reset(seed=episode_seed)``, and writes an H.264 MP4 (and a small looping GIF) per stage. Every
 stage starts from the same start state, so the videos differ only by what the agent has learned.
 
@@ -68,6 +69,10 @@ GIF_HOLD_MS = 1000
 """The GIF shows its last frame (with the final return) this much longer before it loops."""
 
 _ALGORITHM_LABELS = {"q_learning": "Q-Learning", "sarsa": "SARSA", "random": "Random"}
+_ENDINGS = {"MountainCar-v0": ("reached the flag", "out of time"),
+            "CartPole-v1": ("the pole fell", "balanced to the end"),
+            "Acrobot-v1": ("swung above the bar", "out of time")}
+"""How the caption's last frame says an episode ended: terminated, truncated."""
 _CAPTION_BACKGROUND = (255, 255, 255)
 _CAPTION_TEXT = (0, 0, 0)
 _CAPTION_DETAIL = (90, 90, 90)
@@ -91,7 +96,7 @@ class Episode:
     length: int
     """Steps taken."""
     terminated: bool
-    """The car reached the flag (else the step limit truncated the episode)."""
+    """The episode reached a terminal state, the car the flag (else the step limit truncated it)."""
 
     @property
     def episode_return(self) -> float:
@@ -112,12 +117,17 @@ def _headless() -> None:
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 
-def _play(agent: Agent, episode_seed: int, max_steps: int) -> Iterator[_Frame]:
+def gymnasium_id(config: ExperimentConfig) -> str:
+    """The Gymnasium environment that shows a configuration's agents: the book's Mountain Car is Gymnasium's."""
+    return "MountainCar-v0" if config.env == "MountainCar-book" else config.env
+
+
+def _play(agent: Agent, episode_seed: int, max_steps: int, env_id: str) -> Iterator[_Frame]:
     """Step ``agent`` through one rendered episode, yielding the start frame and one frame per step."""
     _headless()
     import gymnasium as gym  # after _headless: gymnasium imports pygame when it first renders
 
-    env = gym.make("MountainCar-v0", render_mode="rgb_array", max_episode_steps=max_steps)
+    env = gym.make(env_id, render_mode="rgb_array", max_episode_steps=max_steps)
     try:
         observation, _ = env.reset(seed=episode_seed)
         total, step, terminated, truncated = 0.0, 0, False, False
@@ -237,26 +247,28 @@ def _stack(frame: np.ndarray, title: Sequence[str], detail: Sequence[str], out: 
 
 
 def _caption_pieces(title: str, frame: _Frame, *, seed: int | None, episode_seed: int,
-                    max_steps: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+                    max_steps: int, env_id: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The two caption lines of a frame, split into a fixed head (cached once drawn) and what changes."""
     finished = frame.terminated or frame.truncated
     ret = f"{'final return' if finished else 'return'} {frame.return_so_far:.0f}"
     head = f"training seed {seed} · " if seed is not None else ""
     head += f"start state: reset(seed={episode_seed}) · "
     detail = [head, *_DIGITS.findall(f"step {frame.step}/{max_steps}")]
+    terminated, truncated = _ENDINGS.get(env_id, ("terminated", "out of time"))
     if frame.terminated:
-        detail.append(" · reached the flag")
+        detail.append(f" · {terminated}")
     elif frame.truncated:
-        detail.append(" · out of time")
+        detail.append(f" · {truncated}")
     return (f"{title} · ", *_DIGITS.findall(ret)), tuple(detail)
 
 
 def _captioned(frames: Iterable[_Frame], title: str, *, seed: int | None, episode_seed: int,
-               max_steps: int) -> Iterator[tuple[np.ndarray, _Frame]]:
+               max_steps: int, env_id: str) -> Iterator[tuple[np.ndarray, _Frame]]:
     """Each frame under its caption, in one reused buffer (copy it to keep it)."""
     buffer = None
     for frame in frames:
-        line, detail = _caption_pieces(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps)
+        line, detail = _caption_pieces(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
+                                       env_id=env_id)
         buffer = _stack(frame.image, line, detail, buffer)
         yield buffer, frame
 
@@ -274,14 +286,14 @@ def stage_title(config: ExperimentConfig, stage: str | None) -> str:
 
 
 def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, title: str | None = None,
-                   seed: int | None = None) -> Episode:
+                   seed: int | None = None, env_id: str = "MountainCar-v0") -> Episode:
     """Play one episode of ``agent`` from ``env.reset(seed=episode_seed)`` and keep every frame.
 
     Without ``title`` the frames are Gymnasium's own; with it each frame is captioned with the title
     and the return so far (``seed``, the training seed, goes on the caption's second line). For long
     episodes the frames take memory (about 0.8 MB each); :func:`render_stage_videos` streams instead.
     """
-    frames: Iterable[_Frame] = _play(agent, episode_seed, max_steps)
+    frames: Iterable[_Frame] = _play(agent, episode_seed, max_steps, env_id)
     images, returns = [], []
     last: _Frame | None = None
     if title is None:
@@ -290,7 +302,8 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
             returns.append(frame.return_so_far)
             last = frame
     else:
-        for image, frame in _captioned(frames, title, seed=seed, episode_seed=episode_seed, max_steps=max_steps):
+        for image, frame in _captioned(frames, title, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
+                                       env_id=env_id):
             images.append(image.copy())
             returns.append(frame.return_so_far)
             last = frame
@@ -437,11 +450,11 @@ def write_gif(frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale:
 
 
 def _render_video(agent: Agent, title: str, mp4: Path, gif: Path | None, *, seed: int, episode_seed: int,
-                  max_steps: int, fps: float) -> list[Path]:
+                  max_steps: int, fps: float, env_id: str) -> list[Path]:
     """Play, caption and encode one video in a single pass: ffmpeg encodes in its own process while
     Python renders the next frames, and no more than one frame is held in memory (plus the GIF's)."""
-    frames = _captioned(_play(agent, episode_seed, max_steps), title, seed=seed, episode_seed=episode_seed,
-                        max_steps=max_steps)
+    frames = _captioned(_play(agent, episode_seed, max_steps, env_id), title, seed=seed, episode_seed=episode_seed,
+                        max_steps=max_steps, env_id=env_id)
     small = _GifFrames(GIF_SCALE, GIF_EVERY) if gif is not None else None
     with _mp4_writer(mp4, fps) as writer:
         for image, _ in frames:
@@ -494,5 +507,6 @@ def render_stage_videos(
     for stage, title, stem in plan:
         agent = load_agent(run_dir, seed=seed, stage=stage)
         written += _render_video(agent, title, out_dir / f"{stem}.mp4", out_dir / f"{stem}.gif" if gif else None,
-                                 seed=seed, episode_seed=int(episode_seed), max_steps=limit, fps=fps)
+                                 seed=seed, episode_seed=int(episode_seed), max_steps=limit, fps=fps,
+                                 env_id=gymnasium_id(config))
     return written

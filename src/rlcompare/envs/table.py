@@ -1,7 +1,10 @@
 """Finite MDPs as precomputed tables, stepped by compiled code.
 
 Each state-action pair has a few outcomes, each with a probability, a next state, a reward and whether
-it ends the episode. Deterministic pairs have one outcome and draw nothing from the random stream.
+it ends the episode. Every reset and every step draws one uniform from the environment stream and takes
+the first outcome whose cumulative probability exceeds it, deterministic ones included, as Gymnasium's
+``categorical_sample`` does; so the stream stays in step with the generator of Gymnasium's toy-text
+environments, and a table reproduces them episode after episode, not only until the first reset.
 Small problems with known answers (a chain, a two-armed bandit) are written this way for tests, and so
 is any gridworld whose dynamics fit in a table.
 """
@@ -89,8 +92,7 @@ def two_armed_bandit(p_left: float = 0.2, p_right: float = 0.8) -> TableEnv:
 
 @njit(inline="always")
 def _draw(cumulative: np.ndarray, rng_state: np.ndarray) -> int:
-    if cumulative.size == 1 or cumulative[0] >= 1.0:
-        return 0
+    """``np.argmax(cumulative > u)`` for one uniform ``u``: Gymnasium's ``categorical_sample``."""
     u = next_double(rng_state)
     k = 0
     while k < cumulative.size - 1 and u >= cumulative[k]:
@@ -100,7 +102,7 @@ def _draw(cumulative: np.ndarray, rng_state: np.ndarray) -> int:
 
 @njit(inline="always")
 def reset(env: TableEnv, rng_state: np.ndarray) -> int:
-    """A start state drawn from the start distribution (no draw when it is a single state)."""
+    """A start state drawn from the start distribution."""
     return _draw(env.start, rng_state)
 
 

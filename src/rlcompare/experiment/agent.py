@@ -68,5 +68,5 @@ def load_agent(run_dir: Path, *, seed: int, stage: str = "final") -> GreedyAgent
     c = results.config
     if c.algorithm == "random":
         return RandomAgent(seed=seed, stage=stage, n_actions=weights.shape[1])
-    features = make_features(c.env, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
+    features = make_features(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
     return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage)

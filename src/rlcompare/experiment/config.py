@@ -17,7 +17,14 @@ from typing import Any
 from rlcompare.algorithms.schedules import SCHEDULES
 from rlcompare.engine.kernel import ALGORITHM_CODES
 from rlcompare.envs.gymnasium_env import UnsupportedEnvironment
-from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, Environment, environment, feature_count
+from rlcompare.experiment.problem import (
+    PORTS,
+    TABLE_ENVIRONMENTS,
+    Environment,
+    environment,
+    feature_count,
+    make_features,
+)
 
 ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS)
 """Environments stepped by compiled code; any other registered Gymnasium environment runs through the adapter."""
@@ -54,6 +61,9 @@ class ExperimentConfig:
     ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4, slippery), ``Taxi-v4``; or any other
     registered Gymnasium environment with Discrete actions and Discrete or Box observations, stepped
     through Gymnasium's API at Python speed."""
+    adapter: bool = False
+    """Step the environment through Gymnasium's own API (the adapter, at Python speed) even where a compiled
+    port exists: to check a port against Gymnasium, which gives the same results bit for bit."""
     features: str = "grid"
     """``grid``: one cell of ``bins`` per dimension (the paper); ``tiles``: tile coding (9.5.4)."""
     tilings: int = 8
@@ -137,7 +147,7 @@ class ExperimentConfig:
     def environment(self) -> Environment:
         """What is known of ``env``: how it is stepped and its defaults."""
         try:
-            return environment(self.env)
+            return environment(self.env, self.adapter)
         except UnsupportedEnvironment as error:
             raise ConfigError("env", self.env, f"{', '.join(ENVIRONMENTS)}, or a registered Gymnasium "
                               f"environment with Discrete actions and Discrete or Box observations ({error})"
@@ -215,6 +225,7 @@ def _check_rates(c: ExperimentConfig) -> None:
              "a number in (0, 1]")
     _require(isinstance(c.truncation_as_terminal, bool), "truncation_as_terminal",
              c.truncation_as_terminal, "true or false")
+    _require(isinstance(c.adapter, bool), "adapter", c.adapter, "true or false")
 
 
 def _check_counts(c: ExperimentConfig) -> None:
@@ -260,10 +271,8 @@ def _check_grid(c: ExperimentConfig) -> None:
 def _check_tiles(c: ExperimentConfig) -> None:
     if c.features != "tiles" or c.environment.n_states:
         return
-    from rlcompare.experiment.problem import tiles_of
-
     try:
-        tiles_of(c.env, c.tilings, c.tiles, c.hash_size, c.bounds)
+        make_features(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
     except ValueError as error:
         raise ConfigError("tiles", (c.tilings, c.tiles, c.hash_size),
                           f"a layout that fits the bounds ({error})") from None

@@ -19,6 +19,7 @@ every default and why. ``bounds`` in the configuration replaces them.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -38,9 +39,9 @@ from rlcompare.engine.kernel import (
     Features,
 )
 from rlcompare.envs import acrobot, cartpole, gymnasium_env, mountain_car
-from rlcompare.envs.discretize import UniformGrid, make_grid
+from rlcompare.envs.discretize import make_grid
 from rlcompare.envs.table import TableEnv, chain, from_gymnasium
-from rlcompare.envs.tiles import TileCoding, make_tile_coding
+from rlcompare.envs.tiles import make_tile_coding
 
 PORTS = ("MountainCar-v0", "MountainCar-book", "CartPole-v1", "Acrobot-v1")
 TABLE_ENVIRONMENTS = ("CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
@@ -108,9 +109,14 @@ _TABLE_DEFAULTS = {"CliffWalking-v1": (1000, "terminated"), "FrozenLake-v1": (10
 
 
 @functools.cache
-def environment(name: str) -> Environment:
+def environment(name: str, adapter: bool = False) -> Environment:
     """The environment called ``name``: a port, a table, or any Gymnasium environment the adapter can run
-    (:class:`rlcompare.envs.gymnasium_env.UnsupportedEnvironment` otherwise)."""
+    (:class:`rlcompare.envs.gymnasium_env.UnsupportedEnvironment` otherwise). ``adapter``: step a port's
+    environment through Gymnasium's API instead, with the port's defaults."""
+    if adapter and name in (*PORTS, *TABLE_ENVIRONMENTS):
+        gymnasium_env.describe(name)  # MountainCar-book is not one of Gymnasium's
+        port = environment(name)
+        return dataclasses.replace(port, kind=GYMNASIUM, state_size=port.observation_size)
     if name == "MountainCar-v0":
         return _mountain_car(name, mountain_car.MAX_POSITION)
     if name == "MountainCar-book":
@@ -142,18 +148,16 @@ def grid_bounds(env: Environment, bounds: tuple[tuple[float, float], ...] | None
                                                                             dtype=np.float64)
 
 
-def make_env(name: str, handle: int = -1) -> Env:
-    """The kernels' description of ``name``; ``handle`` names the Gymnasium environments opened for the adapter."""
-    env = environment(name)
-    table = table_of(name) if env.kind == TABLE else _NO_TABLE
+def make_env(env: Environment, handle: int = -1) -> Env:
+    """The kernels' description of ``env``; ``handle`` names the Gymnasium environments opened for the adapter."""
+    table = table_of(env.name) if env.kind == TABLE else _NO_TABLE
     return Env(env.kind, env.max_position, table, env.n_actions, env.state_size, env.observation_size, handle, 0)
 
 
-def make_features(name: str, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int, hash_size: int,
-                  bounds: tuple[tuple[float, float], ...] | None = None) -> Features:
+def make_features(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,
+                  hash_size: int, bounds: tuple[tuple[float, float], ...] | None = None) -> Features:
     """The grid (one active cell) or the tile coder (one active tile per tiling); the other slot is a stub.
     A finite environment's state is its only active feature, whatever ``features`` says."""
-    env = environment(name)
     if env.n_states:
         return Features(ONE_HOT, _STUB_GRID, _STUB_TILES, env.n_states, 1)
     low, high = grid_bounds(env, bounds)
@@ -162,17 +166,6 @@ def make_features(name: str, features: str, bins: int | tuple[int, ...], tilings
         return Features(GRID, grid, _STUB_TILES, grid.n_cells, 1)
     coding = make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
     return Features(TILES, _STUB_GRID, coding, coding.n_features, coding.offsets.shape[0])
-
-
-def grid_of(name: str, bins: int | tuple[int, ...], bounds: tuple[tuple[float, float], ...] | None = None
-            ) -> UniformGrid:
-    return make_grid(*grid_bounds(environment(name), bounds), bins)
-
-
-def tiles_of(name: str, tilings: int, tiles: int, hash_size: int,
-             bounds: tuple[tuple[float, float], ...] | None = None) -> TileCoding:
-    low, high = grid_bounds(environment(name), bounds)
-    return make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
 
 
 def feature_count(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,

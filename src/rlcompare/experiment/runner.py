@@ -46,7 +46,7 @@ def run(
     ``progress`` is called with the number of episodes (per seed) finished since its last call.
     """
     epsilons = epsilon_schedule(config)
-    features = make_features(config.env, config.features, config.bins, config.tilings, config.tiles,
+    features = make_features(config.environment, config.features, config.bins, config.tilings, config.tiles,
                              config.hash_size, config.bounds)
     state = kernel.initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
@@ -75,16 +75,16 @@ def stepped_env(config: ExperimentConfig, state: kernel.RunState) -> Iterator[ke
     """The environment the kernels step: a port, or Gymnasium environments opened for every run (each
     generator a copy of the run's environment or evaluation stream) and closed afterwards."""
     if config.environment.is_ported:
-        yield make_env(config.env)
+        yield make_env(config.environment)
         return
     with gymnasium_env.opened(config.env, state.rng[:, kernel.ENV_STREAM], state.rng[:, kernel.EVAL_ENV_STREAM],
                               config.max_steps) as handle:
-        yield make_env(config.env, handle)
+        yield make_env(config.environment, handle)
 
 
 def uses_fast_path(config: ExperimentConfig) -> bool:
     """The paper's configurations run on the specialised tabular kernel; everything else on the general one."""
-    return (config.features == "grid" and config.env == "MountainCar-v0"
+    return (config.features == "grid" and config.env == "MountainCar-v0" and config.environment.is_ported
             and config.algorithm in tabular.ALGORITHM_CODES)
 
 

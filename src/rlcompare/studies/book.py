@@ -31,6 +31,7 @@ from rlcompare.analysis.stats import interval
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
+from rlcompare.studies.contrast import contrast_table, sibling_studies
 from rlcompare.studies.paper import reproduce
 
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
@@ -186,7 +187,9 @@ def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
         rows.append({"method": label, "seeds": len(results.seeds),
                      "online return, last 100 episodes": interval(returns[:, -100:].mean(axis=1)).format(1),
                      "greedy return of the final policy": interval(greedy).format(1),
-                     "seeds whose greedy path is optimal (-13)": f"{int(np.sum(greedy == -13))} of {len(greedy)}"})
+                     "seeds whose greedy path is optimal (-13)": f"{int(np.sum(greedy == -13))} of {len(greedy)}",
+                     "seeds whose greedy path reaches the goal": f"{int(results.records.eval_terminated[:, -1, 0].sum())} "
+                                                                 f"of {len(greedy)}"})
     curves_ax.set_ylim(-100, 0)
     curves_ax.set_xlabel("episode")
     curves_ax.set_ylabel("sum of rewards during episode (10-episode mean)")
@@ -204,9 +207,39 @@ def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
             "start without ending the episode), ε-greedy with ε = 0.1, α = 0.5, γ = 1, 500 episodes. The paper "
             "found SARSA better on Mountain Car and explained it by the kind of problem; here the book's "
             "contrast: Q-Learning learns the optimal edge path but falls off while exploring, so its online "
-            "return is lower, while SARSA learns a safer path."],
+            "return is lower, while SARSA learns a safer path. With a constant α = 0.5 SARSA's values keep moving, "
+            "and in some seeds its final greedy policy steps back and forth between two states of nearly equal "
+            "value until the 1000-step limit (return -1000): its ε-greedy behaviour is what the book measures."],
             tables=[("Online and greedy returns", pd.DataFrame(rows))], figures=[(image, "Figure 6.4, redrawn")]),
+        _contrast_section(out, runs),
     ], [])
+
+
+def _contrast_section(out: Path, runs: dict[str, Results]) -> Section:
+    """The cliff beside the paper's Mountain Car study (and its CartPole and Acrobot versions) where those
+    study directories stand beside this one."""
+    table = contrast_table({"cliff": runs, **sibling_studies(out)})
+    paragraphs = ["SARSA minus Q-Learning on paired seeds, with 95% bootstrap intervals: online, the mean return "
+                  "of the ε-greedy behaviour over training (what an agent collects while it learns); greedy, the "
+                  "return of the final greedy policy (what it learned)."]
+    paragraphs += [_contrast_sentence(row) for row in table.to_dict("records")]
+    if set(table["study"]) == {"cliff"}:
+        paper_dir = Path(out).parent / "paper"
+        paragraphs.append(f"Mountain Car's side is missing: run 'rlcompare reproduce --out {paper_dir}' (and "
+                          "'reproduce cartpole', 'reproduce acrobot' beside it), then 'reproduce cliff' again.")
+    paragraphs.append("Reading the rows: where SARSA is better online and Q-Learning greedy, as the book finds on the "
+                      "cliff, exploring near the optimal path is what costs Q-Learning, which learns the values of "
+                      "a greedy policy it does not follow. The paper calls Mountain Car a 'sacrificing problem' "
+                      "(things must get worse before they get better) and expects SARSA to be better there on both "
+                      "counts; its rows say whether it is.")
+    return Section("Cliff Walking against Mountain Car: the contrast in numbers", paragraphs,
+                   tables=[("SARSA against Q-Learning, study by study", table)])
+
+
+def _contrast_sentence(row: dict) -> str:
+    return (f"{row['environment']} ({row['exploration']}, {row['seeds']} seeds): online SARSA - Q-Learning = "
+            f"{row['online: SARSA - Q-Learning']} (better: {row['online: better']}); greedy "
+            f"{row['greedy: SARSA - Q-Learning']} (better: {row['greedy: better']}).")
 
 
 def _cliff_mask() -> np.ndarray:

@@ -28,6 +28,9 @@ PAPER_TABLE_II = {"q_learning-decay": -191.0, "q_learning-constant": -262.0, "sa
 
 
 PAPER_ALGORITHMS = ("q_learning", "sarsa")
+ENV_STUDIES = {"cartpole": "CartPole-v1", "acrobot": "Acrobot-v1"}
+"""Studies that ask the paper's question on another environment: the same configurations and settings, with
+the environment's own grid and step limit (``docs/environments.md``)."""
 
 
 def paper_configs(
@@ -51,6 +54,7 @@ def reproduce(
     *,
     progress: Callable[[int], None] | None = None,
     directory: str | None = None,
+    study: str = STUDY,
 ) -> Iterator[tuple[Results, bool]]:
     """Run each configuration into ``out / config.name``, or load it if that run already finished.
 
@@ -66,4 +70,4 @@ def reproduce(
                 progress(config.episodes)
             yield stored, True
         else:
-            yield run(config, out=run_dir, study=STUDY, progress=progress), False
+            yield run(config, out=run_dir, study=study, progress=progress), False

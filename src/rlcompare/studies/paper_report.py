@@ -1,7 +1,10 @@
 """The paper study's tables, verdicts, figures, videos and ``report.html``, rebuilt from stored runs.
 
 Everything here reads run directories; nothing trains. A configuration whose directory is missing or
-damaged is named in the report and left out of what needs it; the rest is still built.
+damaged is named in the report and left out of what needs it; the rest is still built. The same report
+answers the paper's question on another environment (``reproduce cartpole``, ``reproduce acrobot``): the
+paper's printed values and its Mountain Car pictures (maps over position and velocity, first actions)
+then stay out, and its claims are tested as they would read there.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from rlcompare.analysis import plots
 from rlcompare.analysis.explain import first_action_shares
 from rlcompare.analysis.report import Section, write_report
 from rlcompare.analysis.tables import Claim, judge, per_seed_metrics, table_i, table_ii
+from rlcompare.analysis.video import gymnasium_id, render_stage_videos
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import make_grid
 from rlcompare.experiment import store
@@ -166,6 +170,11 @@ def _write_table(frame: pd.DataFrame, directory: Path, name: str) -> None:
     store.write_atomic(directory / f"{name}.md", lambda handle: handle.write(markdown.encode()))
 
 
+def _on_position_velocity_grid(results: Results) -> bool:
+    """Mountain Car on a grid: the maps over position x velocity and the first actions apply."""
+    return results.config.env.startswith("MountainCar") and results.config.features == "grid"
+
+
 def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None) -> ReportOutcome:
     """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``."""
     study_dir = Path(study_dir)
@@ -175,17 +184,20 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
         raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
                                + "; ".join(problems))
     seconds: dict[str, float] = {}
+    first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
+    mountain_car = _on_position_velocity_grid(first)
+    paper_values = first.config.env == "MountainCar-v0"
     learners = [r for n, r in runs.items() if n != "random"]
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
     for stale in figures_dir.glob("*.png"):  # figures of runs that are gone must not linger
         stale.unlink()
-    first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
-    claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)]
+    claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
+              and (mountain_car or c.metric != "first_action_left")]
     tables = {
-        "table_i": table_i(metrics, PAPER_TABLE_I, episodes),
-        "table_ii": table_ii(metrics, PAPER_TABLE_II),
+        "table_i": table_i(metrics, PAPER_TABLE_I if paper_values else {}, episodes),
+        "table_ii": table_ii(metrics, PAPER_TABLE_II if paper_values else {}),
         "verdicts": judge([_scaled(c, episodes) for c in claims], metrics, episodes),
     }
     for name, frame in tables.items():
@@ -201,8 +213,9 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
         else:
             problems.append(f"{title}: left out, its runs are missing")
     explanation_figures = [(_save(stages_figure(r), figures_dir / f"stages-{r.config.name}.png"),
-                            f"{label(r)}: greedy action and state value at each stage") for r in learners]
-    if paper_learners:
+                            f"{label(r)}: greedy action and state value at each stage") for r in learners
+                           if mountain_car]
+    if paper_learners and mountain_car:
         explanation_figures += [
             (_save(visits_figure(paper_learners), figures_dir / "visits.png"), "State visits during training"),
             (_save(first_actions_figure(paper_learners), figures_dir / "first-actions.png"),
@@ -213,8 +226,6 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     mark = time.perf_counter()
     video_cells = []
     if videos:
-        from rlcompare.analysis.video import render_stage_videos
-
         for name, results in ((n, r) for n, r in runs.items() if n in CONFIGURATIONS):
             seed = results.seeds[0] if video_seed is None else video_seed
             stages = iter([None] if results.config.algorithm == "random" else [n for n, _ in results.config.stages])
@@ -227,10 +238,18 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
         seconds["videos"] = time.perf_counter() - mark
 
     sections = _sections(first, runs, tables, curve_figures, explanation_figures, video_cells)
-    path = write_report(study_dir / "report.html", "On- and off-policy control on Mountain Car: the paper, "
-                        "reproduced", sections, problems)
+    title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
+             else f"On- and off-policy control on {first.config.env}: the paper's question")
+    path = write_report(study_dir / "report.html", title, sections, problems)
     seconds["total"] = time.perf_counter() - started
     return ReportOutcome(path=path, problems=problems, seconds=seconds)
+
+
+def _grid_text(config) -> str:
+    if config.environment.n_states:
+        return f"{config.environment.n_states} states, one feature each"
+    bins = config.bins if isinstance(config.bins, tuple) else (config.bins,) * config.environment.observation_size
+    return f"{' x '.join(map(str, bins))} uniform cells"
 
 
 def _sections(first, runs, tables, curve_figures, explanation_figures, video_cells) -> list[Section]:
@@ -238,7 +257,7 @@ def _sections(first, runs, tables, curve_figures, explanation_figures, video_cel
     setting = pd.DataFrame({
         "setting": ["environment", "grid", "α", "γ", "episode limit", "ε constant", "ε decay", "episodes",
                     "seeds", "evaluation", "time limit"],
-        "value": [c.env, f"{c.bins} x {c.bins} uniform cells", c.alpha, c.gamma, c.max_steps, c.epsilon,
+        "value": [c.env, _grid_text(c), c.alpha, c.gamma, c.max_steps, c.epsilon,
                   f"linear {c.epsilon_start} → {c.epsilon_end} over the first {c.decay_fraction:.0%} of episodes",
                   c.episodes, f"{len(c.seeds)} ({c.seeds[0]}..{c.seeds[-1]})",
                   f"greedy policy, {c.eval_episodes} episodes every {c.eval_every}",
@@ -266,8 +285,9 @@ def _sections(first, runs, tables, curve_figures, explanation_figures, video_cel
             "p < 0.05, contradicted when both point the other way."],
             tables=[("Verdicts", tables["verdicts"])]),
         Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),
-        Section("Why: policies, values, visits and first actions", figures=explanation_figures),
+        Section("Why: policies, values, visits and first actions", figures=explanation_figures)
+        if explanation_figures else Section("Why", ["The maps over position and velocity are Mountain Car's."]),
         Section("Videos of the greedy agents at three stages of learning",
-                ["Rendered by Gymnasium's own MountainCar-v0 renderer from the same start state."]
+                [f"Rendered by Gymnasium's own {gymnasium_id(c)} renderer from the same start state."]
                 if video_cells else ["Videos were not rendered (--no-videos)."], videos=video_cells),
     ]

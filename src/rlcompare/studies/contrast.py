@@ -1,0 +1,75 @@
+"""On- against off-policy across problems: SARSA minus Q-Learning, online and greedy, study by study.
+
+The paper explains its Mountain Car result by the kind of problem and sets it against Sutton and Barto's
+Cliff Walking (Example 6.6). Both sides are answered with the same two numbers per study, on paired seeds:
+
+- online: the mean return of the ε-greedy behaviour over training, what an agent collects while it learns;
+- greedy: the return of the final greedy policy, what it has learned.
+
+On the cliff SARSA collects more online but Q-Learning's greedy path is the better one; where SARSA wins
+both, exploring costs Q-Learning more than its bootstrapped targets gain it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.analysis.stats import paired_difference
+from rlcompare.analysis.tables import per_seed_metrics
+from rlcompare.experiment import store
+from rlcompare.experiment.results import Results
+
+PAIRS = (("sarsa", "q_learning"), ("sarsa-constant", "q_learning-constant"), ("sarsa-decay", "q_learning-decay"))
+"""(SARSA, Q-Learning) run directories compared in a study: the cliff's, then the paper grid's."""
+SIBLING_STUDIES = ("paper", "cartpole", "acrobot")
+
+
+def load_pairs(study_dir: Path) -> dict[str, Results]:
+    """The SARSA and Q-Learning runs a study directory holds (complete ones only)."""
+    runs = {}
+    for name in {name for pair in PAIRS for name in pair}:
+        run_dir = Path(study_dir) / name
+        if store.is_complete(run_dir):
+            runs[name] = Results.load(run_dir)
+    return runs
+
+
+def contrast_table(studies: dict[str, dict[str, Results]]) -> pd.DataFrame:
+    """One row per study and ε schedule: SARSA, Q-Learning and their paired difference, online and greedy."""
+    rows = []
+    for study, runs in studies.items():
+        for sarsa_name, q_name in PAIRS:
+            if sarsa_name not in runs or q_name not in runs:
+                continue
+            sarsa, q = per_seed_metrics(runs[sarsa_name]), per_seed_metrics(runs[q_name])
+            config = runs[sarsa_name].config
+            exploration = f"ε = {config.epsilon:g}" if config.schedule == "constant" else "ε decaying"
+            row = {"study": study, "environment": config.env, "exploration": exploration, "seeds": len(sarsa)}
+            for metric, label in (("behaviour_return", "online"), ("greedy_return", "greedy")):
+                a, b = sarsa[metric].to_numpy(), q[metric].to_numpy()
+                difference = paired_difference(a, b)
+                row |= {f"{label}: SARSA": f"{np.mean(a):.1f}", f"{label}: Q-Learning": f"{np.mean(b):.1f}",
+                        f"{label}: SARSA - Q-Learning": difference.format(1), f"{label}: better": _better(difference)}
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _better(difference) -> str:
+    if difference.low > 0:
+        return "SARSA"
+    if difference.high < 0:
+        return "Q-Learning"
+    return "neither (interval spans 0)"
+
+
+def sibling_studies(study_dir: Path) -> dict[str, dict[str, Results]]:
+    """The paper's study and its versions on other environments, where they stand beside ``study_dir``."""
+    found = {}
+    for name in SIBLING_STUDIES:
+        runs = load_pairs(Path(study_dir).parent / name)
+        if runs:
+            found[name] = runs
+    return found
