@@ -183,13 +183,12 @@ def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
         cols = [p % 12 + (offset - 1) * 0.12 for p in path]
         paths_ax.plot(cols, [p // 12 + (offset - 1) * 0.12 for p in path], color=line.get_color(), linewidth=2,
                       label=label)
-        greedy = results.records.eval_returns[:, -1, 0]
+        greedy, reached = results.records.eval_returns[:, -1, 0], results.records.eval_terminated[:, -1, 0]
         rows.append({"method": label, "seeds": len(results.seeds),
                      "online return, last 100 episodes": interval(returns[:, -100:].mean(axis=1)).format(1),
                      "greedy return of the final policy": interval(greedy).format(1),
                      "seeds whose greedy path is optimal (-13)": f"{int(np.sum(greedy == -13))} of {len(greedy)}",
-                     "seeds whose greedy path reaches the goal": f"{int(results.records.eval_terminated[:, -1, 0].sum())} "
-                                                                 f"of {len(greedy)}"})
+                     "seeds whose greedy path reaches the goal": f"{int(reached.sum())} of {len(greedy)}"})
     curves_ax.set_ylim(-100, 0)
     curves_ax.set_xlabel("episode")
     curves_ax.set_ylabel("sum of rewards during episode (10-episode mean)")
