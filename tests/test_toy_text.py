@@ -42,3 +42,37 @@ def test_frozen_lake_table_is_gymnasiums_and_q_learning_learns_it() -> None:
                               seeds=(0, 1, 2), eval_every=3000, eval_episodes=200, max_steps=100)
     success = run(config).records.eval_returns[:, -1].mean()
     assert success > 0.6  # the optimal policy of the slippery 4x4 lake reaches the goal about 74% of the time
+
+
+def test_tables_stay_in_step_with_gymnasium_over_many_episodes() -> None:
+    """Seeded once, then plain resets: every reset and step draws one uniform from the environment stream,
+    as Gymnasium's ``categorical_sample`` does, so starts (Taxi) and slips (FrozenLake) stay equal episode
+    after episode, not only until the first reset."""
+    rng = np.random.default_rng(5)
+    for env_id, limit in (("Taxi-v4", 200), ("FrozenLake-v1", 100)):
+        table, env = from_gymnasium(env_id), gym.make(env_id, max_episode_steps=limit)
+        observation, _ = env.reset(seed=11)
+        ours_rng = stream_state(11)
+        starts = set()
+        for episode in range(300):
+            if episode:
+                observation, _ = env.reset()
+            state = reset(table, ours_rng)
+            assert state == observation, (env_id, episode)
+            starts.add(state)
+            for _ in range(limit):
+                action = int(rng.integers(table.n_actions))
+                observation, reward, terminated, truncated, _ = env.step(action)
+                state, our_reward, ends = step(table, state, action, ours_rng)
+                assert (state, our_reward, ends) == (observation, reward, terminated), (env_id, episode)
+                if terminated or truncated:
+                    break
+        assert len(starts) > (50 if env_id == "Taxi-v4" else 0)
+        np.testing.assert_array_equal(ours_rng, _generator_state(env.unwrapped.np_random))
+
+
+def _generator_state(generator: np.random.Generator) -> np.ndarray:
+    state = generator.bit_generator.state["state"]
+    mask = (1 << 64) - 1
+    return np.array([state["state"] >> 64, state["state"] & mask, state["inc"] >> 64, state["inc"] & mask],
+                    dtype=np.uint64)

@@ -320,11 +320,14 @@ def _report(study_dir: Path, videos: bool) -> None:
 
 
 @app.command()
-def bench() -> None:
+def bench(
+    environments: Annotated[bool, typer.Option(help="Also measure every ported environment against its own "
+                                                    "Gymnasium loop and through the adapter.")] = True,
+) -> None:
     """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
-    from rlcompare.experiment.benchmark import run_benchmark
+    from rlcompare.experiment.benchmark import run_benchmark, run_port_benchmark
 
-    table = Table(title="Tabular control on MountainCar-v0, 20 bins (one step: act, step, update)")
+    table = Table(title="Every algorithm on MountainCar-v0, 20 bins (one step: act, step, update)")
     for column in ("what", "threads", "steps", "seconds", "steps/s", "vs Gymnasium", "vs 1 thread"):
         table.add_column(column, justify="left" if column == "what" else "right")
     measurements = run_benchmark()
@@ -333,6 +336,18 @@ def bench() -> None:
     for m in measurements:
         table.add_row(m.label, str(m.threads), f"{m.steps:,}", f"{m.seconds:.3f}", f"{m.steps_per_second:,.0f}",
                       f"{m.steps_per_second / reference:,.0f}x", f"{m.steps_per_second / single[m.label]:.2f}x")
+    console.print(table)
+    if not environments:
+        return
+    table = Table(title="Q-Learning, ε = 0.5, on each port: steps/s, and the ratio to Gymnasium's loop on the same "
+                        "environment")
+    for column in ("environment", "Gymnasium loop", "port, 1 thread", "port, all threads", "adapter"):
+        table.add_column(column, justify="left" if column == "environment" else "right")
+    for m in run_port_benchmark():
+        loop = m.gymnasium.steps_per_second
+        cells = [f"{x.steps_per_second:,.0f} ({x.steps_per_second / loop:,.0f}x)" for x in m.port]
+        table.add_row(m.env, f"{loop:,.0f}", *cells, f"{m.adapter.steps_per_second:,.0f} "
+                      f"({m.adapter.steps_per_second / loop:.2f}x)")
     console.print(table)
 
 

@@ -2,7 +2,10 @@
 
 One step is what tabular control does per time step: choose an ε-greedy action, step the environment,
 discretize the observation and update the table. The Gymnasium loop is the 1x reference of
-``DESIGN.md``: ``gymnasium.make("MountainCar-v0")`` with ``DiscretizeObservation`` and numpy.
+``DESIGN.md``: ``gymnasium.make(env)``, the observation put on the same grid as the kernels' with numpy
+(``DiscretizeObservation`` does the same where the box is bounded), and the table updated in numpy.
+Every environment is measured three ways: that loop, the compiled port, and the kernels stepping
+Gymnasium through the adapter.
 """
 
 from __future__ import annotations
@@ -16,11 +19,16 @@ import gymnasium as gym
 import numba
 import numpy as np
 
+from rlcompare.envs.discretize import cell_indices, make_grid
 from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.problem import grid_bounds
 from rlcompare.experiment.runner import run, uses_fast_path
 
 FAST_ALGORITHMS = ("q_learning", "sarsa", "expected_sarsa", "double_q_learning")
 GENERAL_ALGORITHMS = ("n_step_sarsa", "sarsa_lambda", "q_lambda", "reinforce", "reinforce_baseline")
+PORT_EPISODES = {"MountainCar-v0": 300, "CartPole-v1": 5000, "Acrobot-v1": 300, "CliffWalking-v1": 3000,
+                 "FrozenLake-v1": 20000, "Taxi-v4": 1000}
+"""Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps on each port."""
 
 
 @dataclass(frozen=True)
@@ -36,12 +44,13 @@ class Measurement:
 
 
 def kernel_steps_per_second(
-    algorithm: str, threads: int, *, features: str = "grid", runs: int = 8, episodes: int = 2000, repeats: int = 3
+    algorithm: str, threads: int, *, features: str = "grid", runs: int = 8, episodes: int = 2000, repeats: int = 3,
+    env: str = "MountainCar-v0", adapter: bool = False,
 ) -> Measurement:
     """Median over ``repeats`` of training ``runs`` seeds with ε = 0.5 and no evaluation, on ``threads``
     threads, through :func:`rlcompare.run` (which compiles before it starts the clock)."""
     config = ExperimentConfig(
-        algorithm=algorithm, schedule="constant", epsilon=0.5, features=features,
+        algorithm=algorithm, schedule="constant", epsilon=0.5, features=features, env=env, adapter=adapter,
         alpha=0.05 if features == "grid" else 0.5 / 8, seeds=tuple(range(runs)), episodes=episodes,
         eval_every=0, stages=(("final", 1.0),),
     )
@@ -51,26 +60,42 @@ def kernel_steps_per_second(
         timings = [run(config).meta["timings"] for _ in range(repeats)]
     finally:
         numba.set_num_threads(previous)
-    path = "fast" if uses_fast_path(config) else "general"
-    return Measurement(f"{algorithm} ({features}, {path} kernel)", threads, timings[0]["training_steps"],
+    path = "Gymnasium adapter" if adapter else "fast kernel" if uses_fast_path(config) else "general kernel"
+    what = f"{algorithm} ({features}, {path})" if env == "MountainCar-v0" and not adapter else f"{env}, {path}"
+    return Measurement(what, threads, timings[0]["training_steps"],
                        statistics.median(t["wall_seconds"] for t in timings))
 
 
-def gymnasium_steps_per_second(steps: int = 60_000, seed: int = 0) -> Measurement:
-    """A plain Python loop of tabular Q-Learning on ``gymnasium.make("MountainCar-v0")``."""
-    env = gym.wrappers.DiscretizeObservation(gym.make("MountainCar-v0", max_episode_steps=1000), bins=20)
+def gymnasium_steps_per_second(env: str = "MountainCar-v0", steps: int = 60_000, seed: int = 0) -> Measurement:
+    """A plain Python loop of tabular Q-Learning on ``gymnasium.make(env)``, on the environment's default grid
+    (or its states) and step limit."""
+    config = ExperimentConfig(env=env)
+    spec = config.environment
+    environment = gym.make(env, max_episode_steps=config.max_steps)
+    if spec.n_states:
+        def state_of(observation) -> int:
+            return int(observation)
+        n_states = spec.n_states
+    else:
+        grid = make_grid(*grid_bounds(spec, None), config.bins)
+        n_states = grid.n_cells
+
+        def state_of(observation) -> int:
+            return int(cell_indices(grid, observation)[0])
     rng = np.random.default_rng(seed)
-    q = np.zeros((env.observation_space.n, env.action_space.n))
+    q = np.zeros((n_states, spec.n_actions))
     alpha, gamma, epsilon = 0.05, 0.9, 0.5
-    state, _ = env.reset(seed=seed)
+    state = state_of(environment.reset(seed=seed)[0])
     started = time.perf_counter()
     for _ in range(steps):
-        action = int(rng.integers(3)) if rng.random() < epsilon else int(np.argmax(q[state]))
-        next_state, reward, terminated, truncated, _ = env.step(action)
+        action = int(rng.integers(spec.n_actions)) if rng.random() < epsilon else int(np.argmax(q[state]))
+        observation, reward, terminated, truncated, _ = environment.step(action)
+        next_state = state_of(observation)
         target = reward if terminated else reward + gamma * np.max(q[next_state])
         q[state, action] += alpha * (target - q[state, action])
-        state = env.reset()[0] if terminated or truncated else next_state
-    return Measurement("gymnasium loop", 1, steps, time.perf_counter() - started)
+        state = state_of(environment.reset()[0]) if terminated or truncated else next_state
+    environment.close()
+    return Measurement(f"{env}, Gymnasium loop", 1, steps, time.perf_counter() - started)
 
 
 def run_benchmark(report: Callable[[Measurement], None] = lambda m: None) -> list[Measurement]:
@@ -80,10 +105,36 @@ def run_benchmark(report: Callable[[Measurement], None] = lambda m: None) -> lis
     plan = [(algorithm, "grid", 2000) for algorithm in FAST_ALGORITHMS]
     plan += [(algorithm, "grid", 300) for algorithm in GENERAL_ALGORITHMS]
     plan += [(algorithm, "tiles", 300) for algorithm in ("sarsa", "sarsa_lambda")]
-    measurements = [gymnasium_steps_per_second()]
+    measurements = [gymnasium_steps_per_second(steps=30_000)]
     report(measurements[-1])
     for algorithm, features, episodes in plan:
         for n in threads:
             measurements.append(kernel_steps_per_second(algorithm, n, features=features, episodes=episodes))
             report(measurements[-1])
+    return measurements
+
+
+@dataclass(frozen=True)
+class PortMeasurement:
+    """One environment three ways: Gymnasium's loop, the compiled port on 1 and all threads, the adapter."""
+
+    env: str
+    gymnasium: Measurement
+    port: list[Measurement]
+    adapter: Measurement
+
+
+def run_port_benchmark(envs: tuple[str, ...] = tuple(PORT_EPISODES),
+                       report: Callable[[PortMeasurement], None] = lambda m: None) -> list[PortMeasurement]:
+    """Q-Learning with ε = 0.5 on each ported environment: the Gymnasium loop, the port, and the adapter
+    (the same kernels stepping Gymnasium, 2 seeds)."""
+    threads = sorted({1, numba.config.NUMBA_NUM_THREADS})
+    measurements = []
+    for env in envs:
+        gymnasium = gymnasium_steps_per_second(env, steps=20_000)
+        port = [kernel_steps_per_second("q_learning", n, env=env, episodes=PORT_EPISODES[env]) for n in threads]
+        adapter = kernel_steps_per_second("q_learning", numba.config.NUMBA_NUM_THREADS, env=env, adapter=True,
+                                          runs=2, episodes=max(1, PORT_EPISODES[env] // 50), repeats=1)
+        measurements.append(PortMeasurement(env, gymnasium, port, adapter))
+        report(measurements[-1])
     return measurements

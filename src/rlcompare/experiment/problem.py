@@ -5,7 +5,7 @@
 | ``MountainCar-v0``   | the port (the paper)              | grid or tiles         | 20 x 20         | 1000  |
 | ``MountainCar-book`` | the port, position bounded at 0.5 | grid or tiles         | 20 x 20         | 1000  |
 | ``CartPole-v1``      | the port                          | grid or tiles         | 1 x 1 x 6 x 12  | 500   |
-| ``Acrobot-v1``       | the port                          | grid or tiles         | 6 per dimension | 500   |
+| ``Acrobot-v1``       | the port                          | grid or tiles         | 4^4 x 8 x 8     | 500   |
 | ``CliffWalking-v1``  | Gymnasium's transition table      | one per state         |                 | 1000  |
 | ``FrozenLake-v1``    | Gymnasium's transition table      | one per state         |                 | 100   |
 | ``Taxi-v4``          | Gymnasium's transition table      | one per state         |                 | 200   |
@@ -101,7 +101,8 @@ def _cartpole() -> Environment:
 
 def _acrobot() -> Environment:
     return Environment(acrobot.ENV_ID, ACROBOT, acrobot.N_ACTIONS, 0, acrobot.OBSERVATION_LOW.astype(np.float64),
-                       acrobot.OBSERVATION_HIGH.astype(np.float64), acrobot.STATE_SIZE, 500, 6, "terminated")
+                       acrobot.OBSERVATION_HIGH.astype(np.float64), acrobot.STATE_SIZE, 500, (4, 4, 4, 4, 8, 8),
+                       "terminated")
 
 
 _TABLE_DEFAULTS = {"CliffWalking-v1": (1000, "terminated"), "FrozenLake-v1": (100, "positive_return"),
