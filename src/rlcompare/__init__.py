@@ -1,5 +1,6 @@
 """rlcompare: run, measure and explain comparisons of reinforcement-learning algorithms."""
 
+import rlcompare._numba_cache  # noqa: F401 - places numba's cache before any kernel module is imported
 from rlcompare.experiment.agent import load_agent
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.results import Results
