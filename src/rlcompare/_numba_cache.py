@@ -2,8 +2,10 @@
 
 Numba keys a cached function by its own file's timestamp only. A kernel inlines code from other modules
 (the ports, the tables, the random streams), so after one of those changes alone numba would load the old
-machine code and give old results. Keying the directory by a hash of every source file makes any change
-compile afresh. ``NUMBA_CACHE_DIR``, when set, wins.
+machine code and give old results. Keying the directory by a hash of the sources of compiled code (the
+packages ``algorithms``, ``engine``, ``envs`` and ``rng.py``) makes any change to them compile afresh, and
+leaves the cache alone when only the command line or the analysis changes. ``NUMBA_CACHE_DIR``, when set,
+wins.
 """
 
 from __future__ import annotations
@@ -12,11 +14,14 @@ import hashlib
 import os
 from pathlib import Path
 
+COMPILED_SOURCES = ("algorithms", "engine", "envs", "rng.py")
+
 
 def source_digest(package: Path) -> str:
-    """A short hash of every Python file of the package, by relative path and content."""
+    """A short hash of the Python files that compiled code comes from, by relative path and content."""
     digest = hashlib.sha256()
-    for path in sorted(package.rglob("*.py")):
+    files = (path for name in COMPILED_SOURCES for path in [package / name, *(package / name).rglob("*.py")])
+    for path in sorted(p for p in files if p.suffix == ".py"):
         digest.update(str(path.relative_to(package)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]

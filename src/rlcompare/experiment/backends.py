@@ -1,0 +1,117 @@
+"""Where a sweep's trials run: on this machine's cores, or as tasks on a Ray cluster.
+
+Both backends take the trials still to run and call ``on_done(trial, results)`` in the calling process as
+each one finishes, in whatever order they finish; the caller writes them to the store, so a trial is saved
+by one process only, once. A trial's result depends on its configuration and seed alone (each run owns its
+random streams), so every backend gives the same results bit for bit, whatever the number of workers.
+
+- ``local``: a pool of threads. Each trial is one run, whose compiled kernel releases the GIL, so threads
+  train in parallel without the cost of starting processes (and of loading the compiled kernels in each).
+- ``ray``: one Ray task per trial (``num_cpus=1``), retried by Ray on another node when a node is lost, and
+  streamed back with ``ray.wait`` as each finishes. Ray is an optional dependency
+  (``pip install 'rlcompare[ray]'``), imported only here, and only when this backend runs. Every node needs
+  rlcompare installed in the same version (a shared environment, or a Ray ``runtime_env``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import dataclass
+
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
+from rlcompare.experiment.runner import run
+from rlcompare.experiment.sweep import Trial
+
+BACKENDS = ("local", "ray")
+OnDone = Callable[[Trial, Results], None]
+
+
+class BackendError(RuntimeError):
+    """A backend that cannot start: Ray missing, or no cluster at the address."""
+
+
+def run_trial(config: dict) -> Results:
+    """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker)."""
+    return run(ExperimentConfig.from_dict(config))
+
+
+@dataclass(frozen=True)
+class LocalBackend:
+    """Trials on ``workers`` threads of this machine."""
+
+    workers: int = os.cpu_count() or 1
+
+    def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
+        """Run every trial, at most ``workers`` at once; on an interrupt, stop submitting, save what is
+        finished, and let the trials in flight end (a compiled run cannot be stopped midway)."""
+        pending = iter(trials)
+        with ThreadPoolExecutor(self.workers, thread_name_prefix="trial") as pool:
+            running: dict[Future, Trial] = {}
+            try:
+                self._fill(pool, running, pending)
+                while running:
+                    finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                    for future in finished:
+                        on_done(running.pop(future), future.result())
+                    self._fill(pool, running, pending)
+            except BaseException:
+                for future in running:
+                    future.cancel()
+                raise
+
+    def _fill(self, pool: ThreadPoolExecutor, running: dict[Future, Trial], pending) -> None:
+        while len(running) < self.workers:
+            trial = next(pending, None)
+            if trial is None:
+                return
+            running[pool.submit(run_trial, trial.config.to_dict())] = trial
+
+
+@dataclass(frozen=True)
+class RayBackend:
+    """Trials as Ray tasks on the cluster at ``address`` (``auto``: the one started on this machine with
+    ``ray start``; ``HOST:PORT``: any other; None: a new local Ray instance)."""
+
+    address: str | None = "auto"
+    max_retries: int = 3
+    """Times Ray runs a task again when its worker or node dies."""
+
+    def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
+        ray = _import_ray()
+        if not ray.is_initialized():
+            try:
+                ray.init(address=self.address, logging_level="ERROR", log_to_driver=False,
+                         configure_logging=False)
+            except ConnectionError as error:
+                raise BackendError(f"no Ray cluster at {self.address!r} ({error}); start one with 'ray start "
+                                   "--head', or use --backend local") from None
+        remote = ray.remote(num_cpus=1, max_retries=self.max_retries)(run_trial)
+        running = {remote.remote(trial.config.to_dict()): trial for trial in trials}
+        try:
+            while running:
+                finished, _ = ray.wait(list(running), num_returns=1)
+                for ref in finished:
+                    on_done(running.pop(ref), ray.get(ref))
+        except BaseException:
+            for ref in running:
+                ray.cancel(ref, force=True)
+            raise
+
+
+def _import_ray():
+    try:
+        import ray
+    except ImportError:
+        raise BackendError("the Ray backend needs Ray: pip install 'rlcompare[ray]'") from None
+    return ray
+
+
+def make_backend(name: str, *, workers: int | None = None, address: str | None = "auto"):
+    if name == "local":
+        return LocalBackend(workers or os.cpu_count() or 1)
+    if name == "ray":
+        return RayBackend(address)
+    raise BackendError(f"backend: got {name!r}; allowed: {', '.join(BACKENDS)}")

@@ -1,0 +1,258 @@
+"""A sweep: a grid of configurations over many seeds, read from a TOML file and validated before anything runs.
+
+```toml
+[sweep]
+name = "alpha"          # a label for the report
+root_seed = 0           # the seeds of every configuration derive from it
+seeds = 10              # seeds per configuration
+
+[fixed]                 # every configuration: any ExperimentConfig field but seeds
+episodes = 2000
+
+[grid]                  # every combination of these lists
+env = ["MountainCar-v0", "CartPole-v1"]
+algorithm = ["q_learning", "sarsa"]
+alpha = [0.05, 0.1, 0.2]
+
+[[include]]             # more configurations, one table each, over [fixed] (not crossed with [grid])
+env = "Acrobot-v1"
+algorithm = "sarsa"
+```
+
+A trial is one configuration with one seed, the unit the backends run and the store keeps. The seeds are
+``np.random.SeedSequence(root_seed).spawn(seeds)``, each child's first 63 bits: they depend on the root seed
+and the seed's index alone, not on the order in which trials happen to run, and every configuration gets the
+same ones, so configurations are compared on common random numbers (paired seeds, the same start states).
+
+Every mistake in the file is reported at once, each with the key's path and what is allowed
+(:class:`SweepError`); nothing runs until the whole sweep is valid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+from rlcompare.experiment.config import ConfigError, ExperimentConfig
+
+SECTIONS = ("sweep", "fixed", "grid", "include")
+SWEEP_KEYS = ("name", "root_seed", "seeds")
+MAX_TRIALS = 100_000
+CONFIG_KEYS = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name != "seeds")
+
+
+class SweepError(ValueError):
+    """Every problem of a sweep file, one line each, naming the key's path and what is allowed."""
+
+    def __init__(self, source: str, problems: list[str]) -> None:
+        self.source, self.problems = source, problems
+        super().__init__(f"{source}: {len(problems)} problem{'s' if len(problems) > 1 else ''}\n"
+                         + "\n".join(f"  {p}" for p in problems))
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One configuration with one seed."""
+
+    config: ExperimentConfig
+    """The configuration, with ``seeds`` the one seed of this trial."""
+    config_hash: str
+    """Identifies the configuration apart from its seeds."""
+    seed_index: int
+
+    @property
+    def seed(self) -> int:
+        return self.config.seeds[0]
+
+    @property
+    def trial_id(self) -> str:
+        return f"{self.config_hash}-{self.seed}"
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """The configurations of a sweep and the seeds each one runs."""
+
+    name: str
+    root_seed: int
+    seeds: tuple[int, ...]
+    configs: tuple[ExperimentConfig, ...]
+    """Each with ``seeds`` set to the sweep's seeds, in the order of the file: [grid] then [[include]]."""
+    swept: tuple[str, ...]
+    """The keys whose value differs between configurations."""
+
+    def trials(self) -> list[Trial]:
+        """Every configuration with every seed, seed by seed, so that the first finished trials already
+        cover every configuration."""
+        hashes = [config_hash(c) for c in self.configs]
+        return [Trial(dataclasses.replace(c, seeds=(seed,)), h, k)
+                for k, seed in enumerate(self.seeds) for c, h in zip(self.configs, hashes, strict=True)]
+
+
+def config_hash(config: ExperimentConfig) -> str:
+    """A short hash of every field of the configuration but its seeds."""
+    fields = {k: v for k, v in config.to_dict().items() if k != "seeds"}
+    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def derive_seeds(root_seed: int, count: int) -> tuple[int, ...]:
+    """``count`` run seeds from ``SeedSequence(root_seed).spawn(count)``, each below 2**63."""
+    children = np.random.SeedSequence(root_seed).spawn(count)
+    return tuple(int(child.generate_state(1, np.uint64)[0] >> np.uint64(1)) for child in children)
+
+
+def load_sweep(path: Path) -> Sweep:
+    """Read and validate a sweep file."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as error:
+        raise SweepError(str(path), [f"cannot read the file ({error})"]) from None
+    return parse_sweep(text, str(path))
+
+
+def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
+    """Validate a sweep given as TOML text; :class:`SweepError` lists every problem."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise SweepError(source, [f"not valid TOML: {error}"]) from None
+    problems: list[str] = []
+    for section in data:
+        if section not in SECTIONS:
+            problems.append(f"{section}: unknown section; allowed: {', '.join(SECTIONS)}")
+    name, root_seed, count = _header(_table(data, "sweep", problems), problems)
+    fixed = _known("fixed", _table(data, "fixed", problems), problems)
+    grid = _known("grid", _table(data, "grid", problems), problems)
+    includes = [_known(f"include[{k}]", include, problems) for k, include in enumerate(_includes(data, problems))]
+    for key in list(grid):
+        if not isinstance(grid[key], list) or not grid[key]:
+            problems.append(f"grid.{key}: got {grid.pop(key)!r}; allowed: a non-empty list of values")
+        elif key in fixed:
+            problems.append(f"grid.{key}: also in [fixed]; allowed: one place for each key")
+            del grid[key]
+    n_configs = (math.prod(len(values) for values in grid.values()) if grid or not includes else 0) + len(includes)
+    if n_configs * max(count, 1) > MAX_TRIALS:
+        problems.append(f"grid: {n_configs:,} configurations x {count:,} seeds; allowed: at most {MAX_TRIALS:,} "
+                        "trials")
+        raise SweepError(source, problems)
+    seeds = derive_seeds(root_seed, count) if not any(p.startswith("sweep.") for p in problems) else (0,)
+    _validate_alone(fixed, grid, problems)
+    sources = [_combinations(fixed, grid)] if grid or not includes else []
+    sources.append([({**fixed, **include}, {key: f"include[{k}].{key}" for key in include})
+                    for k, include in enumerate(includes)])
+    configs = _configs(itertools.chain.from_iterable(sources), fixed, seeds, problems)
+    if problems:
+        raise SweepError(source, list(dict.fromkeys(problems)))
+    given = {*grid, *(key for include in includes for key in include)}
+    swept = tuple(key for key in CONFIG_KEYS
+                  if key in given and len({json.dumps(getattr(c, key)) for c in configs}) > 1)
+    return Sweep(name, root_seed, seeds, tuple(configs), swept)
+
+
+def _known(section: str, table: dict, problems: list[str]) -> dict:
+    """The table without the keys that are not configuration fields, each of those reported."""
+    for key in table:
+        if key == "seeds":
+            problems.append(f"{section}.seeds: the seeds are set once, in [sweep] (seeds = N)")
+        elif key not in CONFIG_KEYS:
+            problems.append(f"{section}.{key}: unknown key; allowed: {', '.join(CONFIG_KEYS)}")
+    return {key: value for key, value in table.items() if key in CONFIG_KEYS}
+
+
+def _validate_alone(fixed: dict, grid: dict, problems: list[str]) -> None:
+    """The fixed values, then each grid value over the valid fixed ones: what is wrong whatever it is combined
+    with is reported once, at its own path; a bad fixed value is set aside so that it hides nothing else."""
+    valid = dict(fixed)
+    while True:
+        found: list[str] = []
+        _configs([(valid, {})], valid, (0,), found)
+        bad = [key for key in valid if any(p.startswith(f"fixed.{key}:") for p in found)]
+        problems.extend(p for p in found if p not in problems)
+        if not bad:
+            break
+        for key in bad:
+            del valid[key]
+    for key, values in grid.items():
+        for i, value in enumerate(values):
+            _configs([({**valid, key: value}, {key: f"grid.{key}[{i}]"})], valid, (0,), problems)
+
+
+def _table(data: dict, section: str, problems: list[str]) -> dict:
+    value = data.get(section, {})
+    if not isinstance(value, dict):
+        problems.append(f"{section}: got {value!r}; allowed: a table ([{section}])")
+        return {}
+    return value
+
+
+def _includes(data: dict, problems: list[str]) -> list[dict]:
+    value = data.get("include", [])
+    if not isinstance(value, list) or not all(isinstance(item, dict) for item in value):
+        problems.append(f"include: got {value!r}; allowed: tables ([[include]])")
+        return []
+    return value
+
+
+def _header(header: dict, problems: list[str]) -> tuple[str, int, int]:
+    for key in header:
+        if key not in SWEEP_KEYS:
+            problems.append(f"sweep.{key}: unknown key; allowed: {', '.join(SWEEP_KEYS)}")
+    name = header.get("name", "sweep")
+    if not isinstance(name, str) or not name:
+        problems.append(f"sweep.name: got {name!r}; allowed: a non-empty string")
+    root_seed = header.get("root_seed", 0)
+    if not _is_int(root_seed) or not 0 <= root_seed < 2**63:
+        problems.append(f"sweep.root_seed: got {root_seed!r}; allowed: an integer in [0, 2**63)")
+    count = header.get("seeds", 10)
+    if not _is_int(count) or not 1 <= count <= MAX_TRIALS:
+        problems.append(f"sweep.seeds: got {count!r}; allowed: an integer in [1, {MAX_TRIALS:,}] (seeds per "
+                        "configuration)")
+    return name, root_seed, count
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _combinations(fixed: dict, grid: dict) -> list[tuple[dict, dict[str, str]]]:
+    """Every combination of the grid over the fixed values, with where each grid value came from."""
+    keys = list(grid)
+    out = []
+    for indices in itertools.product(*(range(len(grid[key])) for key in keys)):
+        values = {key: grid[key][i] for key, i in zip(keys, indices, strict=True)}
+        origin = {key: f"grid.{key}[{i}]" for key, i in zip(keys, indices, strict=True)}
+        out.append(({**fixed, **values}, origin))
+    return out
+
+
+def _configs(sources, fixed: dict, seeds: tuple[int, ...], problems: list[str]) -> list[ExperimentConfig]:
+    configs = []
+    for values, origin in sources:
+        try:
+            configs.append(ExperimentConfig(**values, seeds=seeds))
+        except ConfigError as error:
+            where = origin.get(error.field_name) or (f"fixed.{error.field_name}" if error.field_name in fixed
+                                                      else f"{error.field_name} (default)")
+            message = f"{where}: got {error.value!r}; allowed: {error.allowed}"
+            if any(p.startswith(message) for p in problems):
+                continue  # already reported alone, or with another combination
+            context = ", ".join(f"{k} = {values[k]!r}" for k in origin if k != error.field_name)
+            problems.append(message + (f" (with {context})" if context else ""))
+        except TypeError as error:  # a value of a type no field takes, e.g. a table
+            problems.append(f"{next(iter(origin.values()), 'fixed')}: {error}")
+    return configs
