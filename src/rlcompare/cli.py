@@ -7,7 +7,14 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
 
 from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig
@@ -105,10 +112,12 @@ def progress_label(config: ExperimentConfig) -> str:
     return f"{config.name} ({config.env} through Gymnasium's API: Python speed)"
 
 
-def _progress() -> Progress:
+def _progress(eta: bool = False) -> Progress:
     """A progress bar on a terminal; nothing but the per-configuration lines in a log."""
-    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                    console=console, disable=not console.is_terminal)
+    columns = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()]
+    if eta:
+        columns += [TextColumn("ETA"), TimeRemainingColumn()]
+    return Progress(*columns, console=console, disable=not console.is_terminal)
 
 
 @app.command()
@@ -291,15 +300,86 @@ def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
 
 
 @app.command()
-def report(
-    study_dir: Annotated[Path, typer.Argument(help="A study directory written by reproduce.")],
-    videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents.")] = True,
+def sweep(
+    sweep_file: Annotated[Path, typer.Argument(help="A sweep file (TOML); see examples/sweep.toml.")],
+    out: Annotated[Path | None, typer.Option(help="The sweep's store. Default: runs/sweeps/NAME.")] = None,
+    backend: Annotated[str, typer.Option(help="local (this machine's cores) or ray (a Ray cluster).")] = "local",
+    workers: Annotated[int | None, typer.Option(help="Local backend: trials at once. Default: every core.")] = None,
+    address: Annotated[str, typer.Option(help="Ray backend: 'auto' (the cluster 'ray start' began here) or "
+                                              "HOST:PORT.")] = "auto",
+    group_by: Annotated[list[str] | None, typer.Option(
+        help="Also write the report's table grouped by this swept key; repeat the option.")] = None,
+    report_: Annotated[bool, typer.Option("--report/--no-report", help="Build report.html at the end.")] = True,
 ) -> None:
-    """Rebuild the tables, verdicts, figures, videos and report.html of a study, without training."""
+    """Run every configuration of a sweep over its seeds; finished trials in OUT are kept, the rest run."""
+    from rlcompare.experiment.backends import BACKENDS, BackendError, make_backend
+    from rlcompare.experiment.sweep import SweepError, load_sweep
+    from rlcompare.experiment.sweep_store import run_sweep
+
+    try:
+        plan = load_sweep(sweep_file)
+    except SweepError as error:
+        console.print(f"[red]Error:[/red] {error.source}: every problem of the sweep file")
+        for problem in error.problems:
+            console.print(f"  {problem}", markup=False, highlight=False)
+        raise typer.Exit(2) from None
+    if backend not in BACKENDS:
+        raise typer.BadParameter(f"got {backend!r}; allowed: {', '.join(BACKENDS)}", param_hint="'--backend'")
+    if workers is not None and workers < 1:
+        raise typer.BadParameter(f"got {workers}; allowed: an integer >= 1", param_hint="'--workers'")
+    unknown = [key for key in group_by or [] if key not in plan.swept]
+    if unknown:
+        raise typer.BadParameter(f"got {unknown[0]!r}; allowed: a swept key ({', '.join(plan.swept) or 'none'})",
+                                 param_hint="'--group-by'")
+    out = out if out is not None else Path("runs") / "sweeps" / plan.name
+    _check_out(out)
+    trials = len(plan.trials())
+    console.print(f"{plan.name}: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} trials "
+                  f"on the {backend} backend; store {out}")
+    try:
+        with _progress(eta=True) as progress:
+            task = progress.add_task("trials", total=trials)
+            finished, ran = run_sweep(plan, sweep_file.read_text(), out, make_backend(
+                backend, workers=workers, address=address), progress=lambda trial: progress.advance(task))
+    except BackendError as error:
+        console.print(f"[red]Error:[/red] {error}")
+        raise typer.Exit(2) from None
+    console.print(f"{ran} trials run, {finished} already finished")
+    if report_:
+        _sweep_report(out, tuple(group_by or ()))
+
+
+@app.command()
+def report(
+    study_dir: Annotated[Path, typer.Argument(help="A study directory written by reproduce, or a sweep's store.")],
+    videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents.")] = True,
+    group_by: Annotated[list[str] | None, typer.Option(
+        help="A sweep: also write its table grouped by this swept key; repeat the option.")] = None,
+) -> None:
+    """Rebuild the tables, verdicts, figures, videos and report.html of a study or a sweep, without training."""
     if not study_dir.is_dir():
         raise typer.BadParameter(f"{study_dir} is not a directory; allowed: a study directory written by "
-                                 "'rlcompare reproduce'", param_hint="'STUDY_DIR'")
-    _report(study_dir, videos)
+                                 "'rlcompare reproduce' or a sweep's store", param_hint="'STUDY_DIR'")
+    from rlcompare.experiment.sweep_store import MANIFEST_FILE
+
+    if (study_dir / MANIFEST_FILE).is_file():
+        _sweep_report(study_dir, tuple(group_by or ()))
+    else:
+        _report(study_dir, videos)
+
+
+def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
+    from rlcompare.studies.sweep_report import build_sweep_report
+
+    try:
+        with console.status("Building the sweep's report"):
+            path, problems = build_sweep_report(root, group_by)
+    except StoreError as error:
+        console.print(f"[red]Error:[/red] {error}")
+        raise typer.Exit(2) from None
+    for problem in problems:
+        console.print(f"[yellow]Missing:[/yellow] {problem}")
+    console.print(f"Report: {path}")
 
 
 def _report(study_dir: Path, videos: bool) -> None:
