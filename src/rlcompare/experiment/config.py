@@ -208,6 +208,7 @@ def _check_choices(c: ExperimentConfig) -> None:
              + ", or a registered Gymnasium environment id")
     _require(c.features in FEATURES, "features", c.features, ", ".join(FEATURES))
     _require(c.trace in TRACES, "trace", c.trace, ", ".join(TRACES))
+    _require(isinstance(c.adapter, bool), "adapter", c.adapter, "true or false")
 
 
 def _check_rates(c: ExperimentConfig) -> None:
@@ -225,7 +226,6 @@ def _check_rates(c: ExperimentConfig) -> None:
              "a number in (0, 1]")
     _require(isinstance(c.truncation_as_terminal, bool), "truncation_as_terminal",
              c.truncation_as_terminal, "true or false")
-    _require(isinstance(c.adapter, bool), "adapter", c.adapter, "true or false")
 
 
 def _check_counts(c: ExperimentConfig) -> None:

@@ -146,16 +146,16 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
             problems.append(f"grid.{key}: also in [fixed]; allowed: one place for each key")
             del grid[key]
     n_configs = (math.prod(len(values) for values in grid.values()) if grid or not includes else 0) + len(includes)
-    if n_configs * max(count, 1) > MAX_TRIALS:
+    if n_configs * count > MAX_TRIALS:
         problems.append(f"grid: {n_configs:,} configurations x {count:,} seeds; allowed: at most {MAX_TRIALS:,} "
                         "trials")
         raise SweepError(source, problems)
-    seeds = derive_seeds(root_seed, count) if not any(p.startswith("sweep.") for p in problems) else (0,)
-    _validate_alone(fixed, grid, problems)
+    seeds = derive_seeds(root_seed, count)
+    at_fixed = {key: f"fixed.{key}" for key in fixed}
     sources = [_combinations(fixed, grid)] if grid or not includes else []
-    sources.append([({**fixed, **include}, {key: f"include[{k}].{key}" for key in include})
+    sources.append([({**fixed, **include}, {**at_fixed, **{key: f"include[{k}].{key}" for key in include}})
                     for k, include in enumerate(includes)])
-    configs = _configs(itertools.chain.from_iterable(sources), fixed, seeds, problems)
+    configs = _configs(itertools.chain.from_iterable(sources), seeds, problems)
     if problems:
         raise SweepError(source, list(dict.fromkeys(problems)))
     given = {*grid, *(key for include in includes for key in include)}
@@ -172,24 +172,6 @@ def _known(section: str, table: dict, problems: list[str]) -> dict:
         elif key not in CONFIG_KEYS:
             problems.append(f"{section}.{key}: unknown key; allowed: {', '.join(CONFIG_KEYS)}")
     return {key: value for key, value in table.items() if key in CONFIG_KEYS}
-
-
-def _validate_alone(fixed: dict, grid: dict, problems: list[str]) -> None:
-    """The fixed values, then each grid value over the valid fixed ones: what is wrong whatever it is combined
-    with is reported once, at its own path; a bad fixed value is set aside so that it hides nothing else."""
-    valid = dict(fixed)
-    while True:
-        found: list[str] = []
-        _configs([(valid, {})], valid, (0,), found)
-        bad = [key for key in valid if any(p.startswith(f"fixed.{key}:") for p in found)]
-        problems.extend(p for p in found if p not in problems)
-        if not bad:
-            break
-        for key in bad:
-            del valid[key]
-    for key, values in grid.items():
-        for i, value in enumerate(values):
-            _configs([({**valid, key: value}, {key: f"grid.{key}[{i}]"})], valid, (0,), problems)
 
 
 def _table(data: dict, section: str, problems: list[str]) -> dict:
@@ -209,19 +191,23 @@ def _includes(data: dict, problems: list[str]) -> list[dict]:
 
 
 def _header(header: dict, problems: list[str]) -> tuple[str, int, int]:
+    """Name, root seed and seeds per configuration; a bad value is reported and replaced by its default."""
     for key in header:
         if key not in SWEEP_KEYS:
             problems.append(f"sweep.{key}: unknown key; allowed: {', '.join(SWEEP_KEYS)}")
     name = header.get("name", "sweep")
     if not isinstance(name, str) or not name:
         problems.append(f"sweep.name: got {name!r}; allowed: a non-empty string")
+        name = "sweep"
     root_seed = header.get("root_seed", 0)
     if not _is_int(root_seed) or not 0 <= root_seed < 2**63:
         problems.append(f"sweep.root_seed: got {root_seed!r}; allowed: an integer in [0, 2**63)")
+        root_seed = 0
     count = header.get("seeds", 10)
     if not _is_int(count) or not 1 <= count <= MAX_TRIALS:
         problems.append(f"sweep.seeds: got {count!r}; allowed: an integer in [1, {MAX_TRIALS:,}] (seeds per "
                         "configuration)")
+        count = 1
     return name, root_seed, count
 
 
@@ -230,29 +216,42 @@ def _is_int(value: Any) -> bool:
 
 
 def _combinations(fixed: dict, grid: dict) -> list[tuple[dict, dict[str, str]]]:
-    """Every combination of the grid over the fixed values, with where each grid value came from."""
+    """Every combination of the grid over the fixed values, with the path each value came from."""
     keys = list(grid)
     out = []
     for indices in itertools.product(*(range(len(grid[key])) for key in keys)):
         values = {key: grid[key][i] for key, i in zip(keys, indices, strict=True)}
-        origin = {key: f"grid.{key}[{i}]" for key, i in zip(keys, indices, strict=True)}
+        origin = {**{key: f"fixed.{key}" for key in fixed},
+                  **{key: f"grid.{key}[{i}]" for key, i in zip(keys, indices, strict=True)}}
         out.append(({**fixed, **values}, origin))
     return out
 
 
-def _configs(sources, fixed: dict, seeds: tuple[int, ...], problems: list[str]) -> list[ExperimentConfig]:
-    configs = []
+def _configs(sources, seeds: tuple[int, ...], problems: list[str]) -> list[ExperimentConfig]:
+    """The valid configurations; every problem of the others, each reported once.
+
+    A configuration stops at its first bad value, so each bad value is set back to its default and the rest
+    checked again, until none is left. A problem that a value has in every configuration it is part of is
+    reported at its path alone; one that depends on the other values names the first combination it has."""
+    configs, failures, appearances = [], {}, {}
     for values, origin in sources:
-        try:
-            configs.append(ExperimentConfig(**values, seeds=seeds))
-        except ConfigError as error:
-            where = origin.get(error.field_name) or (f"fixed.{error.field_name}" if error.field_name in fixed
-                                                      else f"{error.field_name} (default)")
-            message = f"{where}: got {error.value!r}; allowed: {error.allowed}"
-            if any(p.startswith(message) for p in problems):
-                continue  # already reported alone, or with another combination
-            context = ", ".join(f"{k} = {values[k]!r}" for k in origin if k != error.field_name)
-            problems.append(message + (f" (with {context})" if context else ""))
-        except TypeError as error:  # a value of a type no field takes, e.g. a table
-            problems.append(f"{next(iter(origin.values()), 'fixed')}: {error}")
+        for path in origin.values():
+            appearances[path] = appearances.get(path, 0) + 1
+        values = dict(values)
+        for _ in range(len(values) + 1):
+            try:
+                configs.append(ExperimentConfig(**values, seeds=seeds))
+                break
+            except ConfigError as error:
+                where = origin.get(error.field_name, f"{error.field_name} (default)")
+                message = f"{where}: got {error.value!r}; allowed: {error.allowed}"
+                context = ", ".join(f"{k} = {values[k]!r}" for k, path in origin.items()
+                                    if k != error.field_name and not path.startswith("fixed.") and k in values)
+                failures.setdefault(message, (where, []))[1].append(context)
+                if error.field_name not in values:
+                    break
+                del values[error.field_name]
+    for message, (where, contexts) in failures.items():
+        everywhere = len(contexts) >= appearances.get(where, 0) or not contexts[0]
+        problems.append(message if everywhere else f"{message} (with {contexts[0]})")
     return configs
