@@ -403,9 +403,17 @@ def _report(study_dir: Path, videos: bool) -> None:
 def bench(
     environments: Annotated[bool, typer.Option(help="Also measure every ported environment against its own "
                                                     "Gymnasium loop and through the adapter.")] = True,
+    sweeps: Annotated[bool, typer.Option(help="Only measure sweeps: trials per second of short trials on the "
+                                              "local backend (1 and 2 workers) and on Ray.")] = False,
+    address: Annotated[str | None, typer.Option(help="With --sweeps: the Ray cluster (default: a new local Ray "
+                                                     "instance with 2 CPUs).")] = None,
 ) -> None:
     """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
     from rlcompare.experiment.benchmark import run_benchmark, run_port_benchmark
+
+    if sweeps:
+        _bench_sweeps(address)
+        return
 
     table = Table(title="Every algorithm on MountainCar-v0, 20 bins (one step: act, step, update)")
     for column in ("what", "threads", "steps", "seconds", "steps/s", "vs Gymnasium", "vs 1 thread"):
@@ -428,6 +436,30 @@ def bench(
         cells = [f"{x.steps_per_second:,.0f} ({x.steps_per_second / loop:,.0f}x)" for x in m.port]
         table.add_row(m.env, f"{loop:,.0f}", *cells, f"{m.adapter.steps_per_second:,.0f} "
                       f"({m.adapter.steps_per_second / loop:.2f}x)")
+    console.print(table)
+
+
+def _bench_sweeps(address: str | None) -> None:
+    """Trials per second of a sweep of 200 short trials (20 episodes of Q-Learning on Mountain Car each)."""
+    from rlcompare.experiment.backends import LocalBackend, RayBackend
+    from rlcompare.experiment.benchmark import sweep_trials_per_second
+
+    table = Table(title="A sweep of 200 short trials (Q-Learning, Mountain Car, 20 episodes): store writes included")
+    for column in ("backend", "workers", "trials", "seconds", "trials/s", "training s/trial", "overhead s/trial"):
+        table.add_column(column, justify="left" if column == "backend" else "right")
+    plan = [("local", LocalBackend(1), 1), ("local", LocalBackend(2), 2)]
+    try:
+        import ray
+
+        ray.init(address=address, num_cpus=None if address else 2, logging_level="ERROR", log_to_driver=False,
+                 configure_logging=False)
+        plan.append(("ray", RayBackend(address), int(ray.cluster_resources().get("CPU", 1))))
+    except ImportError:
+        console.print("[yellow]Ray is not installed: pip install 'rlcompare[ray]'[/yellow]")
+    for label, backend, workers in plan:
+        m = sweep_trials_per_second(backend, label, workers)
+        table.add_row(label, str(workers), str(m.trials), f"{m.seconds:.2f}", f"{m.trials_per_second:.1f}",
+                      f"{m.kernel_seconds / m.trials * 1e3:.1f} ms", f"{m.overhead_per_trial * 1e3:.1f} ms")
     console.print(table)
 
 

@@ -2,8 +2,10 @@
 
 Both backends take the trials still to run and call ``on_done(trial, results)`` in the calling process as
 each one finishes, in whatever order they finish; the caller writes them to the store, so a trial is saved
-by one process only, once. A trial's result depends on its configuration and seed alone (each run owns its
-random streams), so every backend gives the same results bit for bit, whatever the number of workers.
+by one process only, once (the local backend calls it from its worker threads, so that trials are saved in
+parallel too; the Ray backend from the driver, as results stream back). A trial's result depends on its
+configuration and seed alone (each run owns its random streams), so every backend gives the same results
+bit for bit, whatever the number of workers.
 
 - ``local``: a pool of threads. Each trial is one run, whose compiled kernel releases the GIL, so threads
   train in parallel without the cost of starting processes (and of loading the compiled kernels in each).
@@ -51,23 +53,28 @@ class LocalBackend:
         with ThreadPoolExecutor(self.workers, thread_name_prefix="trial") as pool:
             running: dict[Future, Trial] = {}
             try:
-                self._fill(pool, running, pending)
+                self._fill(pool, running, pending, on_done)
                 while running:
                     finished, _ = wait(running, return_when=FIRST_COMPLETED)
                     for future in finished:
-                        on_done(running.pop(future), future.result())
-                    self._fill(pool, running, pending)
+                        running.pop(future)
+                        future.result()  # a trial that failed stops the sweep with its error
+                    self._fill(pool, running, pending, on_done)
             except BaseException:
                 for future in running:
                     future.cancel()
                 raise
 
-    def _fill(self, pool: ThreadPoolExecutor, running: dict[Future, Trial], pending) -> None:
+    def _fill(self, pool: ThreadPoolExecutor, running: dict[Future, Trial], pending, on_done: OnDone) -> None:
         while len(running) < self.workers:
             trial = next(pending, None)
             if trial is None:
                 return
-            running[pool.submit(run_trial, trial.config.to_dict())] = trial
+            running[pool.submit(_run_and_save, trial, on_done)] = trial
+
+
+def _run_and_save(trial: Trial, on_done: OnDone) -> None:
+    on_done(trial, run_trial(trial.config.to_dict()))
 
 
 @dataclass(frozen=True)

@@ -138,3 +138,54 @@ def run_port_benchmark(envs: tuple[str, ...] = tuple(PORT_EPISODES),
         measurements.append(PortMeasurement(env, gymnasium, port, adapter))
         report(measurements[-1])
     return measurements
+
+
+@dataclass(frozen=True)
+class SweepMeasurement:
+    """A sweep of short trials on one backend."""
+
+    backend: str
+    workers: int
+    trials: int
+    seconds: float
+    """Wall time of the whole sweep, store writes included."""
+    kernel_seconds: float
+    """Training time summed over the trials, as each trial measured it."""
+
+    @property
+    def trials_per_second(self) -> float:
+        return self.trials / self.seconds
+
+    @property
+    def overhead_per_trial(self) -> float:
+        """Worker seconds per trial not spent training: scheduling, shipping, the store."""
+        return (self.seconds * self.workers - self.kernel_seconds) / self.trials
+
+
+def short_sweep(trials: int, episodes: int = 20) -> tuple[object, str]:
+    """A sweep of ``trials`` short trials: Q-Learning on Mountain Car, one configuration, many seeds."""
+    from rlcompare.experiment.sweep import parse_sweep
+
+    text = (f'[sweep]\nname = "bench"\nseeds = {trials}\n[fixed]\nalgorithm = "q_learning"\n'
+            f"episodes = {episodes}\neval_every = 0\n")
+    return parse_sweep(text), text
+
+
+def sweep_trials_per_second(backend, label: str, workers: int, trials: int = 200, episodes: int = 20
+                            ) -> SweepMeasurement:
+    """Run a sweep of short trials into a fresh store after a warm-up sweep (which loads the kernels in every
+    worker); time the whole sweep."""
+    import tempfile
+    from pathlib import Path
+
+    from rlcompare.experiment.sweep_store import load_configurations, run_sweep
+
+    with tempfile.TemporaryDirectory() as scratch:
+        warm, warm_text = short_sweep(workers * 2, episodes)
+        run_sweep(warm, warm_text, Path(scratch) / "warm", backend)
+        sweep, text = short_sweep(trials, episodes)
+        started = time.perf_counter()
+        run_sweep(sweep, text, Path(scratch) / "store", backend)
+        seconds = time.perf_counter() - started
+        results = next(iter(load_configurations(Path(scratch) / "store")[0].values()))
+    return SweepMeasurement(label, workers, trials, seconds, results.meta["timings"]["wall_seconds"])

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from rlcompare.engine.kernel import Records
 from rlcompare.experiment import store
@@ -38,21 +40,26 @@ class Results:
 
     def episodes(self) -> pd.DataFrame:
         """Long table: one row per seed x episode."""
+        return self._episodes_table().to_pandas()
+
+    def evaluations(self) -> pd.DataFrame:
+        """Long table: one row per seed x evaluation round x greedy episode."""
+        return self._evaluations_table().to_pandas()
+
+    def _episodes_table(self) -> pa.Table:
         runs, episodes = self.records.returns.shape
-        frame = pd.DataFrame({
+        return _with_labels({
             "seed": np.repeat(np.asarray(self.seeds, dtype=np.int64), episodes),
             "episode": np.tile(np.arange(episodes, dtype=np.int64), runs),
             "epsilon": np.tile(self.epsilons, runs),
             "return": self.records.returns.ravel(),
             "length": self.records.lengths.ravel(),
             "terminated": self.records.terminated.ravel(),
-        })
-        return _with_labels(frame, self._labels())
+        }, self._labels(), runs * episodes)
 
-    def evaluations(self) -> pd.DataFrame:
-        """Long table: one row per seed x evaluation round x greedy episode."""
+    def _evaluations_table(self) -> pa.Table:
         runs, rounds, per_round = self.records.eval_returns.shape
-        frame = pd.DataFrame({
+        return _with_labels({
             "seed": np.repeat(np.asarray(self.seeds, dtype=np.int64), rounds * per_round),
             "round": np.tile(np.repeat(np.arange(rounds, dtype=np.int64), per_round), runs),
             "after_episode": np.tile(np.repeat((np.arange(rounds, dtype=np.int64) + 1)
@@ -60,8 +67,7 @@ class Results:
             "return": self.records.eval_returns.ravel(),
             "length": self.records.eval_lengths.ravel(),
             "terminated": self.records.eval_terminated.ravel(),
-        })
-        return _with_labels(frame, self._labels())
+        }, self._labels(), runs * rounds * per_round)
 
     def q_table(self, seed: int, stage: str = "final") -> np.ndarray:
         """The Q-table of one seed at a named stage, ``(cells, actions)``."""
@@ -77,8 +83,9 @@ class Results:
         run_dir = store.prepare_directory(Path(run_dir))
         (run_dir / store.META_FILE).unlink(missing_ok=True)  # the run is complete again only when rewritten
         store.write_json_atomic(run_dir / store.CONFIG_FILE, self.config.to_dict())
-        for name, frame in ((store.EPISODES_FILE, self.episodes()), (store.EVALUATIONS_FILE, self.evaluations())):
-            store.write_atomic(run_dir / name, lambda handle, f=frame: f.to_parquet(handle, index=False))
+        for name, table in ((store.EPISODES_FILE, self._episodes_table()),
+                            (store.EVALUATIONS_FILE, self._evaluations_table())):
+            store.write_atomic(run_dir / name, lambda handle, t=table: pq.write_table(t, handle))
         buffer = io.BytesIO()
         np.savez_compressed(
             buffer, snapshots=self.records.snapshots, snapshot_episodes=self.records.snapshot_episodes,
@@ -127,10 +134,11 @@ class Results:
                    meta=store.read_json(run_dir / store.META_FILE))
 
 
-def _with_labels(frame: pd.DataFrame, labels: dict[str, Any]) -> pd.DataFrame:
-    for position, (name, value) in enumerate(labels.items()):
-        frame.insert(position, name, pd.Categorical([value] * len(frame)))
-    return frame
+def _with_labels(columns: dict[str, np.ndarray], labels: dict[str, Any], rows: int) -> pa.Table:
+    """The columns after the labels, each label one dictionary-encoded (categorical) column."""
+    label_columns = {name: pa.DictionaryArray.from_arrays(np.zeros(rows, dtype=np.int32), pa.array([str(value)]))
+                     for name, value in labels.items()}
+    return pa.table({**label_columns, **columns})
 
 
 def _tuples(data: dict[str, Any]) -> dict[str, Any]:

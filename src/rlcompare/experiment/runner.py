@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import platform
 import sys
 import time
@@ -117,9 +118,15 @@ def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_st
         "timings": {"wall_seconds": wall, "training_steps": steps, "evaluation_steps": eval_steps,
                     "threads": min(numba.get_num_threads(), len(config.seeds)),
                     "steps_per_second": (steps + eval_steps) / wall if wall > 0 else None},
-        "versions": {"python": platform.python_version(), "platform": platform.platform(),
-                     **{pkg: _version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}},
+        "versions": dict(versions()),
     }
+
+
+@functools.cache
+def versions() -> dict[str, str | None]:
+    """Python, the platform and the packages a result depends on (read once: reading them costs milliseconds)."""
+    return {"python": platform.python_version(), "platform": platform.platform(),
+            **{pkg: _version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}}
 
 
 def _version(package: str) -> str | None:

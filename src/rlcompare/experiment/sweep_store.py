@@ -10,13 +10,16 @@
 and labels, and the swept values from the manifest. A trial is finished when its
 run directory is complete (``meta.json``, written last, marks it); every file is written under a temporary
 name and renamed, so a killed process leaves nothing that looks finished. The manifest is rewritten
-atomically by the one process that writes trials, and on every start it is rebuilt from the run
-directories, which are the truth: a re-run skips finished trials and runs the rest.
+atomically by the one process that writes trials, at most once a second while trials finish and once at
+the end; on every start it is rebuilt from the run directories, which are the truth: a re-run skips finished
+trials and runs the rest.
 """
 
 from __future__ import annotations
 
 import shutil
+import threading
+import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -38,10 +41,16 @@ DONE, PENDING = "done", "pending"
 
 
 class SweepStore:
-    """A sweep's directory: where each trial goes, which are finished, and the results of each configuration."""
+    """A sweep's directory: where each trial goes, which are finished, and the results of each configuration.
+    :meth:`save` may be called from several threads at once."""
+
+    MANIFEST_EVERY = 1.0
+    """Seconds between rewrites of the manifest while trials finish."""
 
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
+        self._lock = threading.Lock()
+        self._written = 0.0
 
     def trial_dir(self, trial: Trial) -> Path:
         return trial_path(self.root, trial.config_hash, trial.seed)
@@ -61,15 +70,23 @@ class SweepStore:
         return [t for t in self._trials if self._status[t.trial_id] == PENDING]
 
     def save(self, trial: Trial, results: Results) -> None:
-        """Write a finished trial (its run directory, then the manifest)."""
+        """Write a finished trial's run directory; mark it done in the manifest."""
         trial_dir = self.trial_dir(trial)
         if trial_dir.exists() and not store.is_complete(trial_dir):
             shutil.rmtree(trial_dir)  # an earlier attempt that did not finish
         results.save(trial_dir)
-        self._status[trial.trial_id] = DONE
-        self._write_manifest()
+        with self._lock:
+            self._status[trial.trial_id] = DONE
+            if time.monotonic() - self._written >= self.MANIFEST_EVERY:
+                self._write_manifest()
+
+    def flush(self) -> None:
+        """Write the manifest as it stands."""
+        with self._lock:
+            self._write_manifest()
 
     def _write_manifest(self) -> None:
+        self._written = time.monotonic()
         sweep = self._sweep
         store.write_json_atomic(self.root / MANIFEST_FILE, {
             "name": sweep.name, "root_seed": sweep.root_seed, "seeds": list(sweep.seeds), "swept": list(sweep.swept),
@@ -158,5 +175,8 @@ def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Calla
         if progress is not None:
             progress(trial)
 
-    backend.run(todo, on_done)
+    try:
+        backend.run(todo, on_done)
+    finally:
+        sweep_store.flush()
     return len(sweep.trials()) - len(todo), len(todo)
