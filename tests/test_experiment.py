@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from rlcompare import ExperimentConfig, Results, load_agent, run
+from rlcompare.experiment import results as results_module
 from rlcompare.experiment import store
 from rlcompare.experiment.runner import load_if_complete
 from rlcompare.studies.paper import paper_configs, reproduce
@@ -78,11 +79,11 @@ def test_snapshots_are_taken_at_the_named_stages(small_config: ExperimentConfig)
 def test_failed_write_leaves_nothing_that_looks_finished(
     tmp_path: Path, small_config: ExperimentConfig, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    def broken_parquet(self, handle, **kwargs):
+    def broken_parquet(table, handle, **kwargs):
         handle.write(b"PAR1 half a file")
         raise OSError("disk full")
 
-    monkeypatch.setattr(pd.DataFrame, "to_parquet", broken_parquet)
+    monkeypatch.setattr(results_module.pq, "write_table", broken_parquet)
     with pytest.raises(OSError, match="disk full"):
         run(small_config, out=tmp_path / "run")
     left = sorted(p.name for p in (tmp_path / "run").iterdir())

@@ -43,8 +43,11 @@ algorithm = ["q_learning", "sarsa"]
 """
 NODE = ["--node-ip-address=127.0.0.1", "--num-cpus=1", "--object-store-memory=80000000", "--disable-usage-stats",
         "--block"]
-FAST_HEALTH_CHECKS = {"RAY_health_check_period_ms": "1000", "RAY_health_check_timeout_ms": "1000",
-                      "RAY_health_check_failure_threshold": "3", "RAY_health_check_initial_delay_ms": "1000"}
+TEST_CLUSTER = {"RAY_health_check_period_ms": "1000", "RAY_health_check_timeout_ms": "1000",
+                "RAY_health_check_failure_threshold": "3", "RAY_health_check_initial_delay_ms": "1000",
+                "RAY_AUTH_MODE": "disabled"}
+"""Node deaths noticed within seconds; no token authentication on loopback (a token left in ~/.ray by another
+Ray session would otherwise lock ``ray status`` out)."""
 
 
 def _free_port() -> int:
@@ -69,10 +72,11 @@ def _nodes(address: str, env: dict[str, str]) -> int:
     return active.count("node_")
 
 
-def _wait_for_nodes(address: str, count: int, env: dict[str, str], timeout: float = 90) -> None:
+def _wait_for_nodes(address: str, count: int, env: dict[str, str], log: Path, timeout: float = 120) -> None:
     deadline = time.monotonic() + timeout
     while _nodes(address, env) != count:
-        assert time.monotonic() < deadline, f"the cluster at {address} did not reach {count} nodes"
+        assert time.monotonic() < deadline, f"the cluster at {address} did not reach {count} nodes:\n" + (
+            log.read_text()[-3000:] if log.exists() else "")
         time.sleep(0.5)
 
 
@@ -92,13 +96,13 @@ def _stop(process: subprocess.Popen) -> None:
 def cluster():
     """A head node on loopback (one CPU), torn down with everything it started."""
     temp = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))  # Ray's socket paths must stay short
-    env = {**os.environ, **FAST_HEALTH_CHECKS}
+    env = {**os.environ, **TEST_CLUSTER}
     address = f"127.0.0.1:{_free_port()}"
     head = _start(["--head", f"--port={address.split(':')[1]}", "--include-dashboard=false",
                    f"--temp-dir={temp}"], temp / "head.log", env)
     nodes = [head]
     try:
-        _wait_for_nodes(address, 1, env)
+        _wait_for_nodes(address, 1, env, temp / "head.log")
         yield address, env, temp, nodes
     finally:
         for node in reversed(nodes):
@@ -112,7 +116,7 @@ def test_ray_sweep_loses_a_node_and_still_finishes_every_trial_exactly_once(clus
     reference = tmp_path / "local"
     run_sweep(sweep, SWEEP, reference, LocalBackend(2))  # the result to match, and the kernels compiled for Ray
     nodes.append(_start([f"--address={address}"], temp / "node.log", env))
-    _wait_for_nodes(address, 2, env)
+    _wait_for_nodes(address, 2, env, temp / "node.log")
 
     sweep_file, out = tmp_path / "ray.toml", tmp_path / "ray"
     sweep_file.write_text(SWEEP)
@@ -131,7 +135,7 @@ def test_ray_sweep_loses_a_node_and_still_finishes_every_trial_exactly_once(clus
     nodes[1].wait()
     assert driver.wait(timeout=300) == 0, log.read_text()
     assert done_at_kill < len(sweep.trials())
-    _wait_for_nodes(address, 1, env)  # the head saw the node die
+    _wait_for_nodes(address, 1, env, temp / "head.log")  # the head saw the node die
 
     manifest = json.loads((out / MANIFEST_FILE).read_text())
     assert sorted(t["id"] for t in manifest["trials"]) == sorted(t.trial_id for t in sweep.trials())

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -367,3 +368,17 @@ def test_store_open_names_no_trial_twice(tmp_path: Path) -> None:
     config = replace(sweep.configs[0], seeds=(sweep.seeds[0],))
     assert todo[0].config == config
     assert isinstance(config, ExperimentConfig)
+
+
+def test_ray_backend_without_a_cluster_is_one_clear_error(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    sweep_file = tmp_path / "small.toml"
+    sweep_file.write_text(SMALL)
+    with socket.socket() as probe:  # a port where nothing listens
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = runner.invoke(cli.app, ["sweep", str(sweep_file), "--out", str(tmp_path / "out"), "--backend", "ray",
+                                     "--address", f"127.0.0.1:{port}"], prog_name="rlcompare")
+    assert result.exit_code == 2
+    assert f"no Ray cluster at '127.0.0.1:{port}'" in result.output
+    assert "Traceback" not in result.output

@@ -18,6 +18,7 @@ bit for bit, whatever the number of workers.
 from __future__ import annotations
 
 import os
+import socket
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
@@ -89,12 +90,13 @@ class RayBackend:
     def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
         ray = _import_ray()
         if not ray.is_initialized():
+            _check_reachable(self.address)
             try:
                 ray.init(address=self.address, logging_level="ERROR", log_to_driver=False,
                          configure_logging=False)
-            except ConnectionError as error:
-                raise BackendError(f"no Ray cluster at {self.address!r} ({error}); start one with 'ray start "
-                                   "--head', or use --backend local") from None
+            except Exception as error:  # no cluster there, a refused token, a version mismatch
+                raise BackendError(f"cannot use the Ray cluster at {self.address!r} ({error}); start one with "
+                                   "'ray start --head', or use --backend local") from None
         remote = ray.remote(num_cpus=1, max_retries=self.max_retries)(run_trial)
         running = {remote.remote(trial.config.to_dict()): trial for trial in trials}
         try:
@@ -106,6 +108,19 @@ class RayBackend:
             for ref in running:
                 ray.cancel(ref, force=True)
             raise
+
+
+def _check_reachable(address: str | None) -> None:
+    """Fail at once on a HOST:PORT where nothing listens (Ray itself would retry for a minute or more)."""
+    if not address or address == "auto" or "://" in address:
+        return
+    host, _, port = address.rpartition(":")
+    try:
+        with socket.create_connection((host or "127.0.0.1", int(port)), timeout=2):
+            pass
+    except (OSError, ValueError) as error:
+        raise BackendError(f"no Ray cluster at {address!r} ({error}); start one with 'ray start --head', or use "
+                           "--backend local") from None
 
 
 def _import_ray():
