@@ -7,6 +7,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium_play import gymnasium_returns
 
 from rlcompare import ExperimentConfig, load_agent, run
 from rlcompare.envs import acrobot, cartpole
@@ -115,22 +116,6 @@ def test_acrobot_clips_velocities_and_wraps_angles() -> None:
         np.testing.assert_array_equal(ours, env.state)
 
 
-def _gymnasium_returns(env_id: str, agent, stream: np.random.SeedSequence, episodes: int, limit: int) -> list[float]:
-    """Returns of ``agent`` in Gymnasium's own environment, its resets drawn from ``stream``."""
-    env = gym.make(env_id, max_episode_steps=limit)
-    env.reset(seed=0)
-    env.unwrapped.np_random = np.random.Generator(np.random.PCG64(stream))
-    returns = []
-    for _ in range(episodes):
-        observation, _ = env.reset()
-        total, done = 0.0, False
-        while not done:
-            observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
-            total, done = total + reward, terminated or truncated
-        returns.append(total)
-    return returns
-
-
 def test_sarsa_learns_cartpole_and_its_agent_balances_as_well_in_gymnasium(tmp_path) -> None:
     """On the default grid (1 x 1 x 6 x 12) SARSA with ε decaying goes from about 22 steps to hundreds; the
     loaded agent, in Gymnasium's own CartPole from the evaluation stream, returns what our evaluation did."""
@@ -143,7 +128,7 @@ def test_sarsa_learns_cartpole_and_its_agent_balances_as_well_in_gymnasium(tmp_p
     for run_index, seed in enumerate(config.seeds):
         _, eval_env, _ = np.random.SeedSequence(seed).spawn(3)
         agent = load_agent(tmp_path / "run", seed=seed)
-        theirs = _gymnasium_returns("CartPole-v1", agent, eval_env, 10, config.max_steps)
+        theirs = gymnasium_returns(agent, eval_env, 10, env_id="CartPole-v1", limit=config.max_steps)
         np.testing.assert_array_equal(theirs, results.records.eval_returns[run_index, -1])
 
 

@@ -6,10 +6,10 @@ import dataclasses
 import os
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 import pandas as pd
 import pytest
+from gymnasium_play import gymnasium_returns
 
 from rlcompare import ExperimentConfig, Results, load_agent, run
 from rlcompare.experiment import results as results_module
@@ -123,23 +123,6 @@ def test_loading_an_incomplete_directory_names_what_is_missing(tmp_path: Path) -
         Results.load(tmp_path)
 
 
-def _gymnasium_eval_returns(agent, eval_stream: np.random.SeedSequence, episodes: int) -> list[float]:
-    """Returns of ``agent`` inside Gymnasium's own env, resets drawn from the evaluation stream."""
-    env = gym.make("MountainCar-v0", max_episode_steps=1000)
-    env.reset(seed=0)
-    env.unwrapped.np_random = np.random.Generator(np.random.PCG64(eval_stream))
-    returns = []
-    for _ in range(episodes):
-        observation, _ = env.reset()
-        total, done = 0.0, False
-        while not done:
-            observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
-            total += reward
-            done = terminated or truncated
-        returns.append(total)
-    return returns
-
-
 def test_loaded_agent_acts_in_gymnasium_exactly_as_in_our_evaluation(tmp_path: Path) -> None:
     config = ExperimentConfig(algorithm="q_learning", schedule="decay", seeds=(7,), episodes=1500,
                               eval_every=1500, eval_episodes=20)
@@ -147,7 +130,7 @@ def test_loaded_agent_acts_in_gymnasium_exactly_as_in_our_evaluation(tmp_path: P
     agent = load_agent(tmp_path / "run", seed=7, stage="final")
     _, eval_stream = np.random.SeedSequence(7).spawn(2)
     ours = results.records.eval_returns[0, -1]
-    theirs = _gymnasium_eval_returns(agent, eval_stream, 20)
+    theirs = gymnasium_returns(agent, eval_stream, 20)
     np.testing.assert_array_equal(theirs, ours)
     assert (ours > -1000).mean() == results.records.eval_terminated[0, -1].mean()
 
@@ -168,6 +151,6 @@ def test_tile_coded_agent_acts_in_gymnasium_as_in_our_evaluation(tmp_path: Path)
     agent = load_agent(tmp_path / "run", seed=3)
     _, eval_stream = np.random.SeedSequence(3).spawn(2)
     ours = results.records.eval_returns[0, -1]
-    theirs = np.array(_gymnasium_eval_returns(agent, eval_stream, 20))
+    theirs = np.array(gymnasium_returns(agent, eval_stream, 20))
     assert (ours > -1000).all()
     np.testing.assert_array_equal(theirs, ours)
