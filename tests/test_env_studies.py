@@ -70,8 +70,9 @@ def test_cliff_report_sets_the_cliff_against_mountain_car_in_numbers(studies: Pa
     assert "MountainCar-v0 (ε = 0.5, 4 seeds): online SARSA - Q-Learning" in html
 
 
-def test_cliff_report_without_mountain_car_says_how_to_add_it(tmp_path: Path) -> None:
-    assert invoke("reproduce", "cliff", "--seeds", "2", "--out", str(tmp_path / "cliff")).exit_code == 0
+def test_cliff_runs_the_books_50_runs_and_says_how_to_add_mountain_car(tmp_path: Path) -> None:
+    assert invoke("reproduce", "cliff", "--out", str(tmp_path / "cliff")).exit_code == 0
+    assert Results.load(tmp_path / "cliff" / "sarsa").seeds == tuple(range(50))
     html = (tmp_path / "cliff" / "report.html").read_text()
     assert "Mountain Car&#x27;s side is missing" in html
     assert f"reproduce --out {tmp_path / 'paper'}" in html

@@ -203,6 +203,7 @@ def run(
     console.print(f"Run directory: {out}")
 
 
+PAPER_SEEDS = 30
 STUDY_NAMES = ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff")
 
 
@@ -211,7 +212,10 @@ def reproduce(
     study: Annotated[str, typer.Argument(
         help="Which study: paper (default), cartpole, acrobot, book-10.2, book-12.10 or cliff (see --list).")]
     = "paper",
-    seeds: Seeds = 30,
+    seeds: Annotated[int | None, typer.Option(
+        help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, cartpole "
+             "and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for cliff).",
+        show_default=False)] = None,
     first_seed: FirstSeed = 0,
     episodes: Annotated[int, typer.Option(
         help="Training episodes per seed (paper, cartpole and acrobot; the paper gives none).")] = 5000,
@@ -242,9 +246,11 @@ def reproduce(
         raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
     out = out if out is not None else Path("runs") / study
     if study == "paper" or study in ENV_STUDIES:
-        _reproduce_paper(study, _seeds(seeds, first_seed), episodes, _algorithms(algorithms), out, videos)
+        count = PAPER_SEEDS if seeds is None else seeds
+        _reproduce_paper(study, _seeds(count, first_seed), episodes, _algorithms(algorithms), out, videos)
     else:
-        _reproduce_book(STUDIES[study], _seeds(seeds, first_seed), out)
+        count = STUDIES[study].runs if seeds is None else seeds
+        _reproduce_book(STUDIES[study], _seeds(count, first_seed), out)
 
 
 def _algorithms(spec: str) -> tuple[str, ...]:

@@ -50,6 +50,8 @@ class Study:
     title: str
     configs: Callable[[tuple[int, ...]], dict[str, ExperimentConfig]]
     report: Callable[[Path, dict[str, Results]], Path]
+    runs: int
+    """Seeds by default: as many runs as the book averages over."""
 
 
 def fig_10_2_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
@@ -249,9 +251,9 @@ def _cliff_mask() -> np.ndarray:
 
 STUDIES = {
     "book-10.2": Study("book-10.2", "Semi-gradient SARSA with tile coding (Figure 10.2)", fig_10_2_configs,
-                       report_10_2),
+                       report_10_2, runs=100),
     "book-12.10": Study("book-12.10", "SARSA(λ) with replacing traces (Figure 12.10)", fig_12_10_configs,
-                        report_12_10),
+                        report_12_10, runs=100),
     "cliff": Study("cliff", "Cliff Walking: SARSA, Q-Learning and Expected SARSA (Example 6.6)", cliff_configs,
-                   report_cliff),
+                   report_cliff, runs=50),
 }
