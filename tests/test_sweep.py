@@ -382,3 +382,4 @@ def test_ray_backend_without_a_cluster_is_one_clear_error(tmp_path: Path) -> Non
     assert result.exit_code == 2
     assert f"no Ray cluster at '127.0.0.1:{port}'" in result.output
     assert "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()  # nothing written for a sweep that could not start

@@ -338,15 +338,17 @@ def sweep(
         raise typer.BadParameter(f"got {unknown[0]!r}; allowed: a swept key ({', '.join(plan.swept) or 'none'})",
                                  param_hint="'--group-by'")
     out = out if out is not None else Path("runs") / "sweeps" / plan.name
-    _check_out(out)
-    trials = len(plan.trials())
-    console.print(f"{plan.name}: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} trials "
-                  f"on the {backend} backend; store {out}")
     try:
+        executor = make_backend(backend, workers=workers, address=address)
+        executor.connect()  # before anything is written
+        _check_out(out)
+        trials = len(plan.trials())
+        console.print(f"{plan.name}: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} "
+                      f"trials on the {backend} backend; store {out}")
         with _progress(eta=True) as progress:
             task = progress.add_task("trials", total=trials)
-            finished, ran = run_sweep(plan, sweep_file.read_text(), out, make_backend(
-                backend, workers=workers, address=address), progress=lambda trial: progress.advance(task))
+            finished, ran = run_sweep(plan, sweep_file.read_text(), out, executor,
+                                      progress=lambda trial: progress.advance(task))
     except BackendError as error:
         console.print(f"[red]Error:[/red] {error}")
         raise typer.Exit(2) from None

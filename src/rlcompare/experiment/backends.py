@@ -1,6 +1,7 @@
 """Where a sweep's trials run: on this machine's cores, or as tasks on a Ray cluster.
 
-Both backends take the trials still to run and call ``on_done(trial, results)`` in the calling process as
+Both backends first ``connect()`` (so that a cluster that cannot be reached is reported before the store
+is touched), then take the trials still to run and call ``on_done(trial, results)`` in the calling process as
 each one finishes, in whatever order they finish; the caller writes them to the store, so a trial is saved
 by one process only, once (the local backend calls it from its worker threads, so that trials are saved in
 parallel too; the Ray backend from the driver, as results stream back). A trial's result depends on its
@@ -47,6 +48,9 @@ class LocalBackend:
 
     workers: int = os.cpu_count() or 1
 
+    def connect(self) -> None:
+        """Nothing to join: this machine's threads are always there."""
+
     def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
         """Run every trial, at most ``workers`` at once; on an interrupt, stop submitting, save what is
         finished, and let the trials in flight end (a compiled run cannot be stopped midway)."""
@@ -87,16 +91,21 @@ class RayBackend:
     max_retries: int = 3
     """Times Ray runs a task again when its worker or node dies."""
 
-    def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
+    def connect(self) -> None:
+        """Join the cluster, or fail with a :class:`BackendError` saying why."""
         ray = _import_ray()
-        if not ray.is_initialized():
-            _check_reachable(self.address)
-            try:
-                ray.init(address=self.address, logging_level="ERROR", log_to_driver=False,
-                         configure_logging=False)
-            except Exception as error:  # no cluster there, a refused token, a version mismatch
-                raise BackendError(f"cannot use the Ray cluster at {self.address!r} ({error}); start one with "
-                                   "'ray start --head', or use --backend local") from None
+        if ray.is_initialized():
+            return
+        _check_reachable(self.address)
+        try:
+            ray.init(address=self.address, logging_level="ERROR", log_to_driver=False, configure_logging=False)
+        except Exception as error:  # no cluster there, a refused token, a version mismatch
+            raise BackendError(f"cannot use the Ray cluster at {self.address!r} ({error}); start one with "
+                               "'ray start --head', or use --backend local") from None
+
+    def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
+        self.connect()
+        ray = _import_ray()
         remote = ray.remote(num_cpus=1, max_retries=self.max_retries)(run_trial)
         running = {remote.remote(trial.config.to_dict()): trial for trial in trials}
         try:

@@ -167,6 +167,7 @@ def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Calla
               ) -> tuple[int, int]:
     """Run every trial of ``sweep`` that ``out`` does not hold yet on ``backend``, saving each as it finishes.
     Returns (trials already finished, trials run now)."""
+    backend.connect()
     sweep_store = SweepStore(out)
     todo = sweep_store.open(sweep, sweep_text)
 
