@@ -4,17 +4,21 @@ Numba keys a cached function by its own file's timestamp only. A kernel inlines 
 (the ports, the tables, the random streams), so after one of those changes alone numba would load the old
 machine code and give old results. Keying the directory by a hash of the sources of compiled code (the
 packages ``algorithms``, ``engine``, ``envs`` and ``rng.py``) makes any change to them compile afresh, and
-leaves the cache alone when only the command line or the analysis changes. ``NUMBA_CACHE_DIR``, when set,
-wins.
+leaves the cache alone when only the command line or the analysis changes. Each use touches its directory;
+directories of other versions unused for :data:`KEEP_UNUSED_DAYS` days are deleted. ``NUMBA_CACHE_DIR``, when
+set, wins.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import shutil
+import time
 from pathlib import Path
 
 COMPILED_SOURCES = ("algorithms", "engine", "envs", "rng.py")
+KEEP_UNUSED_DAYS = 30
 
 
 def source_digest(package: Path) -> str:
@@ -33,7 +37,22 @@ def use_source_keyed_cache() -> None:
     import numba
 
     root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare"
-    numba.config.CACHE_DIR = str(root / f"numba-{source_digest(Path(__file__).parent)}")
+    current = root / f"numba-{source_digest(Path(__file__).parent)}"
+    numba.config.CACHE_DIR = str(current)
+    try:
+        current.mkdir(parents=True, exist_ok=True)
+        os.utime(current)
+        prune_unused(root, keep=current)
+    except OSError:  # a read-only home: numba falls back to its own cache locations
+        pass
+
+
+def prune_unused(root: Path, keep: Path, days: float = KEEP_UNUSED_DAYS) -> None:
+    """Delete the cache directories of other source versions that no process has used for ``days`` days."""
+    cutoff = time.time() - days * 86400
+    for stale in root.glob("numba-*"):
+        if stale != keep and stale.is_dir() and stale.stat().st_mtime < cutoff:
+            shutil.rmtree(stale, ignore_errors=True)
 
 
 use_source_keyed_cache()

@@ -1,0 +1,43 @@
+"""The numba cache directory: keyed by the compiled sources, old versions pruned."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+import rlcompare
+from rlcompare._numba_cache import prune_unused, source_digest
+
+PACKAGE = Path(rlcompare.__file__).parent
+
+
+def copy_of_compiled_sources(tmp_path: Path) -> Path:
+    copy = tmp_path / "package"
+    for name in ("algorithms", "engine", "envs"):
+        shutil.copytree(PACKAGE / name, copy / name, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(PACKAGE / "rng.py", copy / "rng.py")
+    return copy
+
+
+def test_digest_changes_with_any_compiled_source_and_only_with_them(tmp_path: Path) -> None:
+    copy = copy_of_compiled_sources(tmp_path)
+    before = source_digest(copy)
+    assert before == source_digest(PACKAGE)
+    (copy / "cli.py").write_text("# not compiled code\n")
+    assert source_digest(copy) == before
+    port = copy / "envs" / "cartpole.py"
+    port.write_text(port.read_text() + "\n# one more line\n")
+    assert source_digest(copy) != before
+
+
+def test_prune_deletes_other_versions_unused_for_a_month_and_keeps_the_rest(tmp_path: Path) -> None:
+    current, recent, stale, other = (tmp_path / name for name in ("numba-a", "numba-b", "numba-c", "notes"))
+    for directory in (current, recent, stale, other):
+        directory.mkdir()
+    month_ago = time.time() - 31 * 86400
+    for directory in (current, stale, other):
+        os.utime(directory, (month_ago, month_ago))
+    prune_unused(tmp_path, keep=current)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes", "numba-a", "numba-b"]
