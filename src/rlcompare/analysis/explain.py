@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import UniformGrid, cell_indices
+from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.problem import grid_bounds
+from rlcompare.experiment.results import Results
+
+
+def on_position_velocity_grid(config: ExperimentConfig) -> bool:
+    """Mountain Car on a grid: the start region, the first actions and the maps over position x velocity apply."""
+    return config.env.startswith("MountainCar") and config.features == "grid"
 
 
 def start_cells(grid: UniformGrid, points: int = 2001) -> np.ndarray:
@@ -21,3 +29,10 @@ def first_action_shares(q_tables: np.ndarray, grid: UniformGrid) -> np.ndarray:
     cells = start_cells(grid)
     first = q_tables[:, cells].argmax(axis=2)  # (seeds, start states)
     return np.stack([(first == a).mean(axis=1) for a in range(q_tables.shape[2])], axis=1)
+
+
+def final_first_action_shares(results: Results) -> np.ndarray:
+    """:func:`first_action_shares` of the final Q-tables, on the grid the run was trained on."""
+    c = results.config
+    return first_action_shares(results.records.snapshots[:, -1], make_grid(*grid_bounds(c.environment, c.bounds),
+                                                                            c.bins))

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.figure import Figure
 
 from rlcompare.experiment.store import write_atomic
 
@@ -79,6 +80,19 @@ def render_report(title: str, sections: list[Section], problems: list[str]) -> s
     body = "\n".join(_section_html(s) for s in sections)
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
             f"<style>{_STYLE}</style></head>\n<body><h1>{html.escape(title)}</h1>\n{warning}\n{body}\n</body></html>\n")
+
+
+def save_figure(figure: Figure, path: Path, dpi: int = 100) -> str:
+    """Write ``figure`` as a PNG at ``path``; its path relative to the study directory, for the page."""
+    write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=dpi))
+    return f"{path.parent.name}/{path.name}"
+
+
+def write_table(frame: pd.DataFrame, directory: Path, name: str) -> None:
+    """``name.csv`` and ``name.md`` of ``frame`` in ``directory``."""
+    write_atomic(directory / f"{name}.csv", lambda handle: handle.write(frame.to_csv(index=False).encode()))
+    markdown = frame.to_markdown(index=False) + "\n"
+    write_atomic(directory / f"{name}.md", lambda handle: handle.write(markdown.encode()))
 
 
 def write_report(path: Path, title: str, sections: list[Section], problems: list[str]) -> Path:

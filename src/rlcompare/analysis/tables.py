@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.analysis.convergence import convergence_episodes, episodes_to_seconds
-from rlcompare.analysis.explain import first_action_shares
+from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
 from rlcompare.analysis.stats import (
     equivalence_verdict,
     interval,
@@ -25,8 +25,6 @@ from rlcompare.analysis.stats import (
     ratio_verdict,
     verdict,
 )
-from rlcompare.envs.discretize import make_grid
-from rlcompare.experiment.problem import grid_bounds
 from rlcompare.experiment.results import Results
 
 LEFT = 0
@@ -61,10 +59,8 @@ def per_seed_metrics(results: Results) -> pd.DataFrame:
     has_eval = records.eval_returns.shape[1] > 0
     greedy_solved = solved(rule, records.eval_returns[:, -1], records.eval_lengths[:, -1],
                            records.eval_terminated[:, -1], config.max_steps) if has_eval else None
-    first_left = np.full(len(results.seeds), np.nan)
-    if config.env.startswith("MountainCar") and config.features == "grid":
-        grid = make_grid(*grid_bounds(config.environment, config.bounds), config.bins)
-        first_left = first_action_shares(results.records.snapshots[:, -1], grid)[:, LEFT]
+    first_left = (final_first_action_shares(results)[:, LEFT] if on_position_velocity_grid(config)
+                  else np.full(len(results.seeds), np.nan))
     return pd.DataFrame({
         "seed": np.asarray(results.seeds),
         "behaviour_return": records.returns.mean(axis=1),

@@ -26,9 +26,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis.curves import mean_band
-from rlcompare.analysis.report import Section, write_report
+from rlcompare.analysis.report import Section, save_figure, write_report
 from rlcompare.analysis.stats import interval
-from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.studies.contrast import contrast_table, sibling_studies
@@ -73,11 +72,6 @@ def run_study(study: Study, out: Path, seeds: tuple[int, ...],
             yield name, results, reused
 
 
-def _save(figure: Figure, path: Path) -> str:
-    store.write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=100))
-    return f"{path.parent.name}/{path.name}"
-
-
 def report_10_2(out: Path, runs: dict[str, Results]) -> Path:
     """Figure 10.2: mean steps per episode (log scale) with 95% bands, one line per step size."""
     figure = Figure(figsize=(7.5, 5), layout="constrained")
@@ -99,7 +93,7 @@ def report_10_2(out: Path, runs: dict[str, Results]) -> Path:
     ax.legend()
     ax.grid(alpha=0.3, which="both")
     figure.suptitle("Semi-gradient SARSA, 8 tilings, Mountain Car (Sutton and Barto, Figure 10.2)")
-    image = _save(figure, Path(out) / "figures" / "fig10_2.png")
+    image = save_figure(figure, Path(out) / "figures" / "fig10_2.png")
     table = pd.DataFrame(rows)
     return write_report(Path(out) / "report.html", "Figure 10.2: semi-gradient SARSA on Mountain Car", [
         Section("Steps per episode", [
@@ -132,7 +126,7 @@ def report_12_10(out: Path, runs: dict[str, Results]) -> Path:
     ax.legend()
     ax.grid(alpha=0.3)
     figure.suptitle("SARSA(λ) with replacing traces on Mountain Car (Sutton and Barto, Figure 12.10)")
-    image = _save(figure, Path(out) / "figures" / "fig12_10.png")
+    image = save_figure(figure, Path(out) / "figures" / "fig12_10.png")
     return write_report(Path(out) / "report.html", "Figure 12.10: SARSA(λ) on Mountain Car", [
         Section("Early performance against the step size", [
             "MountainCar-book, 8 tilings, replacing traces, ε = 0, γ = 1. The book finds intermediate λ best "
@@ -201,7 +195,7 @@ def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
     paths_ax.set_yticks(range(4))
     paths_ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize="small")
     figure.suptitle("Cliff Walking, ε = 0.1, α = 0.5 (Sutton and Barto, Example 6.6 and Figure 6.4)")
-    image = _save(figure, Path(out) / "figures" / "cliff.png")
+    image = save_figure(figure, Path(out) / "figures" / "cliff.png")
     return write_report(Path(out) / "report.html", "Example 6.6: Cliff Walking", [
         Section("SARSA against Q-Learning where the optimal path is dangerous", [
             "Gymnasium's CliffWalking-v1 (stepping into the cliff costs -100 and sends the agent back to the "

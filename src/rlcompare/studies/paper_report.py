@@ -19,12 +19,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots
-from rlcompare.analysis.explain import first_action_shares
-from rlcompare.analysis.report import Section, write_report
+from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
+from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.tables import Claim, judge, per_seed_metrics, table_i, table_ii
 from rlcompare.analysis.video import gymnasium_id, render_stage_videos
-from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import make_grid
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
 from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
@@ -103,11 +101,6 @@ def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
     return loaded, problems
 
 
-def _save(figure: Figure, path: Path) -> str:
-    store.write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=100))
-    return f"{path.parent.name}/{path.name}"
-
-
 def curve_figure(runs: list[Results], title: str) -> Figure:
     """Behaviour return (smoothed) beside greedy-evaluation return, mean over seeds with 95% bands."""
     figure = Figure(figsize=(12, 4.2), layout="constrained")
@@ -157,22 +150,10 @@ def first_actions_figure(runs: list[Results]) -> Figure:
     figure = Figure(figsize=(7, 4), layout="constrained")
     shares = {}
     for results in runs:
-        grid = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, results.config.bins)
-        shares[label(results)] = first_action_shares(results.records.snapshots[:, -1], grid).mean(axis=0)
+        shares[label(results)] = final_first_action_shares(results).mean(axis=0)
     plots.plot_first_actions(figure.subplots(), shares)
     figure.suptitle("First greedy action from the start region (final policies, all seeds)")
     return figure
-
-
-def _write_table(frame: pd.DataFrame, directory: Path, name: str) -> None:
-    store.write_atomic(directory / f"{name}.csv", lambda handle: handle.write(frame.to_csv(index=False).encode()))
-    markdown = frame.to_markdown(index=False) + "\n"
-    store.write_atomic(directory / f"{name}.md", lambda handle: handle.write(markdown.encode()))
-
-
-def _on_position_velocity_grid(results: Results) -> bool:
-    """Mountain Car on a grid: the maps over position x velocity and the first actions apply."""
-    return results.config.env.startswith("MountainCar") and results.config.features == "grid"
 
 
 def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None) -> ReportOutcome:
@@ -185,7 +166,7 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
                                + "; ".join(problems))
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
-    mountain_car = _on_position_velocity_grid(first)
+    position_velocity = on_position_velocity_grid(first.config)
     paper_values = first.config.env == "MountainCar-v0"
     learners = [r for n, r in runs.items() if n != "random"]
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
@@ -194,14 +175,14 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     for stale in figures_dir.glob("*.png"):  # figures of runs that are gone must not linger
         stale.unlink()
     claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
-              and (mountain_car or c.metric != "first_action_left")]
+              and (position_velocity or c.metric != "first_action_left")]
     tables = {
         "table_i": table_i(metrics, PAPER_TABLE_I if paper_values else {}, episodes),
         "table_ii": table_ii(metrics, PAPER_TABLE_II if paper_values else {}),
         "verdicts": judge([_scaled(c, episodes) for c in claims], metrics, episodes),
     }
     for name, frame in tables.items():
-        _write_table(frame, tables_dir, name)
+        write_table(frame, tables_dir, name)
     seconds["tables and verdicts"] = time.perf_counter() - started
 
     mark = time.perf_counter()
@@ -209,16 +190,16 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     for file_name, names, title in FIGURES:
         present = [runs[n] for n in names if n in runs]
         if len(present) == len(names):
-            curve_figures.append((_save(curve_figure(present, title), figures_dir / f"{file_name}.png"), title))
+            curve_figures.append((save_figure(curve_figure(present, title), figures_dir / f"{file_name}.png"), title))
         else:
             problems.append(f"{title}: left out, its runs are missing")
-    explanation_figures = [(_save(stages_figure(r), figures_dir / f"stages-{r.config.name}.png"),
+    explanation_figures = [(save_figure(stages_figure(r), figures_dir / f"stages-{r.config.name}.png"),
                             f"{label(r)}: greedy action and state value at each stage") for r in learners
-                           if mountain_car]
-    if paper_learners and mountain_car:
+                           if position_velocity]
+    if paper_learners and position_velocity:
         explanation_figures += [
-            (_save(visits_figure(paper_learners), figures_dir / "visits.png"), "State visits during training"),
-            (_save(first_actions_figure(paper_learners), figures_dir / "first-actions.png"),
+            (save_figure(visits_figure(paper_learners), figures_dir / "visits.png"), "State visits during training"),
+            (save_figure(first_actions_figure(paper_learners), figures_dir / "first-actions.png"),
              "First greedy action from the start region"),
         ]
     seconds["figures"] = time.perf_counter() - mark

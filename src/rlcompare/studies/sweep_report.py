@@ -20,7 +20,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots
-from rlcompare.analysis.report import Section, write_report
+from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import interval
 from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.experiment import store
@@ -34,11 +34,13 @@ def _value(value) -> str:
     return json.dumps(value) if isinstance(value, list | tuple | dict) else str(value)
 
 
-def configuration_rows(runs: dict[str, Results], swept: list[str]) -> pd.DataFrame:
-    """One row per configuration: its hash, swept values, seeds, returns and time to converge."""
+def configuration_rows(runs: dict[str, Results], metrics_of: dict[str, pd.DataFrame], swept: list[str]
+                       ) -> pd.DataFrame:
+    """One row per configuration: its hash, swept values, seeds, returns and time to converge
+    (``metrics_of``: :func:`per_seed_metrics` of each, by hash)."""
     rows = []
     for config_hash, results in runs.items():
-        metrics = per_seed_metrics(results)
+        metrics = metrics_of[config_hash]
         episodes = results.config.episodes
         behaviour, greedy = metrics["behaviour_return"].to_numpy(), metrics["greedy_return"].to_numpy()
         censored = metrics["convergence_episode"].fillna(episodes).to_numpy()
@@ -58,7 +60,8 @@ def _numeric(values: list) -> bool:
     return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
 
 
-def across_figure(runs: dict[str, Results], key: str, swept: list[str]) -> Figure:
+def across_figure(runs: dict[str, Results], metrics_of: dict[str, pd.DataFrame], key: str, swept: list[str]
+                  ) -> Figure:
     """Behaviour and greedy returns against ``key``, a line per combination of the other swept keys."""
     envs = sorted({r.config.env for r in runs.values()})
     others = [k for k in swept if k not in (key, "env")]
@@ -66,8 +69,8 @@ def across_figure(runs: dict[str, Results], key: str, swept: list[str]) -> Figur
     axes = figure.subplots(len(envs), 2, squeeze=False)
     for row, env in enumerate(envs):
         lines: dict[str, list[tuple[float, object, object]]] = {}
-        for results in (r for r in runs.values() if r.config.env == env):
-            metrics = per_seed_metrics(results)
+        for config_hash, results in ((h, r) for h, r in runs.items() if r.config.env == env):
+            metrics = metrics_of[config_hash]
             label = ", ".join(f"{k}={_value(getattr(results.config, k))}" for k in others) or "all"
             lines.setdefault(label, []).append((getattr(results.config, key),
                                                 interval(metrics["behaviour_return"].to_numpy()),
@@ -103,17 +106,6 @@ def curves_figure(runs: list[Results], swept: list[str], env: str) -> Figure:
     return figure
 
 
-def _save(figure: Figure, path: Path) -> str:
-    store.write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=90))
-    return f"{path.parent.name}/{path.name}"
-
-
-def _write_table(frame: pd.DataFrame, directory: Path, name: str) -> None:
-    store.write_atomic(directory / f"{name}.csv", lambda handle: handle.write(frame.to_csv(index=False).encode()))
-    store.write_atomic(directory / f"{name}.md",
-                       lambda handle: handle.write((frame.to_markdown(index=False) + "\n").encode()))
-
-
 def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path, list[str]]:
     """Tables, figures and ``report.html`` of the sweep stored in ``root``; the page and what is missing."""
     root = Path(root)
@@ -128,21 +120,23 @@ def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path
     tables_dir, figures_dir = root / "tables", root / "figures"
     for stale in figures_dir.glob("*.png"):
         stale.unlink()
-    table = configuration_rows(runs, swept)
-    _write_table(table, tables_dir, "configurations")
+    metrics = {config_hash: per_seed_metrics(results) for config_hash, results in runs.items()}
+    table = configuration_rows(runs, metrics, swept)
+    write_table(table, tables_dir, "configurations")
     grouped = []
     for key in group_by:
         for value, rows in table.groupby(key, sort=True):
-            _write_table(rows, tables_dir, _file(f"by-{key}-{value}"))
+            write_table(rows, tables_dir, _file(f"by-{key}-{value}"))
             grouped.append((f"{key} = {value}", rows.drop(columns=key)))
     numeric = [key for key in swept if _numeric([getattr(r.config, key) for r in runs.values()])]
-    across = [(_save(across_figure(runs, key, swept), figures_dir / f"across-{key}.png"), f"Across {key}")
-              for key in numeric]
+    across = [(save_figure(across_figure(runs, metrics, key, swept), figures_dir / f"across-{key}.png", dpi=90),
+               f"Across {key}") for key in numeric]
     curves = []
     for env in sorted({r.config.env for r in runs.values()}):
         chosen = [r for r in runs.values() if r.config.env == env]
         if len(chosen) <= MAX_CURVES:
-            curves.append((_save(curves_figure(chosen, swept, env), figures_dir / f"curves-{_file(env)}.png"),
+            curves.append((save_figure(curves_figure(chosen, swept, env), figures_dir / f"curves-{_file(env)}.png",
+                                       dpi=90),
                            f"Learning curves on {env}"))
         else:
             problems.append(f"learning curves on {env}: {len(chosen)} configurations, more than {MAX_CURVES}; "
