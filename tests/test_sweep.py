@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from rlcompare import ExperimentConfig, cli, run
+from rlcompare import cli, run
 from rlcompare.engine.kernel import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.backends import LocalBackend
@@ -29,6 +29,7 @@ from rlcompare.experiment.sweep_store import (
     MANIFEST_FILE,
     SweepStore,
     load_configurations,
+    read_manifest,
     read_table,
     run_sweep,
     trial_path,
@@ -365,9 +366,10 @@ def test_store_open_names_no_trial_twice(tmp_path: Path) -> None:
     sweep = parse_sweep(SMALL)
     todo = SweepStore(tmp_path).open(sweep, SMALL)
     assert len(todo) == len({t.trial_id for t in todo}) == 15
-    config = replace(sweep.configs[0], seeds=(sweep.seeds[0],))
-    assert todo[0].config == config
-    assert isinstance(config, ExperimentConfig)
+    assert todo[0].config == replace(sweep.configs[0], seeds=(sweep.seeds[0],))
+    manifest = read_manifest(tmp_path)
+    assert [t["id"] for t in manifest["trials"]] == [t.trial_id for t in todo]
+    assert {t["status"] for t in manifest["trials"]} == {"pending"}
 
 
 def test_ray_backend_without_a_cluster_is_one_clear_error(tmp_path: Path) -> None:
