@@ -24,9 +24,10 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
     result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--no-videos", "--out", str(tmp_path))
     assert result.exit_code == 0, result.output
     names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html",
+                                                                 *store.OWN_FILES])
     for name in names:
-        assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(store.RUN_FILES)
+        assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(store.RUN_FILES + store.OWN_FILES)
         assert name in result.output
     loaded = Results.load(tmp_path / "sarsa-constant")
     assert (loaded.config.seeds, loaded.config.episodes, loaded.config.epsilon) == ((0, 1), 100, 0.5)
@@ -71,17 +72,21 @@ def test_run_help_explains_options() -> None:
         (["run", "--alpha", "0"], "--alpha", "(0, 1]"),
         (["run", "--alpha", "1.5"], "--alpha", "(0, 1]"),
         (["run", "--gamma", "2"], "--gamma", "[0, 1]"),
-        (["run", "--episodes", "0"], "--episodes", ">= 1"),
-        (["run", "--episodes", "-3"], "--episodes", ">= 1"),
+        (["run", "--episodes", "0"], "--episodes", "[1, 2147483647]"),
+        (["run", "--episodes", "-3"], "--episodes", "[1, 2147483647]"),
+        (["run", "--episodes", "1000000000000"], "--episodes", "[1, 2147483647]"),
+        (["run", "--eval-episodes", "100000000000"], "--eval-episodes", "[1, 2147483647]"),
+        (["run", "--max-steps", "99999999999999999999"], "--max-steps", "[1, 2147483647]"),
+        (["run", "--episodes", "2000000000"], "--episodes", "fit in memory"),
         (["run", "--seeds", "0"], "--seeds", ">= 1"),
         (["reproduce", "--seeds", "-1"], "--seeds", ">= 1"),
         (["reproduce", "--episodes", "0"], "--episodes", ">= 1"),
         (["reproduce", "--algorithms", "dqn"], "--algorithms", "expected_sarsa"),
         (["reproduce", "mars"], "STUDY", "book-10.2"),
         (["run", "--algorithm", "sarsa_lambda", "--lam", "1.5"], "--lam", "[0, 1]"),
-        (["run", "--algorithm", "n_step_sarsa", "--n", "0"], "--n", ">= 1"),
-        (["run", "--features", "tiles", "--tiles", "0"], "--tiles", ">= 1"),
-        (["run", "--features", "tiles", "--hash-size", "-1"], "--hash-size", ">= 0"),
+        (["run", "--algorithm", "n_step_sarsa", "--n", "0"], "--n", "[1, 2147483647]"),
+        (["run", "--features", "tiles", "--tiles", "0"], "--tiles", "[1, 2147483647]"),
+        (["run", "--features", "tiles", "--hash-size", "-1"], "--hash-size", "[0, 2147483647]"),
         (["run", "--features", "coarse"], "--features", "grid, tiles"),
         (["run", "--trace", "dutch"], "--trace", "replacing, accumulating"),
         (["run", "--env", "Pendulum-v1"], "--env", "Discrete actions"),

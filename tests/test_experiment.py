@@ -35,7 +35,7 @@ def test_results_tables_are_long_format(small_config: ExperimentConfig) -> None:
 
 def test_run_directory_round_trip(tmp_path: Path, small_config: ExperimentConfig) -> None:
     results = run(small_config, out=tmp_path / "run")
-    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(store.RUN_FILES)
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(store.RUN_FILES + store.OWN_FILES)
     loaded = Results.load(tmp_path / "run")
     assert loaded.config == small_config
     for name, array in results.records._asdict().items():
@@ -56,16 +56,35 @@ def test_failed_rewrite_of_a_finished_run_is_not_taken_for_finished(
 ) -> None:
     run(small_config, out=tmp_path / "run")
     changed = dataclasses.replace(small_config, alpha=0.5)
+    write = store.write_bytes_atomic
+
+    def disk_full_at_the_episodes(path: Path, data: bytes) -> None:
+        if Path(path).name == store.EPISODES_FILE:
+            raise store.StoreError(f"{path}: cannot write (no space left on the device)")
+        write(path, data)
+
+    monkeypatch.setattr(store, "write_bytes_atomic", disk_full_at_the_episodes)
+    with pytest.raises(OSError, match="no space left"):
+        run(changed, out=tmp_path / "run")
+    assert not store.is_complete(tmp_path / "run")
+    assert load_if_complete(tmp_path / "run", changed) is None
+    assert load_if_complete(tmp_path / "run", small_config) is None
+
+
+def test_failure_before_writing_keeps_the_finished_run(
+    tmp_path: Path, small_config: ExperimentConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    first = run(small_config, out=tmp_path / "run")
 
     def broken_savez(*args, **kwargs):
         raise OSError("disk full")
 
     monkeypatch.setattr(np, "savez_compressed", broken_savez)
     with pytest.raises(OSError, match="disk full"):
-        run(changed, out=tmp_path / "run")
-    assert not store.is_complete(tmp_path / "run")
-    assert load_if_complete(tmp_path / "run", changed) is None
-    assert load_if_complete(tmp_path / "run", small_config) is None
+        run(dataclasses.replace(small_config, alpha=0.5), out=tmp_path / "run")
+    kept = load_if_complete(tmp_path / "run", small_config)
+    assert kept is not None
+    np.testing.assert_array_equal(kept.records.returns, first.records.returns)
 
 
 def test_snapshots_are_taken_at_the_named_stages(small_config: ExperimentConfig) -> None:
@@ -86,10 +105,27 @@ def test_failed_write_leaves_nothing_that_looks_finished(
     monkeypatch.setattr(results_module.pq, "write_table", broken_parquet)
     with pytest.raises(OSError, match="disk full"):
         run(small_config, out=tmp_path / "run")
-    left = sorted(p.name for p in (tmp_path / "run").iterdir())
-    assert left == [store.CONFIG_FILE]  # no parquet under its final name, no temporary file, no meta.json
+    assert not (tmp_path / "run").exists()  # created by the run and nothing written into it: removed again
+    monkeypatch.undo()
+    write = store.write_bytes_atomic
+
+    def full_at_the_evaluations(path: Path, data: bytes) -> None:
+        if Path(path).name == store.EVALUATIONS_FILE:
+            with open(Path(path).with_name(".evaluations.parquet.x.tmp"), "wb"):
+                raise OSError("disk full")
+        write(path, data)
+
+    monkeypatch.setattr(store, "write_bytes_atomic", full_at_the_evaluations)
+    with pytest.raises(OSError, match="disk full"):
+        run(small_config, out=tmp_path / "run")
+    left = sorted(p.name for p in (tmp_path / "run").iterdir() if not p.name.endswith(".tmp"))
+    assert left == sorted([*store.OWN_FILES, store.CONFIG_FILE, store.EPISODES_FILE])  # no meta.json
     assert not store.is_complete(tmp_path / "run")
     assert load_if_complete(tmp_path / "run", small_config) is None
+    monkeypatch.undo()
+    again = run(small_config, out=tmp_path / "run")  # resumes over what it wrote, temporaries cleared
+    assert not list((tmp_path / "run").glob("*.tmp"))
+    assert Results.load(tmp_path / "run").records.returns.tolist() == again.records.returns.tolist()
 
 
 def test_study_resumes_and_reruns_only_what_is_unfinished(tmp_path: Path) -> None:

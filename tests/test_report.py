@@ -75,6 +75,10 @@ def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_
 def test_report_on_a_directory_with_no_runs_is_a_clear_error(tmp_path: Path) -> None:
     result = runner.invoke(cli.app, ["report", str(tmp_path), "--no-videos"])
     assert result.exit_code == 2
+    assert "was not written by rlcompare" in result.output
+    store.claim(tmp_path / "study", store.Owner("study", "paper"))
+    result = runner.invoke(cli.app, ["report", str(tmp_path / "study"), "--no-videos"])
+    assert result.exit_code == 2
     assert "no configuration of the paper study could be read" in result.output
     result = runner.invoke(cli.app, ["report", str(tmp_path / "absent")])
     assert result.exit_code == 2

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated
 
@@ -16,9 +18,11 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 from rich.table import Table
+from rich.text import Text
 
+from rlcompare.experiment import store
 from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig
-from rlcompare.experiment.store import StoreError, prepare_directory
+from rlcompare.experiment.store import StoreError
 
 app = typer.Typer(
     help="Run, measure and explain comparisons of reinforcement-learning algorithms.",
@@ -32,6 +36,25 @@ _DEFAULT_SEEDS = len(_DEFAULTS.seeds)
 
 Seeds = Annotated[int, typer.Option(help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ...")]
 FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
+Force = Annotated[bool, typer.Option(
+    "--force", help="Write into OUT even though it holds files rlcompare did not write; they are left as they are "
+                    "(rlcompare never replaces or deletes a file it did not write).")]
+
+
+def one_line_errors(command: Callable) -> Callable:
+    """A command whose errors of the store or of the operating system (a full disk, a read-only directory)
+    end it with one clear line and exit code 2; what was finished before them stays on disk."""
+
+    @functools.wraps(command)
+    def wrapped(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except OSError as error:  # StoreError included
+            message = str(error) if isinstance(error, StoreError) or not error.strerror else (
+                f"{error.filename}: {error.strerror}" if error.filename else error.strerror)
+            _fail(message)
+
+    return wrapped
 
 
 def _seeds(count: int, first: int) -> tuple[int, ...]:
@@ -52,19 +75,25 @@ def _config(**values) -> ExperimentConfig:
     try:
         return ExperimentConfig(**values)
     except ConfigError as error:
-        raise typer.BadParameter(f"got {error.value!r}; allowed: {error.allowed}",
+        raise typer.BadParameter(f"got {store.quote(error.value)}; allowed: {error.allowed}",
                                  param_hint=_option_name(error.field_name)) from None
 
 
-def _check_out(out: Path) -> None:
-    """Create the output directory before any training, so a bad path costs nothing computed."""
-    if out.exists() and not out.is_dir():
-        raise typer.BadParameter(f"{out} is a file; allowed: a directory (new or existing)",
-                                 param_hint="'--out'")
+def _out_path(text: str | None, default: Path) -> Path:
+    """The ``--out`` directory: the default where none is given; never the empty path."""
+    if text is None:
+        return default
     try:
-        prepare_directory(out)
+        return store.check_path(text)
     except StoreError as error:
-        raise typer.BadParameter(f"{error}; allowed: a writable directory path", param_hint="'--out'") from None
+        raise typer.BadParameter(str(error).removeprefix("--out: "), param_hint="'--out'") from None
+
+
+def _check_out(out: Path, owner: store.Owner, force: bool) -> None:
+    """Refuse an output directory before any training, so a bad path costs nothing computed."""
+    problem = store.refusal(out, owner, force=force)
+    if problem:
+        raise typer.BadParameter(problem, param_hint="'--out'")
 
 
 def _stages(specs: list[str]) -> tuple[tuple[str, float], ...]:
@@ -121,6 +150,7 @@ def _progress(eta: bool = False) -> Progress:
 
 
 @app.command()
+@one_line_errors
 def run(
     algorithm: Annotated[str, typer.Option(
         help="q_learning (Algorithm 1), sarsa (Algorithm 2), random, expected_sarsa, double_q_learning, "
@@ -178,7 +208,9 @@ def run(
     stage: Annotated[list[str] | None, typer.Option(
         help="Keep the Q-table at NAME=SHARE of training; repeat the option. Default: early=0.1 middle=0.5 "
              "final=1.0.")] = None,
-    out: Annotated[Path, typer.Option(help="Run directory to write.")] = Path("runs/run"),
+    out: Annotated[str | None, typer.Option(help="Run directory to write (new, empty, or a run directory "
+                                                 "rlcompare wrote). Default: runs/run.", show_default=False)] = None,
+    force: Force = False,
 ) -> None:
     """Train one configuration over many seeds and write its run directory."""
     from rlcompare.experiment.runner import run as run_experiment
@@ -193,14 +225,15 @@ def run(
         seeds=_seeds(seeds, first_seed), eval_every=eval_every, eval_episodes=eval_episodes,
         stages=_stages(stage or []),
     )
-    _check_out(out)
+    out_dir = _out_path(out, Path("runs/run"))
+    _check_out(out_dir, store.RUN, force)
     if not config.environment.is_ported:
         console.print(progress_label(config))
-    with _progress() as progress:
+    with store.output_directory(out_dir, store.RUN, force=force), _progress() as progress:
         task = progress.add_task(progress_label(config), total=config.episodes)
-        results = run_experiment(config, out=out, progress=lambda n: progress.advance(task, n))
+        results = run_experiment(config, out=out_dir, progress=lambda n: progress.advance(task, n))
     _print_summary([results], paper=False)
-    console.print(f"Run directory: {out}")
+    console.print(f"Run directory: {out_dir}")
 
 
 PAPER_SEEDS = 30
@@ -208,6 +241,7 @@ STUDY_NAMES = ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff
 
 
 @app.command()
+@one_line_errors
 def reproduce(
     study: Annotated[str, typer.Argument(
         help="Which study: paper (default), cartpole, acrobot, book-10.2, book-12.10 or cliff (see --list).")]
@@ -222,10 +256,12 @@ def reproduce(
     algorithms: Annotated[str, typer.Option(
         help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
              "one. Each adds rows to Tables I and II.")] = "q_learning,sarsa",
-    out: Annotated[Path | None, typer.Option(
-        help="Study directory; one run directory per configuration. Default: runs/STUDY.")] = None,
+    out: Annotated[str | None, typer.Option(
+        help="Study directory (new, empty, or this study's, written by rlcompare); one run directory per "
+             "configuration. Default: runs/STUDY.", show_default=False)] = None,
     videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents into the report.")] = True,
     list_studies: Annotated[bool, typer.Option("--list", help="List the studies and exit.")] = False,
+    force: Force = False,
 ) -> None:
     """Reproduce a study. The paper: random baseline, Q-Learning and SARSA, ε constant 0.5 and decaying from 1;
     cartpole and acrobot ask the paper's question there with the same settings.
@@ -244,13 +280,14 @@ def reproduce(
         return
     if study not in STUDY_NAMES:
         raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
-    out = out if out is not None else Path("runs") / study
+    out_dir = _out_path(out, Path("runs") / study)
+    _check_out(out_dir, store.Owner("study", study), force)
     if study == "paper" or study in ENV_STUDIES:
         count = PAPER_SEEDS if seeds is None else seeds
-        _reproduce_paper(study, _seeds(count, first_seed), episodes, _algorithms(algorithms), out, videos)
+        _reproduce_paper(study, _seeds(count, first_seed), episodes, _algorithms(algorithms), out_dir, videos, force)
     else:
         count = STUDIES[study].runs if seeds is None else seeds
-        _reproduce_book(STUDIES[study], _seeds(count, first_seed), out)
+        _reproduce_book(STUDIES[study], _seeds(count, first_seed), out_dir, force)
 
 
 def _algorithms(spec: str) -> tuple[str, ...]:
@@ -266,7 +303,7 @@ def _algorithms(spec: str) -> tuple[str, ...]:
 
 
 def _reproduce_paper(study: str, seeds: tuple[int, ...], episodes: int, algorithms: tuple[str, ...], out: Path,
-                     videos: bool) -> None:
+                     videos: bool, force: bool) -> None:
     from rlcompare.studies.paper import ENV_STUDIES, paper_configs
     from rlcompare.studies.paper import reproduce as reproduce_study
 
@@ -274,30 +311,29 @@ def _reproduce_paper(study: str, seeds: tuple[int, ...], episodes: int, algorith
     if episodes < 1:
         raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
     configs = paper_configs(seeds, episodes, algorithms, env=env)
-    _check_out(out)
     finished = []
     with _progress() as progress:
         task = progress.add_task(env, total=sum(c.episodes for c in configs))
         for results, reused in reproduce_study(out, configs, progress=lambda n: progress.advance(task, n),
-                                               study=study):
+                                               study=study, force=force):
             finished.append(results)
             _print_done(progress, results.config.name, results, reused)
     _print_summary(finished, paper=env == "MountainCar-v0")
     _report(out, videos)
 
 
-def _reproduce_book(study, seeds: tuple[int, ...], out: Path) -> None:
-    from rlcompare.studies.book import run_study
+def _reproduce_book(study, seeds: tuple[int, ...], out: Path, force: bool) -> None:
+    from rlcompare.studies.book import run_study, write_study_report
 
     configs = study.configs(seeds)
-    _check_out(out)
     runs = {}
     with _progress() as progress:
         task = progress.add_task(study.name, total=sum(c.episodes for c in configs.values()))
-        for name, results, reused in run_study(study, out, seeds, progress=lambda n: progress.advance(task, n)):
+        for name, results, reused in run_study(study, out, seeds, progress=lambda n: progress.advance(task, n),
+                                               force=force):
             runs[name] = results
             _print_done(progress, name, results, reused)
-    console.print(f"Report: {study.report(out, runs)}")
+    console.print(f"Report: {write_study_report(study, out, runs)}")
 
 
 def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
@@ -306,9 +342,12 @@ def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
 
 
 @app.command()
+@one_line_errors
 def sweep(
     sweep_file: Annotated[Path, typer.Argument(help="A sweep file (TOML); see examples/sweep.toml.")],
-    out: Annotated[Path | None, typer.Option(help="The sweep's store. Default: runs/sweeps/NAME.")] = None,
+    out: Annotated[str | None, typer.Option(
+        help="The sweep's store (new, empty, or a sweep store rlcompare wrote). Default: runs/sweeps/NAME.",
+        show_default=False)] = None,
     backend: Annotated[str, typer.Option(help="local (this machine's cores) or ray (a Ray cluster).")] = "local",
     workers: Annotated[int | None, typer.Option(help="Local backend: trials at once. Default: every core.")] = None,
     address: Annotated[str, typer.Option(help="Ray backend: 'auto' (the cluster 'ray start' began here) or "
@@ -316,6 +355,7 @@ def sweep(
     group_by: Annotated[list[str] | None, typer.Option(
         help="Also write the report's table grouped by this swept key; repeat the option.")] = None,
     report_: Annotated[bool, typer.Option("--report/--no-report", help="Build report.html at the end.")] = True,
+    force: Force = False,
 ) -> None:
     """Run every configuration of a sweep over its seeds; finished trials in OUT are kept, the rest run."""
     from rlcompare.experiment.backends import BACKENDS, BackendError, make_backend
@@ -325,9 +365,7 @@ def sweep(
     try:
         plan = load_sweep(sweep_file)
     except SweepError as error:
-        console.print(f"[red]Error:[/red] {error.source}: every problem of the sweep file")
-        for problem in error.problems:
-            console.print(f"  {problem}", markup=False, highlight=False)
+        _print_error(f"{error.source}: every problem of the sweep file", tuple(error.problems))
         raise typer.Exit(2) from None
     if backend not in BACKENDS:
         raise typer.BadParameter(f"got {backend!r}; allowed: {', '.join(BACKENDS)}", param_hint="'--backend'")
@@ -337,27 +375,27 @@ def sweep(
     if unknown:
         raise typer.BadParameter(f"got {unknown[0]!r}; allowed: a swept key ({', '.join(plan.swept) or 'none'})",
                                  param_hint="'--group-by'")
-    out = out if out is not None else Path("runs") / "sweeps" / plan.name
+    out_dir = _out_path(out, Path("runs") / "sweeps" / plan.name)
+    _check_out(out_dir, store.SWEEP, force)
     try:
         executor = make_backend(backend, workers=workers, address=address)
         executor.connect()  # before anything is written
-        _check_out(out)
         trials = len(plan.trials())
         console.print(f"{plan.name}: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} "
-                      f"trials on the {backend} backend; store {out}")
+                      f"trials on the {backend} backend; store {out_dir}")
         with _progress(eta=True) as progress:
             task = progress.add_task("trials", total=trials)
-            finished, ran = run_sweep(plan, sweep_file.read_text(), out, executor,
-                                      progress=lambda trial: progress.advance(task))
+            finished, ran = run_sweep(plan, sweep_file.read_text(), out_dir, executor,
+                                      progress=lambda trial: progress.advance(task), force=force)
     except BackendError as error:
-        console.print(f"[red]Error:[/red] {error}")
-        raise typer.Exit(2) from None
+        _fail(str(error))
     console.print(f"{ran} trials run, {finished} already finished")
     if report_:
-        _sweep_report(out, tuple(group_by or ()))
+        _sweep_report(out_dir, tuple(group_by or ()))
 
 
 @app.command()
+@one_line_errors
 def report(
     study_dir: Annotated[Path, typer.Argument(help="A study directory written by reproduce, or a sweep's store.")],
     videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents.")] = True,
@@ -365,42 +403,40 @@ def report(
         help="A sweep: also write its table grouped by this swept key; repeat the option.")] = None,
 ) -> None:
     """Rebuild the tables, verdicts, figures, videos and report.html of a study or a sweep, without training."""
-    if not study_dir.is_dir():
-        raise typer.BadParameter(f"{study_dir} is not a directory; allowed: a study directory written by "
-                                 "'rlcompare reproduce' or a sweep's store", param_hint="'STUDY_DIR'")
-    from rlcompare.experiment.sweep_store import MANIFEST_FILE
+    from rlcompare.studies.book import STUDIES, write_study_report
 
-    if (study_dir / MANIFEST_FILE).is_file():
+    allowed = "a study directory written by 'rlcompare reproduce' or a sweep's store"
+    if not study_dir.is_dir():
+        raise typer.BadParameter(f"{study_dir} is not a directory; allowed: {allowed}", param_hint="'STUDY_DIR'")
+    owner = store.owner_of(study_dir)
+    if owner == store.SWEEP:
         _sweep_report(study_dir, tuple(group_by or ()))
-    else:
+    elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
+        console.print(f"Report: {write_study_report(STUDIES[owner.name], study_dir)}")
+    elif owner is not None and owner.kind == "study":
         _report(study_dir, videos)
+    else:
+        what = f"holds {owner}" if owner is not None else "was not written by rlcompare (it holds no .rlcompare.json)"
+        raise typer.BadParameter(f"{study_dir} {what}; allowed: {allowed}", param_hint="'STUDY_DIR'")
 
 
 def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
     from rlcompare.studies.sweep_report import build_sweep_report
 
-    try:
-        with console.status("Building the sweep's report"):
-            path, problems = build_sweep_report(root, group_by)
-    except StoreError as error:
-        console.print(f"[red]Error:[/red] {error}")
-        raise typer.Exit(2) from None
+    with console.status("Building the sweep's report"):
+        path, problems = build_sweep_report(root, group_by)
     for problem in problems:
-        console.print(f"[yellow]Missing:[/yellow] {problem}")
+        console.print("[yellow]Missing:[/yellow]", problem, markup=True, highlight=False)
     console.print(f"Report: {path}")
 
 
 def _report(study_dir: Path, videos: bool) -> None:
     from rlcompare.studies.paper_report import build_report
 
-    try:
-        with console.status("Building the report"):
-            outcome = build_report(study_dir, videos=videos)
-    except StoreError as error:
-        console.print(f"[red]Error:[/red] {error}")
-        raise typer.Exit(2) from None
+    with console.status("Building the report"):
+        outcome = build_report(study_dir, videos=videos)
     for problem in outcome.problems:
-        console.print(f"[yellow]Missing:[/yellow] {problem}")
+        console.print("[yellow]Missing:[/yellow]", problem, highlight=False)
     timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in outcome.seconds.items())
     console.print(f"Report: {outcome.path}  ({timings})")
     if outcome.problems:
@@ -488,13 +524,22 @@ def _print_summary(results, *, paper: bool) -> None:
     console.print(table)
 
 
+def _print_error(message: str, details: tuple[str, ...] = ()) -> None:
+    """``Error: message`` on standard error, unwrapped and never read as markup, and a line per detail."""
+    errors = Console(stderr=True, soft_wrap=True, highlight=False)
+    errors.print(Text("Error: ", style="red") + Text(store.cut(message, 2000)))
+    for detail in details:
+        errors.print(Text(f"  {store.cut(detail, 2000)}"))
+
+
+def _fail(message: str) -> None:
+    """One line, exit code 2."""
+    _print_error(message)
+    raise typer.Exit(2)
+
+
 def main() -> None:
-    """Entry point that turns store errors into one clear line and exit code 2."""
-    try:
-        app()
-    except StoreError as error:
-        console.print(f"[red]Error:[/red] {error}")
-        raise SystemExit(2) from None
+    app()
 
 
 if __name__ == "__main__":

@@ -337,6 +337,7 @@ def _mp4_writer(path: Path, fps: float) -> Iterator:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    store.enter_outputs(path)
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp.mp4")
     writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", pixelformat="yuv420p",
                                 quality=None, macro_block_size=2, output_params=list(MP4_OPTIONS))
@@ -502,7 +503,6 @@ def render_stage_videos(
         if unknown:
             raise KeyError(f"stage {unknown[0]!r} is not in this run; stages: {known}")
         plan = [(name, stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
-    store.prepare_directory(out_dir)
     written: list[Path] = []
     for stage, title, stem in plan:
         agent = load_agent(run_dir, seed=seed, stage=stage)

@@ -1,4 +1,11 @@
-"""Agents loaded from a run directory that act on Gymnasium's own observations."""
+"""Agents loaded from a run directory that act on Gymnasium's own observations.
+
+``act`` checks its observation before any compiled code reads it: for a Box environment a real array of
+exactly the environment's shape ``(d,)`` with finite entries, for a finite one an integer state in
+``[0, n_states)``; anything else raises :class:`ValueError` naming what was expected and what came.
+Finite observations outside the grid's or the tiles' box stay valid: they land in the edge cell, as with
+Gymnasium's ``DiscretizeObservation``.
+"""
 
 from __future__ import annotations
 
@@ -11,8 +18,67 @@ from rlcompare.engine.kernel import GRID, ONE_HOT, Features
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import cell_index
 from rlcompare.envs.tiles import active_tiles_nd
-from rlcompare.experiment.problem import make_features
+from rlcompare.experiment.problem import Environment, make_features
 from rlcompare.experiment.results import Results
+
+_ECHO = 40
+"""Most characters of a given value repeated in an error message."""
+_REAL = "iuf"
+"""numpy dtype kinds ``act`` accepts in a Box observation: integers and floats (not bool, complex, object,
+strings)."""
+
+
+def _echo(value: object) -> str:
+    """``repr(value)``, cut to :data:`_ECHO` characters."""
+    text = repr(value)
+    return text if len(text) <= _ECHO else text[: _ECHO - 3] + "..."
+
+
+def _given(observation: object) -> str:
+    """What came, briefly: the shape and dtype of an array, else the type and value."""
+    if isinstance(observation, np.ndarray) and observation.ndim:
+        return f"shape {observation.shape} {observation.dtype}"
+    return f"{type(observation).__name__} {_echo(observation)}"
+
+
+def _refuse(given: str, expected: str, env: str) -> ValueError:
+    return ValueError(f"observation: got {given}; expected {expected}, as {env}'s env.step returns")
+
+
+def check_box_observation(observation: object, shape: tuple[int, ...], env: str) -> np.ndarray:
+    """``observation`` as a float64 array, if it is a real array of exactly ``shape`` with finite entries."""
+    expected = f"shape {shape} of finite numbers"
+    try:
+        array = np.asarray(observation)
+    except (TypeError, ValueError):  # a ragged sequence, say
+        raise _refuse(_given(observation), expected, env) from None
+    if array.shape != shape or array.dtype.kind not in _REAL:
+        raise _refuse(_given(array if array.ndim else observation), expected, env)
+    array = array.astype(np.float64)
+    if not np.isfinite(array).all():
+        raise _refuse(_echo(array.tolist()), expected, env)
+    return array
+
+
+def check_state(observation: object, n_states: int, env: str) -> int:
+    """``observation`` as an int, if it is an integer (Python, numpy or a 0-d array) in ``[0, n_states)``."""
+    value = observation
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
+        value = value[()]
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < n_states:
+        raise _refuse(_given(observation), f"an integer state in [0, {n_states})", env)
+    return int(value)
+
+
+def check_observation(observation: object, shape: tuple[int, ...], n_states: int, env: str) -> np.ndarray | int:
+    """A valid observation of ``env`` in the form the features read: a finite state's int, a Box's float64
+    array. ``n_states`` is 0 for a Box of ``shape``."""
+    return check_state(observation, n_states, env) if n_states else check_box_observation(observation, shape, env)
+
+
+def observation_shape(env: Environment) -> tuple[int, ...]:
+    """The shape of ``env``'s observations: ``()`` for a finite environment, ``(d,)`` for a Box."""
+    return () if env.n_states else (env.observation_size,)
 
 
 @dataclass
@@ -27,36 +93,47 @@ class GreedyAgent:
     features: Features
     seed: int
     stage: str
+    env: str
+    """The environment's name, for error messages."""
+    observation_shape: tuple[int, ...]
+    """``(d,)`` of a Box environment; ``()`` for a finite one."""
+    n_states: int
+    """States of a finite environment; 0 for a Box."""
 
-    def active(self, observation: np.ndarray) -> np.ndarray:
+    def active(self, observation: np.ndarray | int) -> np.ndarray:
         """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling."""
+        valid = check_observation(observation, self.observation_shape, self.n_states, self.env)
         if self.features.kind == ONE_HOT:
-            return np.array([int(observation)])
-        observation = np.asarray(observation, dtype=np.float64)
+            return np.array([valid])
         if self.features.kind == GRID:
-            return np.array([cell_index(self.features.grid, observation)])
+            return np.array([cell_index(self.features.grid, valid)])
         out = np.empty(self.features.n_active, dtype=np.int64)
-        active_tiles_nd(self.features.tiles, observation, out)
+        active_tiles_nd(self.features.tiles, valid, out)
         return out
 
-    def act(self, observation: np.ndarray) -> int:
+    def act(self, observation: np.ndarray | int) -> int:
+        """The greedy action; :class:`ValueError` if ``observation`` is not one of the environment's."""
         return int(np.argmax(self.weights[self.active(observation)].sum(axis=0)))
 
 
 @dataclass
 class RandomAgent:
-    """The random baseline: a uniform action whatever the observation."""
+    """The random baseline: a uniform action whatever the (valid) observation."""
 
     seed: int
     stage: str
+    env: str = "MountainCar-v0"
+    observation_shape: tuple[int, ...] = (2,)
+    n_states: int = 0
+    n_actions: int = mountain_car.N_ACTIONS
     rng: np.random.Generator = field(init=False)
 
     def __post_init__(self) -> None:
         self.rng = np.random.default_rng(self.seed)
 
-    n_actions: int = mountain_car.N_ACTIONS
-
-    def act(self, observation: np.ndarray) -> int:
+    def act(self, observation: np.ndarray | int) -> int:
+        """A uniform action; :class:`ValueError` if ``observation`` is not one of the environment's."""
+        check_observation(observation, self.observation_shape, self.n_states, self.env)
         return int(self.rng.integers(self.n_actions))
 
 
@@ -66,7 +143,9 @@ def load_agent(run_dir: Path, *, seed: int, stage: str = "final") -> GreedyAgent
     results = Results.load(Path(run_dir))
     weights = results.q_table(seed, stage)
     c = results.config
+    env = c.environment
+    observations = {"env": c.env, "observation_shape": observation_shape(env), "n_states": env.n_states}
     if c.algorithm == "random":
-        return RandomAgent(seed=seed, stage=stage, n_actions=weights.shape[1])
-    features = make_features(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
-    return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage)
+        return RandomAgent(seed=seed, stage=stage, n_actions=weights.shape[1], **observations)
+    features = make_features(env, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
+    return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage, **observations)

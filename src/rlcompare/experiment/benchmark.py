@@ -167,7 +167,7 @@ def short_sweep(trials: int, episodes: int = 20) -> tuple[object, str]:
     from rlcompare.experiment.sweep import parse_sweep
 
     text = (f'[sweep]\nname = "bench"\nseeds = {trials}\n[fixed]\nalgorithm = "q_learning"\n'
-            f"episodes = {episodes}\neval_every = 0\n")
+            f"episodes = {episodes}\neval_every = 0\n[[include]]\n")
     return parse_sweep(text), text
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,11 +26,19 @@ from rlcompare.experiment.problem import (
     feature_count,
     make_features,
 )
+from rlcompare.experiment.store import cut, quote
 
 ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS)
 """Environments stepped by compiled code; any other registered Gymnasium environment runs through the adapter."""
 MAX_WEIGHT_BYTES = 4 * 2**30
 """Weights, second estimates and snapshots of all seeds together may take at most this much memory."""
+MAX_COUNT = 2**31 - 1
+"""The largest episode count, step limit or layout size: the kernels count in 32 bits."""
+FALLBACK_MEMORY = 16 * 2**30
+"""Physical memory assumed where the machine does not say."""
+FLOAT_FIELDS = ("alpha", "gamma", "epsilon", "epsilon_start", "epsilon_end", "decay_fraction", "lam",
+                "baseline_alpha", "target_epsilon")
+"""Fields holding a number, kept as floats so that ``1`` and ``1.0`` are one configuration (one hash)."""
 ALGORITHMS = (*ALGORITHM_CODES, "reinforce_baseline")
 FEATURES = ("grid", "tiles")
 TRACES = ("replacing", "accumulating")
@@ -37,11 +46,14 @@ DEFAULT_STAGES = (("early", 0.1), ("middle", 0.5), ("final", 1.0))
 
 
 class ConfigError(ValueError):
-    """A configuration value outside what is allowed; names the field and the allowed values."""
+    """A configuration value outside what is allowed; names the field and the allowed values.
+
+    ``value`` is the value itself; the message quotes at most the start of it (:func:`quote`), and of an
+    unknown field's name."""
 
     def __init__(self, field_name: str, value: Any, allowed: str) -> None:
         self.field_name, self.value, self.allowed = field_name, value, allowed
-        super().__init__(f"{field_name}: got {value!r}; allowed: {allowed}")
+        super().__init__(f"{cut(str(field_name), 80)}: got {quote(value)}; allowed: {allowed}")
 
 
 @dataclass(frozen=True)
@@ -142,6 +154,8 @@ class ExperimentConfig:
             object.__setattr__(self, "max_steps", env.max_steps)
         for check in _CHECKS:
             check(self)
+        for name, value in _as_floats(self).items():
+            object.__setattr__(self, name, value)
 
     @property
     def environment(self) -> Environment:
@@ -150,8 +164,8 @@ class ExperimentConfig:
             return environment(self.env, self.adapter)
         except UnsupportedEnvironment as error:
             raise ConfigError("env", self.env, f"{', '.join(ENVIRONMENTS)}, or a registered Gymnasium "
-                              f"environment with Discrete actions and Discrete or Box observations ({error})"
-                              ) from None
+                              "environment with Discrete actions and Discrete or Box observations "
+                              f"({cut(str(error), 200)})") from None
 
     @property
     def name(self) -> str:
@@ -188,17 +202,28 @@ def _as_int(value: Any) -> int:
     return int(value)
 
 
+def _as_floats(c: ExperimentConfig) -> dict[str, float]:
+    """The number fields holding an integer, as floats (after validation, so that errors quote the value
+    given)."""
+    return {name: float(getattr(c, name)) for name in FLOAT_FIELDS
+            if isinstance(getattr(c, name), int) and not isinstance(getattr(c, name), bool)}
+
+
 def _require(ok: bool, name: str, value: Any, allowed: str) -> None:
     if not ok:
         raise ConfigError(name, value, allowed)
 
 
 def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    """A finite int or float, not a bool (an int too large for a float is finite too)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    return isinstance(value, int) or math.isfinite(value)
 
 
-def _is_count(value: Any, minimum: int) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= minimum
+def _is_count(value: Any, minimum: int, maximum: int | None = None) -> bool:
+    return (isinstance(value, int) and not isinstance(value, bool) and value >= minimum
+            and (maximum is None or value <= maximum))
 
 
 def _check_choices(c: ExperimentConfig) -> None:
@@ -230,9 +255,11 @@ def _check_rates(c: ExperimentConfig) -> None:
 
 def _check_counts(c: ExperimentConfig) -> None:
     for name in ("episodes", "max_steps", "eval_episodes", "n", "tilings", "tiles"):
-        _require(_is_count(getattr(c, name), 1), name, getattr(c, name), "an integer >= 1")
-    _require(_is_count(c.hash_size, 0), "hash_size", c.hash_size, "an integer >= 0 (0: no hashing)")
-    _require(_is_count(c.eval_every, 0), "eval_every", c.eval_every, "an integer >= 0 (0: no evaluation)")
+        _require(_is_count(getattr(c, name), 1, MAX_COUNT), name, getattr(c, name), f"an integer in [1, {MAX_COUNT}]")
+    _require(_is_count(c.hash_size, 0, MAX_COUNT), "hash_size", c.hash_size,
+             f"an integer in [0, {MAX_COUNT}] (0: no hashing)")
+    _require(_is_count(c.eval_every, 0, MAX_COUNT), "eval_every", c.eval_every,
+             f"an integer in [0, {MAX_COUNT}] (0: no evaluation)")
     _require(len(c.seeds) >= 1, "seeds", c.seeds, "at least one seed")
     _require(all(0 <= s < 2**63 for s in c.seeds), "seeds", c.seeds, "integers in [0, 2**63)")
     _require(len(set(c.seeds)) == len(c.seeds), "seeds", c.seeds, "distinct integers")
@@ -278,4 +305,59 @@ def _check_tiles(c: ExperimentConfig) -> None:
                           f"a layout that fits the bounds ({error})") from None
 
 
-_CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles)
+def records_parts(c: ExperimentConfig) -> dict[str, int]:
+    """Bytes of the records a run of ``c`` allocates (``kernel.allocate_records``, and the ε schedule), by
+    what they grow with: ``episodes`` (returns float64, lengths int64, terminated bool per seed and episode;
+    ε per episode), ``eval_episodes`` (the same per seed, evaluation round and evaluation episode) and
+    ``features`` (snapshots float64 per seed, stage, feature and action; visits int64 per seed and feature;
+    the snapshots' episodes)."""
+    runs, per_episode = len(c.seeds), 8 + 8 + 1
+    stages = len(c.stage_episodes())
+    features = feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+    return {
+        "episodes": runs * c.episodes * per_episode + c.episodes * 8,
+        "eval_episodes": runs * c.evaluation_rounds * c.eval_episodes * per_episode,
+        "features": runs * stages * features * c.environment.n_actions * 8 + runs * features * 8 + stages * 8,
+    }
+
+
+def records_bytes(c: ExperimentConfig) -> int:
+    """Bytes of the records a run of ``c`` allocates before its first episode."""
+    return sum(records_parts(c).values())
+
+
+def physical_memory() -> int:
+    """This machine's physical memory in bytes; :data:`FALLBACK_MEMORY` where it does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return FALLBACK_MEMORY
+
+
+def _gib(size: int) -> str:
+    return f"{size / 2**30:,.1f} GiB" if size < 10 * 2**30 else f"{size / 2**30:,.0f} GiB"
+
+
+def _check_records(c: ExperimentConfig) -> None:
+    """Records that fit in this machine's memory, refused before anything is allocated."""
+    parts, memory = records_parts(c), physical_memory()
+    needed = sum(parts.values())
+    if needed <= memory:
+        return
+    runs = f"{len(c.seeds):,} seeds"
+    largest = max(parts, key=parts.__getitem__)
+    if largest == "episodes":
+        name, value, shape = "episodes", c.episodes, f"{runs} x {c.episodes:,} episodes"
+    elif largest == "eval_episodes":
+        name, value = "eval_episodes", c.eval_episodes
+        shape = f"{runs} x {c.evaluation_rounds:,} evaluations x {c.eval_episodes:,} episodes"
+    else:
+        name, value = ("bins", c.bins) if c.features == "grid" else ("tiles", c.tiles)
+        features = feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+        shape = (f"{runs} x {len(c.stage_episodes())} snapshots x {features:,} features x "
+                 f"{c.environment.n_actions} actions")
+    raise ConfigError(name, value, f"a run whose records fit in memory: {shape} need {_gib(needed)}; this "
+                      f"machine has {_gib(memory)}")
+
+
+_CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles, _check_records)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,42 +80,65 @@ class Results:
         return self.records.snapshots[self.seeds.index(seed), stages.index(stage)]
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory, ``meta.json`` last."""
-        run_dir = store.prepare_directory(Path(run_dir))
+        """Write the run directory (an output directory of rlcompare's, :mod:`~rlcompare.experiment.store`):
+        every file under a temporary name first, ``meta.json`` last, with the size and checksum of the others."""
+        run_dir = Path(run_dir)
+        store.claim(run_dir, store.RUN)
+        contents = {
+            store.CONFIG_FILE: (json.dumps(self.config.to_dict(), indent=2, sort_keys=True) + "\n").encode(),
+            store.EPISODES_FILE: _parquet_bytes(self._episodes_table()),
+            store.EVALUATIONS_FILE: _parquet_bytes(self._evaluations_table()),
+            store.QTABLES_FILE: self._arrays_bytes(),
+        }
+        store.enter_outputs(*(run_dir / name for name in store.RUN_FILES))
         (run_dir / store.META_FILE).unlink(missing_ok=True)  # the run is complete again only when rewritten
-        store.write_json_atomic(run_dir / store.CONFIG_FILE, self.config.to_dict())
-        for name, table in ((store.EPISODES_FILE, self._episodes_table()),
-                            (store.EVALUATIONS_FILE, self._evaluations_table())):
-            store.write_atomic(run_dir / name, lambda handle, t=table: pq.write_table(t, handle))
+        for name, data in contents.items():
+            store.write_bytes_atomic(run_dir / name, data)
+        record = {
+            "seeds": list(self.seeds),
+            "rows": {"episodes": int(self.records.returns.size), "evaluations": int(self.records.eval_returns.size)},
+            "arrays": {name: list(getattr(self.records, name).shape) for name in ("snapshots", "visits")},
+            "files": {name: store.file_record(data) for name, data in contents.items()},
+        }
+        store.write_json_atomic(run_dir / store.META_FILE, {**self.meta, "contents": record})
+        return run_dir
+
+    def _arrays_bytes(self) -> bytes:
         buffer = io.BytesIO()
         np.savez_compressed(
             buffer, snapshots=self.records.snapshots, snapshot_episodes=self.records.snapshot_episodes,
             visits=self.records.visits, seeds=np.asarray(self.seeds), epsilons=self.epsilons,
         )
-        store.write_atomic(run_dir / store.QTABLES_FILE, lambda handle: handle.write(buffer.getvalue()))
-        store.write_json_atomic(run_dir / store.META_FILE, self.meta)
-        return run_dir
+        return buffer.getvalue()
 
     @classmethod
-    def load(cls, run_dir: Path) -> Results:
-        """Read a complete run directory back, without training."""
+    def load(cls, run_dir: Path, expected: ExperimentConfig | None = None) -> Results:
+        """Read a finished run directory back, without training, after checking that its files belong together
+        (and hold ``expected`` where given): anything else is a :class:`~rlcompare.experiment.store.StoreError`
+        that names the file."""
         run_dir = Path(run_dir)
-        missing = [name for name in store.RUN_FILES if not (run_dir / name).is_file()]
-        if missing:
-            raise store.StoreError(f"{run_dir}: not a complete run directory; missing {', '.join(missing)}")
-        config = ExperimentConfig.from_dict(_tuples(store.read_json(run_dir / store.CONFIG_FILE)))
+        meta = store.verify_run(run_dir, None if expected is None else expected.to_dict())
+        try:
+            config = ExperimentConfig.from_dict(_tuples(store.read_json(run_dir / store.CONFIG_FILE)))
+        except ValueError as error:
+            raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: {error}") from None
         try:
             episodes = pd.read_parquet(run_dir / store.EPISODES_FILE)
             evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)
-            with np.load(run_dir / store.QTABLES_FILE) as arrays:
+            with np.load(run_dir / store.QTABLES_FILE, allow_pickle=False) as arrays:
                 tables = {key: arrays[key] for key in arrays.files}
         except Exception as error:
-            raise store.StoreError(f"{run_dir}: cannot read the stored records ({error})") from None
+            raise store.StoreError(f"{run_dir}: cannot read the stored records ({store.cut(str(error), 200)})"
+                                   ) from None
         runs, n_episodes = len(config.seeds), config.episodes
         rounds, per_round = config.evaluation_rounds, config.eval_episodes
         if len(episodes) != runs * n_episodes or len(evaluations) != runs * rounds * per_round:
             raise store.StoreError(f"{run_dir}: the stored records do not match config.json "
                                    f"({len(episodes)} episode rows for {runs} seeds x {n_episodes} episodes)")
+        stored_seeds = tables.get("seeds", np.array([])).tolist()
+        if stored_seeds != list(config.seeds) or meta["contents"].get("seeds") != list(config.seeds):
+            raise store.StoreError(f"{run_dir}: the seeds of {store.QTABLES_FILE} and {store.META_FILE} differ from "
+                                   f"those of {store.CONFIG_FILE}")
         order = {seed: position for position, seed in enumerate(config.seeds)}
         episodes = episodes.assign(run=episodes["seed"].map(order)).sort_values(["run", "episode"])
         evaluations = evaluations.assign(run=evaluations["seed"].map(order)).sort_values(["run", "round"],
@@ -130,8 +154,13 @@ class Results:
             snapshot_episodes=tables["snapshot_episodes"],
             visits=tables["visits"],
         )
-        return cls(config=config, epsilons=tables["epsilons"], records=records,
-                   meta=store.read_json(run_dir / store.META_FILE))
+        return cls(config=config, epsilons=tables["epsilons"], records=records, meta=meta)
+
+
+def _parquet_bytes(table: pa.Table) -> bytes:
+    buffer = io.BytesIO()
+    pq.write_table(table, buffer)
+    return buffer.getvalue()
 
 
 def _with_labels(columns: dict[str, np.ndarray], labels: dict[str, Any], rows: int) -> pa.Table:

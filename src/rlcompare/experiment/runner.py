@@ -46,6 +46,15 @@ def run(
 
     ``progress`` is called with the number of episodes (per seed) finished since its last call.
     """
+    if out is None:
+        return _train(config, study, progress)
+    with store.output_directory(Path(out), store.RUN):  # refused before training, locked while it lasts
+        results = _train(config, study, progress)
+        results.save(out)
+    return results
+
+
+def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None] | None) -> Results:
     epsilons = epsilon_schedule(config)
     features = make_features(config.environment, config.features, config.bins, config.tilings, config.tiles,
                              config.hash_size, config.bounds)
@@ -65,10 +74,7 @@ def run(
         wall = time.perf_counter() - started
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
-    results = Results(config=config, epsilons=epsilons, records=records, meta=meta)
-    if out is not None:
-        results.save(out)
-    return results
+    return Results(config=config, epsilons=epsilons, records=records, meta=meta)
 
 
 @contextlib.contextmanager
@@ -142,8 +148,11 @@ def load(run_dir: Path) -> Results:
 
 
 def load_if_complete(run_dir: Path, config: ExperimentConfig) -> Results | None:
-    """The stored results of ``config`` in ``run_dir`` if that run finished, else None (so it is re-run)."""
+    """The stored results of ``config`` in ``run_dir`` if that run finished and its files belong together,
+    else None (so it is run again)."""
     if not store.is_complete(run_dir):
         return None
-    stored = store.read_json(Path(run_dir) / store.CONFIG_FILE)
-    return Results.load(run_dir) if stored == config.to_dict() else None
+    try:
+        return Results.load(run_dir, expected=config)
+    except store.StoreError:
+        return None

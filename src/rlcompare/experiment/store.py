@@ -1,14 +1,23 @@
-"""Atomic writes and the layout of a run directory.
+"""Output directories: what rlcompare may write where, atomic writes, locks, and the layout of a run directory.
 
 A run directory holds everything needed to rebuild every table and figure without training again:
 
-| file                | what                                                                       |
-|---------------------|----------------------------------------------------------------------------|
-| ``config.json``     | the resolved :class:`ExperimentConfig`                                     |
-| ``episodes.parquet``| one row per seed x episode: ε, behaviour return, length, terminated        |
-| ``evaluations.parquet`` | one row per seed x evaluation round x episode of the greedy policy      |
-| ``qtables.npz``     | Q-tables at the named stages and their episodes, state-visit counts, seeds, ε per episode |
-| ``meta.json``       | versions, seeds, timings, command line; written last, so it marks the run complete |
+| file                    | what                                                                        |
+|-------------------------|-----------------------------------------------------------------------------|
+| ``config.json``         | the resolved :class:`ExperimentConfig`                                      |
+| ``episodes.parquet``    | one row per seed x episode: ε, behaviour return, length, terminated         |
+| ``evaluations.parquet`` | one row per seed x evaluation round x episode of the greedy policy          |
+| ``qtables.npz``         | Q-tables at the named stages, state-visit counts, seeds, ε per episode      |
+| ``meta.json``           | versions, seeds, timings, command line, and the size and checksum of each   |
+|                         | other file; written last, so it marks the run complete                      |
+
+Ownership. rlcompare writes only inside directories it owns: each holds a marker, ``.rlcompare.json``, that
+names what the directory is (a run, a study, a sweep's store) and lists every file rlcompare wrote there, a
+file's name entered before the file is written. A file is created, replaced or deleted only when it is new
+or listed, so a user's own files, in a directory rlcompare made or in one it was told to share with
+``--force``, are never touched. A directory that holds anything else is refused unless ``--force`` is given.
+A process writing a directory holds its lock (``.rlcompare.lock``, an ``flock`` the kernel drops when the
+process dies), so a second process stops with a message instead of racing it.
 
 Every file is written to a temporary name in the same directory and renamed into place, so a reader never
 sees half a file and an interrupted run leaves nothing that looks finished.
@@ -17,10 +26,17 @@ sees half a file and an interrupted run leaves nothing that looks finished.
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
+import fnmatch
+import glob
+import hashlib
 import json
 import os
 import tempfile
+import threading
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -30,6 +46,13 @@ EVALUATIONS_FILE = "evaluations.parquet"
 QTABLES_FILE = "qtables.npz"
 META_FILE = "meta.json"
 RUN_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, QTABLES_FILE, META_FILE)
+MARKER_FILE = ".rlcompare.json"
+LOCK_FILE = ".rlcompare.lock"
+OWN_FILES = (MARKER_FILE, LOCK_FILE)
+MAX_JSON_BYTES = 16 * 2**20
+"""The largest metadata file rlcompare reads (its own are far smaller); a larger one is not of a run."""
+MAX_NAME_BYTES = 255
+MAX_QUOTE = 80
 
 
 def _default_file_mode() -> int:
@@ -42,12 +65,271 @@ _FILE_MODE = _default_file_mode()
 
 
 class StoreError(OSError):
-    """A run directory that cannot be written or read; names the path and what is wrong."""
+    """A directory or file that cannot be written or read as asked; names the path and what is wrong."""
+
+
+def quote(value: Any, limit: int = MAX_QUOTE) -> str:
+    """``repr(value)`` cut to at most ``limit`` characters, saying how long it was when cut: what an error
+    quotes of a value stays one short line however large the value."""
+    try:
+        return cut(repr(value), limit)
+    except ValueError:  # an integer with more digits than Python will print
+        return f"<an integer of {value.bit_length():,} bits>" if isinstance(value, int) else "<unprintable>"
+
+
+def cut(text: str, limit: int) -> str:
+    """``text`` cut to at most ``limit`` characters, with its length appended when cut."""
+    return text if len(text) <= limit else f"{text[:limit]}… ({len(text):,} characters)"
+
+
+@dataclass(frozen=True)
+class Owner:
+    """What an output directory is: a ``run``, a ``study`` (``name``: which one) or a ``sweep`` store."""
+
+    kind: str
+    name: str = ""
+
+    def __str__(self) -> str:
+        return f"the {self.name} study" if self.kind == "study" else f"a {self.kind} directory"
+
+
+RUN = Owner("run")
+SWEEP = Owner("sweep")
+
+
+# --- paths and markers ----------------------------------------------------------------------------------
+
+def check_path(path: Path | str, option: str = "--out") -> Path:
+    """A path that can name an output directory: not empty, no component longer than the system allows."""
+    text = str(path)
+    if not text.strip():
+        raise StoreError(f"{option}: got an empty path; allowed: a directory path")
+    for part in Path(text).parts:
+        if len(part.encode()) > MAX_NAME_BYTES:
+            raise StoreError(f"{option}: got a name of {len(part.encode())} bytes ({quote(part, 40)}); allowed: "
+                             f"at most {MAX_NAME_BYTES} bytes per path component")
+    return Path(text)
+
+
+def read_json(path: Path, limit: int = MAX_JSON_BYTES) -> Any:
+    """A JSON file rlcompare wrote; one larger than ``limit`` bytes is refused unread."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > limit:
+            raise StoreError(f"{path}: {size:,} bytes, more than rlcompare writes there (at most {limit:,}); "
+                             "not a file of this run")
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        if isinstance(error, StoreError):
+            raise
+        raise StoreError(f"{path}: cannot read ({cut(str(error), 200)})") from None
+
+
+def owner_of(directory: Path) -> Owner | None:
+    """Who wrote ``directory``, from its marker; None where there is none."""
+    marker = Path(directory) / MARKER_FILE
+    if not marker.is_file():
+        return None
+    data = _read_marker(marker)
+    return Owner(data["kind"], data["name"])
+
+
+def _read_marker(marker: Path) -> dict:
+    data = read_json(marker)
+    if not (isinstance(data, dict) and data.get("written_by") == "rlcompare" and isinstance(data.get("kind"), str)
+            and isinstance(data.get("name"), str) and isinstance(data.get("outputs"), list)):
+        raise StoreError(f"{marker}: not a marker rlcompare wrote")
+    return data
+
+
+def _write_marker(directory: Path, owner: Owner, outputs: list[str]) -> None:
+    data = {"written_by": "rlcompare", "kind": owner.kind, "name": owner.name, "outputs": sorted(set(outputs))}
+    with _atomic_file(Path(directory) / MARKER_FILE, "w") as handle:
+        json.dump(data, handle, indent=1)
+
+
+def _foreign_entries(directory: Path) -> list[str]:
+    return sorted(p.name for p in Path(directory).iterdir() if p.name not in OWN_FILES)
+
+
+def refusal(directory: Path, owner: Owner, *, force: bool = False) -> str | None:
+    """Why rlcompare may not write ``owner``'s outputs into ``directory``, or None where it may."""
+    directory = Path(directory)
+    if not directory.exists():
+        existing = next((p for p in directory.absolute().parents if p.exists()), Path("/"))
+        if not existing.is_dir():
+            return f"{existing} is a file; allowed: a directory path"
+        if not os.access(existing, os.W_OK | os.X_OK):
+            return f"{existing}: the directory is not writable, so {directory} cannot be created there"
+        return None
+    if not directory.is_dir():
+        return f"{directory} is a file; allowed: a directory (new, empty, or written by rlcompare)"
+    found = owner_of(directory)
+    if found is not None:
+        if found != owner:
+            return (f"{directory} holds {found}, written by rlcompare; allowed for {owner}: a new or empty "
+                    "directory, or one rlcompare wrote for it")
+    elif not force:
+        entries = _foreign_entries(directory)
+        if entries:
+            shown = ", ".join(quote(e, 40) for e in entries[:3]) + (f" and {len(entries) - 3} more"
+                                                                    if len(entries) > 3 else "")
+            return (f"{directory} holds files rlcompare did not write ({shown}); allowed: a new or empty "
+                    "directory, or --force to write beside them (rlcompare never replaces a file it did not write)")
+    if not os.access(directory, os.W_OK):
+        return f"{directory}: the directory is not writable"
+    return None
+
+
+def claim(directory: Path, owner: Owner, *, force: bool = False) -> bool:
+    """Make ``directory`` an output directory of ``owner`` (see the module's docstring); whether it was created."""
+    directory = check_path(directory)
+    problem = refusal(directory, owner, force=force)
+    if problem:
+        raise StoreError(problem)
+    created = not directory.exists()
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        if not (directory / MARKER_FILE).is_file():
+            _write_marker(directory, owner, [])
+    except StoreError:
+        raise
+    except OSError as error:
+        raise StoreError(f"{directory}: cannot create the directory ({error.strerror})") from None
+    return created
+
+
+def discard(directory: Path) -> None:
+    """Remove a directory this process created and wrote nothing into (a run that failed before any output)."""
+    directory = Path(directory)
+    with contextlib.suppress(OSError):
+        if not _foreign_entries(directory) and not _read_marker(directory / MARKER_FILE)["outputs"]:
+            for name in OWN_FILES:
+                (directory / name).unlink(missing_ok=True)
+            directory.rmdir()
+
+
+# --- what a directory's marker lists ----------------------------------------------------------------------
+
+_LEDGER_LOCK = threading.RLock()
+
+
+def _owning_directory(path: Path) -> Path | None:
+    for directory in Path(path).parents:
+        if (directory / MARKER_FILE).is_file():
+            return directory
+    return None
+
+
+def enter_outputs(*paths: Path) -> None:
+    """Enter ``paths`` in their directory's list of outputs before they are written, and refuse to replace a
+    file rlcompare did not write. Their directory is the nearest one above them with a marker (the same for
+    all); outside such directories rlcompare only creates new files."""
+    paths = tuple(Path(p).absolute() for p in paths)
+    directory = _owning_directory(paths[0])
+    with _LEDGER_LOCK:
+        listed = _read_marker(directory / MARKER_FILE) if directory is not None else {"outputs": []}
+        new = []
+        for path in paths:
+            relative = path.relative_to(directory).as_posix() if directory is not None else ""
+            if relative and relative in listed["outputs"]:
+                continue
+            if path.exists() or path.is_symlink():
+                raise StoreError(f"{path}: a file rlcompare did not write; it is left as it is (choose a new "
+                                 "directory)")
+            new.append(relative)
+        if directory is not None and new:
+            _write_marker(directory, Owner(listed["kind"], listed["name"]), [*listed["outputs"], *new])
+
+
+def remove_outputs(directory: Path, pattern: str) -> list[str]:
+    """Delete the files rlcompare listed in ``directory`` whose relative path matches ``pattern``
+    (``figures/*.png``), and nothing else; the paths removed."""
+    directory = Path(directory)
+    with _LEDGER_LOCK:
+        data = _read_marker(directory / MARKER_FILE)
+        removed = [p for p in data["outputs"] if fnmatch.fnmatchcase(p, pattern)]
+        for relative in removed:
+            (directory / relative).unlink(missing_ok=True)
+        _write_marker(directory, Owner(data["kind"], data["name"]), [p for p in data["outputs"] if p not in removed])
+    return removed
+
+
+# --- locks ------------------------------------------------------------------------------------------------
+
+_held: dict[Path, list] = {}
+_held_lock = threading.Lock()
 
 
 @contextlib.contextmanager
+def locked(directory: Path) -> Iterator[None]:
+    """Hold ``directory``'s lock: one process at a time writes it. Re-entrant within a process."""
+    key = Path(directory).resolve()
+    with _held_lock:
+        entry = _held.get(key)
+        if entry is None:
+            entry = _held[key] = [_acquire(key), 0]
+        entry[1] += 1
+    try:
+        yield
+    finally:
+        with _held_lock:
+            entry[1] -= 1
+            if entry[1] == 0:
+                os.close(entry[0])  # closing the descriptor releases the flock
+                del _held[key]
+
+
+def _acquire(directory: Path) -> int:
+    try:
+        fd = os.open(directory / LOCK_FILE, os.O_RDWR | os.O_CREAT, _FILE_MODE)
+    except OSError as error:
+        raise StoreError(f"{directory}: cannot write here ({error.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+        os.close(fd)
+        raise StoreError(f"{directory}: another rlcompare process (pid {holder}) is writing here; wait for it to "
+                         "finish, or use another directory") from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    return fd
+
+
+@contextlib.contextmanager
+def rewriting(directory: Path, kind: str) -> Iterator[Owner]:
+    """Hold the lock of a directory rlcompare wrote for a ``kind`` (``study``, ``sweep``), to rewrite its
+    outputs (a report); anything else is refused."""
+    found = owner_of(directory)
+    if found is None or found.kind != kind:
+        what = "no marker of rlcompare's" if found is None else f"{found}"
+        raise StoreError(f"{directory}: {what}; allowed: a {kind} directory written by rlcompare")
+    with locked(directory):
+        yield found
+
+
+@contextlib.contextmanager
+def output_directory(directory: Path, owner: Owner, *, force: bool = False) -> Iterator[Path]:
+    """Claim ``directory`` for ``owner``, hold its lock and clear what interrupted writes left there; if it was
+    created here and the block fails before writing anything into it, remove it again."""
+    directory = check_path(directory)
+    created = claim(directory, owner, force=force)
+    try:
+        with locked(directory):
+            remove_stale_temporaries(directory)
+            yield directory
+    except BaseException:
+        if created:
+            discard(directory)
+        raise
+
+
+# --- atomic writes ----------------------------------------------------------------------------------------
+
+@contextlib.contextmanager
 def _atomic_file(path: Path, mode: str) -> Iterator[IO[Any]]:
-    path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         os.chmod(tmp, _FILE_MODE)
@@ -62,39 +344,92 @@ def _atomic_file(path: Path, mode: str) -> Iterator[IO[Any]]:
         raise
 
 
+@contextlib.contextmanager
+def _owned_file(path: Path, mode: str) -> Iterator[IO[Any]]:
+    """An atomic write of a file rlcompare may write (:func:`enter_outputs`), with OS errors as one line."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        enter_outputs(path)
+        with _atomic_file(path, mode) as handle:
+            yield handle
+    except StoreError:
+        raise
+    except OSError as error:
+        reason = "no space left on the device" if error.errno == errno.ENOSPC else (error.strerror or str(error))
+        raise StoreError(f"{path}: cannot write ({cut(reason, 200)})") from None
+
+
 def write_atomic(path: Path, write: Callable[[IO[bytes]], None]) -> None:
     """Call ``write`` on a binary handle to a temporary file, then rename it to ``path``."""
-    with _atomic_file(Path(path), "wb") as handle:
+    with _owned_file(Path(path), "wb") as handle:
         write(handle)
 
 
+def write_bytes_atomic(path: Path, data: bytes) -> None:
+    write_atomic(path, lambda handle: handle.write(data))
+
+
 def write_json_atomic(path: Path, data: Any) -> None:
-    with _atomic_file(Path(path), "w") as handle:
+    with _owned_file(Path(path), "w") as handle:
         json.dump(data, handle, indent=2, sort_keys=True)
         handle.write("\n")
 
 
-def read_json(path: Path) -> Any:
-    try:
-        return json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as error:
-        raise StoreError(f"{path}: cannot read ({error})") from None
+def remove_stale_temporaries(directory: Path) -> None:
+    """Delete what interrupted writes left of the files listed in ``directory``'s marker (call with its lock):
+    the temporary names rlcompare gives them, and nothing else."""
+    directory = Path(directory)
+    for relative in [MARKER_FILE, *_read_marker(directory / MARKER_FILE)["outputs"]]:
+        target = directory / relative
+        for stale in target.parent.glob(f".{glob.escape(target.name)}.*.tmp*"):
+            stale.unlink(missing_ok=True)
 
 
 def is_complete(run_dir: Path) -> bool:
-    """Whether every file of a finished run is present (``meta.json`` is written last)."""
+    """Whether every file of a finished run is present (``meta.json`` is written last); whether they belong
+    together is :func:`rlcompare.experiment.results.verify`'s question."""
     return all((Path(run_dir) / name).is_file() for name in RUN_FILES)
 
 
-def prepare_directory(path: Path) -> Path:
-    """Create ``path`` as a directory, or say why it cannot be one."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise StoreError(f"{path} is a file; an output directory is needed")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise StoreError(f"{path}: cannot create the directory ({error.strerror})") from None
-    if not os.access(path, os.W_OK):
-        raise StoreError(f"{path}: the directory is not writable")
-    return path
+# --- what a finished run contains -------------------------------------------------------------------------
+
+CONTENT_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, QTABLES_FILE)
+"""The files whose checksums ``meta.json`` records."""
+
+
+def file_record(data: bytes) -> dict[str, Any]:
+    return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def verify_run(run_dir: Path, expected_config: dict | None = None) -> dict:
+    """``meta.json`` of a finished run whose files belong together: each one's size and checksum equal what
+    ``meta.json`` recorded when the run was written, and ``config.json`` is ``expected_config`` where given.
+    Anything else is a :class:`StoreError` naming the file."""
+    run_dir = Path(run_dir)
+    missing = [name for name in RUN_FILES if not (run_dir / name).is_file()]
+    if missing:
+        raise StoreError(f"{run_dir}: not a complete run directory; missing {', '.join(missing)}")
+    meta = read_json(run_dir / META_FILE)
+    contents = meta.get("contents") if isinstance(meta, dict) else None
+    files = contents.get("files") if isinstance(contents, dict) else None
+    if not isinstance(files, dict) or sorted(files) != sorted(CONTENT_FILES):
+        raise StoreError(f"{run_dir / META_FILE}: no record of the run's contents (not written by this version of "
+                         "rlcompare, or damaged); run it again")
+    for name in CONTENT_FILES:
+        if _record_of(run_dir / name) != files[name]:
+            raise StoreError(f"{run_dir / name}: does not belong to this run (its size or checksum differs from "
+                             f"what {META_FILE} recorded when the run was written); run it again")
+    if expected_config is not None and read_json(run_dir / CONFIG_FILE) != expected_config:
+        raise StoreError(f"{run_dir / CONFIG_FILE}: another configuration than the one asked for")
+    return meta
+
+
+def _record_of(path: Path) -> dict[str, Any]:
+    digest = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(2**20), b""):
+            digest.update(block)
+            size += len(block)
+    return {"bytes": size, "sha256": digest.hexdigest()}

@@ -2,7 +2,7 @@
 
 ```toml
 [sweep]
-name = "alpha"          # a label for the report
+name = "alpha"          # a label for the report and the store's directory name
 root_seed = 0           # the seeds of every configuration derive from it
 seeds = 10              # seeds per configuration
 
@@ -25,7 +25,8 @@ and the seed's index alone, not on the order in which trials happen to run, and 
 same ones, so configurations are compared on common random numbers (paired seeds, the same start states).
 
 Every mistake in the file is reported at once, each with the key's path and what is allowed
-(:class:`SweepError`); nothing runs until the whole sweep is valid.
+(:class:`SweepError`); nothing runs until the whole sweep is valid. A sweep names at least one configuration
+(a [grid] list or an [[include]] table), each configuration once.
 """
 
 from __future__ import annotations
@@ -35,7 +36,9 @@ import hashlib
 import itertools
 import json
 import math
+import re
 import sys
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,11 +50,13 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from rlcompare.experiment.config import ConfigError, ExperimentConfig
+from rlcompare.experiment.config import ConfigError, ExperimentConfig, cut, quote
 
 SECTIONS = ("sweep", "fixed", "grid", "include")
 SWEEP_KEYS = ("name", "root_seed", "seeds")
 MAX_TRIALS = 100_000
+NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,99}")
+"""A sweep's name: one directory name (the default store is runs/sweeps/NAME), never a path."""
 CONFIG_KEYS = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name != "seeds")
 
 
@@ -81,6 +86,18 @@ class Trial:
     @property
     def trial_id(self) -> str:
         return f"{self.config_hash}-{self.seed}"
+
+
+@dataclass(frozen=True)
+class _Built:
+    """A valid configuration of the file, with where it came from."""
+
+    config: ExperimentConfig
+    where: str
+    """``grid`` or ``include[k]``."""
+    values: dict
+    origin: dict[str, str]
+    """The path of each value given: ``fixed.alpha``, ``grid.alpha[1]``, ``include[0].alpha``."""
 
 
 @dataclass(frozen=True)
@@ -134,14 +151,16 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
     problems: list[str] = []
     for section in data:
         if section not in SECTIONS:
-            problems.append(f"{section}: unknown section; allowed: {', '.join(SECTIONS)}")
+            problems.append(f"{cut(section, 80)}: unknown section; allowed: {', '.join(SECTIONS)}")
+    if not data.get("grid") and not data.get("include"):
+        problems.append("grid: empty; allowed: at least one [grid] list or one [[include]] table")
     name, root_seed, count = _header(_table(data, "sweep", problems), problems)
     fixed = _known("fixed", _table(data, "fixed", problems), problems)
     grid = _known("grid", _table(data, "grid", problems), problems)
     includes = [_known(f"include[{k}]", include, problems) for k, include in enumerate(_includes(data, problems))]
     for key in list(grid):
         if not isinstance(grid[key], list) or not grid[key]:
-            problems.append(f"grid.{key}: got {grid.pop(key)!r}; allowed: a non-empty list of values")
+            problems.append(f"grid.{key}: got {quote(grid.pop(key))}; allowed: a non-empty list of values")
         elif key in fixed:
             problems.append(f"grid.{key}: also in [fixed]; allowed: one place for each key")
             del grid[key]
@@ -153,9 +172,12 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
     seeds = derive_seeds(root_seed, count)
     at_fixed = {key: f"fixed.{key}" for key in fixed}
     sources = [_combinations(fixed, grid)] if grid or not includes else []
-    sources.append([({**fixed, **include}, {**at_fixed, **{key: f"include[{k}].{key}" for key in include}})
+    sources.append([(f"include[{k}]", {**fixed, **include},
+                     {**at_fixed, **{key: f"include[{k}].{key}" for key in include}})
                     for k, include in enumerate(includes)])
-    configs = _configs(itertools.chain.from_iterable(sources), seeds, problems)
+    built = _configs(itertools.chain.from_iterable(sources), seeds, problems)
+    problems.extend(_duplicates(built))
+    configs = [b.config for b in built]
     if problems:
         raise SweepError(source, list(dict.fromkeys(problems)))
     given = {*grid, *(key for include in includes for key in include)}
@@ -170,14 +192,14 @@ def _known(section: str, table: dict, problems: list[str]) -> dict:
         if key == "seeds":
             problems.append(f"{section}.seeds: the seeds are set once, in [sweep] (seeds = N)")
         elif key not in CONFIG_KEYS:
-            problems.append(f"{section}.{key}: unknown key; allowed: {', '.join(CONFIG_KEYS)}")
+            problems.append(f"{section}.{cut(key, 80)}: unknown key; allowed: {', '.join(CONFIG_KEYS)}")
     return {key: value for key, value in table.items() if key in CONFIG_KEYS}
 
 
 def _table(data: dict, section: str, problems: list[str]) -> dict:
     value = data.get(section, {})
     if not isinstance(value, dict):
-        problems.append(f"{section}: got {value!r}; allowed: a table ([{section}])")
+        problems.append(f"{section}: got {quote(value)}; allowed: a table ([{section}])")
         return {}
     return value
 
@@ -185,7 +207,7 @@ def _table(data: dict, section: str, problems: list[str]) -> dict:
 def _includes(data: dict, problems: list[str]) -> list[dict]:
     value = data.get("include", [])
     if not isinstance(value, list) or not all(isinstance(item, dict) for item in value):
-        problems.append(f"include: got {value!r}; allowed: tables ([[include]])")
+        problems.append(f"include: got {quote(value)}; allowed: tables ([[include]])")
         return []
     return value
 
@@ -194,28 +216,35 @@ def _header(header: dict, problems: list[str]) -> tuple[str, int, int]:
     """Name, root seed and seeds per configuration; a bad value is reported and replaced by its default."""
     for key in header:
         if key not in SWEEP_KEYS:
-            problems.append(f"sweep.{key}: unknown key; allowed: {', '.join(SWEEP_KEYS)}")
+            problems.append(f"sweep.{cut(key, 80)}: unknown key; allowed: {', '.join(SWEEP_KEYS)}")
     name = header.get("name", "sweep")
-    if not isinstance(name, str) or not name:
-        problems.append(f"sweep.name: got {name!r}; allowed: a non-empty string")
+    if not is_sweep_name(name):
+        problems.append(f"sweep.name: got {quote(name)}; allowed: a single directory name of letters, digits, "
+                        "'.', '_' and '-' (at most 100 characters, not starting with '.')")
         name = "sweep"
     root_seed = header.get("root_seed", 0)
     if not _is_int(root_seed) or not 0 <= root_seed < 2**63:
-        problems.append(f"sweep.root_seed: got {root_seed!r}; allowed: an integer in [0, 2**63)")
+        problems.append(f"sweep.root_seed: got {quote(root_seed)}; allowed: an integer in [0, 2**63)")
         root_seed = 0
     count = header.get("seeds", 10)
     if not _is_int(count) or not 1 <= count <= MAX_TRIALS:
-        problems.append(f"sweep.seeds: got {count!r}; allowed: an integer in [1, {MAX_TRIALS:,}] (seeds per "
+        problems.append(f"sweep.seeds: got {quote(count)}; allowed: an integer in [1, {MAX_TRIALS:,}] (seeds per "
                         "configuration)")
         count = 1
     return name, root_seed, count
+
+
+def is_sweep_name(name: Any) -> bool:
+    """Whether ``name`` is one safe directory name: ASCII letters, digits, '.', '_', '-', at most 100
+    characters, not starting with '.' (so neither '.' nor '..', and never a path)."""
+    return isinstance(name, str) and NAME.fullmatch(name) is not None
 
 
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _combinations(fixed: dict, grid: dict) -> list[tuple[dict, dict[str, str]]]:
+def _combinations(fixed: dict, grid: dict) -> list[tuple[str, dict, dict[str, str]]]:
     """Every combination of the grid over the fixed values, with the path each value came from."""
     keys = list(grid)
     out = []
@@ -223,29 +252,33 @@ def _combinations(fixed: dict, grid: dict) -> list[tuple[dict, dict[str, str]]]:
         values = {key: grid[key][i] for key, i in zip(keys, indices, strict=True)}
         origin = {**{key: f"fixed.{key}" for key in fixed},
                   **{key: f"grid.{key}[{i}]" for key, i in zip(keys, indices, strict=True)}}
-        out.append(({**fixed, **values}, origin))
+        out.append(("grid", {**fixed, **values}, origin))
     return out
 
 
-def _configs(sources, seeds: tuple[int, ...], problems: list[str]) -> list[ExperimentConfig]:
+def _configs(sources: Iterable[tuple[str, dict, dict[str, str]]], seeds: tuple[int, ...], problems: list[str]
+             ) -> list[_Built]:
     """The valid configurations; every problem of the others, each reported once.
 
     A configuration stops at its first bad value, so each bad value is set back to its default and the rest
     checked again, until none is left. A problem that a value has in every configuration it is part of is
-    reported at its path alone; one that depends on the other values names the first combination it has."""
-    configs, failures, appearances = [], {}, {}
-    for values, origin in sources:
+    reported at its path alone; one that depends on the other values names the first combination it has.
+    Configurations valid only with a value set back are not returned."""
+    built, failures, appearances = [], {}, {}
+    for where_from, given, origin in sources:
         for path in origin.values():
             appearances[path] = appearances.get(path, 0) + 1
-        values = dict(values)
+        values = dict(given)
         for _ in range(len(values) + 1):
             try:
-                configs.append(ExperimentConfig(**values, seeds=seeds))
+                config = ExperimentConfig(**values, seeds=seeds)
+                if values == given:
+                    built.append(_Built(config, where_from, given, origin))
                 break
             except ConfigError as error:
                 where = origin.get(error.field_name, f"{error.field_name} (default)")
-                message = f"{where}: got {error.value!r}; allowed: {error.allowed}"
-                context = ", ".join(f"{k} = {values[k]!r}" for k, path in origin.items()
+                message = f"{where}: got {quote(error.value)}; allowed: {error.allowed}"
+                context = ", ".join(f"{k} = {quote(values[k])}" for k, path in origin.items()
                                     if k != error.field_name and not path.startswith("fixed.") and k in values)
                 failures.setdefault(message, (where, []))[1].append(context)
                 if error.field_name not in values:
@@ -254,4 +287,28 @@ def _configs(sources, seeds: tuple[int, ...], problems: list[str]) -> list[Exper
     for message, (where, contexts) in failures.items():
         everywhere = len(contexts) >= appearances.get(where, 0) or not contexts[0]
         problems.append(message if everywhere else f"{message} (with {contexts[0]})")
-    return configs
+    return built
+
+
+def _duplicates(built: list[_Built]) -> list[str]:
+    """One problem for each configuration equal (the same hash) to an earlier one, naming both."""
+    first: dict[str, _Built] = {}
+    problems = []
+    for item in built:
+        earlier = first.setdefault(config_hash(item.config), item)
+        if earlier is not item:
+            problems.append(f"{_label(item, earlier)}: the same configuration as {_label(earlier, item)}; "
+                            "allowed: each configuration once")
+    return problems
+
+
+def _label(item: _Built, other: _Built) -> str:
+    """Where a configuration comes from, told apart from ``other``: its grid paths that ``other`` lacks, or
+    ``grid (key = value, ...)`` beside an include, or ``include[k]``."""
+    if item.where != "grid":
+        return item.where
+    at_grid = {key: path for key, path in item.origin.items() if path.startswith("grid.")}
+    if other.where == "grid":
+        differing = [path for path in at_grid.values() if path not in other.origin.values()]
+        return ", ".join(differing) or "grid"
+    return f"grid ({', '.join(f'{key} = {quote(item.values[key])}' for key in at_grid)})" if at_grid else "grid"

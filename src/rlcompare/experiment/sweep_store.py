@@ -17,7 +17,6 @@ trials and runs the rest.
 
 from __future__ import annotations
 
-import shutil
 import threading
 import time
 from collections.abc import Callable
@@ -32,12 +31,14 @@ import pyarrow.dataset as ds
 from rlcompare.engine.kernel import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
-from rlcompare.experiment.sweep import Sweep, Trial
+from rlcompare.experiment.sweep import Sweep, Trial, config_hash
 
 MANIFEST_FILE = "manifest.json"
 SWEEP_FILE = "sweep.toml"
 TRIALS_DIR = "trials"
 DONE, PENDING = "done", "pending"
+MAX_MANIFEST_BYTES = 256 * 2**20
+"""About 2,000 bytes for each of the most trials a sweep may have."""
 
 
 class SweepStore:
@@ -56,25 +57,25 @@ class SweepStore:
         return trial_path(self.root, trial.config_hash, trial.seed)
 
     def is_done(self, trial: Trial) -> bool:
-        return store.is_complete(self.trial_dir(trial))
+        """Whether the trial's run directory is finished, its files belong together and hold this trial."""
+        return is_finished(self.trial_dir(trial), trial.config.to_dict())
 
     def open(self, sweep: Sweep, sweep_text: str) -> list[Trial]:
-        """Prepare the directory for ``sweep``; the trials still to run, in the sweep's order."""
-        store.prepare_directory(self.root)
-        for stale in self.root.glob(f"{TRIALS_DIR}/*/*/.*.tmp"):  # left by a process killed mid-write
-            stale.unlink(missing_ok=True)
+        """Prepare the directory for ``sweep`` (claimed and locked by the caller); the trials still to run,
+        in the sweep's order. A trial whose files do not belong together is run again."""
         self._sweep, self._trials = sweep, sweep.trials()
         self._status = {t.trial_id: DONE if self.is_done(t) else PENDING for t in self._trials}
-        store.write_atomic(self.root / SWEEP_FILE, lambda handle: handle.write(sweep_text.encode()))
+        for trial in self._trials:
+            trial_dir = self.trial_dir(trial)
+            if store.owner_of(trial_dir) == store.RUN:
+                store.remove_stale_temporaries(trial_dir)  # left by a process killed mid-write
+        store.write_bytes_atomic(self.root / SWEEP_FILE, sweep_text.encode())
         self._write_manifest()
         return [t for t in self._trials if self._status[t.trial_id] == PENDING]
 
     def save(self, trial: Trial, results: Results) -> None:
         """Write a finished trial's run directory; mark it done in the manifest."""
-        trial_dir = self.trial_dir(trial)
-        if trial_dir.exists() and not store.is_complete(trial_dir):
-            shutil.rmtree(trial_dir)  # an earlier attempt that did not finish
-        results.save(trial_dir)
+        results.save(self.trial_dir(trial))  # over an earlier attempt that did not finish, if any
         with self._lock:
             self._status[trial.trial_id] = DONE
             if time.monotonic() - self._written >= self.MANIFEST_EVERY:
@@ -105,12 +106,22 @@ def trial_path(root: Path, config_hash: str, seed: int) -> Path:
     return Path(root) / TRIALS_DIR / f"config={config_hash}" / f"trial={seed}"
 
 
+def is_finished(trial_dir: Path, config: dict | None = None) -> bool:
+    """Whether a trial's run directory is finished and its files belong together (and hold ``config``)."""
+    try:
+        store.verify_run(trial_dir, config)
+    except store.StoreError:
+        return False
+    return True
+
+
 def read_table(root: Path, name: str = store.EPISODES_FILE) -> pd.DataFrame:
     """One table of every finished trial (``episodes.parquet`` or ``evaluations.parquet``) as one frame,
-    with the config hash and the swept values as columns."""
+    with the config hash and the swept values as columns; a trial whose files do not belong together is
+    left out."""
     manifest = read_manifest(root)
     files = [str(trial_path(root, e["config_hash"], e["seed"]) / name) for e in manifest["trials"]
-             if store.is_complete(trial_path(root, e["config_hash"], e["seed"]))]
+             if is_finished(trial_path(root, e["config_hash"], e["seed"]))]
     if not files:
         return pd.DataFrame()
     partitioning = ds.partitioning(pa.schema([("config", pa.string()), ("trial", pa.int64())]), flavor="hive")
@@ -125,7 +136,7 @@ def read_manifest(root: Path) -> dict:
     path = Path(root) / MANIFEST_FILE
     if not path.is_file():
         raise store.StoreError(f"{root}: not a sweep directory (no {MANIFEST_FILE})")
-    manifest = store.read_json(path)
+    manifest = store.read_json(path, limit=MAX_MANIFEST_BYTES)
     if not isinstance(manifest, dict) or not isinstance(manifest.get("trials"), list):
         raise store.StoreError(f"{path}: not a sweep manifest")
     return manifest
@@ -133,20 +144,29 @@ def read_manifest(root: Path) -> dict:
 
 def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
     """The finished trials of each configuration of a sweep, merged into one :class:`Results` per
-    configuration (its seeds in the sweep's order), by config hash; and a line per configuration that has
-    none finished."""
+    configuration (its seeds in the sweep's order), by config hash; and a line for each trial whose files do
+    not belong together and each configuration that has no finished trial."""
     manifest = read_manifest(root)
     by_config: dict[str, list[Results]] = {}
-    missing = []
+    problems = []
     for entry in manifest["trials"]:
         run_dir = trial_path(root, entry["config_hash"], entry["seed"])
         if store.is_complete(run_dir):
-            by_config.setdefault(entry["config_hash"], []).append(Results.load(run_dir))
+            try:
+                trial = Results.load(run_dir)
+            except store.StoreError as error:
+                problems.append(f"trial {entry['id']} left out: {error}; run the sweep again to redo it")
+                continue
+            if config_hash(trial.config) != entry["config_hash"] or trial.seeds != (entry["seed"],):
+                problems.append(f"trial {entry['id']} left out: {run_dir} holds another trial; run the sweep "
+                                "again to redo it")
+                continue
+            by_config.setdefault(entry["config_hash"], []).append(trial)
     hashes = dict.fromkeys(entry["config_hash"] for entry in manifest["trials"])
-    for config_hash in hashes:
-        if config_hash not in by_config:
-            missing.append(f"config {config_hash}: no finished trial")
-    return {h: merge(trials) for h, trials in by_config.items()}, missing
+    for hash_ in hashes:
+        if hash_ not in by_config:
+            problems.append(f"config {hash_}: no finished trial")
+    return {h: merge(trials) for h, trials in by_config.items()}, problems
 
 
 def merge(trials: list[Results]) -> Results:
@@ -164,20 +184,22 @@ def merge(trials: list[Results]) -> Results:
 
 
 def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Callable[[Trial], None] | None = None,
-              ) -> tuple[int, int]:
+              *, force: bool = False) -> tuple[int, int]:
     """Run every trial of ``sweep`` that ``out`` does not hold yet on ``backend``, saving each as it finishes.
-    Returns (trials already finished, trials run now)."""
+    ``out`` is claimed as a sweep's store and locked while the sweep runs (``force``: even beside files
+    rlcompare did not write). Returns (trials already finished, trials run now)."""
     backend.connect()
-    sweep_store = SweepStore(out)
-    todo = sweep_store.open(sweep, sweep_text)
+    with store.output_directory(out, store.SWEEP, force=force):
+        sweep_store = SweepStore(out)
+        todo = sweep_store.open(sweep, sweep_text)
 
-    def on_done(trial: Trial, results: Results) -> None:
-        sweep_store.save(trial, results)
-        if progress is not None:
-            progress(trial)
+        def on_done(trial: Trial, results: Results) -> None:
+            sweep_store.save(trial, results)
+            if progress is not None:
+                progress(trial)
 
-    try:
-        backend.run(todo, on_done)
-    finally:
-        sweep_store.flush()
+        try:
+            backend.run(todo, on_done)
+        finally:
+            sweep_store.flush()
     return len(sweep.trials()) - len(todo), len(todo)

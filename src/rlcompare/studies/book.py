@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 from rlcompare.analysis.curves import mean_band
 from rlcompare.analysis.report import Section, save_figure, write_report
 from rlcompare.analysis.stats import interval
+from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.studies.contrast import contrast_table, sibling_studies
@@ -64,12 +65,22 @@ def fig_12_10_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
         seeds=seeds, **BOOK) for lam in FIG_12_10_LAMBDAS for a in FIG_12_10_ALPHAS}
 
 
-def run_study(study: Study, out: Path, seeds: tuple[int, ...],
-              progress: Callable[[int], None] | None = None) -> Iterator[tuple[str, Results, bool]]:
+def run_study(study: Study, out: Path, seeds: tuple[int, ...], progress: Callable[[int], None] | None = None,
+              *, force: bool = False) -> Iterator[tuple[str, Results, bool]]:
     """Each configuration into ``out / name``, or loaded when already complete there."""
     for name, config in study.configs(seeds).items():
-        for results, reused in reproduce(Path(out), [config], progress=progress, directory=name):
+        for results, reused in reproduce(Path(out), [config], progress=progress, directory=name, study=study.name,
+                                         force=force):
             yield name, results, reused
+
+
+def write_study_report(study: Study, out: Path, runs: dict[str, Results] | None = None) -> Path:
+    """The study's report in ``out``, from ``runs`` or, without them, from its run directories."""
+    out = Path(out)
+    with store.rewriting(out, "study"):
+        if runs is None:
+            runs = {name: Results.load(out / name) for name in study.configs((0,))}
+        return study.report(out, runs)
 
 
 def report_10_2(out: Path, runs: dict[str, Results]) -> Path:

@@ -12,6 +12,7 @@ both, exploring costs Q-Learning more than its bootstrapped targets gain it.
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
@@ -28,12 +29,13 @@ SIBLING_STUDIES = ("paper", "cartpole", "acrobot")
 
 
 def load_pairs(study_dir: Path) -> dict[str, Results]:
-    """The SARSA and Q-Learning runs a study directory holds (complete ones only)."""
+    """The SARSA and Q-Learning runs a study directory holds (complete ones whose files belong together)."""
     runs = {}
     for name in {name for pair in PAIRS for name in pair}:
         run_dir = Path(study_dir) / name
         if store.is_complete(run_dir):
-            runs[name] = Results.load(run_dir)
+            with contextlib.suppress(store.StoreError):
+                runs[name] = Results.load(run_dir)
     return runs
 
 
@@ -69,7 +71,8 @@ def sibling_studies(study_dir: Path) -> dict[str, dict[str, Results]]:
     """The paper's study and its versions on other environments, where they stand beside ``study_dir``."""
     found = {}
     for name in SIBLING_STUDIES:
-        runs = load_pairs(Path(study_dir).parent / name)
-        if runs:
-            found[name] = runs
+        sibling = Path(study_dir).parent / name
+        with contextlib.suppress(store.StoreError):
+            if store.owner_of(sibling) == store.Owner("study", name) and (runs := load_pairs(sibling)):
+                found[name] = runs
     return found

@@ -158,7 +158,11 @@ def first_actions_figure(runs: list[Results]) -> Figure:
 
 def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None) -> ReportOutcome:
     """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``."""
-    study_dir = Path(study_dir)
+    with store.rewriting(Path(study_dir), "study"):
+        return _build_report(Path(study_dir), videos, video_seed)
+
+
+def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> ReportOutcome:
     started = time.perf_counter()
     runs, problems = load_study(study_dir)
     if not runs:
@@ -172,8 +176,7 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
-    for stale in figures_dir.glob("*.png"):  # figures of runs that are gone must not linger
-        stale.unlink()
+    store.remove_outputs(study_dir, "figures/*.png")  # figures of runs that are gone must not linger
     claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
               and (position_velocity or c.metric != "first_action_left")]
     tables = {

@@ -25,7 +25,7 @@ from rlcompare.analysis.stats import interval
 from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
-from rlcompare.experiment.sweep_store import load_configurations, read_manifest, trial_path
+from rlcompare.experiment.sweep_store import is_finished, load_configurations, read_manifest, trial_path
 
 MAX_CURVES = 12
 
@@ -108,7 +108,11 @@ def curves_figure(runs: list[Results], swept: list[str], env: str) -> Figure:
 
 def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path, list[str]]:
     """Tables, figures and ``report.html`` of the sweep stored in ``root``; the page and what is missing."""
-    root = Path(root)
+    with store.rewriting(Path(root), store.SWEEP.kind):
+        return _build_sweep_report(Path(root), group_by)
+
+
+def _build_sweep_report(root: Path, group_by: tuple[str, ...]) -> tuple[Path, list[str]]:
     manifest = read_manifest(root)
     swept = list(manifest.get("swept", []))
     unknown = [key for key in group_by if key not in swept]
@@ -118,8 +122,7 @@ def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path
     if not runs:
         raise store.StoreError(f"{root}: no finished trial to report")
     tables_dir, figures_dir = root / "tables", root / "figures"
-    for stale in figures_dir.glob("*.png"):
-        stale.unlink()
+    store.remove_outputs(root, "figures/*.png")  # the figures of an earlier report, not a user's own
     metrics = {config_hash: per_seed_metrics(results) for config_hash, results in runs.items()}
     table = configuration_rows(runs, metrics, swept)
     write_table(table, tables_dir, "configurations")
@@ -141,7 +144,7 @@ def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path
         else:
             problems.append(f"learning curves on {env}: {len(chosen)} configurations, more than {MAX_CURVES}; "
                             "see the tables and the figures across each swept key")
-    done = sum(store.is_complete(trial_path(root, t["config_hash"], t["seed"])) for t in manifest["trials"])
+    done = sum(is_finished(trial_path(root, t["config_hash"], t["seed"])) for t in manifest["trials"])
     sections = [
         Section("Sweep", [f"{manifest['name']}: {len(runs)} configurations with finished trials, {done} of "
                           f"{len(manifest['trials'])} trials finished, root seed {manifest['root_seed']}. Swept: "
