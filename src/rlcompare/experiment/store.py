@@ -417,7 +417,8 @@ def verify_run(run_dir: Path, expected_config: dict | None = None) -> dict:
         raise StoreError(f"{run_dir / META_FILE}: no record of the run's contents (not written by this version of "
                          "rlcompare, or damaged); run it again")
     for name in CONTENT_FILES:
-        if _record_of(run_dir / name) != files[name]:
+        recorded = files[name] if isinstance(files[name], dict) else {}
+        if (run_dir / name).stat().st_size != recorded.get("bytes") or _record_of(run_dir / name) != recorded:
             raise StoreError(f"{run_dir / name}: does not belong to this run (its size or checksum differs from "
                              f"what {META_FILE} recorded when the run was written); run it again")
     if expected_config is not None and read_json(run_dir / CONFIG_FILE) != expected_config:
