@@ -20,25 +20,18 @@ from rlcompare.envs.discretize import cell_index
 from rlcompare.envs.tiles import active_tiles_nd
 from rlcompare.experiment.problem import Environment, make_features
 from rlcompare.experiment.results import Results
+from rlcompare.experiment.store import quote
 
-_ECHO = 40
-"""Most characters of a given value repeated in an error message."""
 _REAL = "iuf"
 """numpy dtype kinds ``act`` accepts in a Box observation: integers and floats (not bool, complex, object,
 strings)."""
-
-
-def _echo(value: object) -> str:
-    """``repr(value)``, cut to :data:`_ECHO` characters."""
-    text = repr(value)
-    return text if len(text) <= _ECHO else text[: _ECHO - 3] + "..."
 
 
 def _given(observation: object) -> str:
     """What came, briefly: the shape and dtype of an array, else the type and value."""
     if isinstance(observation, np.ndarray) and observation.ndim:
         return f"shape {observation.shape} {observation.dtype}"
-    return f"{type(observation).__name__} {_echo(observation)}"
+    return f"{type(observation).__name__} {quote(observation, 40)}"
 
 
 def _refuse(given: str, expected: str, env: str) -> ValueError:
@@ -56,7 +49,7 @@ def check_box_observation(observation: object, shape: tuple[int, ...], env: str)
         raise _refuse(_given(array if array.ndim else observation), expected, env)
     array = array.astype(np.float64)
     if not np.isfinite(array).all():
-        raise _refuse(_echo(array.tolist()), expected, env)
+        raise _refuse(quote(array.tolist(), 40), expected, env)
     return array
 
 

@@ -50,7 +50,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from rlcompare.experiment.config import ConfigError, ExperimentConfig, cut, quote
+from rlcompare.experiment.config import ConfigError, ExperimentConfig
+from rlcompare.experiment.store import cut, quote
 
 SECTIONS = ("sweep", "fixed", "grid", "include")
 SWEEP_KEYS = ("name", "root_seed", "seeds")
