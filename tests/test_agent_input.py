@@ -81,7 +81,8 @@ def test_the_message_says_what_came() -> None:
     agent = RandomAgent(seed=0, stage="final")  # Mountain Car's contract by default
     for observation, given_ in [(np.zeros(3), r"got shape \(3,\) float64;"), (np.zeros((2, 1)), r"shape \(2, 1\)"),
                                 (np.array([np.nan, 0.0]), r"got \[nan, 0\.0\];"), (None, "got NoneType None;"),
-                                (np.array([1j, 0]), "complex128"), ("x" * 1000, r"got str 'xxx+… \(1,002 characters\);")]:
+                                (np.array([1j, 0]), "complex128"),
+                                ("x" * 1000, r"got str 'xxx+… \(1,002 characters\);")]:
         with pytest.raises(ValueError, match=given_):
             agent.act(observation)
 
