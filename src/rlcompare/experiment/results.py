@@ -83,7 +83,7 @@ class Results:
         """Write the run directory (an output directory of rlcompare's, :mod:`~rlcompare.experiment.store`):
         every file under a temporary name first, ``meta.json`` last, with the size and checksum of the others."""
         run_dir = Path(run_dir)
-        store.claim(run_dir, store.RUN)
+        store.claim(run_dir, store.RUN, outputs=store.RUN_FILES)
         contents = {
             store.CONFIG_FILE: (json.dumps(self.config.to_dict(), indent=2, sort_keys=True) + "\n").encode(),
             store.EPISODES_FILE: _parquet_bytes(self._episodes_table()),

@@ -182,8 +182,9 @@ def refusal(directory: Path, owner: Owner, *, force: bool = False) -> str | None
     return None
 
 
-def claim(directory: Path, owner: Owner, *, force: bool = False) -> bool:
-    """Make ``directory`` an output directory of ``owner`` (see the module's docstring); whether it was created."""
+def claim(directory: Path, owner: Owner, *, force: bool = False, outputs: tuple[str, ...] = ()) -> bool:
+    """Make ``directory`` an output directory of ``owner`` (see the module's docstring); whether it was created.
+    A new marker lists ``outputs`` (names to be written) that do not exist yet, saving a rewrite per file."""
     directory = check_path(directory)
     problem = refusal(directory, owner, force=force)
     if problem:
@@ -192,7 +193,7 @@ def claim(directory: Path, owner: Owner, *, force: bool = False) -> bool:
     try:
         directory.mkdir(parents=True, exist_ok=True)
         if not (directory / MARKER_FILE).is_file():
-            _write_marker(directory, owner, [])
+            _write_marker(directory, owner, [name for name in outputs if not (directory / name).exists()])
     except StoreError:
         raise
     except OSError as error:
