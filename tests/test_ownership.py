@@ -192,7 +192,7 @@ def test_another_study_into_a_study_directory_is_refused(study_copy: Path) -> No
 
 def test_a_second_sweep_into_a_store_in_use_stops_and_the_first_runs_each_trial_once(tmp_path: Path) -> None:
     sweep_file = tmp_path / "s.toml"
-    sweep_file.write_text(SWEEP.replace("seeds = 2", "seeds = 6").replace("episodes = 20", "episodes = 1500"))
+    sweep_file.write_text(SWEEP.replace("seeds = 2", "seeds = 6").replace("episodes = 20", "episodes = 20000"))
     out = tmp_path / "store"
     command = [sys.executable, "-m", "rlcompare.cli", "sweep", str(sweep_file), "--out", str(out), "--workers", "1",
                "--no-report"]
