@@ -426,7 +426,7 @@ def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
     with console.status("Building the sweep's report"):
         path, problems = build_sweep_report(root, group_by)
     for problem in problems:
-        console.print("[yellow]Missing:[/yellow]", problem, markup=True, highlight=False)
+        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
     console.print(f"Report: {path}")
 
 
@@ -436,7 +436,7 @@ def _report(study_dir: Path, videos: bool) -> None:
     with console.status("Building the report"):
         outcome = build_report(study_dir, videos=videos)
     for problem in outcome.problems:
-        console.print("[yellow]Missing:[/yellow]", problem, highlight=False)
+        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
     timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in outcome.seconds.items())
     console.print(f"Report: {outcome.path}  ({timings})")
     if outcome.problems:
