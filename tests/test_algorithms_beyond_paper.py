@@ -41,6 +41,7 @@ IMPLS = ["compiled", "py_func"]
 ALPHA, GAMMA = 0.5, 0.5
 W0 = [[0.25, 0.2], [0.1, 0.6]]  # state 0 prefers "stay" (0.25 > 0.2) until one update lowers it; state 1 "right"
 ENV_SEED = 1000  # the chain's one start and deterministic steps do not depend on the environment stream
+TRANSITION_SEED = 2000
 
 # Unused stubs for the grid and tile slots of one-hot features.
 GRID_STUB = make_grid(np.array([0.0, 0.0], np.float32), np.array([1.0, 1.0], np.float32), 1)
@@ -71,7 +72,7 @@ def _episode_impl(name: str, fn):
 
 
 def _table_problem(table_env: TableEnv) -> tuple[kernel.Env, kernel.Features]:
-    env = kernel.Env(kernel.TABLE, 0.0, table_env, table_env.n_actions, 1, 1)
+    env = kernel.Env(kernel.TABLE, 0.0, table_env, table_env.n_actions, stream_state(TRANSITION_SEED), 1, 1)
     features = kernel.Features(kernel.ONE_HOT, GRID_STUB, TILES_STUB, table_env.n_states, 1)
     return env, features
 
@@ -117,6 +118,8 @@ class Episode:
     def __init__(self, impl: str, algorithm: int, w, *, w2=None, epsilon: float = 0.0, seed: int = 0, **kwargs):
         table_env = chain(2)
         env, features = _table_problem(table_env)
+        self.transitions = stream_state(TRANSITION_SEED)
+        env = env._replace(transitions=self.transitions)
         settings = _settings(algorithm, **kwargs)
         self.w = np.array(w, dtype=np.float64)
         self.w2 = np.zeros_like(self.w) if w2 is None else np.array(w2, dtype=np.float64)
@@ -142,25 +145,29 @@ class Episode:
         self.ret, self.steps, self.terminated = float(out[0]), int(out[1]), bool(out[2])
 
     def _train_run(self, settings, env, features, epsilon):
-        rng = np.stack([self.env_rng, self.agent_rng, stream_state(ENV_SEED + 1), stream_state(ENV_SEED + 2)])[None]
+        rng = np.stack([self.env_rng, self.agent_rng, stream_state(ENV_SEED + 1), stream_state(ENV_SEED + 2),
+                        self.transitions, stream_state(ENV_SEED + 3)])[None]
         state = kernel.RunState(w=self.w[None].copy(), w2=self.w2[None].copy(), rng=rng)
         records = kernel.allocate_records(1, 1, 0, 1, np.array([1], np.int64), self.w.shape)
         kernel.train_run(0, settings, env, features, state, np.array([epsilon]), 0, 1, records)
         self.w, self.w2, self.env_rng, self.agent_rng = state.w[0], state.w2[0], state.rng[0, 0], state.rng[0, 1]
+        self.transitions = state.rng[0, kernel.TRANSITION_STREAM]
         self.visits = records.visits[0]
         snapshot = (self.w + self.w2) / 2 if settings.algorithm == kernel.DOUBLE_Q else self.w
         np.testing.assert_array_equal(records.snapshots[0, 0], snapshot)
         return records.returns[0, 0], records.lengths[0, 0], records.terminated[0, 0]
 
     def check(self, *, steps: int, visits, w, w2=None, draws: int, seed: int = 0) -> None:
-        """Every episode here reaches the goal once (return 1); the environment stream made one draw per reset
-        and per step, as Gymnasium's tables do; the agent stream made exactly ``draws`` draws."""
+        """Every episode here reaches the goal once (return 1); the environment stream made one draw, for the
+        reset, and the transition stream one per step, as Gymnasium's tables do; the agent stream made exactly
+        ``draws`` draws."""
         assert (self.ret, self.steps, self.terminated) == (1.0, steps, True)
         np.testing.assert_array_equal(self.visits, visits)
         np.testing.assert_allclose(self.w, w, rtol=1e-12, atol=1e-15)
         if w2 is not None:
             np.testing.assert_allclose(self.w2, w2, rtol=1e-12, atol=1e-15)
-        np.testing.assert_array_equal(self.env_rng, _advanced(ENV_SEED, 1 + steps))
+        np.testing.assert_array_equal(self.env_rng, _advanced(ENV_SEED, 1))
+        np.testing.assert_array_equal(self.transitions, _advanced(TRANSITION_SEED, steps))
         np.testing.assert_array_equal(self.agent_rng, _advanced(seed, draws))
         assert np.all(self.z == 0.0)  # traces are left fresh for the next episode
         assert not self.listed.any()
@@ -619,8 +626,9 @@ def test_mean_reinforce_update_is_alpha_times_the_gradient():
     episode = _episode_impl("compiled", kernel.reinforce_episode)
     for k in range(runs):
         theta = THETA[None, :].copy()
-        ret, steps, terminated = episode(settings, env, features, theta, np.zeros((1, 2)), streams[k, 0],
-                                         streams[k, 1], visits)
+        ret, steps, terminated = episode(settings, env._replace(transitions=streams[k, kernel.TRANSITION_STREAM]),
+                                         features, theta, np.zeros((1, 2)), streams[k, kernel.ENV_STREAM],
+                                         streams[k, kernel.AGENT_STREAM], visits)
         assert (steps, terminated) == (1, True)
         assert ret in (0.0, 1.0)
         updates[k] = theta[0] - THETA

@@ -9,6 +9,7 @@ import pytest
 
 from rlcompare.algorithms.policies import epsilon_greedy_action, uniform_action
 from rlcompare.algorithms.schedules import linear_decay_epsilon
+from rlcompare.engine.kernel import EVAL_TRANSITION_STREAM, TRANSITION_STREAM
 from rlcompare.engine.tabular import (
     AGENT_STREAM,
     ALGORITHM_CODES,
@@ -280,18 +281,20 @@ def test_environment_stream_is_gymnasiums():
 
 
 def test_initial_streams_are_seeded_as_documented():
-    """Environment stream ``PCG64(seed)``; agent, evaluation environment and evaluation agent streams the
-    three children of ``SeedSequence(seed)``; all distinct."""
+    """Environment stream ``PCG64(seed)``; agent, evaluation environment, evaluation agent, transition and
+    evaluation transition streams the five children of ``SeedSequence(seed)``; all distinct."""
     state = initial_state([7, 8], 4, 3)
     assert state.w.shape == (2, 4, 3)
     assert np.all(state.w == 0.0)
     for run, seed in enumerate([7, 8]):
-        agent, eval_env, eval_agent = np.random.SeedSequence(seed).spawn(3)
+        agent, eval_env, eval_agent, transition, eval_transition = np.random.SeedSequence(seed).spawn(5)
         np.testing.assert_array_equal(state.rng[run, ENV_STREAM], stream_state(seed))
         np.testing.assert_array_equal(state.rng[run, AGENT_STREAM], stream_state(agent))
         np.testing.assert_array_equal(state.rng[run, EVAL_ENV_STREAM], stream_state(eval_env))
         np.testing.assert_array_equal(state.rng[run, EVAL_AGENT_STREAM], stream_state(eval_agent))
-    assert len({tuple(row) for row in state.rng.reshape(-1, 4).tolist()}) == 8
+        np.testing.assert_array_equal(state.rng[run, TRANSITION_STREAM], stream_state(transition))
+        np.testing.assert_array_equal(state.rng[run, EVAL_TRANSITION_STREAM], stream_state(eval_transition))
+    assert len({tuple(row) for row in state.rng.reshape(-1, 4).tolist()}) == 12
 
 
 # --- evaluation and truncation -------------------------------------------------------------------------

@@ -76,3 +76,47 @@ def _generator_state(generator: np.random.Generator) -> np.ndarray:
     mask = (1 << 64) - 1
     return np.array([state["state"] >> 64, state["state"] & mask, state["inc"] >> 64, state["inc"] & mask],
                     dtype=np.uint64)
+
+
+def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
+    """Resets draw from the environment stream and slips from a stream of their own, so after the same number
+    of episodes every method has drawn the same starts, however long its episodes were and however often it
+    slipped: the start state of episode k of seed s is the same for every method (common random numbers)."""
+    from rlcompare.engine import kernel
+    from rlcompare.experiment.config import ExperimentConfig
+    from rlcompare.experiment.problem import make_env, make_features
+    from rlcompare.experiment.runner import epsilon_schedule, kernel_settings
+
+    for env_id in ("FrozenLake-v1", "Taxi-v4"):
+        table, streams, lengths = from_gymnasium(env_id), {}, {}
+        for algorithm in ("random", "q_learning", "sarsa", "expected_sarsa"):
+            config = ExperimentConfig(env=env_id, algorithm=algorithm, episodes=40, seeds=(3, 4), eval_every=20,
+                                      schedule="constant", epsilon=0.3)
+            features = make_features(config.environment, "grid", config.bins, 1, 1, 0)
+            state = kernel.initial_state(list(config.seeds), features.n_features, table.n_actions)
+            records = kernel.allocate_records(2, 40, 2, config.eval_episodes, np.array([40]), state.w.shape[1:])
+            kernel.train_runs(kernel_settings(config), make_env(config.environment), features, state,
+                              epsilon_schedule(config), 0, 40, records)
+            streams[algorithm], lengths[algorithm] = state.rng.copy(), records.lengths.copy()
+        for seed_index, seed in enumerate((3, 4)):
+            expected = stream_state(seed)
+            for _ in range(40):
+                reset(table, expected)
+            for algorithm, rng in streams.items():
+                np.testing.assert_array_equal(rng[seed_index, kernel.ENV_STREAM], expected, err_msg=algorithm)
+        assert not np.array_equal(lengths["random"], lengths["q_learning"])  # the episodes did differ
+        assert not np.array_equal(streams["random"][:, kernel.TRANSITION_STREAM],
+                                  streams["q_learning"][:, kernel.TRANSITION_STREAM])
+
+
+def test_the_adapter_draws_starts_and_slips_from_the_same_streams_as_the_table() -> None:
+    """FrozenLake through Gymnasium's own environment (reset and transition generators swapped in) equals
+    the table port bit for bit, slips included."""
+    from rlcompare.experiment.config import ExperimentConfig
+
+    config = ExperimentConfig(env="FrozenLake-v1", algorithm="sarsa", episodes=60, seeds=(0, 1), eval_every=30,
+                              eval_episodes=3, schedule="constant", epsilon=0.3, alpha=0.1)
+    port = run(config).records
+    adapter = run(ExperimentConfig(**{**config.to_dict(), "adapter": True})).records
+    for name in port._fields:
+        np.testing.assert_array_equal(getattr(port, name), getattr(adapter, name), err_msg=name)

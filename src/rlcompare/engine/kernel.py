@@ -1,12 +1,12 @@
 """Fused training kernels: every algorithm, many runs at once, one core each.
 
 A run is one seed of one configuration. :func:`train_runs` spreads runs over threads (the compiled runs
-release the GIL); each run owns its weights and four random streams (environment resets, the agent's
-choices, and the same two for evaluation), so a run's result is the same whatever thread runs it, however
-many threads there are, and however the episodes are split into chunks between calls. The environment
-stream only draws start states (and the outcomes of stochastic table environments), so every algorithm
-sees the same start state at the same episode of the same seed: common random numbers for paired
-comparisons.
+release the GIL); each run owns its weights and six random streams (environment resets, the agent's
+choices, stochastic transitions, and the same three for evaluation), so a run's result is the same
+whatever thread runs it, however many threads there are, and however the episodes are split into chunks
+between calls. The environment stream only draws start states (stochastic outcomes have a stream of their
+own), so every algorithm sees the same start state at the same episode of the same seed, on every
+environment: common random numbers for paired comparisons.
 
 The environment is a port (Mountain Car, CartPole, Acrobot, a table) stepped here, or any other Gymnasium
 environment stepped through its own API (:mod:`rlcompare.envs.gymnasium_env`); its state is a small
@@ -56,8 +56,9 @@ ALGORITHM_CODES = {
 }
 MOUNTAIN_CAR, TABLE, CARTPOLE, ACROBOT, GYMNASIUM = range(5)
 GRID, TILES, ONE_HOT = 0, 1, 2
-ENV_STREAM, AGENT_STREAM, EVAL_ENV_STREAM, EVAL_AGENT_STREAM = range(4)
-STREAMS = 4
+OWN_BOX, BEFORE_UPDATE, AFTER_UPDATE = range(3)
+ENV_STREAM, AGENT_STREAM, EVAL_ENV_STREAM, EVAL_AGENT_STREAM, TRANSITION_STREAM, EVAL_TRANSITION_STREAM = range(6)
+STREAMS = 6
 
 
 class Env(NamedTuple):
@@ -67,6 +68,8 @@ class Env(NamedTuple):
     max_position: float  # Mountain Car's right bound
     table: TableEnv
     n_actions: int
+    transitions: np.ndarray  # TABLE: the stream (uint64[4]) its outcomes are drawn from; ``train_run`` gives each
+    # run its own (``env_instance``)
     state_size: int = 2  # length of the state vector ``x``
     observation_size: int = 2  # length of the observation the features read
     handle: int = -1  # GYMNASIUM: the environments opened by ``gymnasium_env.opened``
@@ -99,6 +102,9 @@ class Settings(NamedTuple):
     replacing: bool = True  # replacing traces instead of accumulating ones
     target_epsilon: float = -1.0  # Expected SARSA's target-policy ε; negative: the behaviour ε (on-policy)
     baseline_alpha: float = 0.0  # REINFORCE's baseline step size; 0: no baseline
+    next_action: int = OWN_BOX  # one-step methods: draw A' BEFORE_UPDATE or AFTER_UPDATE of Q(S, A), or as in
+    # the method's OWN_BOX (SARSA before, the others after)
+    discount_gradient: bool = True  # REINFORCE: scale the step at time t by γ^t (the book's 13.3 box)
 
 
 class Records(NamedTuple):
@@ -120,21 +126,24 @@ class RunState(NamedTuple):
 
     w: np.ndarray  # (runs, features, actions) float64, initialised to 0 as in the paper
     w2: np.ndarray  # (runs, features, actions): Double Q-Learning's second estimate; REINFORCE's baseline in [:, :, 0]
-    rng: np.ndarray  # (runs, 4, 4) uint64: the environment, agent, evaluation environment and evaluation agent
-    # streams of each run
+    rng: np.ndarray  # (runs, 6, 4) uint64: the environment (resets), agent, evaluation environment and
+    # evaluation agent streams of each run, then the transitions of training and of evaluation
 
 
 def initial_state(seeds: list[int], n_features: int, n_actions: int) -> RunState:
     """Zero weights and per-run streams. The environment stream of seed ``s`` is ``PCG64(s)``, so its
     start states are those of Gymnasium's ``env.reset(seed=s)`` followed by plain resets; the others are
-    the children of ``SeedSequence(s)``."""
+    the children of ``SeedSequence(s)``. Resets and transitions draw from separate streams, so the start
+    state of episode k is the same for every method, stochastic environments included."""
     rng = np.empty((len(seeds), STREAMS, 4), dtype=np.uint64)
     for run, seed in enumerate(seeds):
-        agent, eval_env, eval_agent = np.random.SeedSequence(seed).spawn(3)
+        agent, eval_env, eval_agent, transition, eval_transition = np.random.SeedSequence(seed).spawn(5)
         rng[run, ENV_STREAM] = stream_state(seed)
         rng[run, AGENT_STREAM] = stream_state(agent)
         rng[run, EVAL_ENV_STREAM] = stream_state(eval_env)
         rng[run, EVAL_AGENT_STREAM] = stream_state(eval_agent)
+        rng[run, TRANSITION_STREAM] = stream_state(transition)
+        rng[run, EVAL_TRANSITION_STREAM] = stream_state(eval_transition)
     shape = (len(seeds), n_features, n_actions)
     return RunState(w=np.zeros(shape), w2=np.zeros(shape), rng=rng)
 
@@ -174,13 +183,14 @@ def env_reset(env: Env, x: np.ndarray, rng: np.ndarray) -> None:
 
 
 @njit(inline="always")
-def env_step(env: Env, x: np.ndarray, action: int, rng: np.ndarray) -> tuple[float, bool]:
-    """One transition of ``x`` in place: ``(reward, terminated)``."""
+def env_step(env: Env, x: np.ndarray, action: int) -> tuple[float, bool]:
+    """One transition of ``x`` in place: ``(reward, terminated)``; a table draws its outcome from
+    ``env.transitions``."""
     if env.kind == MOUNTAIN_CAR:
         x[0], x[1], terminated = mountain_car.step(x[0], x[1], action, env.max_position)
         return mountain_car.REWARD, terminated
     if env.kind == TABLE:
-        next_state, reward, ends = table.step(env.table, int(x[0]), action, rng)
+        next_state, reward, ends = table.step(env.table, int(x[0]), action, env.transitions)
         x[0] = next_state
         return reward, ends
     if env.kind == CARTPOLE:
@@ -278,10 +288,13 @@ def one_step_episode(
 ) -> tuple[float, int, bool]:
     """One episode of Q-Learning, SARSA, Expected SARSA, Double Q-Learning or the random baseline.
 
-    SARSA draws the next action before its update, from the values it bootstraps on (Algorithm 2); the
-    others draw it after the update, at the top of the loop (Algorithm 1).
+    ``settings.next_action`` says when the next action A' is drawn: before the update of
+    ``q(S, A)``, from the values the target bootstraps on (SARSA's box, Algorithm 2), or after it, at the top
+    of the loop (Q-Learning's box, Algorithm 1). SARSA drawing after the update still needs an A' for its
+    target: it draws one before the update and takes a fresh draw after it (``docs/why.md``).
     """
     algorithm, alpha, gamma = settings.algorithm, settings.alpha, settings.gamma
+    before = draws_before_update(settings)
     n_actions = w.shape[1]
     target_epsilon = epsilon if settings.target_epsilon < 0 else settings.target_epsilon
     actives = np.empty((2, features.n_active), np.int64)  # rows ``now`` and ``1 - now``: S and S'
@@ -299,7 +312,7 @@ def one_step_episode(
     while True:
         then = 1 - now
         count_visit(visits, actives, now)
-        reward, terminated = env_step(env, x, action, env_rng)
+        reward, terminated = env_step(env, x, action)
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= settings.max_steps
@@ -309,33 +322,44 @@ def one_step_episode(
             if terminated or truncated:
                 break
             action = uniform_action(n_actions, agent_rng)
-        elif algorithm == DOUBLE_Q:
+            now = then
+            continue
+        next_action = 0
+        if algorithm != DOUBLE_Q:
+            action_values(w, actives, then, q_next)
+        if before and not terminal:
+            values = _behaviour_values(settings, w, w2, actives, then, q, scratch) if algorithm == DOUBLE_Q else q_next
+            next_action = epsilon_greedy_action(values, epsilon, agent_rng)
+        if algorithm == DOUBLE_Q:
             if next_double(agent_rng) < 0.5:
                 _double_q_update(w, w2, actives, now, action, reward, alpha, gamma, terminal, q_next, scratch)
             else:
                 _double_q_update(w2, w, actives, now, action, reward, alpha, gamma, terminal, q_next, scratch)
-            if terminated or truncated:
-                break
-            action = epsilon_greedy_action(_behaviour_values(settings, w, w2, actives, then, q, scratch), epsilon,
-                                           agent_rng)
         else:
-            action_values(w, actives, then, q_next)
-            next_action = 0
             if algorithm == SARSA:
-                next_action = 0 if terminal else epsilon_greedy_action(q_next, epsilon, agent_rng)
-                target = sarsa_target(reward, q_next[next_action], gamma, terminal)
+                taken = next_action if before or terminal else epsilon_greedy_action(q_next, epsilon, agent_rng)
+                target = sarsa_target(reward, q_next[taken], gamma, terminal)
             elif algorithm == Q_LEARNING:
                 target = q_learning_target(reward, q_next, gamma, terminal)
             else:
                 target = expected_sarsa_target(reward, q_next, target_epsilon, gamma, terminal)
             add_to_action(w, actives, now, action, alpha * (target - action_value(w, actives, now, action)))
-            if terminated or truncated:
-                break
-            if algorithm != SARSA:  # after the update, which may have changed q(S', .)
-                next_action = epsilon_greedy_action(action_values(w, actives, then, q), epsilon, agent_rng)
-            action = next_action
+        if terminated or truncated:
+            break
+        if not before:  # after the update, which may have changed q(S', .)
+            next_action = epsilon_greedy_action(_behaviour_values(settings, w, w2, actives, then, q, scratch),
+                                                epsilon, agent_rng)
+        action = next_action
         now = then
     return episode_return, steps, terminated
+
+
+@njit(inline="always")
+def draws_before_update(settings: Settings) -> bool:
+    """Whether a one-step method draws its next action before updating ``q(S, A)``."""
+    if settings.next_action == OWN_BOX:
+        return settings.algorithm == SARSA
+    return settings.next_action == BEFORE_UPDATE
 
 
 @njit(inline="always")
@@ -381,7 +405,7 @@ def n_step_sarsa_episode(
         if t < horizon:
             now, later = t % size, (t + 1) % size
             count_visit(visits, actives, now)
-            reward, terminated = env_step(env, x, actions[now], env_rng)
+            reward, terminated = env_step(env, x, actions[now])
             episode_return += reward
             rewards[later] = reward
             observe(env, features, x, obs, actives, later)
@@ -436,7 +460,7 @@ def lambda_episode(
     while True:
         then = 1 - now
         count_visit(visits, actives, now)
-        reward, terminated = env_step(env, x, action, env_rng)
+        reward, terminated = env_step(env, x, action)
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= settings.max_steps
@@ -490,9 +514,12 @@ def reinforce_episode(
     settings: Settings, env: Env, features: Features, theta: np.ndarray, baseline: np.ndarray,
     env_rng: np.ndarray, agent_rng: np.ndarray, visits: np.ndarray,
 ) -> tuple[float, int, bool]:
-    """REINFORCE (13.3; the paper's Algorithm 3) with a softmax policy over action preferences
-    ``h(s, a) = sum of theta[i, a]`` over active features, and optionally a learned state-value baseline
-    ``v(s) = sum of baseline[i, 0]`` (13.4). A time-limit cut ends the return where it is."""
+    """REINFORCE with a softmax policy over action preferences ``h(s, a) = sum of theta[i, a]`` over active
+    features, and optionally a learned state-value baseline ``v(s) = sum of baseline[i, 0]`` (13.4).
+
+    ``theta += alpha * gamma^t * G_t * grad ln pi(A_t | S_t)`` as the book's 13.3 box writes it, or without
+    the ``gamma^t`` as the paper's Algorithm 3 does (``settings.discount_gradient``). A time-limit cut ends
+    the return where it is."""
     alpha, gamma, baseline_alpha = settings.alpha, settings.gamma, settings.baseline_alpha
     n_actions, n_active, limit = theta.shape[1], features.n_active, settings.max_steps
     actives = np.empty((limit, n_active), np.int64)
@@ -507,7 +534,7 @@ def reinforce_episode(
         count_visit(visits, actives, steps)
         action = sample_softmax(action_values(theta, actives, steps, h), pi, agent_rng)
         actions[steps] = action
-        reward, terminated = env_step(env, x, action, env_rng)
+        reward, terminated = env_step(env, x, action)
         rewards[steps] = reward
         episode_return += reward
         steps += 1
@@ -523,7 +550,7 @@ def reinforce_episode(
             delta -= action_value(baseline, actives, t, 0)
             add_to_action(baseline, actives, t, 0, baseline_alpha * delta)
         softmax(action_values(theta, actives, t, h), pi)
-        scale = alpha * discount * delta
+        scale = alpha * (discount if settings.discount_gradient else 1.0) * delta
         for a in range(n_actions):
             gradient = (1.0 if a == actions[t] else 0.0) - pi[a]  # d ln pi(A_t | S_t) / d h(S_t, a)
             add_to_action(theta, actives, t, a, scale * gradient)
@@ -556,7 +583,7 @@ def evaluation_episode(
             action = sample_softmax(action_values(w, actives, 0, q), scratch, agent_rng)
         else:
             action = greedy_action(_behaviour_values(settings, w, w2, actives, 0, q, scratch))
-        reward, terminated = env_step(env, x, action, env_rng)
+        reward, terminated = env_step(env, x, action)
         episode_return += reward
         steps += 1
     return episode_return, steps, terminated
@@ -586,7 +613,8 @@ def train_run(
 ) -> None:
     """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
     w, w2, rng = state.w[run], state.w2[run], state.rng[run]
-    training, evaluation = env_instance(env, 2 * run), env_instance(env, 2 * run + 1)
+    training = env_instance(env, 2 * run, rng[TRANSITION_STREAM])
+    evaluation = env_instance(env, 2 * run + 1, rng[EVAL_TRANSITION_STREAM])
     traces = settings.algorithm == SARSA_LAMBDA or settings.algorithm == Q_LAMBDA
     z = np.zeros(w.shape) if traces else np.zeros((1, 1))
     touched, listed = np.empty(z.size, np.int64), np.zeros(z.size, np.bool_)
@@ -609,10 +637,11 @@ def train_run(
 
 
 @njit(inline="always")
-def env_instance(env: Env, instance: int) -> Env:
-    """``env`` naming one of the Gymnasium environments opened for it (ports ignore the instance)."""
-    return Env(env.kind, env.max_position, env.table, env.n_actions, env.state_size, env.observation_size,
-               env.handle, instance)
+def env_instance(env: Env, instance: int, transitions: np.ndarray) -> Env:
+    """``env`` naming one of the Gymnasium environments opened for it (ports ignore the instance), a table
+    drawing its outcomes from ``transitions``."""
+    return Env(env.kind, env.max_position, env.table, env.n_actions, transitions, env.state_size,
+               env.observation_size, env.handle, instance)
 
 
 @njit(inline="always")

@@ -7,11 +7,11 @@ as fast per step (``rlcompare bench``). Both give bit-identical results for thes
 (tested), share the run state and records, and draw from the same streams in the same order.
 
 A run is one seed of one configuration. :func:`train_runs` spreads runs over threads (the compiled runs
-release the GIL); each run owns its Q-table and four random streams (environment resets, the agent's
-choices, and the same two for evaluation), so a run's result is the same whatever thread runs it, however
-many threads there are, and however the episodes are split into chunks between calls. Because the
-environment stream only draws start states, every algorithm sees the same start state at the same episode
-of the same seed: common random numbers for paired comparisons.
+release the GIL); each run owns its Q-table and six random streams (environment resets, the agent's
+choices, stochastic transitions, and the same three for evaluation), so a run's result is the same
+whatever thread runs it, however many threads there are, and however the episodes are split into chunks
+between calls. Because the environment stream only draws start states, every algorithm sees the same start
+state at the same episode of the same seed: common random numbers for paired comparisons.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from rlcompare.engine.kernel import (  # noqa: F401 - the run state and records 
     RunState,
     Settings,
     allocate_records,
+    draws_before_update,
     evaluation_round,
     initial_state,
     keep_snapshots,
@@ -63,8 +64,10 @@ def train_episode(
     visits: np.ndarray,
 ) -> tuple[float, int, bool]:
     """One training episode of Algorithm 1 (Q-Learning), Algorithm 2 (SARSA), Expected SARSA (6.6), Double
-    Q-Learning (6.7, with ``q2``) or the random baseline."""
+    Q-Learning (6.7, with ``q2``) or the random baseline, drawing the next action before or after the
+    update as ``settings.next_action`` says (the general kernel's ``one_step_episode`` explains)."""
     algorithm, alpha, gamma = settings.algorithm, settings.alpha, settings.gamma
+    before = draws_before_update(settings)
     n_actions = q.shape[1]
     target_epsilon = epsilon if settings.target_epsilon < 0 else settings.target_epsilon
     both = np.empty(n_actions)  # Double Q-Learning's behaviour values, Q1 + Q2
@@ -86,34 +89,35 @@ def train_episode(
         truncated = not terminated and steps >= settings.max_steps
         terminal = terminated or (truncated and settings.truncation_is_terminal)
         next_state = cell_index_2d(grid, position, velocity)
+        next_action = 0
         if algorithm == Q_LEARNING:
+            if before and not terminal:
+                next_action = epsilon_greedy_action(q[next_state], epsilon, agent_rng)
             td_update(q, state, action, q_learning_target(reward, q[next_state], gamma, terminal), alpha)
-            if terminated or truncated:
-                break
-            action = epsilon_greedy_action(q[next_state], epsilon, agent_rng)
         elif algorithm == SARSA:
-            next_action = 0 if terminal else epsilon_greedy_action(q[next_state], epsilon, agent_rng)
-            td_update(q, state, action, sarsa_target(reward, q[next_state, next_action], gamma, terminal), alpha)
-            if terminated or truncated:
-                break
-            action = next_action
+            taken = 0 if terminal else epsilon_greedy_action(q[next_state], epsilon, agent_rng)
+            next_action = taken
+            td_update(q, state, action, sarsa_target(reward, q[next_state, taken], gamma, terminal), alpha)
         elif algorithm == EXPECTED_SARSA:
+            if before and not terminal:
+                next_action = epsilon_greedy_action(q[next_state], epsilon, agent_rng)
             target = expected_sarsa_target(reward, q[next_state], target_epsilon, gamma, terminal)
             td_update(q, state, action, target, alpha)
-            if terminated or truncated:
-                break
-            action = epsilon_greedy_action(q[next_state], epsilon, agent_rng)
         elif algorithm == DOUBLE_Q:
+            if before and not terminal:
+                next_action = epsilon_greedy_action(_sum_rows(q[next_state], q2[next_state], both), epsilon,
+                                                    agent_rng)
             learner, other = (q, q2) if next_double(agent_rng) < 0.5 else (q2, q)
             target = double_q_target(reward, learner[next_state], other[next_state], gamma, terminal)
             td_update(learner, state, action, target, alpha)
-            if terminated or truncated:
-                break
-            action = epsilon_greedy_action(_sum_rows(q[next_state], q2[next_state], both), epsilon, agent_rng)
-        else:
-            if terminated or truncated:
-                break
-            action = uniform_action(n_actions, agent_rng)
+        if terminated or truncated:
+            break
+        if algorithm == RANDOM:
+            next_action = uniform_action(n_actions, agent_rng)
+        elif not before:  # after the update, which may have changed Q(S', .)
+            both_or_q = _sum_rows(q[next_state], q2[next_state], both) if algorithm == DOUBLE_Q else q[next_state]
+            next_action = epsilon_greedy_action(both_or_q, epsilon, agent_rng)
+        action = next_action
         state = next_state
     return episode_return, steps, terminated
 

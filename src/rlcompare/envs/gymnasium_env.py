@@ -5,9 +5,10 @@ environment runs through this adapter. The kernels are the same: where they woul
 back into Python (numba's object mode) to :func:`reset` or :func:`step` a real ``gymnasium.make(env_id)``,
 so every algorithm runs unchanged, at Python speed.
 
-Each run holds two environments, one for training and one for evaluation, whose ``np_random`` start as
-copies of the run's environment and evaluation streams. A port draws its randomness from those same
-streams in the same order, so on ``MountainCar-v0`` the adapter gives the port's results bit for bit.
+Each run holds two environments, one for training and one for evaluation. Each resets with its
+``np_random`` a copy of the run's reset stream and steps with it a copy of the run's transition stream,
+so start states never depend on what happened in earlier episodes. A port draws its randomness from the
+same streams in the same order, so the adapter gives the ports' results bit for bit.
 
 | observation space                          | what the kernels see                                    |
 |--------------------------------------------|---------------------------------------------------------|
@@ -28,8 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_OPEN: dict[int, list] = {}
-"""Environments opened by :func:`opened`, by handle; instance ``2 * run`` trains, ``2 * run + 1`` evaluates."""
+_OPEN: dict[int, list[tuple]] = {}
+"""``(env, reset generator, transition generator)`` opened by :func:`opened`, by handle; instance ``2 * run``
+trains, ``2 * run + 1`` evaluates."""
 _HANDLES = itertools.count()
 
 
@@ -89,23 +91,23 @@ def describe(env_id: str) -> Spaces:
 
 
 @contextlib.contextmanager
-def opened(env_id: str, env_streams: np.ndarray, eval_streams: np.ndarray, max_steps: int) -> Iterator[int]:
-    """Open a training and an evaluation environment per run, their generators copies of the given streams
-    (``(runs, 4)`` uint64 states, see :mod:`rlcompare.rng`); yield the handle the kernels step them by."""
+def opened(env_id: str, training: np.ndarray, evaluation: np.ndarray, max_steps: int) -> Iterator[int]:
+    """Open a training and an evaluation environment per run; yield the handle the kernels step them by.
+
+    ``training`` and ``evaluation`` are ``(runs, 2, 4)`` uint64 states (see :mod:`rlcompare.rng`): each run's
+    reset stream and transition stream, copied into the generators the environments draw from."""
     import gymnasium as gym
 
     environments, handle = [], next(_HANDLES)
     try:
-        for env_stream, eval_stream in zip(env_streams, eval_streams, strict=True):
-            for stream in (env_stream, eval_stream):
-                env = gym.make(env_id, max_episode_steps=max_steps, disable_env_checker=True)
-                env.unwrapped.np_random = np.random.Generator(_pcg64(stream))
-                environments.append(env)
+        for streams in (stream for pair in zip(training, evaluation, strict=True) for stream in pair):
+            env = gym.make(env_id, max_episode_steps=max_steps, disable_env_checker=True)
+            environments.append((env, *(np.random.Generator(_pcg64(s)) for s in streams)))
         _OPEN[handle] = environments
         yield handle
     finally:
         _OPEN.pop(handle, None)
-        for env in environments:
+        for env, _, _ in environments:
             env.close()
 
 
@@ -119,13 +121,16 @@ def _pcg64(stream: np.ndarray) -> np.random.PCG64:
 
 
 def reset(handle: int, instance: int, x: np.ndarray) -> None:
-    """Reset one environment and write its observation into ``x``."""
-    observation, _ = _OPEN[handle][instance].reset()
+    """Reset one environment from its reset stream and write its observation into ``x``."""
+    env, resets, transitions = _OPEN[handle][instance]
+    env.unwrapped.np_random = resets
+    observation, _ = env.reset()
+    env.unwrapped.np_random = transitions
     x[:] = np.ravel(observation)
 
 
 def step(handle: int, instance: int, action: int, x: np.ndarray) -> tuple[float, bool]:
     """Step one environment, write its observation into ``x``; ``(reward, terminated)``."""
-    observation, reward, terminated, _, _ = _OPEN[handle][instance].step(int(action))
+    observation, reward, terminated, _, _ = _OPEN[handle][instance][0].step(int(action))
     x[:] = np.ravel(observation)
     return float(reward), bool(terminated)

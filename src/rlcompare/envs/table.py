@@ -1,10 +1,12 @@
 """Finite MDPs as precomputed tables, stepped by compiled code.
 
 Each state-action pair has a few outcomes, each with a probability, a next state, a reward and whether
-it ends the episode. Every reset and every step draws one uniform from the environment stream and takes
+it ends the episode. Every reset and every step draws one uniform from the stream it is given and takes
 the first outcome whose cumulative probability exceeds it, deterministic ones included, as Gymnasium's
-``categorical_sample`` does; so the stream stays in step with the generator of Gymnasium's toy-text
-environments, and a table reproduces them episode after episode, not only until the first reset.
+``categorical_sample`` does; so a stream stays in step with the generator of Gymnasium's toy-text
+environments, and a table reproduces them episode after episode, not only until the first reset. The
+kernels give resets and steps separate streams (and the adapter gives Gymnasium's environments the same
+two), so the start states of a seed are the same whatever the agent did before.
 Small problems with known answers (a chain, a two-armed bandit) are written this way for tests, and so
 is any gridworld whose dynamics fit in a table.
 """

@@ -39,7 +39,14 @@ FALLBACK_MEMORY = 16 * 2**30
 FLOAT_FIELDS = ("alpha", "gamma", "epsilon", "epsilon_start", "epsilon_end", "decay_fraction", "lam",
                 "baseline_alpha", "target_epsilon")
 """Fields holding a number, kept as floats so that ``1`` and ``1.0`` are one configuration (one hash)."""
-ALGORITHMS = (*ALGORITHM_CODES, "reinforce_baseline")
+REINFORCE_VARIANTS = ("reinforce", "reinforce_book", "reinforce_baseline")
+"""The paper's Algorithm 3 as written (no γ^t), the book's 13.3 box (with γ^t) and its 13.4 box (a baseline)."""
+ALGORITHMS = (*ALGORITHM_CODES, "reinforce_book", "reinforce_baseline")
+BEFORE_UPDATE, AFTER_UPDATE = "before_update", "after_update"
+NEXT_ACTION_DEFAULTS = {"q_learning": AFTER_UPDATE, "sarsa": BEFORE_UPDATE, "expected_sarsa": AFTER_UPDATE,
+                        "double_q_learning": AFTER_UPDATE}
+"""When each one-step learner draws its next action in its book box: SARSA before its update (Algorithm 2),
+the others after it (Algorithm 1)."""
 FEATURES = ("grid", "tiles")
 TRACES = ("replacing", "accumulating")
 DEFAULT_STAGES = (("early", 0.1), ("middle", 0.5), ("final", 1.0))
@@ -63,7 +70,8 @@ class ExperimentConfig:
     algorithm: str = "q_learning"
     """Learning rule: ``q_learning`` (Algorithm 1), ``sarsa`` (Algorithm 2), ``random`` (the baseline),
     ``expected_sarsa``, ``double_q_learning``, ``n_step_sarsa``, ``sarsa_lambda``, ``q_lambda`` (Watkins),
-    ``reinforce`` (Algorithm 3) or ``reinforce_baseline``."""
+    ``reinforce`` (the paper's Algorithm 3, no γ^t), ``reinforce_book`` (13.3, with γ^t) or
+    ``reinforce_baseline`` (13.4)."""
     schedule: str = "decay"
     """Exploration: ``constant`` (ε fixed) or ``decay`` (linear from ``epsilon_start`` to ``epsilon_end``)."""
     env: str = "MountainCar-v0"
@@ -92,6 +100,11 @@ class ExperimentConfig:
     """Eligibility traces: ``replacing`` or ``accumulating``."""
     target_epsilon: float | None = None
     """ε of Expected SARSA's target policy: None for the behaviour's ε (on-policy), 0 for greedy."""
+    next_action: str | None = None
+    """When a one-step learner draws its next action A': ``before_update`` (from the values its target
+    bootstraps on, before ``Q(S, A)`` moves: SARSA's box, Algorithm 2) or ``after_update`` (from the updated
+    values: Q-Learning's box, Algorithm 1). None: the method's own box (:attr:`drawn_next`). Only
+    ``q_learning``, ``sarsa``, ``expected_sarsa`` and ``double_q_learning`` have it (``docs/why.md``)."""
     baseline_alpha: float = 0.01
     """Step size of REINFORCE's state-value baseline (``reinforce_baseline``), in (0, 1]."""
     alpha: float = 0.05
@@ -169,8 +182,17 @@ class ExperimentConfig:
 
     @property
     def name(self) -> str:
-        """Short label, also the run directory's name in a study: ``q_learning-decay``, ``random``."""
-        return self.algorithm if self.algorithm == "random" else f"{self.algorithm}-{self.schedule}"
+        """Short label, also the run directory's name in a study: ``q_learning-decay``, ``random``; a learner
+        drawing its next action off its box says so: ``q_learning-decay-before_update``."""
+        if self.algorithm == "random":
+            return self.algorithm
+        own_box = self.drawn_next == NEXT_ACTION_DEFAULTS.get(self.algorithm)
+        return f"{self.algorithm}-{self.schedule}" + ("" if own_box else f"-{self.next_action}")
+
+    @property
+    def drawn_next(self) -> str | None:
+        """When a one-step learner draws its next action: ``next_action``, or its box's (None for the others)."""
+        return self.next_action or NEXT_ACTION_DEFAULTS.get(self.algorithm)
 
     @property
     def evaluation_rounds(self) -> int:
@@ -234,6 +256,12 @@ def _check_choices(c: ExperimentConfig) -> None:
     _require(c.features in FEATURES, "features", c.features, ", ".join(FEATURES))
     _require(c.trace in TRACES, "trace", c.trace, ", ".join(TRACES))
     _require(isinstance(c.adapter, bool), "adapter", c.adapter, "true or false")
+    if c.algorithm in NEXT_ACTION_DEFAULTS:
+        _require(c.next_action in (None, BEFORE_UPDATE, AFTER_UPDATE), "next_action", c.next_action,
+                 f"{BEFORE_UPDATE}, {AFTER_UPDATE}, or none for {c.algorithm}'s own box")
+    else:
+        _require(c.next_action is None, "next_action", c.next_action, f"none for {c.algorithm} (only "
+                 f"{', '.join(NEXT_ACTION_DEFAULTS)} choose when to draw the next action)")
 
 
 def _check_rates(c: ExperimentConfig) -> None:

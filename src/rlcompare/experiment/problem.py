@@ -150,9 +150,11 @@ def grid_bounds(env: Environment, bounds: tuple[tuple[float, float], ...] | None
 
 
 def make_env(env: Environment, handle: int = -1) -> Env:
-    """The kernels' description of ``env``; ``handle`` names the Gymnasium environments opened for the adapter."""
+    """The kernels' description of ``env``; ``handle`` names the Gymnasium environments opened for the adapter.
+    Its transition stream is a placeholder: each run steps with its own."""
     table = table_of(env.name) if env.kind == TABLE else _NO_TABLE
-    return Env(env.kind, env.max_position, table, env.n_actions, env.state_size, env.observation_size, handle, 0)
+    return Env(env.kind, env.max_position, table, env.n_actions, np.zeros(4, np.uint64), env.state_size,
+               env.observation_size, handle, 0)
 
 
 def make_features(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,

@@ -19,10 +19,11 @@ from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilo
 from rlcompare.engine import kernel, tabular
 from rlcompare.envs import gymnasium_env
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.config import AFTER_UPDATE, BEFORE_UPDATE, REINFORCE_VARIANTS, ExperimentConfig
 from rlcompare.experiment.problem import make_env, make_features
 from rlcompare.experiment.results import Results
 
+NEXT_ACTION_CODES = {BEFORE_UPDATE: kernel.BEFORE_UPDATE, AFTER_UPDATE: kernel.AFTER_UPDATE}
 CHUNK_EPISODES = 250
 """Episodes per kernel call; between calls the progress bar moves. Results do not depend on it."""
 
@@ -79,13 +80,14 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
 
 @contextlib.contextmanager
 def stepped_env(config: ExperimentConfig, state: kernel.RunState) -> Iterator[kernel.Env]:
-    """The environment the kernels step: a port, or Gymnasium environments opened for every run (each
-    generator a copy of the run's environment or evaluation stream) and closed afterwards."""
+    """The environment the kernels step: a port, or Gymnasium environments opened for every run (their
+    generators copies of the run's reset and transition streams) and closed afterwards."""
     if config.environment.is_ported:
         yield make_env(config.environment)
         return
-    with gymnasium_env.opened(config.env, state.rng[:, kernel.ENV_STREAM], state.rng[:, kernel.EVAL_ENV_STREAM],
-                              config.max_steps) as handle:
+    training = state.rng[:, [kernel.ENV_STREAM, kernel.TRANSITION_STREAM]]
+    evaluation = state.rng[:, [kernel.EVAL_ENV_STREAM, kernel.EVAL_TRANSITION_STREAM]]
+    with gymnasium_env.opened(config.env, training, evaluation, config.max_steps) as handle:
         yield make_env(config.environment, handle)
 
 
@@ -98,19 +100,25 @@ def uses_fast_path(config: ExperimentConfig) -> bool:
 def _trainer(config: ExperimentConfig, env: kernel.Env, features: kernel.Features, state: kernel.RunState,
              epsilons: np.ndarray, records: kernel.Records) -> Callable[[int, int], None]:
     """``train(first, stop)``: episodes ``[first, stop)`` of every seed, in place."""
-    common = {"max_steps": int(config.max_steps), "truncation_is_terminal": bool(config.truncation_as_terminal),
-              "alpha": float(config.alpha), "gamma": float(config.gamma), "eval_every": int(config.eval_every)}
+    settings = kernel_settings(config)
     if uses_fast_path(config):
-        settings = kernel.Settings(algorithm=tabular.ALGORITHM_CODES[config.algorithm], **common)
         return lambda first, stop: tabular.train_runs(settings, state, features.grid, epsilons, first, stop, records)
-    baseline = config.algorithm == "reinforce_baseline"
-    settings = kernel.Settings(
-        algorithm=kernel.REINFORCE if baseline else kernel.ALGORITHM_CODES[config.algorithm], **common,
+    return lambda first, stop: kernel.train_runs(settings, env, features, state, epsilons, first, stop, records)
+
+
+def kernel_settings(config: ExperimentConfig) -> kernel.Settings:
+    """The scalars of ``config`` as the kernels read them."""
+    reinforce = config.algorithm in REINFORCE_VARIANTS
+    return kernel.Settings(
+        algorithm=kernel.REINFORCE if reinforce else kernel.ALGORITHM_CODES[config.algorithm],
+        alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
+        truncation_is_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every),
         n=int(config.n), lam=float(config.lam), replacing=config.trace == "replacing",
         target_epsilon=-1.0 if config.target_epsilon is None else float(config.target_epsilon),
-        baseline_alpha=float(config.baseline_alpha) if baseline else 0.0,
+        baseline_alpha=float(config.baseline_alpha) if config.algorithm == "reinforce_baseline" else 0.0,
+        next_action=NEXT_ACTION_CODES.get(config.next_action, kernel.OWN_BOX),
+        discount_gradient=config.algorithm != "reinforce",
     )
-    return lambda first, stop: kernel.train_runs(settings, env, features, state, epsilons, first, stop, records)
 
 
 def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:

@@ -1,0 +1,247 @@
+"""``next_action``: whether a one-step method draws A' before or after updating Q(S, A).
+
+The order only matters when the update changes the values A' is drawn from, that is when S' = S. On the
+chain below the "stay" action keeps the state, so the hand-worked episodes differ between the two orders.
+
+Chain (``chain(2)``): states 0 and 1, start in 0; action 0 ("stay") keeps the state with reward 0; action 1
+("right") moves 0 -> 1 with reward 0 and from 1 ends the episode with reward 1. α = 0.5, γ = 0.5, ε = 0,
+initial weights ``W0``: state 0 prefers "stay" (0.25 > 0.2) until an update lowers it. With ε = 0 every
+ε-greedy choice draws one uniform (the exploration test) and, with no tie, nothing else.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from rlcompare import ConfigError, ExperimentConfig, run
+from rlcompare.algorithms.schedules import linear_decay_epsilon
+from rlcompare.engine import kernel, tabular
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import make_grid
+from rlcompare.envs.table import chain
+from rlcompare.envs.tiles import make_tile_coding
+from rlcompare.experiment.problem import environment, make_env, make_features
+from rlcompare.experiment.runner import kernel_settings
+from rlcompare.rng import stream_state
+
+W0 = [[0.25, 0.2], [0.1, 0.6]]
+IMPLS = ["compiled", "py_func"]
+COIN_SEED = 343
+"""An agent stream whose uniforms 1 to 7 all fall below 0.5: Double Q-Learning's coin always updates Q1."""
+_CACHED: dict = {}
+
+
+def _impl(name: str, fn):
+    """The episode function as plain Python, or compiled (cached on disk, as the kernel's own entry point is)."""
+    if name == "py_func":
+        return fn.py_func
+    if fn not in _CACHED:
+        _CACHED[fn] = numba.njit(cache=True)(fn.py_func)
+    return _CACHED[fn]
+
+
+def _order(before: bool) -> int:
+    return kernel.BEFORE_UPDATE if before else kernel.AFTER_UPDATE
+
+
+def _settings(algorithm: int, before: bool, target_epsilon: float = -1.0) -> kernel.Settings:
+    return kernel.Settings(algorithm=algorithm, alpha=0.5, gamma=0.5, max_steps=100, truncation_is_terminal=False,
+                           eval_every=0, target_epsilon=float(target_epsilon), next_action=_order(before))
+
+
+def _chain_episode(impl: str, algorithm: int, before: bool, seed: int = 0, w2=None):
+    table_env = chain(2)
+    env = kernel.Env(kernel.TABLE, 0.0, table_env, 2, stream_state(2000), 1, 1)
+    grid = make_grid(np.zeros(2, np.float32), np.ones(2, np.float32), 1)
+    tiles = make_tile_coding(np.zeros(2), np.ones(2), tilings=1, tiles=1)
+    features = kernel.Features(kernel.ONE_HOT, grid, tiles, 2, 1)
+    w = np.array(W0)
+    w2 = np.zeros_like(w) if w2 is None else np.array(w2)
+    agent_rng, visits = stream_state(seed), np.zeros(2, np.int64)
+    ret, steps, terminated = _impl(impl, kernel.one_step_episode)(
+        _settings(algorithm, before), env, features, w, w2, 0.0, stream_state(1000), agent_rng, visits)
+    assert (ret, terminated) == (1.0, True)
+    return w, w2, steps, visits, agent_rng
+
+
+def _after(seed: int, draws: int) -> np.ndarray:
+    """The agent stream of ``seed`` after ``draws`` uniforms, from NumPy's own generator."""
+    bit_generator = np.random.PCG64(seed)
+    np.random.Generator(bit_generator).random(draws)
+    s, inc, mask = bit_generator.state["state"]["state"], bit_generator.state["state"]["inc"], (1 << 64) - 1
+    return np.array([s >> 64, s & mask, inc >> 64, inc & mask], dtype=np.uint64)
+
+
+# Each case: (algorithm, before, final weights, steps, visits of states 0 and 1, agent draws).
+# After the update (Q-Learning's box): stay, Q(0, stay) = 0.25 + 0.5 (0.5 * 0.25 - 0.25) = 0.1875 < 0.2, so the
+# draw after the update goes right; Q(0, right) = 0.2 + 0.5 (0.5 * 0.6 - 0.2) = 0.25; Q(1, right) = 0.8.
+# Before the update (SARSA's box): A' is drawn from [0.25, 0.2] before Q(0, stay) falls, so the car stays once
+# more: Q(0, stay) = 0.1875 + 0.5 (0.5 * max(0.1875, 0.2) - 0.1875) = 0.14375, then right as above.
+HAND_CASES = [
+    ("q_learning", False, [[0.1875, 0.25], [0.1, 0.8]], 3, [2, 1], 3),
+    ("q_learning", True, [[0.14375, 0.25], [0.1, 0.8]], 4, [3, 1], 4),
+    ("sarsa", True, [[0.14375, 0.25], [0.1, 0.8]], 4, [3, 1], 4),
+    # SARSA after the update: the target's A' (stay) comes from the values before it, 0.5 * 0.25; the action
+    # taken is drawn again after it, from [0.1875, 0.2]: right. Two draws per non-terminal step.
+    ("sarsa", False, [[0.1875, 0.25], [0.1, 0.8]], 3, [2, 1], 5),
+    # ε = 0: Expected SARSA's target is the max, so it moves as Q-Learning does, in either order.
+    ("expected_sarsa", False, [[0.1875, 0.25], [0.1, 0.8]], 3, [2, 1], 3),
+    ("expected_sarsa", True, [[0.14375, 0.25], [0.1, 0.8]], 4, [3, 1], 4),
+]
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+@pytest.mark.parametrize(("algorithm", "before", "w", "steps", "visits", "draws"), HAND_CASES)
+def test_one_step_episode_by_hand(impl, algorithm, before, w, steps, visits, draws):
+    w_out, _, steps_out, visits_out, agent_rng = _chain_episode(impl, kernel.ALGORITHM_CODES[algorithm], before)
+    np.testing.assert_allclose(w_out, w, rtol=1e-15)
+    assert steps_out == steps
+    np.testing.assert_array_equal(visits_out, visits)
+    np.testing.assert_array_equal(agent_rng, _after(0, draws))
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+@pytest.mark.parametrize("before", [False, True])
+def test_double_q_learning_episode_by_hand(impl, before):
+    """Q2 = 0 and every coin updates Q1, so each target is R + γ Q2(S', argmax Q1) = R.
+
+    After: Q1(0, stay) = 0.25 / 2 = 0.125 < 0.2, right: Q1(0, right) = 0.1, Q1(1, right) = 0.8; draws: the first
+    action, then a coin and an action per step, a coin at the end (6).
+    Before: stay is drawn again from [0.25, 0.2]; Q1(0, stay) = 0.125 / 2 = 0.0625, then right as above; draws:
+    the first action, an action and a coin per non-terminal step, a coin at the end (8).
+    """
+    draws = np.random.Generator(np.random.PCG64(COIN_SEED)).random(8)
+    assert (draws[1:] < 0.5).all()
+    w1, w2, steps, visits, agent_rng = _chain_episode(impl, kernel.DOUBLE_Q, before, seed=COIN_SEED)
+    expected = [[0.0625, 0.1], [0.1, 0.8]] if before else [[0.125, 0.1], [0.1, 0.8]]
+    np.testing.assert_allclose(w1, expected, rtol=1e-15)
+    np.testing.assert_array_equal(w2, 0.0)
+    assert steps == (4 if before else 3)
+    np.testing.assert_array_equal(visits, [3, 1] if before else [2, 1])
+    np.testing.assert_array_equal(agent_rng, _after(COIN_SEED, 8 if before else 6))
+
+
+# --- the tabular fast path: the same rule, bit for bit ----------------------------------------------------
+
+ONE_STEP = [("q_learning", -1.0), ("sarsa", -1.0), ("expected_sarsa", -1.0), ("expected_sarsa", 0.0),
+            ("double_q_learning", -1.0)]
+
+
+def _mountain_car_runs(algorithm: str, before: bool, target_epsilon: float, fast: bool, episodes: int = 60,
+                       epsilon_start: float = 1.0):
+    feats = make_features(environment("MountainCar-v0"), "grid", 20, 1, 1, 0)
+    epsilons = linear_decay_epsilon(episodes, epsilon_start, 0.0, 0.5)
+    state = kernel.initial_state([0, 1], feats.n_features, mountain_car.N_ACTIONS)
+    records = kernel.allocate_records(2, episodes, 2, 2, np.array([episodes], np.int64), state.w.shape[1:])
+    settings = kernel.Settings(algorithm=kernel.ALGORITHM_CODES[algorithm], alpha=0.05, gamma=0.9, max_steps=1000,
+                               truncation_is_terminal=False, eval_every=30, target_epsilon=target_epsilon,
+                               next_action=_order(before))
+    if fast:
+        tabular.train_runs(settings, state, feats.grid, epsilons, 0, episodes, records)
+    else:
+        kernel.train_runs(settings, make_env(environment("MountainCar-v0")), feats, state, epsilons, 0, episodes,
+                          records)
+    return state, records
+
+
+@pytest.mark.parametrize(("algorithm", "target_epsilon"), ONE_STEP)
+@pytest.mark.parametrize("before", [False, True])
+def test_fast_path_equals_general_kernel_in_either_order(algorithm, target_epsilon, before):
+    fast = _mountain_car_runs(algorithm, before, target_epsilon, fast=True)
+    general = _mountain_car_runs(algorithm, before, target_epsilon, fast=False)
+    for name in kernel.Records._fields:
+        np.testing.assert_array_equal(getattr(fast[1], name), getattr(general[1], name), err_msg=name)
+    np.testing.assert_array_equal(fast[0].w, general[0].w)
+    np.testing.assert_array_equal(fast[0].rng, general[0].rng)
+
+
+@pytest.mark.parametrize(("algorithm", "target_epsilon"), ONE_STEP)
+def test_the_order_changes_what_is_learned_on_mountain_car(algorithm, target_epsilon):
+    """On the 20 x 20 grid the car stays in its cell for most steps, so the two orders part at once (with
+    ε < 1: at ε = 1 the values choose nothing)."""
+    after = _mountain_car_runs(algorithm, False, target_epsilon, fast=True, episodes=1, epsilon_start=0.5)
+    before = _mountain_car_runs(algorithm, True, target_epsilon, fast=True, episodes=1, epsilon_start=0.5)
+    assert not np.array_equal(after[1].visits, before[1].visits)
+    assert not np.array_equal(after[0].w, before[0].w)
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+@pytest.mark.parametrize("algorithm", ["q_learning", "sarsa", "expected_sarsa", "double_q_learning"])
+@pytest.mark.parametrize("before", [False, True])
+def test_fast_episode_compiled_equals_py_func(impl, algorithm, before):
+    """One Mountain Car episode of the fast kernel, compiled and as plain Python, against the general kernel."""
+    grid = make_features(environment("MountainCar-v0"), "grid", 20, 1, 1, 0)
+    settings = kernel.Settings(algorithm=kernel.ALGORITHM_CODES[algorithm], alpha=0.05, gamma=0.9, max_steps=300,
+                               truncation_is_terminal=False, eval_every=0, next_action=_order(before))
+    outcomes = []
+    for episode in (_impl(impl, tabular.train_episode), None):
+        q, q2 = np.zeros((400, 3)), np.zeros((400, 3))
+        env_rng, agent_rng, visits = stream_state(5), stream_state(6), np.zeros(400, np.int64)
+        if episode is None:
+            out = kernel.one_step_episode(settings, make_env(environment("MountainCar-v0")), grid, q, q2, 0.3,
+                                          env_rng, agent_rng, visits)
+        else:
+            out = episode(settings, q, q2, grid.grid, 0.3, env_rng, agent_rng, visits)
+        outcomes.append((tuple(out), q, q2, agent_rng, visits))
+    (out_a, q_a, q2_a, rng_a, visits_a), (out_b, q_b, q2_b, rng_b, visits_b) = outcomes
+    assert out_a == out_b
+    np.testing.assert_array_equal(q_a, q_b)
+    np.testing.assert_array_equal(q2_a, q2_b)
+    np.testing.assert_array_equal(rng_a, rng_b)
+    np.testing.assert_array_equal(visits_a, visits_b)
+    assert np.any(q_a != 0.0)
+
+
+# --- the configuration field ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("algorithm", "default"), [("q_learning", "after_update"), ("sarsa", "before_update"),
+                                                    ("expected_sarsa", "after_update"),
+                                                    ("double_q_learning", "after_update")])
+def test_each_method_defaults_to_its_book_box(algorithm, default):
+    config = ExperimentConfig(algorithm=algorithm)
+    assert config.next_action is None
+    assert config.drawn_next == default
+    assert kernel_settings(config).next_action == kernel.OWN_BOX
+    assert config.name == ExperimentConfig(algorithm=algorithm, next_action=default).name == f"{algorithm}-decay"
+    other = "before_update" if default == "after_update" else "after_update"
+    moved = ExperimentConfig(algorithm=algorithm, next_action=other)
+    assert moved.name == f"{algorithm}-decay-{other}"
+    assert kernel_settings(moved).next_action == (kernel.BEFORE_UPDATE if other == "before_update"
+                                                   else kernel.AFTER_UPDATE)
+
+
+@pytest.mark.parametrize(("algorithm", "value", "allowed"), [
+    ("q_learning", "first", "before_update, after_update"),
+    ("sarsa", 1, "before_update, after_update"),
+    ("n_step_sarsa", "before_update", "none for n_step_sarsa"),
+    ("random", "after_update", "none for random"),
+])
+def test_bad_next_action_names_the_field_and_the_allowed_values(algorithm, value, allowed):
+    with pytest.raises(ConfigError, match="next_action") as error:
+        ExperimentConfig(algorithm=algorithm, next_action=value)
+    assert allowed in str(error.value)
+
+
+def test_next_action_is_recorded_and_changes_results():
+    short = {"episodes": 2, "seeds": (0, 1), "eval_every": 0, "schedule": "constant"}
+    box = run(ExperimentConfig(algorithm="q_learning", **short))
+    moved = run(ExperimentConfig(algorithm="q_learning", next_action="before_update", **short))
+    assert box.config.drawn_next == "after_update"
+    assert moved.config.to_dict()["next_action"] == "before_update"
+    assert not np.array_equal(box.records.visits, moved.records.visits)
+
+
+@pytest.mark.parametrize("variant", ["reinforce", "reinforce_book"])
+def test_reinforce_variants_differ_only_by_the_discount_of_the_step(variant):
+    """The paper's Algorithm 3 steps by α G_t; the book's 13.3 box by α γ^t G_t. With γ = 1 they coincide."""
+    settings = kernel_settings(ExperimentConfig(algorithm=variant))
+    assert settings.algorithm == kernel.REINFORCE
+    assert settings.discount_gradient == (variant == "reinforce_book")
+    short = {"episodes": 3, "seeds": (0,), "eval_every": 0, "env": "CliffWalking-v1", "alpha": 0.1}
+    for gamma, same in ((1.0, True), (0.9, False)):
+        paper = run(ExperimentConfig(algorithm="reinforce", gamma=gamma, **short)).records.snapshots
+        book = run(ExperimentConfig(algorithm="reinforce_book", gamma=gamma, **short)).records.snapshots
+        assert np.array_equal(paper, book) == same
