@@ -11,7 +11,9 @@ import pytest
 from typer.testing import CliRunner
 
 from rlcompare import cli
-from rlcompare.analysis.tables import Claim, judge
+from rlcompare.analysis.convergence import RULES
+from rlcompare.analysis.stats import VERDICTS
+from rlcompare.analysis.tables import COLUMNS, Claim, judge
 from rlcompare.experiment import store
 from rlcompare.studies.paper import paper_configs, reproduce
 from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report
@@ -43,12 +45,28 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert table_ii.set_index("configuration").loc["sarsa-constant", "paper (Table II)"] == -176
     verdicts = pd.read_csv(study_copy / "tables" / "verdicts.csv")
     assert len(verdicts) == len(CLAIMS)
-    assert set(verdicts["verdict"]) <= {"supported", "contradicted", "not resolved at this number of seeds"}
+    assert list(verdicts.columns) == COLUMNS
+    assert {v.removesuffix(" (fragile)") for v in verdicts["verdict"]} <= set(VERDICTS)
+    assert (verdicts["p (Holm)"].dropna() >= verdicts["p"].dropna()).all()
+    floored = verdicts[verdicts["metric"] == "first_action_left"]
+    assert len(floored) == 2
+    assert floored["noise floor"].str.contains("gap .* spread", regex=True).all()
+    rules = pd.read_csv(study_copy / "tables" / "verdict_rules.csv")
+    assert list(rules["claim"]) == [c.text for c in CLAIMS if c.metric == "convergence_episode"]
+    behaviour_rules = [r.name for r in RULES if r.curve == "behaviour"]
+    assert [name for name in rules.columns if name.startswith("band")] == behaviour_rules
+    fragile = [len({str(v).removesuffix(" (fragile)") for v in row}) > 1
+               for row in rules.drop(columns="claim").to_numpy()]
+    assert list(rules["verdict"].str.endswith("(fragile)")) == fragile
     for file_name, _, _ in FIGURES:
         assert (study_copy / "figures" / f"{file_name}.png").stat().st_size > 10_000
     page = (study_copy / "report.html").read_text()
     assert page.count("<img ") == len(list((study_copy / "figures").glob("*.png")))
     assert "Table I" in page
+    assert "to the end of training" in page
+    assert "Holm" in page
+    assert "fragile" in page
+    assert 'class="verdict-' in page
     assert "Incomplete" not in page
 
 
@@ -99,7 +117,7 @@ def test_judge_reads_the_direction_of_each_claim() -> None:
     clear = judge([better, lower], _metrics(list(q + 20), list(q)), episodes=100)
     assert list(clear["verdict"]) == ["supported", "contradicted"]
     noise = judge([better], _metrics(list(q + rng.normal(0, 5, 20)), list(q)), episodes=100)
-    assert list(noise["verdict"]) == ["not resolved at this number of seeds"]
+    assert list(noise["verdict"]) == ["not resolved"]
 
 
 def test_judge_counts_a_run_that_never_converged_as_the_last_episode() -> None:

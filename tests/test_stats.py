@@ -246,7 +246,7 @@ def test_verdict_outcomes():
     assert verdict(Estimate(5.0, np.nan, np.nan), 0.001, +1) == NOT_RESOLVED
     assert verdict(positive, np.nan, +1) == NOT_RESOLVED
     assert verdict(Estimate(0.0, 0.0, 3.0), 0.001, +1) == NOT_RESOLVED  # touching 0 does not exclude it
-    assert set(VERDICTS) == {"supported", "contradicted", "not resolved at this number of seeds"}
+    assert set(VERDICTS) == {"supported", "contradicted", "not resolved", "undecidable here", "no data"}
     with pytest.raises(ValueError, match="claimed_sign"):
         verdict(positive, 0.001, 0)
 

@@ -24,9 +24,16 @@ stays within a band around its final value. For a run of ``episodes`` per-episod
 The trailing average lags the raw curve, so the settling time is late by up to one ``window`` compared
 with where the raw (noise-free) curve settles: a step change at episode ``t`` is detected at about
 ``t + window``. Compare settling times computed with the same ``window``, never with other rules.
+
+The band and the window are choices, so a verdict read from settling times is also read under the other
+:data:`RULES` (bands of 5, 10 and 20%, windows of 50, 100 and 200 episodes, and the greedy-evaluation curve);
+a verdict that changes with the rule is marked fragile (``docs/why.md``, "Verdicts").
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -96,3 +103,40 @@ def episodes_to_seconds(convergence: np.ndarray, lengths: np.ndarray, seconds_pe
     index = np.where(known, counts, 1).astype(np.int64) - 1
     cumulative = np.take_along_axis(np.cumsum(steps, axis=1), index[:, None], axis=1)[:, 0]
     return np.where(known, cumulative * seconds_per_step, np.nan)
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One reading of "time to converge": the band's share of the improvement, the smoothing window in
+    episodes, and the curve: the behaviour (ε-greedy) returns of training, or the greedy-evaluation rounds."""
+
+    tolerance: float = 0.05
+    window: int = 100
+    curve: Literal["behaviour", "greedy"] = "behaviour"
+
+    @property
+    def name(self) -> str:
+        prefix = "greedy curve, " if self.curve == "greedy" else ""
+        return f"{prefix}band {self.tolerance:.0%}, window {self.window}"
+
+
+DEFAULT_RULE = Rule()
+"""The rule of Table I: behaviour returns, a 5% band, a window of 100 episodes."""
+RULES: tuple[Rule, ...] = (
+    *(Rule(tolerance, window) for tolerance in (0.05, 0.1, 0.2) for window in (50, 100, 200)),
+    Rule(curve="greedy"),
+)
+"""The reasonable rules a convergence verdict is checked under: bands x windows, and the greedy curve."""
+
+
+def convergence_on_rounds(curve: np.ndarray, every: int, window: int = 100, **rule) -> np.ndarray:
+    """Settling time of a curve sampled once every ``every`` training episodes (greedy-evaluation rounds),
+    in training episodes: round ``k`` (counted from 1) comes after ``k * every`` episodes.
+
+    ``curve``: ``(runs, rounds)``, e.g. each round's mean greedy return; ``window``: in training episodes,
+    smoothed over ``max(1, round(window / every))`` rounds; ``rule``: the other arguments of
+    :func:`convergence_episodes` (``solved`` then has one entry per round).
+    """
+    if every < 1:
+        raise ValueError(f"every must be at least 1 episode, got {every}")
+    return convergence_episodes(curve, window=max(1, round(window / every)), **rule) * every

@@ -7,6 +7,7 @@ archived as a whole and opened without a server or a network.
 from __future__ import annotations
 
 import html
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,6 +29,8 @@ figcaption { font-size: .9rem; color: #555; }
 .videos video { width: 100%; }
 .problems { background: #fff4e5; border: 1px solid #f0b45b; padding: .6rem 1rem; }
 .verdict-supported { color: #1a7f37; font-weight: 600; } .verdict-contradicted { color: #c62828; font-weight: 600; }
+.verdict-not-resolved { color: #555; } .verdict-undecidable-here { color: #8a5a00; font-style: italic; }
+.verdict-no-data { color: #999; } .verdict-fragile { text-decoration: underline dotted; }
 code, pre { background: #f6f8fa; padding: .1rem .3rem; }
 """
 
@@ -45,11 +48,18 @@ class Section:
     """(relative MP4 path, relative GIF path or "", caption)"""
 
 
+_VERDICT_CELL = re.compile(r"<td>(supported|contradicted|not resolved|undecidable here|no data)( \(fragile\))?</td>")
+
+
+def _verdict_cell(match: re.Match[str]) -> str:
+    label, fragile = match.group(1), match.group(2)
+    classes = f"verdict-{label.replace(' ', '-')}" + (" verdict-fragile" if fragile else "")
+    return f'<td class="{classes}">{label}{fragile or ""}</td>'
+
+
 def _table_html(caption: str, frame: pd.DataFrame) -> str:
     body = frame.to_html(index=False, escape=True, border=0, na_rep="", float_format=lambda v: f"{v:.3g}")
-    for verdict in ("supported", "contradicted"):
-        body = body.replace(f"<td>{verdict}</td>", f'<td class="verdict-{verdict}">{verdict}</td>')
-    return f"<h3>{html.escape(caption)}</h3>\n{body}"
+    return f"<h3>{html.escape(caption)}</h3>\n{_VERDICT_CELL.sub(_verdict_cell, body)}"
 
 
 def _section_html(section: Section) -> str:

@@ -1,9 +1,13 @@
-"""Statistics over seeds: one number per seed in, an estimate with its interval out.
+"""Statistics over seeds: one number per seed in, an estimate with its interval out, and verdicts on claims.
 
 Intervals are bootstrap intervals over seeds (Efron and Tibshirani 1993, *An Introduction to the
 Bootstrap*); the interquartile mean and the probability of improvement follow Agarwal et al. 2021,
 "Deep Reinforcement Learning at the Edge of the Statistical Precipice" (NeurIPS), as implemented in
 their library rliable. Every resampling function takes an explicit ``seed`` so tables are reproducible.
+Equivalence is tested with two one-sided tests (Schuirmann 1987, "A comparison of the two one-sided tests
+procedure and the power approach for assessing the equivalence of average bioavailability", J.
+Pharmacokinet. Biopharm. 15(6)); a family of claims is corrected with Holm's step-down procedure (Holm 1979,
+"A simple sequentially rejective multiple test procedure", Scand. J. Statist. 6(2)).
 
 Shared conventions for the intervals:
 
@@ -12,11 +16,19 @@ Shared conventions for the intervals:
 - a non-finite value (NaN or ±inf, e.g. a run that never converged) gives a NaN estimate: decide
   explicitly what such runs mean before asking for an interval;
 - no seeds at all is a caller error (``ValueError``).
+
+The verdict labels (``docs/why.md``, "Verdicts"):
+
+- ``supported`` / ``contradicted``: the test of the claim, or of its opposite, rejects at the family-wise level;
+- ``not resolved``: neither does, and more seeds (or, for runs that never converged, more episodes) could settle it;
+- ``undecidable here``: the quantity the claim reads lies below its own noise floor, so more seeds will not settle it;
+- ``no data``: nothing to test (e.g. every seed censored: nothing converged).
 """
 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterable
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -24,11 +36,15 @@ from scipy import stats
 
 Statistic = Literal["mean", "iqm"]
 
-Verdict = Literal["supported", "contradicted", "not resolved at this number of seeds"]
+Verdict = Literal["supported", "contradicted", "not resolved", "undecidable here", "no data"]
 SUPPORTED: Verdict = "supported"
 CONTRADICTED: Verdict = "contradicted"
-NOT_RESOLVED: Verdict = "not resolved at this number of seeds"
-VERDICTS: tuple[Verdict, ...] = (SUPPORTED, CONTRADICTED, NOT_RESOLVED)
+NOT_RESOLVED: Verdict = "not resolved"
+UNDECIDABLE: Verdict = "undecidable here"
+NO_DATA: Verdict = "no data"
+VERDICTS: tuple[Verdict, ...] = (SUPPORTED, CONTRADICTED, NOT_RESOLVED, UNDECIDABLE, NO_DATA)
+ALPHA = 0.05
+"""Family-wise error rate of one report's claims."""
 
 
 class Estimate(NamedTuple):
@@ -185,16 +201,19 @@ def rank_test(a: np.ndarray, b: np.ndarray, paired: bool = True) -> float:
     return float(stats.mannwhitneyu(a, b, alternative="two-sided").pvalue)
 
 
-def verdict(difference: Estimate, p_value: float, claimed_sign: int, level: float = 0.05) -> Verdict:
+def verdict(difference: Estimate, p_value: float, claimed_sign: int, level: float = ALPHA) -> Verdict:
     """Whether the seeds support a claimed direction of a difference.
 
-    ``claimed_sign``: +1 if the claim is that the difference is positive, -1 if negative.
+    ``claimed_sign``: +1 if the claim is that the difference is positive, -1 if negative; ``p_value``: a
+    two-sided p-value, Holm-adjusted where the claim belongs to a family.
     Supported: the interval excludes 0 on the claimed side and ``p_value < level``.
     Contradicted: the interval excludes 0 on the opposite side and ``p_value < level``.
-    Otherwise (including NaN bounds or p-value): not resolved at this number of seeds.
+    No data: no estimate (NaN). Otherwise (including NaN bounds or p-value): not resolved.
     """
     if claimed_sign not in (1, -1):
         raise ValueError(f"claimed_sign must be +1 or -1, got {claimed_sign!r}")
+    if np.isnan(difference.value):
+        return NO_DATA
     if not p_value < level:
         return NOT_RESOLVED
     if difference.low > 0:
@@ -223,24 +242,154 @@ def ratio_of_means(
     return Estimate(ratio, float(low), float(high))
 
 
-def equivalence_verdict(difference: Estimate, margin: float) -> Verdict:
-    """Whether two methods are the same within ``margin``: supported when the whole interval of the
-    difference lies inside ``[-margin, margin]`` (two one-sided tests at the interval's level),
-    contradicted when it lies wholly outside, otherwise not resolved."""
-    if np.isnan(difference.low) or np.isnan(difference.high):
-        return NOT_RESOLVED
-    if -margin < difference.low and difference.high < margin:
-        return SUPPORTED
-    if difference.low > margin or difference.high < -margin:
-        return CONTRADICTED
-    return NOT_RESOLVED
+class Equivalence(NamedTuple):
+    """Two one-sided tests of a mean against an equivalence margin ``[lower, upper]`` (Schuirmann 1987).
+
+    ``p_equivalent``: the larger of the two one-sided p-values (H0: mean <= lower, H0: mean >= upper).
+    ``p_beyond``: twice the one-sided p-value that the mean lies beyond the margin on the estimate's side
+    (1 when the estimate lies inside): below ``level`` exactly when the two-sided ``1 - level`` interval lies
+    wholly outside the margin.
+    """
+
+    estimate: Estimate
+    lower: float
+    upper: float
+    p_equivalent: float
+    p_beyond: float
+
+    @property
+    def inside(self) -> bool:
+        return bool(self.lower <= self.estimate.value <= self.upper)
+
+    @property
+    def p(self) -> float:
+        """The p-value of the test the estimate points to: equivalence inside the margin, beyond it outside."""
+        return self.p_equivalent if self.inside or np.isnan(self.estimate.value) else self.p_beyond
 
 
-def ratio_verdict(ratio: Estimate, claimed: float) -> Verdict:
-    """Whether a ratio is "about" ``claimed``: supported when its interval holds ``claimed`` and excludes
-    1 (no difference), contradicted when it excludes ``claimed``, otherwise not resolved."""
-    if np.isnan(ratio.low) or np.isnan(ratio.high):
+def _one_sided(distance: float, se: float, df: int) -> float:
+    """p-value of H0: distance <= 0 against distance > 0, for a mean ``distance`` from a bound (Student t)."""
+    if se == 0:
+        return 0.0 if distance > 0 else 1.0
+    return float(stats.t.sf(distance / se, df))
+
+
+def tost(values: np.ndarray, lower: float, upper: float, confidence: float = 0.95) -> Equivalence:
+    """Whether the mean of ``values`` (e.g. paired differences over seeds) lies within ``[lower, upper]``.
+
+    Two one-sided paired t-tests (Schuirmann 1987): equivalence at level α when both reject, i.e. when
+    ``max(p_lower, p_upper) < α``, which is the ``1 - 2α`` t interval lying inside the margin. The estimate
+    carries the two-sided ``confidence`` t interval. One seed gives NaN p-values; identical values give
+    p = 0 or 1 (a point either inside or outside); a non-finite value gives a NaN estimate.
+    """
+    if not lower < upper:
+        raise ValueError(f"the margin needs lower < upper, got [{lower}, {upper}]")
+    values = _per_seed(values)
+    if not np.all(np.isfinite(values)):
+        return Equivalence(_NAN, lower, upper, np.nan, np.nan)
+    mean, n = float(values.mean()), values.size
+    if n < 2:
+        return Equivalence(Estimate(mean, np.nan, np.nan), lower, upper, np.nan, np.nan)
+    se, df = float(values.std(ddof=1) / np.sqrt(n)), n - 1
+    half = float(stats.t.ppf(0.5 + confidence / 2, df)) * se
+    p_lower, p_upper = _one_sided(mean - lower, se, df), _one_sided(upper - mean, se, df)
+    if mean > upper:
+        p_beyond = 2 * _one_sided(mean - upper, se, df)
+    elif mean < lower:
+        p_beyond = 2 * _one_sided(lower - mean, se, df)
+    else:
+        p_beyond = 1.0
+    return Equivalence(Estimate(mean, mean - half, mean + half), lower, upper, max(p_lower, p_upper),
+                       min(1.0, p_beyond))
+
+
+def ratio_tost(numerator: np.ndarray, denominator: np.ndarray, claimed: float, factor: float = 1.25,
+               confidence: float = 0.95) -> Equivalence:
+    """Whether ``numerator / denominator`` is "about" ``claimed``: within ``[claimed / factor, claimed * factor]``.
+
+    Schuirmann's two one-sided tests on the per-seed log ratios, as bioequivalence tests a ratio of
+    geometric means within 80-125% (``factor`` 1.25): the estimate is the ratio of geometric means over
+    paired seeds with its t interval, all on the ratio scale. Values must be positive.
+    """
+    numerator, denominator = _per_seed(numerator), _per_seed(denominator)
+    if numerator.shape != denominator.shape:
+        raise ValueError(f"paired values need the same seeds: shapes {numerator.shape} and {denominator.shape} differ")
+    if not (claimed > 0 and factor > 1):
+        raise ValueError(f"need a positive claimed ratio and a factor above 1, got {claimed} and {factor}")
+    if np.any(numerator <= 0) or np.any(denominator <= 0):
+        raise ValueError("a ratio on the log scale needs positive values")
+    logs = tost(np.log(numerator / denominator), np.log(claimed / factor), np.log(claimed * factor), confidence)
+    estimate = Estimate(*(float(v) for v in np.exp(logs.estimate)))
+    return Equivalence(estimate, claimed / factor, claimed * factor, logs.p_equivalent, logs.p_beyond)
+
+
+def equivalence_verdict(test: Equivalence, p_value: float | None = None, level: float = ALPHA) -> Verdict:
+    """Supported when ``p_value`` (default ``test.p``; Holm-adjusted in a family) is below ``level`` with the
+    estimate inside the margin (equivalence shown); contradicted when it is below ``level`` with the estimate
+    outside (the difference lies beyond the margin); no data without an estimate; otherwise not resolved."""
+    if np.isnan(test.estimate.value):
+        return NO_DATA
+    p = test.p if p_value is None else p_value
+    if not p < level:
         return NOT_RESOLVED
-    if not ratio.low <= claimed <= ratio.high:
-        return CONTRADICTED
-    return SUPPORTED if not ratio.low <= 1.0 <= ratio.high else NOT_RESOLVED
+    return SUPPORTED if test.inside else CONTRADICTED
+
+
+def holm(p_values: Iterable[float]) -> np.ndarray:
+    """Holm's step-down adjusted p-values (Holm 1979): with the ``m`` p-values sorted ascending,
+    ``adjusted_(i) = max_{j <= i} min(1, (m - j + 1) p_(j))``; rejecting where ``adjusted < α`` keeps the
+    family-wise error rate at α. NaN (nothing tested) stays NaN and is not counted in ``m``."""
+    p = np.asarray(list(p_values), dtype=np.float64)
+    finite = np.flatnonzero(~np.isnan(p))
+    if np.any((p[finite] < 0) | (p[finite] > 1)):
+        raise ValueError(f"p-values must lie in [0, 1], got {p}")
+    order = finite[np.argsort(p[finite], kind="stable")]
+    adjusted = np.full(p.shape, np.nan)
+    adjusted[order] = np.minimum(1.0, np.maximum.accumulate((order.size - np.arange(order.size)) * p[order]))
+    return adjusted
+
+
+class NoiseFloor(NamedTuple):
+    """The gap between the best and second-best option against the seed-to-seed spread of the options' values."""
+
+    gap: float
+    spread: float
+
+    @property
+    def below(self) -> bool:
+        """The gap is smaller than the spread: which option is best is below the noise floor."""
+        return bool(self.gap < self.spread)
+
+    def format(self) -> str:
+        """``gap 0.0008 < spread 0.003``, with as many significant digits (2 to 6) as tell the two apart."""
+        digits = next((d for d in range(2, 7) if f"{self.gap:.{d}g}" != f"{self.spread:.{d}g}"), 6)
+        return f"gap {self.gap:.{digits}g} {'<' if self.below else '>='} spread {self.spread:.{digits}g}"
+
+
+def noise_floor(values: np.ndarray) -> NoiseFloor:
+    """Whether the best of several options stands out from the noise, e.g. greedy actions from Q-values.
+
+    ``values``: ``(seeds, items, options)``, e.g. final action values of the cells a claim reads (repeat an
+    item to weight it). ``gap``: mean over items of the best minus the second-best of the seed-mean values.
+    ``spread``: mean over items and options of the standard deviation over seeds (ddof 1). A gap below the
+    spread is a signal-to-noise ratio under 1: the ranking of the options is set by the seed, not the method.
+    One seed gives a NaN spread (never below).
+    """
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim != 3 or values.shape[2] < 2 or values.shape[1] == 0:
+        raise ValueError(f"expected (seeds, items, options >= 2) values, got shape {values.shape}")
+    ordered = np.sort(values.mean(axis=0), axis=1)
+    gap = float(np.mean(ordered[:, -1] - ordered[:, -2]))
+    spread = float(np.mean(values.std(axis=0, ddof=1))) if values.shape[0] > 1 else np.nan
+    return NoiseFloor(gap, spread)
+
+
+def robust_to_censoring(side: int, bias: Iterable[int]) -> bool:
+    """Whether a conclusion survives values censored from one side (a run that never converged counts at the
+    last episode, a lower bound on its true time).
+
+    ``side``: where the conclusion puts the true value: +1 above a bound, -1 below one, 0 inside a band.
+    ``bias``: the directions censoring can move the true value from the observed one (+1 up, -1 down; empty
+    when nothing was censored). The conclusion survives when every such move pushes further to its side.
+    """
+    return all(direction == side for direction in bias)

@@ -2,7 +2,7 @@
 
 - ``book-10.2``: semi-gradient SARSA with 8 tilings of 8 x 8 tiles, ε = 0 (the zero start is optimistic),
   γ = 1, α = 0.1/8, 0.2/8, 0.5/8: steps per episode over 500 episodes (Figure 10.2).
-- ``book-12.10``: SARSA(λ) with replacing traces, the same features, λ = 0, 0.5, 0.95, 0.99 over a range
+- ``book-12.10``: SARSA(λ) with replacing traces, the same features, λ = 0, 0.5, 0.9, 0.95, 0.99 over a range
   of α: steps per episode averaged over the first 50 episodes (Figure 12.10).
 
 Both use ``MountainCar-book`` (Example 10.1: Gymnasium's dynamics, position bounded at the goal, 0.5; the
@@ -37,7 +37,7 @@ from rlcompare.studies.paper import reproduce
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
         "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0, "stages": (("final", 1.0),)}
 FIG_10_2_ALPHAS = (0.1, 0.2, 0.5)  # times 1/8
-FIG_12_10_LAMBDAS = (0.0, 0.5, 0.95, 0.99)
+FIG_12_10_LAMBDAS = (0.0, 0.5, 0.9, 0.95, 0.99)
 FIG_12_10_ALPHAS = (0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4)  # times 1/8
 FIG_12_10_EPISODES = 50
 

@@ -19,9 +19,21 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots
+from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
-from rlcompare.analysis.tables import Claim, judge, per_seed_metrics, table_i, table_ii
+from rlcompare.analysis.stats import ALPHA
+from rlcompare.analysis.tables import (
+    RATIO_FACTOR,
+    Claim,
+    convergence_by_rule,
+    family,
+    judge_by_rule,
+    noise_floors,
+    per_seed_metrics,
+    table_i,
+    table_ii,
+)
 from rlcompare.analysis.video import gymnasium_id, render_stage_videos
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
@@ -55,10 +67,11 @@ CLAIMS = (
     Claim("With ε decaying, both find the same solution (-174 to -191): greedy returns within 20", "decay",
           "greedy_return", kind="same", value=20.0),
     Claim("With ε constant, SARSA accelerates backwards first: push left from most start states", "constant",
-          "first_action_left", kind="level", sign=1, value=0.5, method="sarsa"),
+          "first_action_left", kind="level", sign=1, value=0.5, method="sarsa", floor=True),
     Claim("With ε constant, Q-Learning accelerates forward first: push left from few start states", "constant",
-          "first_action_left", kind="level", sign=-1, value=0.5, method="q_learning"),
+          "first_action_left", kind="level", sign=-1, value=0.5, method="q_learning", floor=True),
 )
+"""The paper's claims, with their margins declared before any run is read (``docs/why.md``, "Verdicts")."""
 
 
 def _scaled(claim: Claim, episodes: int) -> Claim:
@@ -179,10 +192,14 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> Repo
     store.remove_outputs(study_dir, "figures/*.png")  # figures of runs that are gone must not linger
     claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
               and (position_velocity or c.metric != "first_action_left")]
+    judgement = judge_by_rule([_scaled(c, episodes) for c in claims], metrics, episodes,
+                              floors=noise_floors(runs) if position_velocity else {},
+                              rules={name: convergence_by_rule(r) for name, r in runs.items() if name != "random"})
     tables = {
         "table_i": table_i(metrics, PAPER_TABLE_I if paper_values else {}, episodes),
         "table_ii": table_ii(metrics, PAPER_TABLE_II if paper_values else {}),
-        "verdicts": judge([_scaled(c, episodes) for c in claims], metrics, episodes),
+        "verdicts": judgement.verdicts,
+        "verdict_rules": judgement.rules,
     }
     for name, frame in tables.items():
         write_table(frame, tables_dir, name)
@@ -236,6 +253,62 @@ def _grid_text(config) -> str:
     return f"{' x '.join(map(str, bins))} uniform cells"
 
 
+def _table_i_text(config) -> str:
+    """Table I's rule in full (:mod:`rlcompare.analysis.convergence`)."""
+    window = min(DEFAULT_RULE.window, config.episodes)
+    stay = max(2 * window, round(0.1 * config.episodes))
+    return (f"A run has converged at the first episode after which its return, averaged over the previous {window} "
+            f"episodes, stays within a band around its final level (the mean of its last {window} episodes) to the "
+            f"end of training; the band is {DEFAULT_RULE.tolerance:.0%} of the distance from the first "
+            f"{window} episodes' level to the final level, and at least 10 reward. A run that entered the band for "
+            f"good only in its last {stay} episodes (two windows, or 10% of training if longer) has not shown that "
+            f"it stays there, and a run whose last {window} episodes reach the goal less than half the time has "
+            "nothing to converge to: both never converged, and count at the last episode where a mean needs a number "
+            "(censored). Seconds are CPU seconds of one run up to that episode. The paper's values have no unit "
+            "and no rule.")
+
+
+def _verdict_text() -> list[str]:
+    """How the verdicts are reached: labels, tests, margins, Holm's family and the fragile mark."""
+    margins = ", ".join(f"{c.value:.0%} of training for convergence" if c.metric == "convergence_episode"
+                        else f"{c.value:g} reward for {c.metric.replace('_', ' ')}s"
+                        for c in CLAIMS if c.kind == "same")
+    behaviour = [rule for rule in RULES if rule.curve == "behaviour"]
+    bands = ", ".join(f"{t:.0%}" for t in sorted({rule.tolerance for rule in behaviour}))
+    windows = ", ".join(str(w) for w in sorted({rule.window for rule in behaviour}))
+    return [
+        "SARSA against Q-Learning on the same seeds (the same start states). Each label says what the seeds "
+        "show: supported (the claim's test rejects), contradicted (the test of its opposite rejects), not resolved "
+        "(neither does, and more seeds, or longer runs where seeds never converged, could settle it), undecidable "
+        "here (the quantity lies below its own noise floor, so more seeds will not settle it; the row gives the "
+        "numbers) and no data (nothing to test, e.g. no seed converged).",
+        "A direction (\"SARSA higher\", \"SARSA faster\"; for a level such as \"left from most start states\", "
+        "the share against one half) is the paired difference with its 95% BCa bootstrap interval and the Wilcoxon "
+        "signed-rank p: supported when p (Holm) < 0.05 and the interval excludes 0 on the "
+        "claim's side, contradicted when it excludes 0 on the other side. A sameness (\"a similar time frame\", "
+        "\"the same solution\") is two one-sided tests (TOST, Schuirmann 1987) against a margin declared before "
+        f"any run was read: {margins}. \"About "
+        f"R times\" is TOST on the per-seed log ratios with the band R/{RATIO_FACTOR:g} to R*{RATIO_FACTOR:g}. "
+        "For these, p is the TOST p (the larger one-sided p) when the estimate lies inside the margin, and twice "
+        "the one-sided p that it lies beyond the margin otherwise; the estimate carries its 95% t interval.",
+        f"All claims of this table form one family, corrected with Holm's step-down procedure (Holm 1979) at "
+        f"family-wise α = {ALPHA:g}: p is each test's own p-value, p (Holm) the adjusted one, and the labels read "
+        "p (Holm). A seed that never converged counts at the last episode, a lower bound on its time: a label such "
+        "a value could overturn is not resolved, and a ratio with no converged seed on one side has no data; the "
+        "censored column counts them.",
+        "The first-action claims (Mountain Car) read which action the final greedy policy takes in the start "
+        "region. The noise floor compares the gap between the best and second-best mean action value in those "
+        "cells with the seed-to-seed standard deviation of the action values; a gap below that spread is "
+        "undecidable here.",
+        f"Convergence verdicts are read again under other reasonable rules: bands of {bands} crossed with windows "
+        f"of {windows} episodes on the behaviour returns, and the {DEFAULT_RULE.tolerance:.0%} band on the greedy "
+        "curve (the mean greedy-evaluation return of each round, smoothed over the rounds of "
+        f"{DEFAULT_RULE.window} episodes, its rounds converted back to episodes). Each rule recomputes the whole "
+        "family. A verdict whose label changes with the rule is marked fragile: the conclusion then rests on the "
+        "choice of rule, not on the runs alone; the second table gives the label under each rule.",
+    ]
+
+
 def _sections(first, runs, tables, curve_figures, explanation_figures, video_cells) -> list[Section]:
     c = first.config
     setting = pd.DataFrame({
@@ -251,23 +324,14 @@ def _sections(first, runs, tables, curve_figures, explanation_figures, video_cel
     return [
         Section("Setting", ["Configurations read: " + ", ".join(runs) + "."],
                 tables=[("Configuration", setting.astype(str)), ("Versions", versions)]),
-        Section("Table I: time to converge", [
-            "A run has converged at the first episode after which its return, averaged over the previous 100 "
-            "episodes, stays within a band around its final level (the mean of the last 100 episodes) for the "
-            "rest of training; the band is 5% of the distance from the first to the final level, at least 10. "
-            "A run whose last 100 episodes reach the goal less than half the time never converged. Seconds are "
-            "CPU seconds of one run up to that episode. The paper's values have no unit."],
-            tables=[("Table I", tables["table_i"])]),
+        Section("Table I: time to converge", [_table_i_text(c)], tables=[("Table I", tables["table_i"])]),
         Section("Table II: mean cumulative reward", [
             "Behaviour: the ε-greedy return averaged over every training episode of a seed. Greedy: the return "
             "of the final greedy policy. Mean and interquartile mean over seeds, 95% bootstrap intervals."],
             tables=[("Table II", tables["table_ii"])]),
-        Section("Verdicts on the paper's claims", [
-            "SARSA against Q-Learning on the same seeds (the same start states): the paired difference with its "
-            "95% bootstrap interval, the probability that the claim holds for a random pair of seeds, and the "
-            "Wilcoxon signed-rank p-value. A claim is supported when the interval excludes zero on its side and "
-            "p < 0.05, contradicted when both point the other way."],
-            tables=[("Verdicts", tables["verdicts"])]),
+        Section("Verdicts on the paper's claims", [*_verdict_text(), family(tables["verdicts"])],
+                tables=[("Verdicts", tables["verdicts"]), ("Convergence verdicts under each rule",
+                                                           tables["verdict_rules"])]),
         Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),
         Section("Why: policies, values, visits and first actions", figures=explanation_figures)
         if explanation_figures else Section("Why", ["The maps over position and velocity are Mountain Car's."]),
