@@ -21,6 +21,7 @@ from matplotlib.figure import Figure
 from rlcompare.analysis import plots
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
+from rlcompare.analysis.findings import paper_findings
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA
 from rlcompare.analysis.tables import (
@@ -38,6 +39,7 @@ from rlcompare.analysis.video import gymnasium_id, render_stage_videos
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
 from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
+from rlcompare.studies.why import why_findings_beside
 
 CONFIGURATIONS = ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant")
 LABELS = {"random": "random", "q_learning": "Q-Learning", "sarsa": "SARSA"}
@@ -86,6 +88,7 @@ class ReportOutcome:
     """Where the report went, what could not be built, and how long each part took."""
 
     path: Path
+    findings: list[str] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -203,6 +206,7 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> Repo
     }
     for name, frame in tables.items():
         write_table(frame, tables_dir, name)
+    findings = paper_findings(claims, judgement.verdicts, why_findings_beside(study_dir) if paper_values else None)
     seconds["tables and verdicts"] = time.perf_counter() - started
 
     mark = time.perf_counter()
@@ -238,12 +242,13 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> Repo
                                     f"{label(results)}, seed {seed}: {stage}"))
         seconds["videos"] = time.perf_counter() - mark
 
-    sections = _sections(first, runs, tables, curve_figures, explanation_figures, video_cells)
+    sections = [Section("Findings", findings),
+                *_sections(first, runs, tables, curve_figures, explanation_figures, video_cells)]
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
     seconds["total"] = time.perf_counter() - started
-    return ReportOutcome(path=path, problems=problems, seconds=seconds)
+    return ReportOutcome(path=path, findings=findings, problems=problems, seconds=seconds)
 
 
 def _grid_text(config) -> str:

@@ -1,0 +1,275 @@
+"""Why does SARSA win here? A factorial that separates the on-policy target from the order of choosing.
+
+Q-Learning (Algorithm 1) and SARSA (Algorithm 2) differ in two ways, not one: the target (the max over next
+actions against the action taken next) and the order (Q-Learning draws A' after updating Q(S, A), SARSA
+before). The order matters whenever S' = S, which on the paper's 20 x 20 grid is most steps: the car moves
+less than a cell per step. Q-Learning that draws A' before its update is still Q-Learning (any behaviour
+policy is allowed), so the order is a confound of "on- against off-policy".
+
+Cells, per ε schedule, on the paper's setting: target (``max``: Q-Learning; ``taken``: SARSA; ``expectation``:
+Expected SARSA, on-policy) x order (``before_update``, ``after_update``). SARSA's target needs A' before its
+update, so its ``after_update`` cell draws the target's A' before the update and the action it takes after
+(``docs/why.md``): the target is then a sample of the policy, not the action taken.
+
+The decomposition, per seed and so paired on the same start states:
+
+    SARSA - Q-Learning = order + target + interaction
+    order       = Q-Learning(before) - Q-Learning(after)
+    target      = SARSA(after) - Q-Learning(after)
+    interaction = SARSA(before) - SARSA(after) - Q-Learning(before) + Q-Learning(after)
+
+which holds exactly for every seed, so for the means too; each term has a 95% BCa interval over seeds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.analysis.stats import Estimate, interval
+from rlcompare.experiment import store
+from rlcompare.experiment.config import AFTER_UPDATE, BEFORE_UPDATE, ExperimentConfig
+from rlcompare.experiment.results import Results
+from rlcompare.studies.paper import DEFAULT_EPISODES, reproduce
+
+STUDY = "why"
+TARGETS = {"max": "q_learning", "taken": "sarsa", "expectation": "expected_sarsa"}
+ORDERS = (BEFORE_UPDATE, AFTER_UPDATE)
+SCHEDULES = ("constant", "decay")
+WINDOW = 1000
+"""Episodes of the "first" and "last" windows (at most half of training)."""
+TERMS = {
+    "SARSA - Q-Learning": ((1, "sarsa", BEFORE_UPDATE), (-1, "q_learning", AFTER_UPDATE)),
+    "order": ((1, "q_learning", BEFORE_UPDATE), (-1, "q_learning", AFTER_UPDATE)),
+    "target": ((1, "sarsa", AFTER_UPDATE), (-1, "q_learning", AFTER_UPDATE)),
+    "interaction": ((1, "sarsa", BEFORE_UPDATE), (-1, "sarsa", AFTER_UPDATE), (-1, "q_learning", BEFORE_UPDATE),
+                    (1, "q_learning", AFTER_UPDATE)),
+    "expectation target": ((1, "expected_sarsa", AFTER_UPDATE), (-1, "q_learning", AFTER_UPDATE)),
+    "order, expectation target": ((1, "expected_sarsa", BEFORE_UPDATE), (-1, "expected_sarsa", AFTER_UPDATE)),
+}
+"""Each term as a signed sum of cells (algorithm, order), per seed."""
+DECOMPOSITION = ("order", "target", "interaction")
+RETURNS = {"behaviour": "behaviour (ε-greedy) return", "greedy": "greedy-policy return"}
+
+
+def cell_name(config: ExperimentConfig) -> str:
+    """A cell's run directory: ``sarsa-decay-after_update``."""
+    return f"{config.algorithm}-{config.schedule}-{config.next_action}"
+
+
+def why_configs(seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES) -> dict[str, ExperimentConfig]:
+    """Every cell of the factorial on the paper's setting, by run directory."""
+    base = ExperimentConfig(seeds=seeds, episodes=episodes)
+    configs = [replace(base, algorithm=algorithm, schedule=schedule, next_action=order)
+               for schedule in SCHEDULES for algorithm in TARGETS.values() for order in ORDERS]
+    return {cell_name(c): c for c in configs}
+
+
+def run_why(out: Path, seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES,
+            progress: Callable[[int], None] | None = None, *, force: bool = False
+            ) -> Iterator[tuple[str, Results, bool]]:
+    """Each cell into ``out / name``, or loaded when already complete there."""
+    for name, config in why_configs(seeds, episodes).items():
+        for results, reused in reproduce(Path(out), [config], progress=progress, directory=name, study=STUDY,
+                                         force=force):
+            yield name, results, reused
+
+
+def windows(episodes: int) -> dict[str, tuple[int, int]]:
+    """``[start, stop)`` episode ranges: all training, the first and the last :data:`WINDOW` episodes."""
+    width = min(WINDOW, episodes // 2) or episodes
+    return {"all training": (0, episodes), f"first {width}": (0, width),
+            f"last {width}": (episodes - width, episodes)}
+
+
+def per_seed_returns(results: Results, kind: str, start: int, stop: int) -> np.ndarray:
+    """Each seed's mean return over episodes ``[start, stop)``: of the behaviour, or of the greedy policy
+    evaluated after episodes in that range (NaN where no evaluation falls in it)."""
+    records, config = results.records, results.config
+    if kind == "behaviour":
+        return records.returns[:, start:stop].mean(axis=1)
+    after = (np.arange(config.evaluation_rounds) + 1) * config.eval_every
+    rounds = (after > start) & (after <= stop)
+    if not rounds.any():
+        return np.full(len(results.seeds), np.nan)
+    return records.eval_returns[:, rounds].mean(axis=(1, 2))
+
+
+def term_per_seed(cells: dict[tuple[str, str], np.ndarray], term: str) -> np.ndarray:
+    """One term of :data:`TERMS`, seed by seed."""
+    return sum(sign * cells[(algorithm, order)] for sign, algorithm, order in TERMS[term])
+
+
+def decomposition(runs: dict[str, Results]) -> pd.DataFrame:
+    """One row per schedule, return and window: each term of :data:`TERMS` as an Estimate."""
+    rows = []
+    for schedule in SCHEDULES:
+        present = {(r.config.algorithm, r.config.next_action): r for r in runs.values()
+                   if r.config.schedule == schedule}
+        if len(present) < len(TARGETS) * len(ORDERS):
+            continue
+        _check_paired(list(present.values()))
+        episodes = next(iter(present.values())).config.episodes
+        for kind in RETURNS:
+            for window, (start, stop) in windows(episodes).items():
+                cells = {key: per_seed_returns(r, kind, start, stop) for key, r in present.items()}
+                row = {"schedule": schedule, "return": kind, "episodes": window}
+                rows.append(row | {term: interval(term_per_seed(cells, term)) for term in TERMS})
+    frame = pd.DataFrame(rows)
+    frame.attrs["seeds"] = len(next(iter(runs.values())).seeds) if runs else 0
+    return frame
+
+
+def _check_paired(runs: list[Results]) -> None:
+    seeds = {tuple(r.seeds) for r in runs}
+    if len(seeds) != 1:
+        raise store.StoreError(f"the cells of the factorial were run on different seeds: {sorted(seeds)}")
+
+
+def formatted(frame: pd.DataFrame) -> pd.DataFrame:
+    """The decomposition with each Estimate as ``mean [low, high]``."""
+    return frame.assign(**{term: frame[term].map(lambda e: e.format(1)) for term in TERMS})
+
+
+def cells_table(runs: dict[str, Results]) -> pd.DataFrame:
+    """Mean return of every cell over all training (behaviour) and at the last evaluation (greedy)."""
+    rows = []
+    for name, results in runs.items():
+        c = results.config
+        last = c.episodes - c.eval_every if c.evaluation_rounds else c.episodes
+        rows.append({"cell": name, "schedule": c.schedule, "target": _target_of(c.algorithm),
+                     "A' drawn": c.next_action.replace("_", " "),
+                     "behaviour return": interval(per_seed_returns(results, "behaviour", 0, c.episodes)).format(1),
+                     "final greedy return": interval(per_seed_returns(results, "greedy", last, c.episodes)).format(1)})
+    return pd.DataFrame(rows)
+
+
+def _target_of(algorithm: str) -> str:
+    return next(target for target, a in TARGETS.items() if a == algorithm)
+
+
+def decomposition_figure(frame: pd.DataFrame) -> Figure:
+    """Bars of the total and its three parts with 95% intervals: one panel per schedule and return."""
+    panels = frame.groupby(["schedule", "return"], sort=False)
+    figure = Figure(figsize=(12, 3.6 * len(SCHEDULES)), layout="constrained")
+    axes = figure.subplots(len(SCHEDULES), len(RETURNS), squeeze=False)
+    terms = ("SARSA - Q-Learning", *DECOMPOSITION)
+    colors = ("#444444", "#3b6fb6", "#2a9d8f", "#e07b00")
+    for ax, ((schedule, kind), panel) in zip(axes.flat, panels, strict=False):
+        x = np.arange(len(panel))
+        width = 0.8 / len(terms)
+        for k, (term, color) in enumerate(zip(terms, colors, strict=True)):
+            estimates: list[Estimate] = list(panel[term])
+            values = np.array([e.value for e in estimates])
+            errors = np.array([[e.value - e.low, e.high - e.value] for e in estimates]).T
+            ax.bar(x + (k - 1.5) * width, values, width, yerr=errors, color=color, label=term, capsize=2)
+        ax.axhline(0, color="black", linewidth=0.8)
+        ax.set_xticks(x, list(panel["episodes"]))
+        ax.set_title(f"ε {schedule}: {RETURNS[kind]}")
+        ax.set_ylabel("difference in return")
+        ax.grid(alpha=0.3, axis="y")
+    axes.flat[0].legend(fontsize="small")
+    figure.suptitle("SARSA minus Q-Learning = order + target + interaction (paired seeds, 95% BCa intervals)")
+    return figure
+
+
+def findings(frame: pd.DataFrame) -> list[str]:
+    """A sentence per schedule: how large the gap is over all training and which part makes it."""
+    sentences = []
+    for schedule in SCHEDULES:
+        rows = frame[(frame["schedule"] == schedule) & (frame["return"] == "behaviour")
+                     & (frame["episodes"] == "all training")]
+        if rows.empty:
+            continue
+        row = rows.iloc[0]
+        total: Estimate = row["SARSA - Q-Learning"]
+        parts = ", ".join(f"{term} {row[term].format(1)}" for term in DECOMPOSITION)
+        largest = max(DECOMPOSITION, key=lambda term: abs(row[term].value))
+        sentences.append(
+            f"With ε {schedule}, SARSA's return while learning {_compared(total)} Q-Learning's by "
+            f"{abs(total.value):.1f} (SARSA - Q-Learning = {total.format(1)}); of that, {parts}: the "
+            f"{_cause(largest)} {_decided(row[largest])}.")
+        greedy = frame[(frame["schedule"] == schedule) & (frame["return"] == "greedy")]
+        if not greedy.empty:
+            last = greedy.iloc[-1]
+            sentences.append(f"Their greedy policies over the {last['episodes']} episodes: SARSA - Q-Learning = "
+                             f"{last['SARSA - Q-Learning'].format(1)}, of which order {last['order'].format(1)} "
+                             f"and target {last['target'].format(1)}.")
+    return sentences
+
+
+def _compared(total: Estimate) -> str:
+    return "exceeds" if total.value > 0 else "falls short of"
+
+
+def _cause(term: str) -> str:
+    return {"order": "order of choosing A' and updating makes most of it",
+            "target": "target (the action taken against the max) makes most of it",
+            "interaction": "interaction of the two makes most of it"}[term]
+
+
+def _decided(estimate: Estimate) -> str:
+    if np.isnan(estimate.low):
+        return "(no interval: too few seeds)"
+    if estimate.low > 0 or estimate.high < 0:
+        return "(its interval excludes 0)"
+    return "(but its interval includes 0: not resolved)"
+
+
+def load_why(out: Path) -> dict[str, Results]:
+    """The cells of a why study that are complete and whose files belong together."""
+    runs = {}
+    for name in why_configs((0,)):
+        if store.is_complete(Path(out) / name):
+            with contextlib.suppress(store.StoreError):
+                runs[name] = Results.load(Path(out) / name)
+    return runs
+
+
+def why_findings_beside(study_dir: Path) -> list[str] | None:
+    """The findings of the why study standing beside ``study_dir`` (``runs/why`` beside ``runs/paper``), if any."""
+    sibling = Path(study_dir).parent / STUDY
+    with contextlib.suppress(store.StoreError):
+        if store.owner_of(sibling) == store.Owner("study", STUDY):
+            frame = decomposition(load_why(sibling))
+            if not frame.empty:
+                return [f"Why ({sibling}, {frame.attrs['seeds']} seeds):", *findings(frame)]
+    return None
+
+
+def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> Path:
+    """Tables, the figure and ``report.html`` of the factorial in ``out``, from its run directories."""
+    out = Path(out)
+    with store.rewriting(out, "study"):
+        runs = load_why(out) if runs is None else runs
+        problems = [f"{name}: no complete run directory" for name in why_configs((0,)) if name not in runs]
+        frame = decomposition(runs)
+        if frame.empty:
+            raise store.StoreError(f"{out}: no schedule has all {len(TARGETS) * len(ORDERS)} cells of the factorial")
+        table = formatted(frame)
+        write_table(table, out / "tables", "decomposition")
+        write_table(cells_table(runs), out / "tables", "cells")
+        image = save_figure(decomposition_figure(frame), out / "figures" / "decomposition.png")
+        first = next(iter(runs.values()))
+        return write_report(out / "report.html", "Why does SARSA win on Mountain Car? Target against order", [
+            Section("Findings", findings(frame)),
+            Section("Decomposition", [
+                "Per seed, on the same start states: SARSA - Q-Learning = order + target + interaction, where "
+                "order = Q-Learning drawing A' before its update - Q-Learning drawing it after (its box); target "
+                "= SARSA drawing after - Q-Learning drawing after; interaction = what the order changes in "
+                "SARSA beyond what it changes in Q-Learning. Two more rows check the target with Expected "
+                "SARSA's expectation, which needs no draw. SARSA drawing after its update takes a fresh action "
+                "after the update; its target's A' is drawn before it (docs/why.md). Mean over seeds with 95% "
+                f"BCa bootstrap intervals; {len(first.seeds)} seeds x {first.config.episodes} episodes, the "
+                "paper's setting otherwise."],
+                tables=[("SARSA minus Q-Learning, decomposed", table.astype(str)),
+                        ("Every cell", cells_table(runs))],
+                figures=[(image, "The total and its three parts, per schedule and return")]),
+        ], problems)

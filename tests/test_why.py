@@ -1,0 +1,87 @@
+"""``reproduce why``: the factorial of target x order, and the decomposition of SARSA minus Q-Learning."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from rlcompare.studies import why
+from rlcompare.studies.why import TERMS, decomposition, per_seed_returns, run_why, term_per_seed, why_configs
+
+SEEDS, EPISODES = (0, 1, 2, 3), 120
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("why") / "why"
+    runs = {name: results for name, results, _ in run_why(out, SEEDS, EPISODES)}
+    return out, runs
+
+
+def test_the_factorial_has_every_target_and_order_per_schedule():
+    configs = why_configs(SEEDS, EPISODES)
+    cells = {(c.schedule, c.algorithm, c.next_action) for c in configs.values()}
+    assert cells == {(s, a, o) for s in ("constant", "decay") for a in ("q_learning", "sarsa", "expected_sarsa")
+                     for o in ("before_update", "after_update")}
+    assert all(c.target_epsilon is None and c.alpha == 0.05 and c.gamma == 0.9 for c in configs.values())
+    assert set(configs) == {f"{c.algorithm}-{c.schedule}-{c.next_action}" for c in configs.values()}
+
+
+def test_each_cell_writes_its_run_directory_with_its_order(study):
+    out, runs = study
+    assert set(runs) == set(why_configs(SEEDS, EPISODES))
+    for name, results in runs.items():
+        stored = json.loads((out / name / "config.json").read_text())
+        assert (stored["algorithm"], stored["schedule"], stored["next_action"]) == (
+            results.config.algorithm, results.config.schedule, results.config.next_action)
+    # the two orders of one method learn differently (the order matters on this grid)
+    a, b = runs["q_learning-constant-before_update"], runs["q_learning-constant-after_update"]
+    assert not np.array_equal(a.records.returns, b.records.returns)
+
+
+def test_terms_by_hand():
+    values = {("sarsa", "before_update"): [5.0, 7.0], ("sarsa", "after_update"): [3.0, 2.0],
+              ("q_learning", "before_update"): [4.0, 1.0], ("q_learning", "after_update"): [1.0, 1.0],
+              ("expected_sarsa", "before_update"): [0.0, 0.0], ("expected_sarsa", "after_update"): [2.0, -1.0]}
+    cells = {cell: np.array(v) for cell, v in values.items()}
+    np.testing.assert_array_equal(term_per_seed(cells, "SARSA - Q-Learning"), [4.0, 6.0])
+    np.testing.assert_array_equal(term_per_seed(cells, "order"), [3.0, 0.0])
+    np.testing.assert_array_equal(term_per_seed(cells, "target"), [2.0, 1.0])
+    np.testing.assert_array_equal(term_per_seed(cells, "interaction"), [5 - 3 - 4 + 1, 7 - 2 - 1 + 1])
+    np.testing.assert_array_equal(term_per_seed(cells, "expectation target"), [1.0, -2.0])
+    np.testing.assert_array_equal(term_per_seed(cells, "order, expectation target"), [-2.0, 1.0])
+
+
+def test_the_parts_add_up_to_the_total_on_real_runs(study):
+    _, runs = study
+    frame = decomposition(runs)
+    assert len(frame) == 2 * 2 * 3  # schedules x returns x windows
+    for row in frame.itertuples(index=False):
+        parts = sum(getattr(row, term).value for term in ("order", "target", "interaction"))
+        assert parts == pytest.approx(row[3].value, abs=1e-9)
+    by_hand = (per_seed_returns(runs["sarsa-decay-before_update"], "behaviour", 0, EPISODES)
+               - per_seed_returns(runs["q_learning-decay-after_update"], "behaviour", 0, EPISODES)).mean()
+    total = frame[(frame["schedule"] == "decay") & (frame["return"] == "behaviour")
+                  & (frame["episodes"] == "all training")]["SARSA - Q-Learning"].iloc[0]
+    assert total.value == pytest.approx(by_hand, rel=1e-12)
+    assert total.low <= total.value <= total.high
+
+
+def test_windows_split_training_and_greedy_returns_read_the_rounds_inside():
+    assert why.windows(5000) == {"all training": (0, 5000), "first 1000": (0, 1000), "last 1000": (4000, 5000)}
+    assert why.windows(120) == {"all training": (0, 120), "first 60": (0, 60), "last 60": (60, 120)}
+
+
+def test_report_opens_with_findings_and_names_every_term(study):
+    out, runs = study
+    path = why.build_why_report(out, runs)
+    page = path.read_text()
+    assert page.index("Findings") < page.index("Decomposition")
+    for term in TERMS:
+        assert term in page
+    sentences = why.findings(decomposition(runs))
+    assert any(s.startswith("With ε decay, SARSA's return while learning") for s in sentences)
+    assert (out / "figures" / "decomposition.png").stat().st_size > 10_000
+    assert (out / "tables" / "decomposition.csv").is_file()
