@@ -85,3 +85,40 @@ def test_report_opens_with_findings_and_names_every_term(study):
     assert any(s.startswith("With ε decay, SARSA's return while learning") for s in sentences)
     assert (out / "figures" / "decomposition.png").stat().st_size > 10_000
     assert (out / "tables" / "decomposition.csv").is_file()
+
+
+def test_the_paper_report_opens_with_findings_that_read_the_why_study_beside_it(study):
+    from rlcompare.studies.paper import paper_configs, reproduce
+    from rlcompare.studies.paper_report import build_report
+
+    out, _ = study
+    paper_dir = out.parent / "paper"
+    for _ in reproduce(paper_dir, paper_configs(SEEDS, EPISODES)):
+        pass
+    outcome = build_report(paper_dir, videos=False)
+    why_line = outcome.findings.index(f"Why ({out}, {len(SEEDS)} seeds):")
+    assert outcome.findings[why_line + 1].startswith("With ε constant, SARSA's return while learning")
+    assert all("SARSA - Q-Learning =" in sentence for sentence in outcome.findings[:3])  # three direction claims
+    assert outcome.findings[3].startswith("Of the paper's 9 claims tested here:")
+    page = outcome.path.read_text()
+    assert page.index("<h2>Findings</h2>") < page.index("<h2>Setting</h2>")
+
+
+def test_findings_follow_the_labels():
+    import pandas as pd
+
+    from rlcompare.analysis.findings import answer, tally
+    from rlcompare.analysis.tables import Claim
+
+    claims = [Claim("a", "constant", "behaviour_return"), Claim("b", "decay", "greedy_return"),
+              Claim("c", "decay", "convergence_episode", kind="same", value=10)]
+    verdicts = pd.DataFrame({"verdict": ["supported", "contradicted", "not resolved (fragile)"],
+                             "estimate": ["5.0 [1.0, 9.0]", "-4.0 [-6.0, -2.0]", "1 [-20, 22]"],
+                             "p (Holm)": [0.01, 0.02, 0.5], "fragile": [False, False, True]})
+    sentences = answer(claims, verdicts)
+    assert len(sentences) == 2
+    assert sentences[0].startswith("With ε constant, while learning")
+    assert "SARSA beats" in sentences[0]
+    assert "Q-Learning beats on-policy SARSA" in sentences[1]
+    assert tally(verdicts) == ("Of the paper's 3 claims tested here: 1 supported, 1 contradicted, 1 not resolved; "
+                               "1 of them fragile (the label changes with the convergence rule).")
