@@ -237,22 +237,25 @@ def run(
 
 
 PAPER_SEEDS = 30
-STUDY_NAMES = ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff")
+STUDY_NAMES = ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff", "sensitivity")
 
 
 @app.command()
 @one_line_errors
 def reproduce(
     study: Annotated[str, typer.Argument(
-        help="Which study: paper (default), cartpole, acrobot, book-10.2, book-12.10 or cliff (see --list).")]
+        help="Which study: paper (default), cartpole, acrobot, book-10.2, book-12.10, cliff or sensitivity (see "
+             "--list).")]
     = "paper",
     seeds: Annotated[int | None, typer.Option(
         help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, cartpole "
-             "and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for cliff).",
+             "and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for cliff); 20 "
+             "for sensitivity, whose seeds come from its sweep (SeedSequence(0).spawn(N)).",
         show_default=False)] = None,
     first_seed: FirstSeed = 0,
-    episodes: Annotated[int, typer.Option(
-        help="Training episodes per seed (paper, cartpole and acrobot; the paper gives none).")] = 5000,
+    episodes: Annotated[int | None, typer.Option(
+        help="Training episodes per seed (paper, cartpole, acrobot and sensitivity; the paper gives none). "
+             "Default: 5000; 1500 for sensitivity.", show_default=False)] = None,
     algorithms: Annotated[str, typer.Option(
         help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
              "one. Each adds rows to Tables I and II.")] = "q_learning,sarsa",
@@ -260,6 +263,15 @@ def reproduce(
         help="Study directory (new, empty, or this study's, written by rlcompare); one run directory per "
              "configuration. Default: runs/STUDY.", show_default=False)] = None,
     videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents into the report.")] = True,
+    grid: Annotated[list[str] | None, typer.Option(
+        help="Sensitivity: the values of one axis of the grid, KEY=V1,V2,... with KEY alpha, gamma, epsilon_end or "
+             "truncation_as_terminal; repeat the option. Default: alpha=0.01,0.05,0.1,0.2,0.5 gamma=0.9,0.99,1 "
+             "epsilon_end=0,0.01,0.05 truncation_as_terminal=false,true.", show_default=False)] = None,
+    workers: Annotated[int | None, typer.Option(
+        help="Sensitivity on this machine: trials at once. Default: every core.", show_default=False)] = None,
+    address: Annotated[str | None, typer.Option(
+        help="Sensitivity: run the trials on the Ray cluster at this address ('auto': the one 'ray start' began "
+             "here; or HOST:PORT) instead of this machine's cores.", show_default=False)] = None,
     list_studies: Annotated[bool, typer.Option("--list", help="List the studies and exit.")] = False,
     force: Force = False,
 ) -> None:
@@ -277,14 +289,19 @@ def reproduce(
             console.print(f"{name:<12} the paper's grid of configurations on {env}")
         for name, book_study in STUDIES.items():
             console.print(f"{name:<12} {book_study.title}")
+        console.print("sensitivity  does SARSA beat Q-Learning on MountainCar-v0 across α, γ, ε_end and the time "
+                      "limit? (a sweep; --address runs it on Ray)")
         return
     if study not in STUDY_NAMES:
         raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
     out_dir = _out_path(out, Path("runs") / study)
     _check_out(out_dir, store.Owner("study", study), force)
-    if study == "paper" or study in ENV_STUDIES:
+    if study == "sensitivity":
+        _reproduce_sensitivity(seeds, first_seed, episodes, grid or [], out_dir, workers, address, force)
+    elif study == "paper" or study in ENV_STUDIES:
         count = PAPER_SEEDS if seeds is None else seeds
-        _reproduce_paper(study, _seeds(count, first_seed), episodes, _algorithms(algorithms), out_dir, videos, force)
+        _reproduce_paper(study, _seeds(count, first_seed), 5000 if episodes is None else episodes,
+                         _algorithms(algorithms), out_dir, videos, force)
     else:
         count = STUDIES[study].runs if seeds is None else seeds
         _reproduce_book(STUDIES[study], _seeds(count, first_seed), out_dir, force)
@@ -334,6 +351,60 @@ def _reproduce_book(study, seeds: tuple[int, ...], out: Path, force: bool) -> No
             runs[name] = results
             _print_done(progress, name, results, reused)
     console.print(f"Report: {write_study_report(study, out, runs)}")
+
+
+def _reproduce_sensitivity(seeds: int | None, first_seed: int, episodes: int | None, grid: list[str], out: Path,
+                           workers: int | None, address: str | None, force: bool) -> None:
+    import time
+
+    from rlcompare.experiment.backends import BackendError, make_backend
+    from rlcompare.experiment.sweep import SweepError
+    from rlcompare.studies import sensitivity
+
+    count = sensitivity.DEFAULT_SEEDS if seeds is None else len(_seeds(seeds, 0))
+    if first_seed != 0:
+        raise typer.BadParameter(f"got {first_seed}; allowed: 0 (the sensitivity study's seeds come from its sweep, "
+                                 "SeedSequence(0).spawn(N))", param_hint="'--first-seed'")
+    episodes = sensitivity.DEFAULT_EPISODES if episodes is None else episodes
+    if episodes < 1:
+        raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
+    if workers is not None and workers < 1:
+        raise typer.BadParameter(f"got {workers}; allowed: an integer >= 1", param_hint="'--workers'")
+    try:
+        plan, text = sensitivity.plan(sensitivity.parse_grid(grid), count, episodes)
+    except SweepError as error:
+        raise typer.BadParameter("; ".join(error.problems), param_hint="'--grid'") from None
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="'--grid'") from None
+    started = time.perf_counter()
+    try:
+        executor = make_backend("local" if address is None else "ray", workers=workers, address=address)
+        executor.connect()  # before anything is written
+        trials = len(plan.trials())
+        console.print(f"sensitivity: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} trials "
+                      f"of {episodes} episodes on {'Ray at ' + address if address else 'this machine'}; study {out}")
+        with _progress(eta=True) as progress:
+            task = progress.add_task("trials", total=trials)
+            finished, ran = sensitivity.run_sensitivity(out, plan, text, executor,
+                                                        lambda trial: progress.advance(task), force=force)
+    except BackendError as error:
+        _fail(str(error))
+    trained = time.perf_counter() - started
+    console.print(f"{ran} trials run, {finished} already finished: {trained:.1f} s")
+    _sensitivity_report(out)
+    console.print(f"Wall time: {time.perf_counter() - started:.1f} s")
+
+
+def _sensitivity_report(out: Path) -> None:
+    from rlcompare.studies.sensitivity import build_report
+
+    with console.status("Building the sensitivity report"):
+        path, problems, summary = build_report(out)
+    for line in summary:
+        console.print(Text(line), highlight=False)
+    for problem in problems:
+        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
+    console.print(f"Report: {path}")
 
 
 def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
@@ -411,6 +482,8 @@ def report(
     owner = store.owner_of(study_dir)
     if owner == store.SWEEP:
         _sweep_report(study_dir, tuple(group_by or ()))
+    elif owner == store.Owner("study", "sensitivity"):
+        _sensitivity_report(study_dir)
     elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
         console.print(f"Report: {write_study_report(STUDIES[owner.name], study_dir)}")
     elif owner is not None and owner.kind == "study":

@@ -1,0 +1,271 @@
+"""The sensitivity study: a grid through the sweep engine, paired SARSA minus Q-Learning per cell, Holm's marks."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import shutil
+import socket
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from rlcompare import cli
+from rlcompare.analysis.stats import Estimate, paired_difference
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.sweep import SweepError, derive_seeds
+from rlcompare.experiment.sweep_store import read_manifest, trial_path
+from rlcompare.studies import sensitivity
+from rlcompare.studies.sensitivity import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
+
+runner = CliRunner(env={"COLUMNS": "200"})
+TINY = ("--grid", "alpha=0.05,0.5", "--grid", "gamma=0.9", "--grid", "epsilon_end=0", "--grid",
+        "truncation_as_terminal=true", "--seeds", "3", "--episodes", "30")
+"""2 α x 1 γ x 1 ε_end x 1 time limit, each for 2 algorithms: 12 trials of 30 episodes."""
+
+
+def invoke(*args: str):
+    return runner.invoke(cli.app, list(args), prog_name="rlcompare")
+
+
+def trial_files(root: Path) -> dict[str, str]:
+    """Every trial's ``meta.json`` and its checksum."""
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.glob("sweep/trials/*/*/meta.json"))}
+
+
+@pytest.fixture(scope="module")
+def tiny_study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    out = tmp_path_factory.mktemp("sensitivity") / "study"
+    result = invoke("reproduce", "sensitivity", *TINY, "--workers", "2", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+# --- the study through the command line --------------------------------------------------------------------
+
+
+def test_the_study_runs_a_sweep_inside_its_directory_and_reports(tiny_study: tuple[Path, str]) -> None:
+    out, output = tiny_study
+    assert "4 configurations x 3 seeds = 12 trials of 30 episodes" in output
+    assert "12 trials run, 0 already finished" in output
+    assert store.owner_of(out) == store.Owner("study", "sensitivity")
+    assert store.owner_of(out / "sweep") == store.SWEEP
+    manifest = read_manifest(out / "sweep")
+    assert len(manifest["trials"]) == 12
+    assert {t["status"] for t in manifest["trials"]} == {"done"}
+    for name in ("report.html", "tables/cells.csv", "tables/cells.md", "figures/heatmap-behaviour.png",
+                 "figures/heatmap-greedy.png"):
+        assert (out / name).is_file(), name
+    table = pd.read_csv(out / "tables" / "cells.csv")
+    assert list(table["α"]) == [0.05, 0.5]
+    assert set(table["seeds"]) == {3}
+    html = (out / "report.html").read_text()
+    assert html.index("Summary") < html.index("The grid") < html.index("Cells")
+    assert "2 cells (α x γ x ε_end x time limit)" in html
+    assert "each metric is one family of 2 tests" in html
+
+
+def test_report_rebuilds_the_study_from_its_store(tiny_study: tuple[Path, str], tmp_path: Path) -> None:
+    out = tmp_path / "copy"
+    shutil.copytree(tiny_study[0], out)
+    (out / "report.html").write_text("stale")
+    result = invoke("report", str(out))
+    assert result.exit_code == 0, result.output
+    assert "Behaviour return (mean ε-greedy return over training):" in result.output
+    assert "Sensitivity: SARSA against Q-Learning" in (out / "report.html").read_text()
+
+
+def test_resume_does_not_retrain_finished_trials(tiny_study: tuple[Path, str], tmp_path: Path) -> None:
+    out = tmp_path / "copy"
+    shutil.copytree(tiny_study[0], out)
+    before = trial_files(out)
+    again = invoke("reproduce", "sensitivity", *TINY, "--out", str(out))
+    assert again.exit_code == 0, again.output
+    assert "0 trials run, 12 already finished" in again.output
+    assert trial_files(out) == before
+    first = read_manifest(out / "sweep")["trials"][0]
+    removed = trial_path(out / "sweep", first["config_hash"], first["seed"])
+    shutil.rmtree(removed)
+    resumed = invoke("reproduce", "sensitivity", *TINY, "--out", str(out))
+    assert resumed.exit_code == 0, resumed.output
+    assert "1 trials run, 11 already finished" in resumed.output
+    kept = {k: v for k, v in before.items() if not k.startswith(str(removed.relative_to(out)))}
+    assert len(kept) == 11
+    assert {k: v for k, v in trial_files(out).items() if k in kept} == kept
+    assert (removed / "meta.json").is_file()
+
+
+def test_the_paired_difference_of_a_cell_is_the_one_computed_by_hand(tiny_study: tuple[Path, str]) -> None:
+    root = tiny_study[0] / "sweep"
+    cells = sensitivity.compare_cells(sensitivity.seed_returns(root))
+    by_hand: dict[tuple[float, str], dict[int, tuple[float, float]]] = {}
+    for trial in read_manifest(root)["trials"]:
+        trial_dir = trial_path(root, trial["config_hash"], trial["seed"])
+        config = ExperimentConfig.from_dict({k: v for k, v in store.read_json(trial_dir / "config.json").items()
+                                             if k not in ("seeds", "stages")})
+        episodes = pd.read_parquet(trial_dir / "episodes.parquet")
+        evaluations = pd.read_parquet(trial_dir / "evaluations.parquet")
+        last = evaluations[evaluations["round"] == evaluations["round"].max()]
+        by_hand.setdefault((config.alpha, config.algorithm), {})[trial["seed"]] = (
+            float(np.mean(episodes["return"])), float(np.mean(last["return"])))
+    for alpha in (0.05, 0.5):
+        row = cells[cells["alpha"] == alpha].iloc[0]
+        seeds = sorted(by_hand[alpha, "sarsa"])
+        for column, metric in enumerate(("behaviour", "greedy")):
+            a = np.array([by_hand[alpha, "sarsa"][s][column] for s in seeds])
+            b = np.array([by_hand[alpha, "q_learning"][s][column] for s in seeds])
+            assert row[f"{metric}_difference"] == pytest.approx(np.mean(a - b), abs=1e-9)
+            assert row[f"{metric}_sarsa"] == pytest.approx(np.mean(a), abs=1e-9)
+            expected = paired_difference(a, b)
+            assert (row[f"{metric}_low"], row[f"{metric}_high"]) == pytest.approx((expected.low, expected.high))
+    assert cells.loc[cells["alpha"] == 0.5, "behaviour_difference"].iloc[0] != 0  # the two methods differ
+
+
+# --- the grid ----------------------------------------------------------------------------------------------
+
+
+def test_the_default_grid_covers_the_required_values_on_common_seeds() -> None:
+    sweep, text = sensitivity.plan()
+    assert 'schedule = "decay"' in text
+    expected = set(itertools.product(("q_learning", "sarsa"), (0.01, 0.05, 0.1, 0.2, 0.5), (0.9, 0.99, 1.0),
+                                     (0.0, 0.01, 0.05), (False, True)))
+    found = {(c.algorithm, c.alpha, c.gamma, c.epsilon_end, c.truncation_as_terminal) for c in sweep.configs}
+    assert found == expected
+    assert len(sweep.configs) == 180
+    assert sweep.seeds == derive_seeds(0, sensitivity.DEFAULT_SEEDS)
+    assert {c.seeds for c in sweep.configs} == {sweep.seeds}  # paired: every configuration, the same seeds
+    for config in sweep.configs:  # everything else is the paper's setting
+        assert config == ExperimentConfig(algorithm=config.algorithm, schedule="decay", alpha=config.alpha,
+                                          gamma=config.gamma, epsilon_end=config.epsilon_end,
+                                          truncation_as_terminal=config.truncation_as_terminal,
+                                          episodes=sensitivity.DEFAULT_EPISODES, seeds=sweep.seeds)
+    assert (sweep.configs[0].epsilon_start, sweep.configs[0].bins, sweep.configs[0].max_steps) == (1.0, 20, 1000)
+
+
+def test_the_default_size_can_resolve_a_cell_after_holm() -> None:
+    """The smallest two-sided Wilcoxon p-value of n seeds, 2 / 2**n, must pass Holm's first threshold."""
+    cells = np.prod([len(values) for values in sensitivity.GRID.values()])
+    assert sensitivity.LEVEL / cells > 2 / 2**sensitivity.DEFAULT_SEEDS
+
+
+def test_a_grid_option_overrides_one_axis_and_keeps_the_others() -> None:
+    grid = sensitivity.parse_grid(["alpha=0.1, 0.3", "truncation_as_terminal=TRUE"])
+    assert grid["alpha"] == (0.1, 0.3)
+    assert grid["truncation_as_terminal"] == (True,)
+    assert grid["gamma"] == sensitivity.GRID["gamma"]
+
+
+@pytest.mark.parametrize(("grid", "field"), [
+    ({"alpha": ()}, "grid.alpha: empty"),
+    ({"beta": (0.1,)}, "grid.beta: unknown key"),
+    ({"alpha": (0.0,)}, "grid.alpha[0]: got 0.0; allowed: a number in (0, 1]"),
+])
+def test_a_bad_grid_names_its_field(grid: dict, field: str) -> None:
+    with pytest.raises(SweepError, match=field.replace("[", r"\[").replace("(", r"\(").replace("]", r"\]")):
+        sensitivity.plan(grid, seeds=2, episodes=10)
+
+
+@pytest.mark.parametrize(("args", "option", "message"), [
+    (["--grid", "alpha="], "--grid", "alpha: empty; allowed: at least one value"),
+    (["--grid", "beta=0.1"], "--grid", "alpha, gamma, epsilon_end, truncation_as_terminal"),
+    (["--grid", "truncation_as_terminal=maybe"], "--grid", "truncation_as_terminal: got 'maybe'; allowed: true or "
+     "false"),
+    (["--grid", "gamma=high"], "--grid", "gamma: got 'high'; allowed: finite numbers"),
+    (["--grid", "alpha=nan"], "--grid", "alpha: got 'nan'; allowed: finite numbers"),
+    (["--grid", "alpha=0.1,0.1"], "--grid", "grid.alpha[1]: the same configuration as grid.alpha[0]"),
+    (["--grid", "alpha=2"], "--grid", "grid.alpha[0]: got 2.0; allowed: a number in (0, 1]"),
+    (["--grid", "epsilon_end=0,-0.1"], "--grid", "grid.epsilon_end[1]: got -0.1; allowed: a number in [0, 1]"),
+    (["--episodes", "0"], "--episodes", "allowed: an integer >= 1"),
+    (["--seeds", "0"], "--seeds", "allowed: an integer >= 1"),
+    (["--workers", "0"], "--workers", "allowed: an integer >= 1"),
+    (["--first-seed", "3"], "--first-seed", "allowed: 0"),
+])
+def test_bad_input_gets_one_clear_message_and_exit_code_2(args: list[str], option: str, message: str,
+                                                          tmp_path: Path) -> None:
+    result = invoke("reproduce", "sensitivity", *args, "--out", str(tmp_path / "out"))
+    assert result.exit_code == 2, result.output
+    assert option in result.output
+    assert message in result.output
+    assert isinstance(result.exception, SystemExit)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_ray_address_where_no_cluster_listens_is_one_clear_error(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    with socket.socket() as probe:  # a port where nothing listens
+        probe.bind(("127.0.0.1", 0))
+        address = f"127.0.0.1:{probe.getsockname()[1]}"
+    result = invoke("reproduce", "sensitivity", *TINY, "--address", address, "--out", str(tmp_path / "out"))
+    assert result.exit_code == 2
+    assert f"no Ray cluster at '{address}'" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_reproduce_lists_the_study() -> None:
+    result = invoke("reproduce", "--list")
+    assert result.exit_code == 0
+    assert "\nsensitivity " in "\n" + result.output
+
+
+# --- Holm and the marks ------------------------------------------------------------------------------------
+
+
+def test_marks_need_the_holm_adjusted_p_value_and_the_interval_on_one_side() -> None:
+    above, below, spanning = Estimate(5.0, 1.0, 9.0), Estimate(-5.0, -9.0, -1.0), Estimate(5.0, -1.0, 9.0)
+    adjusted, marks = sensitivity.mark_family([above, below, spanning, Estimate(1.0, np.nan, np.nan)],
+                                              [0.001, 0.002, 0.001, 0.001])
+    assert marks == [SARSA_BETTER, Q_BETTER, NOT_RESOLVED, NOT_RESOLVED]
+    np.testing.assert_allclose(adjusted, [0.004, 0.004, 0.004, 0.004])
+    alone = sensitivity.mark_family([above], [0.02])[1]
+    together = sensitivity.mark_family([above, above, above], [0.02, 0.03, 0.04])[1]
+    assert alone == [SARSA_BETTER]
+    assert together == [NOT_RESOLVED] * 3  # each below 0.05, none below Holm's thresholds
+
+
+# --- the summary and the heatmap ---------------------------------------------------------------------------
+
+
+def synthetic_cells() -> pd.DataFrame:
+    """2 α x 2 ε_end x 2 γ x 2 time limits: SARSA better everywhere but at α = 0.5, γ = 1 (Q-Learning better
+    with the time limit terminal, not resolved with it bootstrapped)."""
+    rows = []
+    for alpha, end, gamma, terminal in itertools.product((0.05, 0.5), (0.0, 0.05), (0.9, 1.0), (False, True)):
+        flipped = alpha == 0.5 and gamma == 1.0
+        value = -20.0 if flipped else 30.0
+        mark = (Q_BETTER if terminal else NOT_RESOLVED) if flipped else SARSA_BETTER
+        row = {"alpha": alpha, "gamma": gamma, "epsilon_end": end, "truncation_as_terminal": terminal, "seeds": 20}
+        for metric in sensitivity.METRICS:
+            row |= {f"{metric}_sarsa": -200.0 + value, f"{metric}_q_learning": -200.0,
+                    f"{metric}_difference": value, f"{metric}_low": value - 5, f"{metric}_high": value + 5,
+                    f"{metric}_p": 1e-5, f"{metric}_holm": 1e-3, f"{metric}_mark": mark}
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def test_the_summary_counts_each_way_and_says_where_the_conclusion_flips() -> None:
+    lines = sensitivity.summary(synthetic_cells())
+    text = "\n".join(lines)
+    assert "SARSA better in 12 of 16 cells, Q-Learning better in 2, not resolved in 2" in text
+    assert "The conclusion flips (Q-Learning better) in 2 cells" in text
+    assert "α = 0.5, γ = 1, ε_end = 0, time limit terminal; α = 0.5, γ = 1, ε_end = 0.05, time limit terminal" in text
+    assert "γ: 0.9 0 of 8, 1 2 of 8" in text
+    assert "The paper's setting (α = 0.05, γ = 0.9, ε_end = 0, time limit terminal)" in text
+    assert "family of 16 tests" in text
+
+
+def test_the_heatmap_has_a_panel_per_gamma_and_time_limit_and_annotates_each_cell() -> None:
+    figure = sensitivity.heatmap_figure(synthetic_cells(), "greedy")
+    panels = [ax for ax in figure.axes if ax.get_title()]
+    assert len(panels) == 4
+    assert {ax.get_title() for ax in panels} == {f"γ = {g}, time limit {t}" for g in ("0.9", "1")
+                                                 for t in ("bootstrapped", "terminal")}
+    flipped = next(ax for ax in panels if ax.get_title() == "γ = 1, time limit terminal")
+    assert sorted(t.get_text() for t in flipped.texts) == ["+30.0\nSARSA", "+30.0\nSARSA", "-20.0\nQ-Learning",
+                                                           "-20.0\nQ-Learning"]
+    image = flipped.images[0]
+    assert image.norm.vmin == -image.norm.vmax == -30.0  # centred on 0
