@@ -76,7 +76,7 @@ def test_windows_split_training_and_greedy_returns_read_the_rounds_inside():
 
 def test_report_opens_with_findings_and_names_every_term(study):
     out, runs = study
-    path = why.build_why_report(out, runs)
+    path, _ = why.build_why_report(out, runs)
     page = path.read_text()
     assert page.index("Findings") < page.index("Decomposition")
     for term in TERMS:
@@ -122,3 +122,37 @@ def test_findings_follow_the_labels():
     assert "Q-Learning beats on-policy SARSA" in sentences[1]
     assert tally(verdicts) == ("Of the paper's 3 claims tested here: 1 supported, 1 contradicted, 1 not resolved; "
                                "1 of them fragile (the label changes with the convergence rule).")
+
+
+def test_reproduce_why_through_the_cli_then_report_rebuilds_it(tmp_path):
+    from typer.testing import CliRunner
+
+    from rlcompare.cli import app
+
+    out = tmp_path / "why"
+    result = CliRunner().invoke(app, ["reproduce", "why", "--seeds", "3", "--episodes", "60", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "With ε constant, SARSA's return while learning" in result.output
+    assert len(list(out.glob("*/config.json"))) == 12
+    page = (out / "report.html").read_bytes()
+    (out / "report.html").unlink()
+    again = CliRunner().invoke(app, ["report", str(out)])
+    assert again.exit_code == 0, again.output
+    assert (out / "report.html").read_bytes() == page
+
+
+@pytest.mark.parametrize(("arguments", "field"), [
+    (["run", "--next-action", "first"], "--next-action"),
+    (["run", "--algorithm", "n_step_sarsa", "--next-action", "before_update"], "--next-action"),
+    (["reproduce", "why", "--episodes", "0"], "--episodes"),
+])
+def test_bad_input_is_one_clear_message_and_exit_2(tmp_path, arguments, field):
+    from typer.testing import CliRunner
+
+    from rlcompare.cli import app
+
+    result = CliRunner().invoke(app, [*arguments, "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2
+    assert field in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()

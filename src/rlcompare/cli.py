@@ -154,7 +154,8 @@ def _progress(eta: bool = False) -> Progress:
 def run(
     algorithm: Annotated[str, typer.Option(
         help="q_learning (Algorithm 1), sarsa (Algorithm 2), random, expected_sarsa, double_q_learning, "
-             "n_step_sarsa, sarsa_lambda, q_lambda, reinforce (Algorithm 3) or reinforce_baseline.")]
+             "n_step_sarsa, sarsa_lambda, q_lambda, reinforce (Algorithm 3 as the paper writes it), reinforce_book "
+             "(13.3, with γ^t) or reinforce_baseline (13.4).")]
     = _DEFAULTS.algorithm,
     env: Annotated[str, typer.Option(
         help="MountainCar-v0 (the paper), MountainCar-book (Sutton and Barto's bounds), CartPole-v1, Acrobot-v1 "
@@ -178,6 +179,9 @@ def run(
              "greedy).")] = None,
     baseline_alpha: Annotated[float, typer.Option(help="Step size of reinforce_baseline's value baseline.")]
     = _DEFAULTS.baseline_alpha,
+    next_action: Annotated[str | None, typer.Option(
+        help="When a one-step learner draws its next action: before_update (SARSA's box) or after_update "
+             "(Q-Learning's). Default: the method's own box.", show_default=False)] = None,
     schedule: Annotated[str, typer.Option(help="ε schedule: constant or decay.")] = _DEFAULTS.schedule,
     alpha: Annotated[float, typer.Option(help="Step size α in (0, 1].")] = _DEFAULTS.alpha,
     gamma: Annotated[float, typer.Option(help="Discount γ in [0, 1].")] = _DEFAULTS.gamma,
@@ -218,7 +222,8 @@ def run(
     config = _config(
         algorithm=algorithm, env=env, adapter=adapter, features=features, tilings=tilings, tiles=tiles,
         hash_size=hash_size, bounds=_bounds(bounds), n=n,
-        lam=lam, trace=trace, target_epsilon=target_epsilon, baseline_alpha=baseline_alpha, schedule=schedule,
+        lam=lam, trace=trace, target_epsilon=target_epsilon, baseline_alpha=baseline_alpha, next_action=next_action,
+        schedule=schedule,
         alpha=alpha, gamma=gamma, epsilon=epsilon,
         epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=_bins(bins),
         episodes=episodes, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
@@ -237,24 +242,24 @@ def run(
 
 
 PAPER_SEEDS = 30
-STUDY_NAMES = ("paper", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff", "sensitivity")
+STUDY_NAMES = ("paper", "why", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff", "sensitivity")
 
 
 @app.command()
 @one_line_errors
 def reproduce(
     study: Annotated[str, typer.Argument(
-        help="Which study: paper (default), cartpole, acrobot, book-10.2, book-12.10, cliff or sensitivity (see "
-             "--list).")]
+        help="Which study: paper (default), why, cartpole, acrobot, book-10.2, book-12.10, cliff or sensitivity "
+             "(see --list).")]
     = "paper",
     seeds: Annotated[int | None, typer.Option(
-        help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, cartpole "
-             "and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for cliff); 20 "
-             "for sensitivity, whose seeds come from its sweep (SeedSequence(0).spawn(N)).",
+        help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, why, "
+             "cartpole and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for "
+             "cliff); 20 for sensitivity, whose seeds come from its sweep (SeedSequence(0).spawn(N)).",
         show_default=False)] = None,
     first_seed: FirstSeed = 0,
     episodes: Annotated[int | None, typer.Option(
-        help="Training episodes per seed (paper, cartpole, acrobot and sensitivity; the paper gives none). "
+        help="Training episodes per seed (paper, why, cartpole, acrobot and sensitivity; the paper gives none). "
              "Default: 5000; 1500 for sensitivity.", show_default=False)] = None,
     algorithms: Annotated[str, typer.Option(
         help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
@@ -285,6 +290,8 @@ def reproduce(
 
     if list_studies:
         console.print("paper        the paper: Q-Learning vs SARSA on MountainCar-v0, ε constant and decaying")
+        console.print("why          why SARSA wins there: target (max, taken, expectation) x order of choosing A' "
+                      "and updating")
         for name, env in ENV_STUDIES.items():
             console.print(f"{name:<12} the paper's grid of configurations on {env}")
         for name, book_study in STUDIES.items():
@@ -298,6 +305,9 @@ def reproduce(
     _check_out(out_dir, store.Owner("study", study), force)
     if study == "sensitivity":
         _reproduce_sensitivity(seeds, first_seed, episodes, grid or [], out_dir, workers, address, force)
+    elif study == "why":
+        _reproduce_why(_seeds(PAPER_SEEDS if seeds is None else seeds, first_seed),
+                       5000 if episodes is None else episodes, out_dir, force)
     elif study == "paper" or study in ENV_STUDIES:
         count = PAPER_SEEDS if seeds is None else seeds
         _reproduce_paper(study, _seeds(count, first_seed), 5000 if episodes is None else episodes,
@@ -337,6 +347,29 @@ def _reproduce_paper(study: str, seeds: tuple[int, ...], episodes: int, algorith
             _print_done(progress, results.config.name, results, reused)
     _print_summary(finished, paper=env == "MountainCar-v0")
     _report(out, videos)
+
+
+def _reproduce_why(seeds: tuple[int, ...], episodes: int, out: Path, force: bool) -> None:
+    from rlcompare.studies.why import run_why, why_configs
+
+    if episodes < 1:
+        raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
+    runs = {}
+    with _progress() as progress:
+        task = progress.add_task("why", total=episodes * len(why_configs(seeds, episodes)))
+        for name, results, reused in run_why(out, seeds, episodes, lambda n: progress.advance(task, n), force=force):
+            runs[name] = results
+            _print_done(progress, name, results, reused)
+    _why_report(out, runs)
+
+
+def _why_report(out: Path, runs=None) -> None:
+    from rlcompare.studies.why import build_why_report
+
+    path, findings = build_why_report(out, runs)
+    for sentence in findings:
+        console.print(Text(sentence), highlight=False)
+    console.print(f"Report: {path}")
 
 
 def _reproduce_book(study, seeds: tuple[int, ...], out: Path, force: bool) -> None:
@@ -484,6 +517,8 @@ def report(
         _sweep_report(study_dir, tuple(group_by or ()))
     elif owner == store.Owner("study", "sensitivity"):
         _sensitivity_report(study_dir)
+    elif owner == store.Owner("study", "why"):
+        _why_report(study_dir)
     elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
         console.print(f"Report: {write_study_report(STUDIES[owner.name], study_dir)}")
     elif owner is not None and owner.kind == "study":
@@ -508,6 +543,9 @@ def _report(study_dir: Path, videos: bool) -> None:
 
     with console.status("Building the report"):
         outcome = build_report(study_dir, videos=videos)
+    console.print(Text("Findings", style="bold"))
+    for sentence in outcome.findings:
+        console.print(Text(f"  {sentence}"), highlight=False)
     for problem in outcome.problems:
         console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
     timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in outcome.seconds.items())

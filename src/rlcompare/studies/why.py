@@ -244,8 +244,9 @@ def why_findings_beside(study_dir: Path) -> list[str] | None:
     return None
 
 
-def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> Path:
-    """Tables, the figure and ``report.html`` of the factorial in ``out``, from its run directories."""
+def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple[Path, list[str]]:
+    """Tables, the figure and ``report.html`` of the factorial in ``out``, from its run directories; the
+    report's path and its findings."""
     out = Path(out)
     with store.rewriting(out, "study"):
         runs = load_why(out) if runs is None else runs
@@ -257,9 +258,9 @@ def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> Path:
         write_table(table, out / "tables", "decomposition")
         write_table(cells_table(runs), out / "tables", "cells")
         image = save_figure(decomposition_figure(frame), out / "figures" / "decomposition.png")
-        first = next(iter(runs.values()))
+        first, sentences = next(iter(runs.values())), findings(frame)
         return write_report(out / "report.html", "Why does SARSA win on Mountain Car? Target against order", [
-            Section("Findings", findings(frame)),
+            Section("Findings", sentences),
             Section("Decomposition", [
                 "Per seed, on the same start states: SARSA - Q-Learning = order + target + interaction, where "
                 "order = Q-Learning drawing A' before its update - Q-Learning drawing it after (its box); target "
@@ -272,4 +273,4 @@ def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> Path:
                 tables=[("SARSA minus Q-Learning, decomposed", table.astype(str)),
                         ("Every cell", cells_table(runs))],
                 figures=[(image, "The total and its three parts, per schedule and return")]),
-        ], problems)
+        ], problems), sentences
