@@ -19,6 +19,9 @@ from rlcompare.studies.paper import paper_configs, reproduce
 from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report
 
 runner = CliRunner(env={"COLUMNS": "200"})
+ABLATION = ("q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",
+            "sarsa-decay-after_update")
+"""The order ablation's run directories, after the paper's five (``paper_configs``), in the order they load."""
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +44,10 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
         assert (study_copy / "tables" / f"{name}.csv").is_file()
         assert (study_copy / "tables" / f"{name}.md").read_text().startswith("| ")
     table_ii = pd.read_csv(study_copy / "tables" / "table_ii.csv")
-    assert list(table_ii["configuration"]) == list(CONFIGURATIONS)
+    assert list(table_ii["configuration"]) == [*CONFIGURATIONS, *ABLATION]
+    decomposition = pd.read_csv(study_copy / "tables" / "decomposition.csv")
+    assert set(decomposition["schedule"]) == {"constant", "decay"}
+    assert (decomposition["expectation target"] == "not run").all()  # the paper study runs no Expected SARSA
     assert table_ii.set_index("configuration").loc["sarsa-constant", "paper (Table II)"] == -176
     verdicts = pd.read_csv(study_copy / "tables" / "verdicts.csv")
     assert len(verdicts) == len(CLAIMS)
@@ -82,7 +88,7 @@ def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_
     assert "random: no run directory" in result.output
     assert isinstance(result.exception, SystemExit)
     table_ii = pd.read_csv(study_copy / "tables" / "table_ii.csv")
-    assert list(table_ii["configuration"]) == ["q_learning-decay", "sarsa-constant"]
+    assert list(table_ii["configuration"]) == ["q_learning-decay", "sarsa-constant", *ABLATION]
     assert (study_copy / "figures" / "stages-sarsa-constant.png").is_file()
     assert not (study_copy / "figures" / "fig3-random.png").exists()
     page = (study_copy / "report.html").read_text()

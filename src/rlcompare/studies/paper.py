@@ -28,6 +28,10 @@ PAPER_TABLE_II = {"q_learning-decay": -191.0, "q_learning-constant": -262.0, "sa
 
 
 PAPER_ALGORITHMS = ("q_learning", "sarsa")
+ORDER_ABLATION = (("q_learning", "before_update"), ("sarsa", "after_update"))
+"""Q-Learning drawing A' before its update and SARSA drawing it after: with the paper's two boxes, the four
+cells of target x order that split SARSA minus Q-Learning into order, target and interaction
+(:mod:`rlcompare.studies.why`)."""
 ENV_STUDIES = {"cartpole": "CartPole-v1", "acrobot": "Acrobot-v1"}
 """Studies that ask the paper's question on another environment: the same configurations and settings, with
 the environment's own grid and step limit (``docs/environments.md``)."""
@@ -39,12 +43,16 @@ def paper_configs(
 ) -> list[ExperimentConfig]:
     """The paper's configurations, in the order of its tables, baseline first: each algorithm under ε
     decaying and ε constant with the paper's settings (Q-Learning and SARSA by default; any other
-    algorithm adds its row to Tables I and II)."""
+    algorithm adds its row to Tables I and II). Then, where both are run, the two cells that separate
+    SARSA's target from its order of choosing A' (:data:`ORDER_ABLATION`), for each schedule."""
     base = ExperimentConfig(seeds=seeds, episodes=episodes, **overrides)
+    ablation = set(PAPER_ALGORITHMS) <= set(algorithms)
     return [
         replace(base, algorithm="random", schedule="constant"),
         *(replace(base, algorithm=algorithm, schedule=schedule)
           for algorithm in algorithms for schedule in ("decay", "constant")),
+        *(replace(base, algorithm=algorithm, schedule=schedule, next_action=order)
+          for algorithm, order in ORDER_ABLATION if ablation for schedule in ("decay", "constant")),
     ]
 
 

@@ -56,6 +56,9 @@ TERMS = {
 }
 """Each term as a signed sum of cells (algorithm, order), per seed."""
 DECOMPOSITION = ("order", "target", "interaction")
+REQUIRED = tuple((algorithm, order) for algorithm in ("q_learning", "sarsa") for order in ORDERS)
+"""The cells the decomposition needs: Q-Learning and SARSA, each drawing before and after its update."""
+NAN = Estimate(np.nan, np.nan, np.nan)
 RETURNS = {"behaviour": "behaviour (ε-greedy) return", "greedy": "greedy-policy return"}
 
 
@@ -108,12 +111,14 @@ def term_per_seed(cells: dict[tuple[str, str], np.ndarray], term: str) -> np.nda
 
 
 def decomposition(runs: dict[str, Results]) -> pd.DataFrame:
-    """One row per schedule, return and window: each term of :data:`TERMS` as an Estimate."""
+    """One row per schedule, return and window: each term of :data:`TERMS` whose cells were run, as an
+    Estimate (NaN where a cell is missing: the paper study runs the four cells of Q-Learning and SARSA, not
+    Expected SARSA's). A schedule needs at least those four cells."""
     rows = []
     for schedule in SCHEDULES:
-        present = {(r.config.algorithm, r.config.next_action): r for r in runs.values()
-                   if r.config.schedule == schedule}
-        if len(present) < len(TARGETS) * len(ORDERS):
+        present = {(r.config.algorithm, r.config.drawn_next): r for r in runs.values()
+                   if r.config.schedule == schedule and r.config.algorithm in TARGETS.values()}
+        if not set(REQUIRED) <= set(present):
             continue
         _check_paired(list(present.values()))
         episodes = next(iter(present.values())).config.episodes
@@ -121,10 +126,15 @@ def decomposition(runs: dict[str, Results]) -> pd.DataFrame:
             for window, (start, stop) in windows(episodes).items():
                 cells = {key: per_seed_returns(r, kind, start, stop) for key, r in present.items()}
                 row = {"schedule": schedule, "return": kind, "episodes": window}
-                rows.append(row | {term: interval(term_per_seed(cells, term)) for term in TERMS})
+                rows.append(row | {term: interval(term_per_seed(cells, term)) if _has_cells(cells, term) else NAN
+                                   for term in TERMS})
     frame = pd.DataFrame(rows)
     frame.attrs["seeds"] = len(next(iter(runs.values())).seeds) if runs else 0
     return frame
+
+
+def _has_cells(cells: dict, term: str) -> bool:
+    return all((algorithm, order) in cells for _, algorithm, order in TERMS[term])
 
 
 def _check_paired(runs: list[Results]) -> None:
@@ -135,7 +145,8 @@ def _check_paired(runs: list[Results]) -> None:
 
 def formatted(frame: pd.DataFrame) -> pd.DataFrame:
     """The decomposition with each Estimate as ``mean [low, high]``."""
-    return frame.assign(**{term: frame[term].map(lambda e: e.format(1)) for term in TERMS})
+    return frame.assign(**{term: frame[term].map(lambda e: e.format(1) if np.isfinite(e.value) else "not run")
+                           for term in TERMS})
 
 
 def cells_table(runs: dict[str, Results]) -> pd.DataFrame:
@@ -231,17 +242,6 @@ def load_why(out: Path) -> dict[str, Results]:
             with contextlib.suppress(store.StoreError):
                 runs[name] = Results.load(Path(out) / name)
     return runs
-
-
-def why_findings_beside(study_dir: Path) -> list[str] | None:
-    """The findings of the why study standing beside ``study_dir`` (``runs/why`` beside ``runs/paper``), if any."""
-    sibling = Path(study_dir).parent / STUDY
-    with contextlib.suppress(store.StoreError):
-        if store.owner_of(sibling) == store.Owner("study", STUDY):
-            frame = decomposition(load_why(sibling))
-            if not frame.empty:
-                return [f"Why ({sibling}, {frame.attrs['seeds']} seeds):", *findings(frame)]
-    return None
 
 
 def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple[Path, list[str]]:
