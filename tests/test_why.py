@@ -82,7 +82,7 @@ def test_report_opens_with_findings_and_names_every_term(study):
     for term in TERMS:
         assert term in page
     sentences = why.findings(decomposition(runs))
-    assert any(s.startswith("With ε decay, SARSA's return while learning") for s in sentences)
+    assert any(s.startswith("With ε decaying, SARSA's return while learning") for s in sentences)
     assert (out / "figures" / "decomposition.png").stat().st_size > 10_000
     assert (out / "tables" / "decomposition.csv").is_file()
 

@@ -14,6 +14,7 @@ import pandas as pd
 from rlcompare.analysis.stats import CONTRADICTED, NO_DATA, NOT_RESOLVED, SUPPORTED, UNDECIDABLE
 from rlcompare.analysis.tables import Claim
 
+SCHEDULE_TEXT = {"constant": "ε constant", "decay": "ε decaying"}
 RETURN_METRICS = {"behaviour_return": "while learning (ε-greedy return over training)",
                   "greedy_return": "with its final greedy policy"}
 
@@ -30,7 +31,7 @@ def answer(claims: list[Claim], verdicts: pd.DataFrame) -> list[str]:
         if claim.metric not in RETURN_METRICS or claim.kind != "direction":
             continue
         label = _bare(row["verdict"])
-        where = f"With ε {claim.schedule}, {RETURN_METRICS[claim.metric]}"
+        where = f"With {SCHEDULE_TEXT[claim.schedule]}, {RETURN_METRICS[claim.metric]}"
         gap = f"SARSA - Q-Learning = {row['estimate']} (p (Holm) = {row['p (Holm)']:.2g})"
         if label == SUPPORTED:
             sentences.append(f"{where}, on-policy SARSA beats off-policy Q-Learning: {gap}.")

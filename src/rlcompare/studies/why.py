@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from rlcompare.analysis.findings import SCHEDULE_TEXT
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
 from rlcompare.experiment import store
@@ -191,8 +192,13 @@ def decomposition_figure(frame: pd.DataFrame) -> Figure:
     return figure
 
 
+CAUSE_TEXT = {"order": "the order of choosing A' and updating", "target": "the target (the action taken "
+              "against the max)", "interaction": "the interaction of the two"}
+
+
 def findings(frame: pd.DataFrame) -> list[str]:
-    """A sentence per schedule: how large the gap is over all training and which part makes it."""
+    """Two sentences per schedule: how large the gap is while learning and which part makes the most of it;
+    then the same for the greedy policies of the last window."""
     sentences = []
     for schedule in SCHEDULES:
         rows = frame[(frame["schedule"] == schedule) & (frame["return"] == "behaviour")
@@ -204,13 +210,13 @@ def findings(frame: pd.DataFrame) -> list[str]:
         parts = ", ".join(f"{term} {row[term].format(1)}" for term in DECOMPOSITION)
         largest = max(DECOMPOSITION, key=lambda term: abs(row[term].value))
         sentences.append(
-            f"With ε {schedule}, SARSA's return while learning {_compared(total)} Q-Learning's by "
-            f"{abs(total.value):.1f} (SARSA - Q-Learning = {total.format(1)}); of that, {parts}: the "
-            f"{_cause(largest)} {_decided(row[largest])}.")
+            f"With {SCHEDULE_TEXT[schedule]}, SARSA's return while learning {_compared(total)} Q-Learning's by "
+            f"{abs(total.value):.1f} (SARSA - Q-Learning = {total.format(1)}) = {parts}. The largest part is "
+            f"{CAUSE_TEXT[largest]}, {row[largest].value:.1f} of {total.value:.1f} {_decided(row[largest])}.")
         greedy = frame[(frame["schedule"] == schedule) & (frame["return"] == "greedy")]
         if not greedy.empty:
             last = greedy.iloc[-1]
-            sentences.append(f"Their greedy policies over the {last['episodes']} episodes: SARSA - Q-Learning = "
+            sentences.append(f"The greedy policies of the {last['episodes']} episodes: SARSA - Q-Learning = "
                              f"{last['SARSA - Q-Learning'].format(1)}, of which order {last['order'].format(1)} "
                              f"and target {last['target'].format(1)}.")
     return sentences
@@ -220,18 +226,12 @@ def _compared(total: Estimate) -> str:
     return "exceeds" if total.value > 0 else "falls short of"
 
 
-def _cause(term: str) -> str:
-    return {"order": "order of choosing A' and updating makes most of it",
-            "target": "target (the action taken against the max) makes most of it",
-            "interaction": "interaction of the two makes most of it"}[term]
-
-
 def _decided(estimate: Estimate) -> str:
     if np.isnan(estimate.low):
         return "(no interval: too few seeds)"
     if estimate.low > 0 or estimate.high < 0:
         return "(its interval excludes 0)"
-    return "(but its interval includes 0: not resolved)"
+    return "(its interval includes 0: not resolved)"
 
 
 def load_why(out: Path) -> dict[str, Results]:
