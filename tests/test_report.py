@@ -156,3 +156,20 @@ def test_judge_refuses_unpaired_seeds() -> None:
     metrics["q_learning-constant"]["seed"] = [5, 6]
     with pytest.raises(ValueError, match="different seeds"):
         judge([Claim("x", "constant", "behaviour_return")], metrics, episodes=10)
+
+
+def test_a_time_to_converge_around_the_end_of_the_decay_is_flagged_as_the_schedule() -> None:
+    from types import SimpleNamespace
+
+    from rlcompare.experiment.config import ExperimentConfig
+    from rlcompare.studies.paper_report import schedule_notes
+
+    runs = {name: SimpleNamespace(config=ExperimentConfig(algorithm=algorithm, schedule=schedule, episodes=5000))
+            for name, algorithm, schedule in (("sarsa-decay", "sarsa", "decay"), ("q_learning-decay", "q_learning",
+                                              "decay"), ("sarsa-constant", "sarsa", "constant"))}
+    around = pd.DataFrame({"convergence_episode": [2400.0, 2450, 2550, 2600, np.nan]})
+    later = pd.DataFrame({"convergence_episode": [3500.0, 3600, 3700, 3800]})
+    notes = schedule_notes(runs, {"sarsa-decay": around, "q_learning-decay": later, "sarsa-constant": around})
+    assert len(notes) == 1
+    assert notes[0].startswith("sarsa-decay: ε reaches 0 at episode 2500, inside its time to converge 2500 [")
+    assert notes[0].endswith("From there SARSA's target is Q-Learning's.")

@@ -23,7 +23,7 @@ from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
 from rlcompare.analysis.findings import paper_findings
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
-from rlcompare.analysis.stats import ALPHA
+from rlcompare.analysis.stats import ALPHA, interval
 from rlcompare.analysis.tables import (
     RATIO_FACTOR,
     Claim,
@@ -251,7 +251,7 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> Repo
         seconds["videos"] = time.perf_counter() - mark
 
     sections = [Section("Findings", findings),
-                *_sections(first, runs, tables, curve_figures, explanation_figures, video_cells)]
+                *_sections(first, runs, metrics, tables, curve_figures, explanation_figures, video_cells)]
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
@@ -264,6 +264,26 @@ def _grid_text(config) -> str:
         return f"{config.environment.n_states} states, one feature each"
     bins = config.bins if isinstance(config.bins, tuple) else (config.bins,) * config.environment.observation_size
     return f"{' x '.join(map(str, bins))} uniform cells"
+
+
+def schedule_notes(runs: dict[str, Results], metrics: dict[str, pd.DataFrame]) -> list[str]:
+    """A sentence for each decaying configuration whose time to converge has ε's last change inside its 95%
+    interval: there the metric partly measures the schedule (``docs/why.md``)."""
+    notes = []
+    for name, results in runs.items():
+        c = results.config
+        if c.schedule != "decay" or c.algorithm == "random":
+            continue
+        converged = metrics[name]["convergence_episode"].dropna().to_numpy()
+        if converged.size < 2:
+            continue
+        estimate, settled = interval(converged), max(round(c.decay_fraction * c.episodes), 1)
+        if estimate.low <= settled <= estimate.high:
+            greedy_sarsa = c.algorithm == "sarsa" and c.epsilon_end == 0
+            same_target = " From there SARSA's target is Q-Learning's." if greedy_sarsa else ""
+            notes.append(f"{name}: ε reaches {c.epsilon_end:g} at episode {settled}, inside its time to converge "
+                         f"{estimate.format(0)}: its convergence partly measures the schedule.{same_target}")
+    return notes
 
 
 def _table_i_text(config) -> str:
@@ -331,7 +351,7 @@ ORDER_TEXT = (
     "mean over seeds with 95% BCa intervals. `rlcompare reproduce why` adds Expected SARSA's expectation target.")
 
 
-def _sections(first, runs, tables, curve_figures, explanation_figures, video_cells) -> list[Section]:
+def _sections(first, runs, metrics, tables, curve_figures, explanation_figures, video_cells) -> list[Section]:
     c = first.config
     setting = pd.DataFrame({
         "setting": ["environment", "grid", "α", "γ", "episode limit", "ε constant", "ε decay", "episodes",
@@ -346,7 +366,8 @@ def _sections(first, runs, tables, curve_figures, explanation_figures, video_cel
     return [
         Section("Setting", ["Configurations read: " + ", ".join(runs) + "."],
                 tables=[("Configuration", setting.astype(str)), ("Versions", versions)]),
-        Section("Table I: time to converge", [_table_i_text(c)], tables=[("Table I", tables["table_i"])]),
+        Section("Table I: time to converge", [_table_i_text(c), *schedule_notes(runs, metrics)],
+                tables=[("Table I", tables["table_i"])]),
         Section("Table II: mean cumulative reward", [
             "Behaviour: the ε-greedy return averaged over every training episode of a seed. Greedy: the return "
             "of the final greedy policy. Mean and interquartile mean over seeds, 95% bootstrap intervals."],

@@ -184,7 +184,7 @@ def decomposition_figure(frame: pd.DataFrame) -> Figure:
             ax.bar(x + (k - 1.5) * width, values, width, yerr=errors, color=color, label=term, capsize=2)
         ax.axhline(0, color="black", linewidth=0.8)
         ax.set_xticks(x, list(panel["episodes"]))
-        ax.set_title(f"ε {schedule}: {RETURNS[kind]}")
+        ax.set_title(f"{SCHEDULE_TEXT[schedule]}: {RETURNS[kind]}")
         ax.set_ylabel("difference in return")
         ax.grid(alpha=0.3, axis="y")
     axes.flat[0].legend(fontsize="small")
