@@ -61,7 +61,10 @@ def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_pat
     assert all(width > 0 for _, width in images), images
     assert len(videos) == 1 + 4 * 3  # the random baseline once, each learner at three stages
     assert all(state >= 2 and duration > 0 and width > 0 for _, state, duration, width in videos), videos
-    assert tables["Table I"] == list(CONFIGURATIONS)
-    assert tables["Table II"] == list(CONFIGURATIONS)
+    ablation = ["q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",
+                "sarsa-decay-after_update"]
+    assert tables["Table I"] == [*CONFIGURATIONS, *ablation]
+    assert tables["Table II"] == [*CONFIGURATIONS, *ablation]
+    assert tables["SARSA minus Q-Learning, decomposed"] == ["constant"] * 6 + ["decay"] * 6
     assert tables["Verdicts"] == [claim.text for claim in CLAIMS]
     assert (tmp_path / "report.png").stat().st_size > 50_000
