@@ -23,7 +23,9 @@ def invoke(*args: str):
 def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
     result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--no-videos", "--out", str(tmp_path))
     assert result.exit_code == 0, result.output
-    names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant"]
+    names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant",
+             "q_learning-decay-before_update", "q_learning-constant-before_update", "sarsa-decay-after_update",
+             "sarsa-constant-after_update"]  # the paper's five, then the order ablation
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html",
                                                                  *store.OWN_FILES])
     for name in names:
@@ -39,7 +41,7 @@ def test_reproduce_again_loads_instead_of_training(tmp_path: Path) -> None:
     invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
     result = invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
     assert result.exit_code == 0
-    assert result.output.count("loaded (already complete)") == 5
+    assert result.output.count("loaded (already complete)") == 9
 
 
 def test_run_resolves_every_option(tmp_path: Path) -> None:
