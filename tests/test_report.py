@@ -66,6 +66,8 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert list(rules["verdict"].str.endswith("(fragile)")) == fragile
     for file_name, _, _ in FIGURES:
         assert (study_copy / "figures" / f"{file_name}.png").stat().st_size > 10_000
+    stages = sorted(p.name for p in (study_copy / "figures").glob("stages-*.png"))
+    assert stages == sorted(f"stages-{name}.png" for name in CONFIGURATIONS if name != "random")  # boxes only
     page = (study_copy / "report.html").read_text()
     assert page.count("<img ") == len(list((study_copy / "figures").glob("*.png")))
     assert "Table I" in page

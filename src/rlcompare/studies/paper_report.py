@@ -189,7 +189,7 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> Repo
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
     position_velocity = on_position_velocity_grid(first.config)
     paper_values = first.config.env == "MountainCar-v0"
-    learners = [r for n, r in runs.items() if n != "random"]
+    learners = [r for n, r in runs.items() if n != "random" and r.config.next_action is None]  # in their own box
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
