@@ -390,7 +390,6 @@ def _reproduce_sensitivity(seeds: int | None, first_seed: int, episodes: int | N
                            workers: int | None, address: str | None, force: bool) -> None:
     import time
 
-    from rlcompare.experiment.backends import BackendError, make_backend
     from rlcompare.experiment.sweep import SweepError
     from rlcompare.studies import sensitivity
 
@@ -410,22 +409,33 @@ def _reproduce_sensitivity(seeds: int | None, first_seed: int, episodes: int | N
     except ValueError as error:
         raise typer.BadParameter(str(error), param_hint="'--grid'") from None
     started = time.perf_counter()
-    try:
-        executor = make_backend("local" if address is None else "ray", workers=workers, address=address)
-        executor.connect()  # before anything is written
-        trials = len(plan.trials())
-        console.print(f"sensitivity: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} trials "
-                      f"of {episodes} episodes on {'Ray at ' + address if address else 'this machine'}; study {out}")
-        with _progress(eta=True) as progress:
-            task = progress.add_task("trials", total=trials)
-            finished, ran = sensitivity.run_sensitivity(out, plan, text, executor,
-                                                        lambda trial: progress.advance(task), force=force)
-    except BackendError as error:
-        _fail(str(error))
+    finished, ran = _run_trials(
+        plan, "local" if address is None else "ray", workers, address,
+        f"of {episodes} episodes on {'Ray at ' + address if address else 'this machine'}; study {out}",
+        lambda executor, progress: sensitivity.run_sensitivity(out, plan, text, executor, progress, force=force))
     trained = time.perf_counter() - started
     console.print(f"{ran} trials run, {finished} already finished: {trained:.1f} s")
     _sensitivity_report(out)
     console.print(f"Wall time: {time.perf_counter() - started:.1f} s")
+
+
+def _run_trials(plan, backend: str, workers: int | None, address: str | None, where: str,
+                run_trials: Callable) -> tuple[int, int]:
+    """Connect the backend before anything is written, then ``run_trials(executor, progress)`` with a progress
+    bar over the plan's trials; a backend that cannot run them ends the command with one line."""
+    from rlcompare.experiment.backends import BackendError, make_backend
+
+    try:
+        executor = make_backend(backend, workers=workers, address=address)
+        executor.connect()
+        trials = len(plan.trials())
+        console.print(f"{plan.name}: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} trials "
+                      f"{where}")
+        with _progress(eta=True) as progress:
+            task = progress.add_task("trials", total=trials)
+            return run_trials(executor, lambda trial: progress.advance(task))
+    except BackendError as error:
+        _fail(str(error))
 
 
 def _sensitivity_report(out: Path) -> None:
@@ -462,7 +472,7 @@ def sweep(
     force: Force = False,
 ) -> None:
     """Run every configuration of a sweep over its seeds; finished trials in OUT are kept, the rest run."""
-    from rlcompare.experiment.backends import BACKENDS, BackendError, make_backend
+    from rlcompare.experiment.backends import BACKENDS
     from rlcompare.experiment.sweep import SweepError, load_sweep
     from rlcompare.experiment.sweep_store import run_sweep
 
@@ -481,18 +491,10 @@ def sweep(
                                  param_hint="'--group-by'")
     out_dir = _out_path(out, Path("runs") / "sweeps" / plan.name)
     _check_out(out_dir, store.SWEEP, force)
-    try:
-        executor = make_backend(backend, workers=workers, address=address)
-        executor.connect()  # before anything is written
-        trials = len(plan.trials())
-        console.print(f"{plan.name}: {len(plan.configs)} configurations x {len(plan.seeds)} seeds = {trials} "
-                      f"trials on the {backend} backend; store {out_dir}")
-        with _progress(eta=True) as progress:
-            task = progress.add_task("trials", total=trials)
-            finished, ran = run_sweep(plan, sweep_file.read_text(), out_dir, executor,
-                                      progress=lambda trial: progress.advance(task), force=force)
-    except BackendError as error:
-        _fail(str(error))
+    finished, ran = _run_trials(
+        plan, backend, workers, address, f"on the {backend} backend; store {out_dir}",
+        lambda executor, progress: run_sweep(plan, sweep_file.read_text(), out_dir, executor, progress=progress,
+                                             force=force))
     console.print(f"{ran} trials run, {finished} already finished")
     if report_:
         _sweep_report(out_dir, tuple(group_by or ()))
