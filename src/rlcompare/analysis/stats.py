@@ -225,23 +225,6 @@ def verdict(difference: Estimate, p_value: float, claimed_sign: int, level: floa
     return SUPPORTED if observed == claimed_sign else CONTRADICTED
 
 
-def ratio_of_means(
-    a: np.ndarray, b: np.ndarray, confidence: float = 0.95, n_resamples: int = 10_000, seed: int = 0
-) -> Estimate:
-    """``mean(a) / mean(b)`` over paired seeds, with a percentile bootstrap interval resampling pairs."""
-    a, b = _per_seed(a), _per_seed(b)
-    if a.shape != b.shape:
-        raise ValueError(f"paired values need the same seeds: shapes {a.shape} and {b.shape} differ")
-    ratio = float(a.mean() / b.mean())
-    if a.size < 2:
-        return Estimate(ratio, np.nan, np.nan)
-    picks = np.random.default_rng(seed).integers(0, a.size, size=(n_resamples, a.size))
-    resampled = a[picks].mean(axis=1) / b[picks].mean(axis=1)
-    tail = (1 - confidence) / 2
-    low, high = np.quantile(resampled, [tail, 1 - tail])
-    return Estimate(ratio, float(low), float(high))
-
-
 class Equivalence(NamedTuple):
     """Two one-sided tests of a mean against an equivalence margin ``[lower, upper]`` (Schuirmann 1987).
 
