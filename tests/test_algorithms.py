@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.stats import chisquare
 
 from rlcompare.algorithms.policies import (
     epsilon_greedy_action,
@@ -16,11 +17,7 @@ from rlcompare.algorithms.td import q_learning_target, sarsa_target, td_update
 from rlcompare.rng import stream_state
 
 IMPLS = ["compiled", "py_func"]
-N_DRAWS = 30_000
-
-# Critical values of the chi-square distribution at p = 0.001, for 1, 2 and 3 degrees of freedom, used when
-# SciPy is not installed. The draws are seeded, so these tests are deterministic, not flaky.
-_CHI2_CRITICAL_0001 = {1: 10.828, 2: 13.816, 3: 16.266}
+N_DRAWS = 30_000  # seeded draws: the chi-square tests below are deterministic, not flaky
 
 
 def _impl(name: str, fn):
@@ -30,15 +27,7 @@ def _impl(name: str, fn):
 
 def _assert_uniform(counts: np.ndarray) -> None:
     """Counts consistent with a uniform distribution: chi-square test at p = 0.001."""
-    counts = np.asarray(counts, dtype=np.float64)
-    try:
-        from scipy.stats import chisquare
-    except ImportError:
-        expected = counts.sum() / counts.size
-        statistic = float(np.sum((counts - expected) ** 2 / expected))
-        assert statistic < _CHI2_CRITICAL_0001[counts.size - 1], (counts, statistic)
-    else:
-        assert chisquare(counts).pvalue > 1e-3, counts
+    assert chisquare(np.asarray(counts, dtype=np.float64)).pvalue > 1e-3, counts
 
 
 # A tiny table: two states, three actions. The transition updated is s=0, a=0 -> s'=1, R=-1.

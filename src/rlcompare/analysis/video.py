@@ -224,11 +224,6 @@ def _strip(width: int, height: int, title: Sequence[str], detail: Sequence[str])
     return strip
 
 
-def caption_strip(title: str, detail: str = "", *, width: int = 600, height: int = CAPTION_HEIGHT) -> np.ndarray:
-    """A ``(height, width, 3)`` uint8 strip: ``title`` in black, ``detail`` below it in grey."""
-    return _strip(width, height, (title,), (detail,) if detail else ())
-
-
 def add_caption(frame: np.ndarray, title: str, detail: str = "", *, out: np.ndarray | None = None) -> np.ndarray:
     """``frame`` under a caption strip: ``(H + CAPTION_HEIGHT, W, 3)``, the frame's pixels unchanged.
 

@@ -46,7 +46,6 @@ from rlcompare.envs.tiles import make_tile_coding
 PORTS = ("MountainCar-v0", "MountainCar-book", "CartPole-v1", "Acrobot-v1")
 TABLE_ENVIRONMENTS = ("CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
 """Finite environments stepped from their Gymnasium transition tables; their state is their feature."""
-SUCCESS_RULES = ("terminated", "truncated", "positive_return")
 _NO_TABLE = chain(1)  # the kernels' table slot, unused but by table environments
 _CARTPOLE_VELOCITY = 3.0  # m/s; see docs/environments.md
 _CARTPOLE_ANGULAR_VELOCITY = 3.5  # rad/s
