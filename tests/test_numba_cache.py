@@ -41,3 +41,23 @@ def test_prune_deletes_other_versions_unused_for_a_month_and_keeps_the_rest(tmp_
         os.utime(directory, (month_ago, month_ago))
     prune_unused(tmp_path, keep=current)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes", "numba-a", "numba-b"]
+
+
+def test_an_empty_cache_says_the_next_run_compiles(tmp_path, monkeypatch):
+    import numba
+
+    from rlcompare._numba_cache import holds_nothing_yet
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+    assert holds_nothing_yet()
+    (tmp_path / "engine").mkdir()
+    (tmp_path / "engine" / "kernel.train_run-1.py310.nbi").write_bytes(b"")
+    assert not holds_nothing_yet()
+
+
+def test_a_run_records_how_long_its_kernels_took_to_load_or_compile():
+    from rlcompare import ExperimentConfig, run
+
+    timings = run(ExperimentConfig(seeds=(0,), episodes=2, eval_every=0)).meta["timings"]
+    assert 0 < timings["compile_seconds"] < 600
+    assert timings["wall_seconds"] >= 0

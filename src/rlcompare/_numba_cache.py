@@ -47,6 +47,14 @@ def use_source_keyed_cache() -> None:
         pass
 
 
+def holds_nothing_yet() -> bool:
+    """Whether this version's cache holds no compiled kernel yet: the next run compiles them."""
+    import numba
+
+    directory = Path(numba.config.CACHE_DIR or "")
+    return bool(numba.config.CACHE_DIR) and not any(directory.rglob("*.nbi"))
+
+
 def prune_unused(root: Path, keep: Path, days: float = KEEP_UNUSED_DAYS) -> None:
     """Delete the cache directories of other source versions that no process has used for ``days`` days."""
     cutoff = time.time() - days * 86400

@@ -234,9 +234,11 @@ def run(
     _check_out(out_dir, store.RUN, force)
     if not config.environment.is_ported:
         console.print(progress_label(config))
+    _announce_compiling()
     with store.output_directory(out_dir, store.RUN, force=force), _progress() as progress:
         task = progress.add_task(progress_label(config), total=config.episodes)
         results = run_experiment(config, out=out_dir, progress=lambda n: progress.advance(task, n))
+    _print_done(progress, config.name, results, reused=False)
     _print_summary([results], paper=False)
     console.print(f"Run directory: {out_dir}")
 
@@ -303,6 +305,7 @@ def reproduce(
         raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
     out_dir = _out_path(out, Path("runs") / study)
     _check_out(out_dir, store.Owner("study", study), force)
+    _announce_compiling()
     if study == "sensitivity":
         _reproduce_sensitivity(seeds, first_seed, episodes, grid or [], out_dir, workers, address, force)
     elif study == "why":
@@ -450,8 +453,20 @@ def _sensitivity_report(out: Path) -> None:
     console.print(f"Report: {path}")
 
 
+def _announce_compiling() -> None:
+    """Say so before a run that will compile the kernels, which takes a while on a fresh machine."""
+    from rlcompare._numba_cache import holds_nothing_yet
+
+    if holds_nothing_yet():
+        console.print("Compiling the kernels: the first run of this version of rlcompare compiles them (one to two "
+                      "minutes on two cores); later runs load them.")
+
+
 def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
-    how = "loaded (already complete)" if reused else f"{results.meta['timings']['wall_seconds']:.1f} s"
+    timings = results.meta["timings"]
+    compiled = f" (and {timings['compile_seconds']:.0f} s loading or compiling kernels)" \
+        if timings.get("compile_seconds", 0) >= 1 else ""
+    how = "loaded (already complete)" if reused else f"{timings['wall_seconds']:.1f} s{compiled}"
     progress.console.print(f"{name:<24} {len(results.seeds)} seeds x {results.config.episodes} episodes: {how}")
 
 

@@ -65,7 +65,9 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
                                       config.eval_episodes, stage_episodes, state.w.shape[1:])
     with stepped_env(config, state) as env:
         train = _trainer(config, env, features, state, epsilons, records)
+        started = time.perf_counter()
         train(0, 0)  # compile or load the kernel outside the clock
+        compile_seconds = time.perf_counter() - started
         started = time.perf_counter()
         for first in range(0, config.episodes, CHUNK_EPISODES):
             stop = min(first + CHUNK_EPISODES, config.episodes)
@@ -75,6 +77,7 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
         wall = time.perf_counter() - started
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
+    meta["timings"]["compile_seconds"] = compile_seconds
     return Results(config=config, epsilons=epsilons, records=records, meta=meta)
 
 
