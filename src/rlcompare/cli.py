@@ -20,6 +20,7 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
+from rlcompare.algorithms.registry import METHODS
 from rlcompare.experiment import store
 from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig
 from rlcompare.experiment.store import StoreError
@@ -34,6 +35,7 @@ console = Console(width=None if Console().is_terminal else 120)
 _DEFAULTS = ExperimentConfig()
 _DEFAULT_SEEDS = len(_DEFAULTS.seeds)
 
+ALGORITHM_HELP = ", ".join(f"{name} ({m.book})" for name, m in METHODS.items()) + "."
 Seeds = Annotated[int, typer.Option(help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ...")]
 FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
 Force = Annotated[bool, typer.Option(
@@ -152,10 +154,7 @@ def _progress(eta: bool = False) -> Progress:
 @app.command()
 @one_line_errors
 def run(
-    algorithm: Annotated[str, typer.Option(
-        help="q_learning (Algorithm 1), sarsa (Algorithm 2), random, expected_sarsa, double_q_learning, "
-             "n_step_sarsa, sarsa_lambda, q_lambda, reinforce (Algorithm 3 as the paper writes it), reinforce_book "
-             "(13.3, with γ^t) or reinforce_baseline (13.4).")]
+    algorithm: Annotated[str, typer.Option(help=ALGORITHM_HELP)]
     = _DEFAULTS.algorithm,
     env: Annotated[str, typer.Option(
         help="MountainCar-v0 (the paper), MountainCar-book (Sutton and Barto's bounds), CartPole-v1, Acrobot-v1 "

@@ -19,6 +19,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis.convergence import (
     DEFAULT_RULE,
     RULES,
@@ -222,7 +223,6 @@ class Claim:
     floor: bool = False
 
 
-LABEL = {"sarsa": "SARSA", "q_learning": "Q-Learning"}
 
 
 class _Outcome(NamedTuple):
@@ -290,7 +290,7 @@ def _test_text(claim: Claim) -> str:
                 f"(about {claim.value:.2g} times): TOST on log ratios")
     if claim.kind == "same":
         return f"|SARSA - Q-Learning| < {claim.value:g}: TOST, paired t"
-    return f"{LABEL[claim.method]} {side} {claim.value:g}: Wilcoxon signed-rank"
+    return f"{method_label(claim.method)} {side} {claim.value:g}: Wilcoxon signed-rank"
 
 
 def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> _Outcome:

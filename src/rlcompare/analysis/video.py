@@ -45,6 +45,7 @@ from typing import NamedTuple, Protocol
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from rlcompare.algorithms.registry import label as method_label
 from rlcompare.experiment import store
 from rlcompare.experiment.agent import load_agent
 from rlcompare.experiment.config import ExperimentConfig
@@ -68,7 +69,6 @@ GIF_EVERY = 2
 GIF_HOLD_MS = 1000
 """The GIF shows its last frame (with the final return) this much longer before it loops."""
 
-_ALGORITHM_LABELS = {"q_learning": "Q-Learning", "sarsa": "SARSA", "random": "Random"}
 _ENDINGS = {"MountainCar-v0": ("reached the flag", "out of time"),
             "CartPole-v1": ("the pole fell", "balanced to the end"),
             "Acrobot-v1": ("swung above the bar", "out of time")}
@@ -270,7 +270,8 @@ def _captioned(frames: Iterable[_Frame], title: str, *, seed: int | None, episod
 
 def stage_title(config: ExperimentConfig, stage: str | None) -> str:
     """``SARSA · ε decay · middle (episode 2500)``; the random baseline: ``Random · uniform actions``."""
-    algorithm = _ALGORITHM_LABELS.get(config.algorithm, config.algorithm)
+    name = method_label(config.algorithm)
+    algorithm = name[:1].upper() + name[1:]
     if config.algorithm == "random" or stage is None:
         return f"{algorithm} · uniform actions" if config.algorithm == "random" else algorithm
     schedule = "ε decay" if config.schedule == "decay" else f"ε = {config.epsilon:g}"

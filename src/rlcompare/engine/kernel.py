@@ -35,6 +35,18 @@ import numpy as np
 from numba import njit, objmode
 
 from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
+from rlcompare.algorithms.registry import (  # noqa: F401 - the codes are the kernels' too
+    DOUBLE_Q,
+    EXPECTED_SARSA,
+    METHODS,
+    N_STEP_SARSA,
+    Q_LAMBDA,
+    Q_LEARNING,
+    RANDOM,
+    REINFORCE,
+    SARSA,
+    SARSA_LAMBDA,
+)
 from rlcompare.algorithms.softmax import sample_softmax, softmax
 from rlcompare.algorithms.td import (
     double_q_target,
@@ -48,12 +60,7 @@ from rlcompare.envs.table import TableEnv
 from rlcompare.envs.tiles import TileCoding, active_tiles_at
 from rlcompare.rng import next_double, stream_state
 
-RANDOM, Q_LEARNING, SARSA, EXPECTED_SARSA, DOUBLE_Q, N_STEP_SARSA, SARSA_LAMBDA, Q_LAMBDA, REINFORCE = range(9)
-ALGORITHM_CODES = {
-    "random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA, "expected_sarsa": EXPECTED_SARSA,
-    "double_q_learning": DOUBLE_Q, "n_step_sarsa": N_STEP_SARSA, "sarsa_lambda": SARSA_LAMBDA,
-    "q_lambda": Q_LAMBDA, "reinforce": REINFORCE,
-}
+ALGORITHM_CODES = {name: m.code for name, m in METHODS.items()}
 MOUNTAIN_CAR, TABLE, CARTPOLE, ACROBOT, GYMNASIUM = range(5)
 GRID, TILES, ONE_HOT = 0, 1, 2
 OWN_BOX, BEFORE_UPDATE, AFTER_UPDATE = range(3)

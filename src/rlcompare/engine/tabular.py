@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
+from rlcompare.algorithms.registry import DOUBLE_Q, EXPECTED_SARSA, METHODS, Q_LEARNING, RANDOM, SARSA
 from rlcompare.algorithms.td import (
     double_q_target,
     expected_sarsa_target,
@@ -47,9 +48,8 @@ from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_index_2d
 from rlcompare.rng import next_double
 
-RANDOM, Q_LEARNING, SARSA, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3, 4  # the same codes as the general kernel's
-ALGORITHM_CODES = {"random": RANDOM, "q_learning": Q_LEARNING, "sarsa": SARSA, "expected_sarsa": EXPECTED_SARSA,
-                   "double_q_learning": DOUBLE_Q}
+ALGORITHM_CODES = {name: m.code for name, m in METHODS.items() if m.one_step or m.family == "baseline"}
+"""The methods this kernel runs: the random baseline and the one-step learners."""
 
 
 @njit(cache=True)

@@ -15,8 +15,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.schedules import SCHEDULES
-from rlcompare.engine.kernel import ALGORITHM_CODES
 from rlcompare.envs.gymnasium_env import UnsupportedEnvironment
 from rlcompare.experiment.problem import (
     PORTS,
@@ -39,12 +39,8 @@ FALLBACK_MEMORY = 16 * 2**30
 FLOAT_FIELDS = ("alpha", "gamma", "epsilon", "epsilon_start", "epsilon_end", "decay_fraction", "lam",
                 "baseline_alpha", "target_epsilon")
 """Fields holding a number, kept as floats so that ``1`` and ``1.0`` are one configuration (one hash)."""
-REINFORCE_VARIANTS = ("reinforce", "reinforce_book", "reinforce_baseline")
-"""The paper's Algorithm 3 as written (no γ^t), the book's 13.3 box (with γ^t) and its 13.4 box (a baseline)."""
-ALGORITHMS = (*ALGORITHM_CODES, "reinforce_book", "reinforce_baseline")
-BEFORE_UPDATE, AFTER_UPDATE = "before_update", "after_update"
-NEXT_ACTION_DEFAULTS = {"q_learning": AFTER_UPDATE, "sarsa": BEFORE_UPDATE, "expected_sarsa": AFTER_UPDATE,
-                        "double_q_learning": AFTER_UPDATE}
+ALGORITHMS = tuple(METHODS)
+NEXT_ACTION_DEFAULTS = {name: m.next_action for name, m in METHODS.items() if m.one_step}
 """When each one-step learner draws its next action in its book box: SARSA before its update (Algorithm 2),
 the others after it (Algorithm 1)."""
 FEATURES = ("grid", "tiles")

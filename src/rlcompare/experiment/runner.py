@@ -15,11 +15,12 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, method
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.engine import kernel, tabular
 from rlcompare.envs import gymnasium_env
 from rlcompare.experiment import store
-from rlcompare.experiment.config import AFTER_UPDATE, BEFORE_UPDATE, REINFORCE_VARIANTS, ExperimentConfig
+from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import make_env, make_features
 from rlcompare.experiment.results import Results
 
@@ -111,16 +112,16 @@ def _trainer(config: ExperimentConfig, env: kernel.Env, features: kernel.Feature
 
 def kernel_settings(config: ExperimentConfig) -> kernel.Settings:
     """The scalars of ``config`` as the kernels read them."""
-    reinforce = config.algorithm in REINFORCE_VARIANTS
+    chosen = method(config.algorithm)
     return kernel.Settings(
-        algorithm=kernel.REINFORCE if reinforce else kernel.ALGORITHM_CODES[config.algorithm],
+        algorithm=chosen.code,
         alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
         truncation_is_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every),
         n=int(config.n), lam=float(config.lam), replacing=config.trace == "replacing",
         target_epsilon=-1.0 if config.target_epsilon is None else float(config.target_epsilon),
-        baseline_alpha=float(config.baseline_alpha) if config.algorithm == "reinforce_baseline" else 0.0,
+        baseline_alpha=float(config.baseline_alpha) if chosen.baseline else 0.0,
         next_action=NEXT_ACTION_CODES.get(config.next_action, kernel.OWN_BOX),
-        discount_gradient=config.algorithm != "reinforce",
+        discount_gradient=chosen.discount_gradient,
     )
 
 

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis.curves import mean_band
 from rlcompare.analysis.report import Section, save_figure, write_report
 from rlcompare.analysis.stats import interval
@@ -149,7 +150,7 @@ def report_12_10(out: Path, runs: dict[str, Results]) -> Path:
 
 CLIFF = {"env": "CliffWalking-v1", "schedule": "constant", "epsilon": 0.1, "alpha": 0.5, "gamma": 1.0,
          "episodes": 500, "max_steps": 1000, "eval_every": 500, "eval_episodes": 1, "stages": (("final", 1.0),)}
-CLIFF_ALGORITHMS = {"sarsa": "SARSA", "q_learning": "Q-Learning", "expected_sarsa": "Expected SARSA"}
+CLIFF_ALGORITHMS = ("sarsa", "q_learning", "expected_sarsa")
 CLIFF_SHAPE, CLIFF_START, CLIFF_MOVES = (4, 12), 36, {0: (-1, 0), 1: (0, 1), 2: (1, 0), 3: (0, -1)}
 
 
@@ -179,7 +180,7 @@ def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
     paths_ax.imshow(_cliff_mask(), cmap="Greys", vmin=0, vmax=1.5, origin="upper")
     rows = []
     for offset, (name, results) in enumerate(runs.items()):
-        label = CLIFF_ALGORITHMS.get(name, name)
+        label = method_label(name)
         returns = results.records.returns
         smooth = np.stack([np.convolve(r, np.ones(10) / 10, mode="valid") for r in returns])
         mean, low, high = mean_band(smooth)

@@ -18,6 +18,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from rlcompare.algorithms.registry import METHODS
+from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis import plots
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
@@ -43,8 +45,6 @@ from rlcompare.studies.why import decomposition, decomposition_figure, formatted
 from rlcompare.studies.why import findings as why_findings
 
 CONFIGURATIONS = ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant")
-LABELS = {"random": "random", "q_learning": "Q-Learning", "sarsa": "SARSA"}
-COLORS = {"random": "#7f7f7f", "q_learning": "#e07b00", "sarsa": "#2a9d8f"}
 SMOOTHING = 100
 FIGURES = (
     ("fig3-random", ("random",), "Fig. 3: the random baseline"),
@@ -96,7 +96,7 @@ class ReportOutcome:
 
 def label(results: Results) -> str:
     c = results.config
-    name = LABELS.get(c.algorithm, c.algorithm.replace("_", " "))
+    name = method_label(c.algorithm)
     return name if c.algorithm == "random" else f"{name}, ε {c.schedule}"
 
 
@@ -122,7 +122,7 @@ def curve_figure(runs: list[Results], title: str) -> Figure:
     """Behaviour return (smoothed) beside greedy-evaluation return, mean over seeds with 95% bands."""
     figure = Figure(figsize=(12, 4.2), layout="constrained")
     behaviour_ax, greedy_ax = figure.subplots(1, 2, sharey=True)
-    colors = {label(r): COLORS.get(r.config.algorithm) for r in runs}
+    colors = {label(r): METHODS[r.config.algorithm].color for r in runs}
     episodes = np.arange(1, runs[0].config.episodes + 1)
     plots.plot_return_curves(behaviour_ax, episodes, {label(r): r.records.returns for r in runs},
                              window=SMOOTHING, colors=colors)

@@ -32,11 +32,12 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.analysis.findings import SCHEDULE_TEXT
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
 from rlcompare.experiment import store
-from rlcompare.experiment.config import AFTER_UPDATE, BEFORE_UPDATE, ExperimentConfig
+from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.studies.paper import DEFAULT_EPISODES, reproduce
 

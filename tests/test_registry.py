@@ -1,0 +1,50 @@
+"""One registry of methods: the configuration, the kernels' settings, the fast path, the benchmark and the
+command line all read it."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from rlcompare import ConfigError, ExperimentConfig
+from rlcompare.algorithms.registry import METHODS, label
+from rlcompare.cli import app
+from rlcompare.engine import kernel, tabular
+from rlcompare.experiment.benchmark import FAST_ALGORITHMS, GENERAL_ALGORITHMS
+from rlcompare.experiment.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
+from rlcompare.experiment.runner import kernel_settings, uses_fast_path
+
+
+def test_the_configuration_accepts_exactly_the_registered_methods():
+    assert tuple(METHODS) == ALGORITHMS
+    with pytest.raises(ConfigError) as error:
+        ExperimentConfig(algorithm="td_zero")
+    assert all(name in error.value.allowed for name in METHODS)
+
+
+@pytest.mark.parametrize("name", list(METHODS))
+def test_each_method_sets_the_kernel_as_its_entry_says(name):
+    m = METHODS[name]
+    settings = kernel_settings(ExperimentConfig(algorithm=name))
+    assert settings.algorithm == m.code
+    assert settings.discount_gradient == m.discount_gradient
+    assert (settings.baseline_alpha > 0) == m.baseline
+    assert uses_fast_path(ExperimentConfig(algorithm=name)) == (m.one_step or m.family == "baseline")
+    assert uses_fast_path(ExperimentConfig(algorithm=name)) == (name in tabular.ALGORITHM_CODES)
+    assert kernel.ALGORITHM_CODES[name] == m.code
+    assert NEXT_ACTION_DEFAULTS.get(name) == m.next_action
+    assert label(name) == m.label
+
+
+def test_the_benchmark_measures_every_learner_once():
+    assert sorted((*FAST_ALGORITHMS, *GENERAL_ALGORITHMS)) == sorted(n for n, m in METHODS.items()
+                                                                     if m.family != "baseline")
+
+
+def test_the_command_line_lists_every_method_with_its_source():
+    result = CliRunner(env={"COLUMNS": "400"}).invoke(app, ["run", "--help"])
+    assert result.exit_code == 0
+    text = " ".join(result.output.split())
+    for name, m in METHODS.items():
+        assert name in text
+        assert m.book.split(",")[0] in text
