@@ -26,11 +26,14 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import label as method_label
+from rlcompare.analysis import plots
 from rlcompare.analysis.curves import mean_band
 from rlcompare.analysis.report import Section, save_figure, write_report
 from rlcompare.analysis.stats import interval
+from rlcompare.envs.table import TableEnv
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.problem import table_of
 from rlcompare.experiment.results import Results
 from rlcompare.studies.contrast import contrast_table, sibling_studies
 from rlcompare.studies.paper import reproduce
@@ -151,24 +154,26 @@ def report_12_10(out: Path, runs: dict[str, Results]) -> Path:
 CLIFF = {"env": "CliffWalking-v1", "schedule": "constant", "epsilon": 0.1, "alpha": 0.5, "gamma": 1.0,
          "episodes": 500, "max_steps": 1000, "eval_every": 500, "eval_episodes": 1, "stages": (("final", 1.0),)}
 CLIFF_ALGORITHMS = ("sarsa", "q_learning", "expected_sarsa")
-CLIFF_SHAPE, CLIFF_START, CLIFF_MOVES = (4, 12), 36, {0: (-1, 0), 1: (0, 1), 2: (1, 0), 3: (0, -1)}
+CLIFF_SHAPE = (4, 12)
+"""Rows and columns of Gymnasium's Cliff Walking grid, for drawing; the cliff is the bottom row between the
+start and the goal."""
 
 
 def cliff_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
     return {name: ExperimentConfig(algorithm=name, seeds=seeds, **CLIFF) for name in CLIFF_ALGORITHMS}
 
 
-def greedy_path(q_table: np.ndarray, limit: int = 100) -> list[int]:
-    """States visited by the greedy policy (first maximum) from the start until the goal or ``limit``."""
-    state, path = CLIFF_START, [CLIFF_START]
+def greedy_path(q_table: np.ndarray, table: TableEnv | None = None, limit: int = 100) -> list[int]:
+    """States visited by the greedy policy (first maximum) from the start until the episode ends or ``limit``
+    steps, stepped through ``table`` (default: Gymnasium's Cliff Walking, whose moves are deterministic)."""
+    table = table_of("CliffWalking-v1") if table is None else table
+    state = int(np.argmax(table.start > 0))
+    path = [state]
     for _ in range(limit):
-        row, col = divmod(state, CLIFF_SHAPE[1])
-        d_row, d_col = CLIFF_MOVES[int(np.argmax(q_table[state]))]
-        row = min(max(row + d_row, 0), CLIFF_SHAPE[0] - 1)
-        col = min(max(col + d_col, 0), CLIFF_SHAPE[1] - 1)
-        state = CLIFF_START if row == 3 and 0 < col < 11 else row * CLIFF_SHAPE[1] + col
+        action = int(np.argmax(q_table[state]))
+        state, ends = int(table.next_state[state, action, 0]), bool(table.ends[state, action, 0])
         path.append(state)
-        if state == 47:
+        if ends:
             break
     return path
 
@@ -182,11 +187,8 @@ def report_cliff(out: Path, runs: dict[str, Results]) -> Path:
     for offset, (name, results) in enumerate(runs.items()):
         label = method_label(name)
         returns = results.records.returns
-        smooth = np.stack([np.convolve(r, np.ones(10) / 10, mode="valid") for r in returns])
-        mean, low, high = mean_band(smooth)
-        episodes = np.arange(10, returns.shape[1] + 1)
-        (line,) = curves_ax.plot(episodes, mean, label=label)
-        curves_ax.fill_between(episodes, low, high, color=line.get_color(), alpha=0.25, linewidth=0)
+        plots.plot_return_curves(curves_ax, np.arange(1, returns.shape[1] + 1), {label: returns}, window=10)
+        line = curves_ax.get_lines()[-1]
         path = greedy_path(results.records.snapshots[0, -1])
         cols = [p % 12 + (offset - 1) * 0.12 for p in path]
         paths_ax.plot(cols, [p // 12 + (offset - 1) * 0.12 for p in path], color=line.get_color(), linewidth=2,
