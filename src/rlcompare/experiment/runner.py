@@ -154,6 +154,29 @@ def _version(package: str) -> str | None:
         return None
 
 
+def run_or_load(
+    out: Path, configs: dict[str, ExperimentConfig], *, study: str, progress: Callable[[int], None] | None = None,
+    force: bool = False,
+) -> Iterator[tuple[str, Results, bool]]:
+    """Run each configuration into ``out / name``, or load it if that run already finished and its files belong
+    together.
+
+    ``out`` is claimed as the study's directory (``force``: even beside files rlcompare did not write) and
+    locked while this runs. Yields ``(name, results, reused)`` as each configuration completes, so an
+    interrupted study resumes where it stopped and loses nothing finished.
+    """
+    with store.output_directory(Path(out), store.Owner("study", study), force=force):
+        for name, config in configs.items():
+            run_dir = Path(out) / name
+            stored = load_if_complete(run_dir, config)
+            if stored is not None:
+                if progress is not None:
+                    progress(config.episodes)
+                yield name, stored, True
+            else:
+                yield name, run(config, out=run_dir, study=study, progress=progress), False
+
+
 def load(run_dir: Path) -> Results:
     """Read a finished run directory."""
     return Results.load(run_dir)

@@ -35,8 +35,8 @@ from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import table_of
 from rlcompare.experiment.results import Results
+from rlcompare.experiment.runner import run_or_load
 from rlcompare.studies.contrast import contrast_table, sibling_studies
-from rlcompare.studies.paper import reproduce
 
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
         "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0, "stages": (("final", 1.0),)}
@@ -72,10 +72,7 @@ def fig_12_10_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
 def run_study(study: Study, out: Path, seeds: tuple[int, ...], progress: Callable[[int], None] | None = None,
               *, force: bool = False) -> Iterator[tuple[str, Results, bool]]:
     """Each configuration into ``out / name``, or loaded when already complete there."""
-    for name, config in study.configs(seeds).items():
-        for results, reused in reproduce(Path(out), [config], progress=progress, directory=name, study=study.name,
-                                         force=force):
-            yield name, results, reused
+    yield from run_or_load(Path(out), study.configs(seeds), study=study.name, progress=progress, force=force)
 
 
 def write_study_report(study: Study, out: Path, runs: dict[str, Results] | None = None) -> Path:

@@ -11,10 +11,9 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
-from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
-from rlcompare.experiment.runner import load_if_complete, run
+from rlcompare.experiment.runner import run_or_load
 
 STUDY = "paper"
 DEFAULT_EPISODES = 5000
@@ -61,25 +60,11 @@ def reproduce(
     configs: list[ExperimentConfig],
     *,
     progress: Callable[[int], None] | None = None,
-    directory: str | None = None,
     study: str = STUDY,
     force: bool = False,
 ) -> Iterator[tuple[Results, bool]]:
-    """Run each configuration into ``out / config.name``, or load it if that run already finished and its
-    files belong together.
-
-    ``out`` is claimed as the study's directory (``force``: even beside files rlcompare did not write) and
-    locked while this runs. Yields ``(results, reused)`` as each configuration completes, so an interrupted
-    study resumes where it stopped and loses nothing finished. ``directory`` names the run directory instead
-    of the configuration's name.
-    """
-    with store.output_directory(Path(out), store.Owner("study", study), force=force):
-        for config in configs:
-            run_dir = Path(out) / (directory or config.name)
-            stored = load_if_complete(run_dir, config)
-            if stored is not None:
-                if progress is not None:
-                    progress(config.episodes)
-                yield stored, True
-            else:
-                yield run(config, out=run_dir, study=study, progress=progress), False
+    """The paper's configurations into ``out``, one run directory each named after its configuration
+    (:func:`rlcompare.experiment.runner.run_or_load`); yields ``(results, reused)``."""
+    for _, results, reused in run_or_load(Path(out), {c.name: c for c in configs}, study=study, progress=progress,
+                                          force=force):
+        yield results, reused

@@ -39,7 +39,8 @@ from rlcompare.analysis.stats import Estimate, interval
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
-from rlcompare.studies.paper import DEFAULT_EPISODES, reproduce
+from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies.paper import DEFAULT_EPISODES
 
 STUDY = "why"
 TARGETS = {"max": "q_learning", "taken": "sarsa", "expectation": "expected_sarsa"}
@@ -81,10 +82,7 @@ def run_why(out: Path, seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES,
             progress: Callable[[int], None] | None = None, *, force: bool = False
             ) -> Iterator[tuple[str, Results, bool]]:
     """Each cell into ``out / name``, or loaded when already complete there."""
-    for name, config in why_configs(seeds, episodes).items():
-        for results, reused in reproduce(Path(out), [config], progress=progress, directory=name, study=STUDY,
-                                         force=force):
-            yield name, results, reused
+    yield from run_or_load(Path(out), why_configs(seeds, episodes), study=STUDY, progress=progress, force=force)
 
 
 def windows(episodes: int) -> dict[str, tuple[int, int]]:
