@@ -242,7 +242,6 @@ def run(
     console.print(f"Run directory: {out_dir}")
 
 
-PAPER_SEEDS = 30
 STUDY_NAMES = ("paper", "why", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff", "sensitivity")
 
 
@@ -308,10 +307,10 @@ def reproduce(
     if study == "sensitivity":
         _reproduce_sensitivity(seeds, first_seed, episodes, grid or [], out_dir, workers, address, force)
     elif study == "why":
-        _reproduce_why(_seeds(PAPER_SEEDS if seeds is None else seeds, first_seed),
+        _reproduce_why(_seeds(_DEFAULT_SEEDS if seeds is None else seeds, first_seed),
                        5000 if episodes is None else episodes, out_dir, force)
     elif study == "paper" or study in ENV_STUDIES:
-        count = PAPER_SEEDS if seeds is None else seeds
+        count = _DEFAULT_SEEDS if seeds is None else seeds
         _reproduce_paper(study, _seeds(count, first_seed), 5000 if episodes is None else episodes,
                          _algorithms(algorithms), out_dir, videos, force)
     else:
