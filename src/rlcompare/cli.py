@@ -24,6 +24,7 @@ from rlcompare.algorithms.registry import METHODS
 from rlcompare.experiment import store
 from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig
 from rlcompare.experiment.store import StoreError
+from rlcompare.studies import TITLES
 
 app = typer.Typer(
     help="Run, measure and explain comparisons of reinforcement-learning algorithms.",
@@ -242,15 +243,11 @@ def run(
     console.print(f"Run directory: {out_dir}")
 
 
-STUDY_NAMES = ("paper", "why", "cartpole", "acrobot", "book-10.2", "book-12.10", "cliff", "sensitivity")
-
-
 @app.command()
 @one_line_errors
 def reproduce(
     study: Annotated[str, typer.Argument(
-        help="Which study: paper (default), why, cartpole, acrobot, book-10.2, book-12.10, cliff or sensitivity "
-             "(see --list).")]
+        help=f"Which study: {', '.join(TITLES)} (see --list).")]
     = "paper",
     seeds: Annotated[int | None, typer.Option(
         help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, why, "
@@ -289,18 +286,11 @@ def reproduce(
     from rlcompare.studies.paper import ENV_STUDIES
 
     if list_studies:
-        console.print("paper        the paper: Q-Learning vs SARSA on MountainCar-v0, ε constant and decaying")
-        console.print("why          why SARSA wins there: target (max, taken, expectation) x order of choosing A' "
-                      "and updating")
-        for name, env in ENV_STUDIES.items():
-            console.print(f"{name:<12} the paper's grid of configurations on {env}")
-        for name, book_study in STUDIES.items():
-            console.print(f"{name:<12} {book_study.title}")
-        console.print("sensitivity  does SARSA beat Q-Learning on MountainCar-v0 across α, γ, ε_end and the time "
-                      "limit? (a sweep; --address runs it on Ray)")
+        for name, title in TITLES.items():
+            console.print(f"{name:<12} {title}")
         return
-    if study not in STUDY_NAMES:
-        raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(STUDY_NAMES)}", param_hint="'STUDY'")
+    if study not in TITLES:
+        raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(TITLES)}", param_hint="'STUDY'")
     out_dir = _out_path(out, Path("runs") / study)
     _check_out(out_dir, store.Owner("study", study), force)
     _announce_compiling()

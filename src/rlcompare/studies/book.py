@@ -36,6 +36,7 @@ from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import table_of
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies import TITLES
 from rlcompare.studies.contrast import contrast_table, sibling_studies
 
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
@@ -254,11 +255,8 @@ def _cliff_mask() -> np.ndarray:
     return mask
 
 
-STUDIES = {
-    "book-10.2": Study("book-10.2", "Semi-gradient SARSA with tile coding (Figure 10.2)", fig_10_2_configs,
-                       report_10_2, runs=100),
-    "book-12.10": Study("book-12.10", "SARSA(λ) with replacing traces (Figure 12.10)", fig_12_10_configs,
-                        report_12_10, runs=100),
-    "cliff": Study("cliff", "Cliff Walking: SARSA, Q-Learning and Expected SARSA (Example 6.6)", cliff_configs,
-                   report_cliff, runs=50),
-}
+STUDIES = {name: Study(name, TITLES[name], configs, report, runs) for name, configs, report, runs in (
+    ("book-10.2", fig_10_2_configs, report_10_2, 100),
+    ("book-12.10", fig_12_10_configs, report_12_10, 100),
+    ("cliff", cliff_configs, report_cliff, 50),
+)}
