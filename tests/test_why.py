@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from rlcompare.studies import why
@@ -161,3 +163,21 @@ def test_bad_input_is_one_clear_message_and_exit_2(tmp_path, arguments, field):
     assert field in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_a_missing_or_damaged_cell_is_named_and_the_rest_still_decomposed(study, tmp_path):
+    import shutil
+
+    out, _ = study
+    copy = Path(shutil.copytree(out, tmp_path / "why"))
+    shutil.rmtree(copy / "expected_sarsa-constant-before_update")
+    (copy / "sarsa-decay-after_update" / "qtables.npz").write_bytes(b"damaged")
+    path, _ = why.build_why_report(copy)
+    page = path.read_text()
+    assert "Incomplete" in page
+    assert "expected_sarsa-constant-before_update" in page
+    assert "sarsa-decay-after_update" in page
+    table = pd.read_csv(copy / "tables" / "decomposition.csv")
+    assert set(table["schedule"]) == {"constant"}  # decay lost a cell the decomposition needs
+    assert (table["order, expectation target"] == "not run").all()
+    assert (table["order"] != "not run").all()

@@ -23,7 +23,6 @@ which holds exactly for every seed, so for the means too; each term has a 95% BC
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -128,9 +127,7 @@ def decomposition(runs: dict[str, Results]) -> pd.DataFrame:
                 row = {"schedule": schedule, "return": kind, "episodes": window}
                 rows.append(row | {term: interval(term_per_seed(cells, term)) if _has_cells(cells, term) else NAN
                                    for term in TERMS})
-    frame = pd.DataFrame(rows)
-    frame.attrs["seeds"] = len(next(iter(runs.values())).seeds) if runs else 0
-    return frame
+    return pd.DataFrame(rows)
 
 
 def _has_cells(cells: dict, term: str) -> bool:
@@ -233,14 +230,15 @@ def _decided(estimate: Estimate) -> str:
     return "(its interval includes 0: not resolved)"
 
 
-def load_why(out: Path) -> dict[str, Results]:
-    """The cells of a why study that are complete and whose files belong together."""
-    runs = {}
+def load_why(out: Path) -> tuple[dict[str, Results], list[str]]:
+    """The cells of a why study whose files belong together, and a line for each that does not load."""
+    runs, problems = {}, []
     for name in why_configs((0,)):
-        if store.is_complete(Path(out) / name):
-            with contextlib.suppress(store.StoreError):
-                runs[name] = Results.load(Path(out) / name)
-    return runs
+        try:
+            runs[name] = Results.load(Path(out) / name)
+        except (OSError, ValueError, KeyError) as error:  # StoreError included
+            problems.append(f"{name}: {error}")
+    return runs, problems
 
 
 def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple[Path, list[str]]:
@@ -248,11 +246,11 @@ def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple
     report's path and its findings."""
     out = Path(out)
     with store.rewriting(out, "study"):
-        runs = load_why(out) if runs is None else runs
-        problems = [f"{name}: no complete run directory" for name in why_configs((0,)) if name not in runs]
+        runs, problems = load_why(out) if runs is None else (runs, [])
         frame = decomposition(runs)
         if frame.empty:
-            raise store.StoreError(f"{out}: no schedule has all {len(TARGETS) * len(ORDERS)} cells of the factorial")
+            raise store.StoreError(f"{out}: no schedule has the four cells of Q-Learning and SARSA, each drawing "
+                                   "before and after its update: " + "; ".join(problems))
         table = formatted(frame)
         write_table(table, out / "tables", "decomposition")
         write_table(cells_table(runs), out / "tables", "cells")
