@@ -9,6 +9,10 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots
 from rlcompare.analysis.curves import mean_band, moving_average, thinned
+from rlcompare.analysis.explain import map_frame
+from rlcompare.experiment.config import ExperimentConfig
+
+FRAME = map_frame(ExperimentConfig())  # MountainCar-v0 on the paper's grid
 
 
 @pytest.fixture
@@ -65,7 +69,7 @@ def _tables_with_greedy(actions: list[int], cells: int = 4, seeds: int = 3) -> n
 def test_policy_map_shows_the_majority_action_and_blanks_unvisited_cells(ax) -> None:
     q = _tables_with_greedy([2, 0, 1])  # cell 3 never updated
     q[0, 0] = [-1.0, -5.0, -5.0]  # one seed of three disagrees in cell 0
-    plots.plot_policy_map(ax, q, bins=2)
+    plots.plot_policy_map(ax, q, bins=2, frame=FRAME)
     image = ax.get_images()[0].get_array()
     # cells are position_bin * 2 + velocity_bin; the image has velocity on rows
     assert image[0, 0] == 2  # cell 0: two seeds of three push right
@@ -74,13 +78,13 @@ def test_policy_map_shows_the_majority_action_and_blanks_unvisited_cells(ax) -> 
     assert np.ma.is_masked(image[1, 1]) or np.isnan(image[1, 1])  # cell 3: blank
     assert ax.get_xlabel() == "position"
     assert ax.get_ylabel() == "velocity"
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == list(plots.ACTION_NAMES)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == list(FRAME.actions)
 
 
 def test_value_map_averages_the_best_value_over_seeds(ax) -> None:
     q = _tables_with_greedy([0, 1, 2])
     q[1, :3] -= 2.0  # seed 1 values every visited cell 2 lower
-    plots.plot_value_map(ax, q, bins=2)
+    plots.plot_value_map(ax, q, bins=2, frame=FRAME)
     image = ax.get_images()[0].get_array()
     assert image[0, 0] == pytest.approx((-1 - 3 - 1) / 3)
     assert np.ma.is_masked(image[1, 1]) or np.isnan(image[1, 1])
@@ -88,7 +92,7 @@ def test_value_map_averages_the_best_value_over_seeds(ax) -> None:
 
 def test_visits_are_summed_over_seeds(ax) -> None:
     visits = np.array([[1, 0, 5, 0], [2, 0, 5, 0]])
-    plots.plot_visits(ax, visits, bins=2)
+    plots.plot_visits(ax, visits, bins=2, frame=FRAME)
     image = ax.get_images()[0].get_array()
     assert image[0, 0] == 3
     assert image[0, 1] == 10
@@ -97,10 +101,19 @@ def test_visits_are_summed_over_seeds(ax) -> None:
 
 def test_first_actions_stack_to_one(ax) -> None:
     shares = {"Q-Learning": np.array([0.2, 0.1, 0.7]), "SARSA": np.array([0.6, 0.0, 0.4])}
-    plots.plot_first_actions(ax, shares)
+    plots.plot_first_actions(ax, shares, FRAME.actions)
     bars = ax.patches
     assert len(bars) == 6
     tops = {}
     for bar in bars:
         tops[bar.get_x()] = max(tops.get(bar.get_x(), 0), bar.get_y() + bar.get_height())
     assert all(top == pytest.approx(1.0) for top in tops.values())
+
+
+def test_maps_take_their_frame_from_the_environment() -> None:
+    assert FRAME.axes == ("position", "velocity")
+    assert FRAME.actions == ("push left", "no push", "push right")
+    assert FRAME.extent == pytest.approx((-1.2, 0.6, -0.07, 0.07))
+    assert map_frame(ExperimentConfig(env="MountainCar-book")).extent[1] == pytest.approx(0.5)  # the book's bound
+    assert map_frame(ExperimentConfig(env="CartPole-v1")) is None  # no maps where the environment names no axes
+    assert map_frame(ExperimentConfig(features="tiles")) is None

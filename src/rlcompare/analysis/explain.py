@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rlcompare.analysis.plots import MapFrame
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
 from rlcompare.experiment.config import ExperimentConfig
@@ -11,9 +12,20 @@ from rlcompare.experiment.problem import grid_bounds
 from rlcompare.experiment.results import Results
 
 
+def map_frame(config: ExperimentConfig) -> MapFrame | None:
+    """The frame of the maps a report draws over two observation dimensions, where the environment names them
+    and the features are the grid; None elsewhere."""
+    env = config.environment
+    if env.map_axes is None or config.features != "grid":
+        return None
+    low, high = grid_bounds(env, config.bounds)
+    return MapFrame((float(low[0]), float(high[0]), float(low[1]), float(high[1])), env.map_axes, env.action_names)
+
+
 def on_position_velocity_grid(config: ExperimentConfig) -> bool:
     """Mountain Car on a grid: the start region, the first actions and the maps over position x velocity apply."""
-    return config.env.startswith("MountainCar") and config.features == "grid"
+    frame = map_frame(config)
+    return frame is not None and frame.axes == ("position", "velocity")
 
 
 def start_cells(grid: UniformGrid, points: int = 2001) -> np.ndarray:

@@ -3,6 +3,8 @@ or the command line saves files."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
@@ -10,9 +12,17 @@ from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
 from rlcompare.analysis.curves import mean_band, moving_average, thinned
 
-ACTION_NAMES = ("push left", "no push", "push right")
 ACTION_COLORS = ("#3b6fb6", "#bdbdbd", "#d1495b")
-EXTENT = (-1.2, 0.6, -0.07, 0.07)  # position x velocity, MountainCar's observation bounds
+
+
+class MapFrame(NamedTuple):
+    """What a map over two observation dimensions shows: their bounds, their names and the actions' names, all
+    the environment's (``Environment.map_axes`` and ``action_names``)."""
+
+    extent: tuple[float, float, float, float]
+    """``(x low, x high, y low, y high)``: the grid's bounds."""
+    axes: tuple[str, str]
+    actions: tuple[str, ...]
 
 
 def plot_return_curves(
@@ -38,11 +48,16 @@ def plot_return_curves(
 
 
 def _cell_grid(values: np.ndarray, bins: int) -> np.ndarray:
-    """Flat cells ``position_bin * bins + velocity_bin`` to an image with velocity on rows."""
+    """Flat cells ``x_bin * bins + y_bin`` to an image with the second dimension on rows."""
     return np.asarray(values).reshape(bins, bins).T
 
 
-def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int) -> Axes:
+def _label_axes(ax: Axes, frame: MapFrame) -> None:
+    ax.set_xlabel(frame.axes[0])
+    ax.set_ylabel(frame.axes[1])
+
+
+def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame) -> Axes:
     """Greedy action in each cell, by majority over the seeds that updated it; cells none updated are blank.
 
     ``q_tables`` is ``(seeds, cells, actions)``. A fresh table holds zeros and every update with a reward
@@ -54,45 +69,42 @@ def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int) -> Axes:
     majority = counts.argmax(axis=0).astype(np.float64)
     majority[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
     cmap = ListedColormap(ACTION_COLORS).with_extremes(bad="white")
-    ax.imshow(_cell_grid(majority, bins), origin="lower", extent=EXTENT, aspect="auto", cmap=cmap,
+    ax.imshow(_cell_grid(majority, bins), origin="lower", extent=frame.extent, aspect="auto", cmap=cmap,
               norm=BoundaryNorm([-0.5, 0.5, 1.5, 2.5], cmap.N), interpolation="nearest")
-    handles = [mpl.patches.Patch(color=c, label=n) for c, n in zip(ACTION_COLORS, ACTION_NAMES, strict=True)]
+    handles = [mpl.patches.Patch(color=c, label=n) for c, n in zip(ACTION_COLORS, frame.actions, strict=True)]
     ax.legend(handles=handles, loc="upper left", fontsize="x-small", framealpha=0.8)
-    ax.set_xlabel("position")
-    ax.set_ylabel("velocity")
+    _label_axes(ax, frame)
     return ax
 
 
-def plot_value_map(ax: Axes, q_tables: np.ndarray, bins: int, *, vmin: float | None = None) -> Axes:
+def plot_value_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame, *, vmin: float | None = None) -> Axes:
     """State value ``max_a Q(s, a)`` averaged over seeds; never-updated cells blank."""
     values = q_tables.max(axis=2).mean(axis=0)
     values[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
-    image = ax.imshow(_cell_grid(values, bins), origin="lower", extent=EXTENT, aspect="auto", cmap="viridis",
+    image = ax.imshow(_cell_grid(values, bins), origin="lower", extent=frame.extent, aspect="auto", cmap="viridis",
                       vmin=vmin, vmax=0.0, interpolation="nearest")
     ax.figure.colorbar(image, ax=ax, label="max_a Q(s, a)")
-    ax.set_xlabel("position")
-    ax.set_ylabel("velocity")
+    _label_axes(ax, frame)
     return ax
 
 
-def plot_visits(ax: Axes, visits: np.ndarray, bins: int) -> Axes:
+def plot_visits(ax: Axes, visits: np.ndarray, bins: int, frame: MapFrame) -> Axes:
     """Training steps taken from each cell, summed over seeds, on a log scale; unvisited cells blank."""
     total = visits.sum(axis=0).astype(np.float64)
     total[total == 0] = np.nan
-    image = ax.imshow(_cell_grid(total, bins), origin="lower", extent=EXTENT, aspect="auto", cmap="magma",
+    image = ax.imshow(_cell_grid(total, bins), origin="lower", extent=frame.extent, aspect="auto", cmap="magma",
                       norm=LogNorm(), interpolation="nearest")
     ax.figure.colorbar(image, ax=ax, label="steps from cell (all seeds)")
-    ax.set_xlabel("position")
-    ax.set_ylabel("velocity")
+    _label_axes(ax, frame)
     return ax
 
 
-def plot_first_actions(ax: Axes, shares: dict[str, np.ndarray]) -> Axes:
-    """Stacked bars: the share of start states from which each configuration's first greedy action is
-    left, none or right (``shares[label]`` sums to 1 over the three actions)."""
+def plot_first_actions(ax: Axes, shares: dict[str, np.ndarray], actions: tuple[str, ...]) -> Axes:
+    """Stacked bars: the share of start states from which each configuration's first greedy action is each
+    of ``actions`` (``shares[label]`` sums to 1 over them)."""
     labels = list(shares)
     bottom = np.zeros(len(labels))
-    for action, (name, color) in enumerate(zip(ACTION_NAMES, ACTION_COLORS, strict=True)):
+    for action, (name, color) in enumerate(zip(actions, ACTION_COLORS, strict=True)):
         heights = np.array([shares[label][action] for label in labels])
         ax.bar(labels, heights, bottom=bottom, color=color, label=name)
         bottom += heights

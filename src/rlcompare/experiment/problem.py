@@ -73,6 +73,10 @@ class Environment:
     """When an episode counts as solved: ``terminated`` (the goal), ``truncated`` (survived to the limit)
     or ``positive_return``."""
     max_position: float = mountain_car.MAX_POSITION
+    action_names: tuple[str, ...] = ()
+    """What each action does, for figures."""
+    map_axes: tuple[str, str] | None = None
+    """The names of the two observation dimensions the report draws maps over; None: no maps."""
 
     @property
     def observation_size(self) -> int:
@@ -88,7 +92,8 @@ def _mountain_car(name: str, right: float) -> Environment:
     low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
     high[0] = np.float32(right)
     return Environment(name, MOUNTAIN_CAR, mountain_car.N_ACTIONS, 0, low, high, 2, 1000, 20, "terminated",
-                       max_position=right)
+                       max_position=right, action_names=("push left", "no push", "push right"),
+                       map_axes=("position", "velocity"))
 
 
 def _cartpole() -> Environment:

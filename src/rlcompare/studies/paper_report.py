@@ -22,7 +22,7 @@ from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis import plots
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
-from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid
+from rlcompare.analysis.explain import final_first_action_shares, map_frame, on_position_velocity_grid
 from rlcompare.analysis.findings import paper_findings
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA, interval
@@ -143,12 +143,12 @@ def stages_figure(results: Results) -> Figure:
     episodes = results.config.stage_episodes()
     figure = Figure(figsize=(4.6 * len(stage_names), 7.5), layout="constrained")
     axes = figure.subplots(2, len(stage_names), squeeze=False)
-    floor = float(results.records.snapshots.min())
+    floor, frame = float(results.records.snapshots.min()), map_frame(results.config)
     for column, stage in enumerate(stage_names):
         tables = results.records.snapshots[:, column]
-        plots.plot_policy_map(axes[0, column], tables, results.config.bins)
+        plots.plot_policy_map(axes[0, column], tables, results.config.bins, frame)
         axes[0, column].set_title(f"{stage} (episode {episodes[stage]}): greedy action")
-        plots.plot_value_map(axes[1, column], tables, results.config.bins, vmin=floor)
+        plots.plot_value_map(axes[1, column], tables, results.config.bins, frame, vmin=floor)
         axes[1, column].set_title(f"{stage}: state value")
     figure.suptitle(f"{label(results)}: majority greedy action and mean value over {len(results.seeds)} seeds")
     return figure
@@ -157,7 +157,7 @@ def stages_figure(results: Results) -> Figure:
 def visits_figure(runs: list[Results]) -> Figure:
     figure = Figure(figsize=(4.6 * len(runs), 3.8), layout="constrained")
     for ax, results in zip(figure.subplots(1, len(runs), squeeze=False)[0], runs, strict=True):
-        plots.plot_visits(ax, results.records.visits, results.config.bins)
+        plots.plot_visits(ax, results.records.visits, results.config.bins, map_frame(results.config))
         ax.set_title(label(results))
     figure.suptitle("Where training spends its steps: state visits over all episodes and seeds")
     return figure
@@ -168,7 +168,7 @@ def first_actions_figure(runs: list[Results]) -> Figure:
     shares = {}
     for results in runs:
         shares[label(results)] = final_first_action_shares(results).mean(axis=0)
-    plots.plot_first_actions(figure.subplots(), shares)
+    plots.plot_first_actions(figure.subplots(), shares, runs[0].config.environment.action_names)
     figure.suptitle("First greedy action from the start region (final policies, all seeds)")
     return figure
 
