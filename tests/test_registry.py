@@ -59,3 +59,14 @@ def test_every_study_listed_is_one_the_command_can_run():
     assert all(STUDIES[name].title == TITLES[name] for name in STUDIES)
     listed = CliRunner(env={"COLUMNS": "400"}).invoke(app, ["reproduce", "--list"]).output.splitlines()
     assert [line.split()[0] for line in listed] == list(TITLES)
+
+
+def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entrys():
+    from rlcompare.experiment.benchmark import PORT_EPISODES
+    from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, environment
+
+    assert set(PORT_EPISODES) == {*PORTS, *TABLE_ENVIRONMENTS} - {"MountainCar-book"}
+    assert all(PORT_EPISODES[name] == environment(name).bench_episodes for name in PORT_EPISODES)
+    assert environment("CartPole-v1").endings == ("the pole fell", "balanced to the end")
+    assert environment("MountainCar-book").action_names == environment("MountainCar-v0").action_names
+    assert environment("Taxi-v4").map_axes is None

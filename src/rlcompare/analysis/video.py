@@ -49,6 +49,7 @@ from rlcompare.algorithms.registry import label as method_label
 from rlcompare.experiment import store
 from rlcompare.experiment.agent import load_agent
 from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.problem import environment
 from rlcompare.experiment.results import Results
 
 DEFAULT_EPISODE_SEED = 10_000
@@ -69,10 +70,6 @@ GIF_EVERY = 2
 GIF_HOLD_MS = 1000
 """The GIF shows its last frame (with the final return) this much longer before it loops."""
 
-_ENDINGS = {"MountainCar-v0": ("reached the flag", "out of time"),
-            "CartPole-v1": ("the pole fell", "balanced to the end"),
-            "Acrobot-v1": ("swung above the bar", "out of time")}
-"""How the caption's last frame says an episode ended: terminated, truncated."""
 _CAPTION_BACKGROUND = (255, 255, 255)
 _CAPTION_TEXT = (0, 0, 0)
 _CAPTION_DETAIL = (90, 90, 90)
@@ -249,7 +246,7 @@ def _caption_pieces(title: str, frame: _Frame, *, seed: int | None, episode_seed
     head = f"training seed {seed} · " if seed is not None else ""
     head += f"start state: reset(seed={episode_seed}) · "
     detail = [head, *_DIGITS.findall(f"step {frame.step}/{max_steps}")]
-    terminated, truncated = _ENDINGS.get(env_id, ("terminated", "out of time"))
+    terminated, truncated = environment(env_id).endings
     if frame.terminated:
         detail.append(f" · {terminated}")
     elif frame.truncated:

@@ -22,14 +22,14 @@ import numpy as np
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.envs.discretize import cell_indices, make_grid
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import grid_bounds
+from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, environment, grid_bounds
 from rlcompare.experiment.runner import run, uses_fast_path
 
 FAST_ALGORITHMS = tuple(name for name, m in METHODS.items() if m.one_step)
 GENERAL_ALGORITHMS = tuple(name for name, m in METHODS.items() if m.family not in ("baseline", "one-step"))
-PORT_EPISODES = {"MountainCar-v0": 300, "CartPole-v1": 5000, "Acrobot-v1": 300, "CliffWalking-v1": 3000,
-                 "FrozenLake-v1": 20000, "Taxi-v4": 1000}
-"""Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps on each port."""
+PORT_EPISODES = {name: environment(name).bench_episodes for name in (*PORTS, *TABLE_ENVIRONMENTS)
+                 if environment(name).bench_episodes}
+"""Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps on each port (its entry's)."""
 
 
 @dataclass(frozen=True)
