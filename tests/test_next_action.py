@@ -43,7 +43,7 @@ def _impl(name: str, fn):
 
 
 def _order(before: bool) -> int:
-    return kernel.BEFORE_UPDATE if before else kernel.AFTER_UPDATE
+    return kernel.DRAW_BEFORE_UPDATE if before else kernel.DRAW_AFTER_UPDATE
 
 
 def _settings(algorithm: int, before: bool, target_epsilon: float = -1.0) -> kernel.Settings:
@@ -204,13 +204,13 @@ def test_each_method_defaults_to_its_book_box(algorithm, default):
     config = ExperimentConfig(algorithm=algorithm)
     assert config.next_action is None
     assert config.drawn_next == default
-    assert kernel_settings(config).next_action == kernel.OWN_BOX
+    assert kernel_settings(config).next_action == kernel.DRAW_AS_BOX
     assert config.name == ExperimentConfig(algorithm=algorithm, next_action=default).name == f"{algorithm}-decay"
     other = "before_update" if default == "after_update" else "after_update"
     moved = ExperimentConfig(algorithm=algorithm, next_action=other)
     assert moved.name == f"{algorithm}-decay-{other}"
-    assert kernel_settings(moved).next_action == (kernel.BEFORE_UPDATE if other == "before_update"
-                                                   else kernel.AFTER_UPDATE)
+    assert kernel_settings(moved).next_action == (kernel.DRAW_BEFORE_UPDATE if other == "before_update"
+                                                   else kernel.DRAW_AFTER_UPDATE)
 
 
 @pytest.mark.parametrize(("algorithm", "value", "allowed"), [

@@ -70,3 +70,9 @@ def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entr
     assert environment("CartPole-v1").endings == ("the pole fell", "balanced to the end")
     assert environment("MountainCar-book").action_names == environment("MountainCar-v0").action_names
     assert environment("Taxi-v4").map_axes is None
+
+
+def test_the_help_names_the_options_each_method_reads():
+    text = " ".join(CliRunner(env={"COLUMNS": "400"}).invoke(app, ["run", "--help"]).output.split())
+    assert "n_step_sarsa (Sutton and Barto 7.2; reads --n)" in text
+    assert "reinforce_baseline (Sutton and Barto 13.4; reads --baseline-alpha)" in text

@@ -36,7 +36,12 @@ console = Console(width=None if Console().is_terminal else 120)
 _DEFAULTS = ExperimentConfig()
 _DEFAULT_SEEDS = len(_DEFAULTS.seeds)
 
-ALGORITHM_HELP = ", ".join(f"{name} ({m.book})" for name, m in METHODS.items()) + "."
+def _method_help(name: str, reads: tuple[str, ...], book: str) -> str:
+    options = ", ".join("--" + field.replace("_", "-") for field in reads)
+    return f"{name} ({book}; reads {options})" if reads else f"{name} ({book})"
+
+
+ALGORITHM_HELP = ", ".join(_method_help(name, m.reads, m.book) for name, m in METHODS.items()) + "."
 Seeds = Annotated[int, typer.Option(help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ...")]
 FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
 Force = Annotated[bool, typer.Option(

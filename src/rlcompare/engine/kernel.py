@@ -63,7 +63,8 @@ from rlcompare.rng import next_double, stream_state
 ALGORITHM_CODES = {name: m.code for name, m in METHODS.items()}
 MOUNTAIN_CAR, TABLE, CARTPOLE, ACROBOT, GYMNASIUM = range(5)
 GRID, TILES, ONE_HOT = 0, 1, 2
-OWN_BOX, BEFORE_UPDATE, AFTER_UPDATE = range(3)
+DRAW_AS_BOX, DRAW_BEFORE_UPDATE, DRAW_AFTER_UPDATE = range(3)
+"""Codes of ``Settings.next_action``: when a one-step method draws A'."""
 ENV_STREAM, AGENT_STREAM, EVAL_ENV_STREAM, EVAL_AGENT_STREAM, TRANSITION_STREAM, EVAL_TRANSITION_STREAM = range(6)
 STREAMS = 6
 
@@ -109,8 +110,8 @@ class Settings(NamedTuple):
     replacing: bool = True  # replacing traces instead of accumulating ones
     target_epsilon: float = -1.0  # Expected SARSA's target-policy ε; negative: the behaviour ε (on-policy)
     baseline_alpha: float = 0.0  # REINFORCE's baseline step size; 0: no baseline
-    next_action: int = OWN_BOX  # one-step methods: draw A' BEFORE_UPDATE or AFTER_UPDATE of Q(S, A), or as in
-    # the method's OWN_BOX (SARSA before, the others after)
+    next_action: int = DRAW_AS_BOX  # one-step methods: draw A' before or after updating Q(S, A), or as the
+    # method's box does (SARSA before, the others after)
     discount_gradient: bool = True  # REINFORCE: scale the step at time t by γ^t (the book's 13.3 box)
 
 
@@ -364,9 +365,9 @@ def one_step_episode(
 @njit(inline="always")
 def draws_before_update(settings: Settings) -> bool:
     """Whether a one-step method draws its next action before updating ``q(S, A)``."""
-    if settings.next_action == OWN_BOX:
+    if settings.next_action == DRAW_AS_BOX:
         return settings.algorithm == SARSA
-    return settings.next_action == BEFORE_UPDATE
+    return settings.next_action == DRAW_BEFORE_UPDATE
 
 
 @njit(inline="always")

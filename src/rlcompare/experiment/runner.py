@@ -24,7 +24,7 @@ from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import make_env, make_features
 from rlcompare.experiment.results import Results
 
-NEXT_ACTION_CODES = {BEFORE_UPDATE: kernel.BEFORE_UPDATE, AFTER_UPDATE: kernel.AFTER_UPDATE}
+NEXT_ACTION_CODES = {BEFORE_UPDATE: kernel.DRAW_BEFORE_UPDATE, AFTER_UPDATE: kernel.DRAW_AFTER_UPDATE}
 CHUNK_EPISODES = 250
 """Episodes per kernel call; between calls the progress bar moves. Results do not depend on it."""
 
@@ -120,7 +120,7 @@ def kernel_settings(config: ExperimentConfig) -> kernel.Settings:
         n=int(config.n), lam=float(config.lam), replacing=config.trace == "replacing",
         target_epsilon=-1.0 if config.target_epsilon is None else float(config.target_epsilon),
         baseline_alpha=float(config.baseline_alpha) if chosen.baseline else 0.0,
-        next_action=NEXT_ACTION_CODES.get(config.next_action, kernel.OWN_BOX),
+        next_action=NEXT_ACTION_CODES.get(config.next_action, kernel.DRAW_AS_BOX),
         discount_gradient=chosen.discount_gradient,
     )
 
