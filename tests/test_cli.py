@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import typer.main
 from typer.testing import CliRunner
 
-from rlcompare import Results, cli
+from rlcompare import ExperimentConfig, Results, cli
 from rlcompare.experiment import store
+from rlcompare.experiment.config import field_docs
 
 runner = CliRunner(env={"COLUMNS": "200"})
 
@@ -64,6 +67,47 @@ def test_run_help_explains_options() -> None:
                    "--truncation-as-terminal", "--seeds", "--eval-every", "--out"):
         assert option in result.output
     assert "Algorithm 1" in result.output
+    assert "Exploration: constant (ε fixed)" in result.output  # the field's docstring
+
+
+def test_every_configuration_field_is_an_option_whose_help_is_its_docstring() -> None:
+    """One place per fact: ``run`` takes each field as an option named after it, with the field's default and its
+    docstring as help (then how the command line gives it, where that differs from what the field holds)."""
+    options = {param.opts[0]: param for param in typer.main.get_command(cli.app).commands["run"].params}
+    docs = field_docs()
+    assert docs["alpha"] == "Step size α, in (0, 1]."
+    assert docs["schedule"] == "Exploration: constant (ε fixed) or decay (linear from epsilon_start to epsilon_end)."
+    forms = {"seeds": 30, "bins": None, "bounds": None, "stages": None}
+    for field in dataclasses.fields(ExperimentConfig):
+        option = options.pop("--stage" if field.name == "stages" else "--" + field.name.replace("_", "-"))
+        if field.name == "algorithm":  # the registry's methods, and the options each reads
+            assert option.help == cli.ALGORITHM_HELP
+        elif field.name in forms:
+            assert option.help.startswith(docs[field.name] + " Given as ")
+            assert option.default == forms[field.name]
+        else:
+            assert (option.help, option.default) == (docs[field.name], field.default), field.name
+    assert sorted(options) == ["--first-seed", "--force", "--out"]
+
+
+def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.MonkeyPatch) -> None:
+    from rlcompare.experiment import benchmark
+
+    measured = [benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0),
+                benchmark.Measurement("sarsa (grid, fast kernel)", 1, 5000, 0.05)]
+    monkeypatch.setattr(benchmark, "run_benchmark", lambda: measured)
+    result = invoke("bench", "--no-environments")
+    assert result.exit_code == 0, result.output
+    assert "Every algorithm on MountainCar-v0" in result.output
+    for cell in ("100,000", "100x", "1.00x"):  # steps/s, against Gymnasium's loop, against 1 thread
+        assert cell in result.output
+
+
+def test_bench_sweeps_on_a_cluster_that_is_not_there_ends_with_one_line() -> None:
+    result = invoke("bench", "--sweeps", "--address", "127.0.0.1:1")
+    assert result.exit_code == 2
+    assert "no Ray cluster at '127.0.0.1:1'" in result.output
+    assert "Traceback" not in result.output
 
 
 @pytest.mark.parametrize(

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import inspect
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any, get_type_hints
 
 import typer
 from rich.console import Console
@@ -22,9 +24,12 @@ from rich.text import Text
 
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.experiment import store
-from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig
+from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig, field_docs
 from rlcompare.experiment.store import StoreError
 from rlcompare.studies import TITLES
+
+if TYPE_CHECKING:
+    from rlcompare.experiment.benchmark import BenchTable
 
 app = typer.Typer(
     help="Run, measure and explain comparisons of reinforcement-learning algorithms.",
@@ -33,8 +38,7 @@ app = typer.Typer(
     rich_markup_mode="rich",
 )
 console = Console(width=None if Console().is_terminal else 120)
-_DEFAULTS = ExperimentConfig()
-_DEFAULT_SEEDS = len(_DEFAULTS.seeds)
+_DEFAULT_SEEDS = len(ExperimentConfig().seeds)
 
 def _method_help(name: str, reads: tuple[str, ...], book: str) -> str:
     options = ", ".join("--" + field.replace("_", "-") for field in reads)
@@ -42,7 +46,6 @@ def _method_help(name: str, reads: tuple[str, ...], book: str) -> str:
 
 
 ALGORITHM_HELP = ", ".join(_method_help(name, m.reads, m.book) for name, m in METHODS.items()) + "."
-Seeds = Annotated[int, typer.Option(help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ...")]
 FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
 Force = Annotated[bool, typer.Option(
     "--force", help="Write into OUT even though it holds files rlcompare did not write; they are left as they are "
@@ -73,9 +76,13 @@ def _seeds(count: int, first: int) -> tuple[int, ...]:
     return tuple(range(first, first + count))
 
 
+def _option(field_name: str) -> str:
+    """The option that gives a configuration field: ``--hash-size`` for ``hash_size``, ``--stage`` for ``stages``."""
+    return "--stage" if field_name == "stages" else "--" + field_name.replace("_", "-")
+
+
 def _option_name(field_name: str) -> str:
-    special = {"seeds": "'--seeds'", "stages": "'--stage'"}
-    return special.get(field_name, f"'--{field_name.replace('_', '-')}'")
+    return f"'{_option(field_name)}'"
 
 
 def _config(**values) -> ExperimentConfig:
@@ -142,6 +149,60 @@ def _bounds(spec: str | None) -> tuple[tuple[float, float], ...] | None:
                                  "commas, e.g. -2.4:2.4,-3:3,-0.21:0.21,-3.5:3.5", param_hint="'--bounds'") from None
 
 
+_FORMS: dict[str, tuple[Any, Any, str]] = {
+    "seeds": (int, _DEFAULT_SEEDS, "Given as a count: the seeds are first-seed, first-seed + 1, ..."),
+    "bins": (str | None, None, "Given as one number, or one per dimension separated by commas, e.g. 1,1,6,12."),
+    "bounds": (str | None, None, "Given as LOW:HIGH per dimension, separated by commas, e.g. "
+                                 "-2.4:2.4,-3:3,-0.21:0.21,-3.5:3.5."),
+    "stages": (list[str] | None, None, "Given as NAME=SHARE; repeat the option. Default: "
+                                       + " ".join(f"{name}={share}" for name, share in DEFAULT_STAGES) + "."),
+}
+"""Fields the command line gives in another form than the configuration holds them: the option's type, its
+default, and what its help adds to the field's docstring (:func:`_config_from` reads them)."""
+_HELP = {"algorithm": ALGORITHM_HELP}
+"""Help in place of a field's docstring: every method of the registry and the options it reads."""
+
+
+def _field_options() -> list[inspect.Parameter]:
+    """An option per field of :class:`ExperimentConfig`, in the class's order, named after the field, with its
+    default and its docstring as help (:data:`_FORMS` where the command line's form differs); ``--first-seed``
+    follows ``--seeds``."""
+    types, docs = get_type_hints(ExperimentConfig), field_docs()
+    options = []
+    for field in dataclasses.fields(ExperimentConfig):
+        kind, default, how = _FORMS.get(field.name, (types[field.name], field.default, ""))
+        text = _HELP.get(field.name) or " ".join(part for part in (docs.get(field.name, ""), how) if part)
+        options.append(inspect.Parameter(field.name, inspect.Parameter.KEYWORD_ONLY, default=default,
+                                         annotation=Annotated[kind, typer.Option(_option(field.name), help=text)]))
+        if field.name == "seeds":
+            options.append(inspect.Parameter("first_seed", inspect.Parameter.KEYWORD_ONLY, default=0,
+                                             annotation=FirstSeed))
+    return options
+
+
+def _config_from(options: dict[str, Any]) -> ExperimentConfig:
+    """The configuration the options of :func:`config_options` give, taken out of ``options``."""
+    values = {field.name: options.pop(field.name) for field in dataclasses.fields(ExperimentConfig)}
+    first_seed = options.pop("first_seed")
+    return _config(**values | {"bounds": _bounds(values["bounds"]), "bins": _bins(values["bins"]),
+                               "seeds": _seeds(values["seeds"], first_seed), "stages": _stages(values["stages"] or [])})
+
+
+def config_options(command: Callable[..., None]) -> Callable[..., None]:
+    """``command(config, ...)`` as a command taking an option per field of :class:`ExperimentConfig` in place of
+    ``config`` (:func:`_field_options`); a bad value is refused, naming its option, before ``command`` runs."""
+    parameters = inspect.signature(command, eval_str=True).parameters.values()
+    rest = [parameter.replace(kind=inspect.Parameter.KEYWORD_ONLY) for parameter in parameters
+            if parameter.name != "config"]
+
+    @functools.wraps(command)
+    def wrapped(**options: Any) -> None:
+        return command(_config_from(options), **options)
+
+    wrapped.__signature__ = inspect.Signature([*_field_options(), *rest])  # what typer reads
+    return wrapped
+
+
 def progress_label(config: ExperimentConfig) -> str:
     """A configuration's name, and how its environment is stepped when that is at Python speed."""
     if config.environment.is_ported:
@@ -159,64 +220,9 @@ def _progress(eta: bool = False) -> Progress:
 
 @app.command()
 @one_line_errors
+@config_options
 def run(
-    algorithm: Annotated[str, typer.Option(help=ALGORITHM_HELP)]
-    = _DEFAULTS.algorithm,
-    env: Annotated[str, typer.Option(
-        help="MountainCar-v0 (the paper), MountainCar-book (Sutton and Barto's bounds), CartPole-v1, Acrobot-v1 "
-             "(compiled ports), CliffWalking-v1, FrozenLake-v1, Taxi-v4 (Gymnasium's tables), or any other "
-             "Gymnasium environment with discrete actions (through Gymnasium's API, at Python speed).")]
-    = _DEFAULTS.env,
-    adapter: Annotated[bool, typer.Option(
-        "--adapter", help="Step even a ported environment through Gymnasium's API (same results, Python speed).")]
-    = False,
-    features: Annotated[str, typer.Option(help="grid (the paper) or tiles (tile coding, 9.5.4).")]
-    = _DEFAULTS.features,
-    tilings: Annotated[int, typer.Option(help="Tilings of the tile coder.")] = _DEFAULTS.tilings,
-    tiles: Annotated[int, typer.Option(help="Tiles per dimension in each tiling.")] = _DEFAULTS.tiles,
-    hash_size: Annotated[int, typer.Option(help="Hash tiles into this many features (0: no hashing).")]
-    = _DEFAULTS.hash_size,
-    n: Annotated[int, typer.Option("--n", help="n of n-step SARSA.")] = _DEFAULTS.n,
-    lam: Annotated[float, typer.Option(help="λ of sarsa_lambda and q_lambda, in [0, 1].")] = _DEFAULTS.lam,
-    trace: Annotated[str, typer.Option(help="Eligibility traces: replacing or accumulating.")] = _DEFAULTS.trace,
-    target_epsilon: Annotated[float | None, typer.Option(
-        help="ε of Expected SARSA's target policy (default: the behaviour's ε, on-policy; 0: off-policy, "
-             "greedy).")] = None,
-    baseline_alpha: Annotated[float, typer.Option(help="Step size of reinforce_baseline's value baseline.")]
-    = _DEFAULTS.baseline_alpha,
-    next_action: Annotated[str | None, typer.Option(
-        help="When a one-step learner draws its next action: before_update (SARSA's box) or after_update "
-             "(Q-Learning's). Default: the method's own box.", show_default=False)] = None,
-    schedule: Annotated[str, typer.Option(help="ε schedule: constant or decay.")] = _DEFAULTS.schedule,
-    alpha: Annotated[float, typer.Option(help="Step size α in (0, 1].")] = _DEFAULTS.alpha,
-    gamma: Annotated[float, typer.Option(help="Discount γ in [0, 1].")] = _DEFAULTS.gamma,
-    epsilon: Annotated[float, typer.Option(help="ε of the constant schedule.")] = _DEFAULTS.epsilon,
-    epsilon_start: Annotated[float, typer.Option(help="ε at the first episode of decay.")]
-    = _DEFAULTS.epsilon_start,
-    epsilon_end: Annotated[float, typer.Option(help="ε at the end of decay.")] = _DEFAULTS.epsilon_end,
-    decay_fraction: Annotated[float, typer.Option(help="Share of the episodes over which ε decays.")]
-    = _DEFAULTS.decay_fraction,
-    bins: Annotated[str | None, typer.Option(
-        help="Grid cells per observation dimension: one number, or one per dimension (1,1,6,12). "
-             "Default: the environment's (20 for Mountain Car).")] = None,
-    bounds: Annotated[str | None, typer.Option(
-        help="Grid and tile bounds, LOW:HIGH per observation dimension separated by commas. Default: the "
-             "environment's (see docs/environments.md).")] = None,
-    episodes: Annotated[int, typer.Option(help="Training episodes per seed.")] = _DEFAULTS.episodes,
-    max_steps: Annotated[int | None, typer.Option(
-        help="Episode limit (truncation). Default: the environment's (1000 for Mountain Car, as in the paper; "
-             "Gymnasium's registered limit elsewhere).")] = None,
-    truncation_as_terminal: Annotated[bool, typer.Option(
-        "--truncation-as-terminal", help="Treat the time limit as terminal (no bootstrap), as old Gym's done did.")]
-    = _DEFAULTS.truncation_as_terminal,
-    seeds: Seeds = _DEFAULT_SEEDS,
-    first_seed: FirstSeed = 0,
-    eval_every: Annotated[int, typer.Option(help="Evaluate the greedy policy every N episodes (0: never).")]
-    = _DEFAULTS.eval_every,
-    eval_episodes: Annotated[int, typer.Option(help="Episodes per evaluation.")] = _DEFAULTS.eval_episodes,
-    stage: Annotated[list[str] | None, typer.Option(
-        help="Keep the Q-table at NAME=SHARE of training; repeat the option. Default: early=0.1 middle=0.5 "
-             "final=1.0.")] = None,
+    config: ExperimentConfig,
     out: Annotated[str | None, typer.Option(help="Run directory to write (new, empty, or a run directory "
                                                  "rlcompare wrote). Default: runs/run.", show_default=False)] = None,
     force: Force = False,
@@ -224,17 +230,6 @@ def run(
     """Train one configuration over many seeds and write its run directory."""
     from rlcompare.experiment.runner import run as run_experiment
 
-    config = _config(
-        algorithm=algorithm, env=env, adapter=adapter, features=features, tilings=tilings, tiles=tiles,
-        hash_size=hash_size, bounds=_bounds(bounds), n=n,
-        lam=lam, trace=trace, target_epsilon=target_epsilon, baseline_alpha=baseline_alpha, next_action=next_action,
-        schedule=schedule,
-        alpha=alpha, gamma=gamma, epsilon=epsilon,
-        epsilon_start=epsilon_start, epsilon_end=epsilon_end, decay_fraction=decay_fraction, bins=_bins(bins),
-        episodes=episodes, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
-        seeds=_seeds(seeds, first_seed), eval_every=eval_every, eval_episodes=eval_episodes,
-        stages=_stages(stage or []),
-    )
     out_dir = _out_path(out, Path("runs/run"))
     _check_out(out_dir, store.RUN, force)
     if not config.environment.is_ported:
@@ -574,58 +569,31 @@ def bench(
                                                      "instance with 2 CPUs).")] = None,
 ) -> None:
     """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
-    from rlcompare.experiment.benchmark import run_benchmark, run_port_benchmark
+    from rlcompare.experiment import benchmark
+    from rlcompare.experiment.backends import BackendError
 
     if sweeps:
-        _bench_sweeps(address)
+        try:
+            _print_table(benchmark.sweep_benchmark(address))
+        except BackendError as error:
+            _fail(str(error))
         return
-
-    table = Table(title="Every algorithm on MountainCar-v0, 20 bins (one step: act, step, update)")
-    for column in ("what", "threads", "steps", "seconds", "steps/s", "vs Gymnasium", "vs 1 thread"):
-        table.add_column(column, justify="left" if column == "what" else "right")
-    measurements = run_benchmark()
-    reference = measurements[0].steps_per_second
-    single = {m.label: m.steps_per_second for m in measurements if m.threads == 1}
-    for m in measurements:
-        table.add_row(m.label, str(m.threads), f"{m.steps:,}", f"{m.seconds:.3f}", f"{m.steps_per_second:,.0f}",
-                      f"{m.steps_per_second / reference:,.0f}x", f"{m.steps_per_second / single[m.label]:.2f}x")
-    console.print(table)
-    if not environments:
-        return
-    table = Table(title="Q-Learning, ε = 0.5, on each port: steps/s, and the ratio to Gymnasium's loop on the same "
-                        "environment")
-    for column in ("environment", "Gymnasium loop", "port, 1 thread", "port, all threads", "adapter"):
-        table.add_column(column, justify="left" if column == "environment" else "right")
-    for m in run_port_benchmark():
-        loop = m.gymnasium.steps_per_second
-        cells = [f"{x.steps_per_second:,.0f} ({x.steps_per_second / loop:,.0f}x)" for x in m.port]
-        table.add_row(m.env, f"{loop:,.0f}", *cells, f"{m.adapter.steps_per_second:,.0f} "
-                      f"({m.adapter.steps_per_second / loop:.2f}x)")
-    console.print(table)
+    _print_table(benchmark.kernel_table(benchmark.run_benchmark()))
+    if environments:
+        _print_table(benchmark.port_table(benchmark.run_port_benchmark()))
 
 
-def _bench_sweeps(address: str | None) -> None:
-    """Trials per second of a sweep of 200 short trials (20 episodes of Q-Learning on Mountain Car each)."""
-    from rlcompare.experiment.backends import LocalBackend, RayBackend
-    from rlcompare.experiment.benchmark import sweep_trials_per_second
-
-    table = Table(title="A sweep of 200 short trials (Q-Learning, Mountain Car, 20 episodes): store writes included")
-    for column in ("backend", "workers", "trials", "seconds", "trials/s", "training s/trial", "overhead s/trial"):
-        table.add_column(column, justify="left" if column == "backend" else "right")
-    plan = [("local", LocalBackend(1), 1), ("local", LocalBackend(2), 2)]
-    try:
-        import ray
-
-        ray.init(address=address, num_cpus=None if address else 2, logging_level="ERROR", log_to_driver=False,
-                 configure_logging=False)
-        plan.append(("ray", RayBackend(address), int(ray.cluster_resources().get("CPU", 1))))
-    except ImportError:
-        console.print("[yellow]Ray is not installed: pip install 'rlcompare[ray]'[/yellow]")
-    for label, backend, workers in plan:
-        m = sweep_trials_per_second(backend, label, workers)
-        table.add_row(label, str(workers), str(m.trials), f"{m.seconds:.2f}", f"{m.trials_per_second:.1f}",
-                      f"{m.kernel_seconds / m.trials * 1e3:.1f} ms", f"{m.overhead_per_trial * 1e3:.1f} ms")
-    console.print(table)
+def _print_table(table: BenchTable) -> None:
+    """A benchmark's table (:class:`~rlcompare.experiment.benchmark.BenchTable`): its label column left, its
+    numbers right; then its notes."""
+    shown = Table(title=table.title)
+    for index, column in enumerate(table.columns):
+        shown.add_column(column, justify="right" if index else "left")
+    for row in table.rows:
+        shown.add_row(*row)
+    console.print(shown)
+    for note in table.notes:
+        console.print(Text(note, style="yellow"))
 
 
 def _print_summary(results, *, paper: bool) -> None:

@@ -8,6 +8,8 @@ takes the first maximum like ``np.argmax``, so an agent acts the same here and i
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -56,3 +58,9 @@ def epsilon_greedy_action(q_row: np.ndarray, epsilon: float, rng_state: np.ndarr
     if next_double(rng_state) < epsilon:
         return uniform_action(q_row.size, rng_state)
     return greedy_action_random_ties(q_row, rng_state)
+
+
+class RandomActions(NamedTuple):
+    """The paper's baseline: every action uniformly at random, nothing learned."""
+
+    n_actions: int

@@ -1,15 +1,18 @@
-"""Every method rlcompare runs, once: its name, label, family, book section, kernel code and the configuration
-fields it reads. The configuration, the command line, the kernels' settings, the benchmark, the tables and the
-figures read this registry; adding a method is its update function and one entry here.
+"""Every method rlcompare runs, once: its name, label, family, book section, rule and update, and the
+configuration fields it reads. The configuration, the command line, the engine, the benchmark, the tables and
+the figures read this registry; adding a method is its rule and update function and one entry here.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
-RANDOM, Q_LEARNING, SARSA, EXPECTED_SARSA, DOUBLE_Q, N_STEP_SARSA, SARSA_LAMBDA, Q_LAMBDA, REINFORCE = range(9)
-"""The kernels' codes of the episode loops and targets."""
+from rlcompare.algorithms import nstep, policies, reinforce, td, traces
+
 BEFORE_UPDATE, AFTER_UPDATE = "before_update", "after_update"
+FAMILIES = ("baseline", "one-step", "n-step", "traces", "policy gradient")
+"""Each family has one episode loop in the engine."""
 
 
 @dataclass(frozen=True)
@@ -19,10 +22,19 @@ class Method:
     name: str
     label: str
     family: str
-    """``baseline``, ``one-step``, ``n-step``, ``traces`` or ``policy gradient``."""
+    """One of :data:`FAMILIES`."""
     book: str
     """Where it is defined: the paper's algorithm or the book's section."""
-    code: int
+    rule: type
+    """A named tuple of what the method reads beyond α, γ and ε; its type picks the compiled code."""
+    update: Callable | None = None
+    """One-step methods: ``update(rule, w, w2, actives, now, action, next_action, reward, terminal, alpha,
+    gamma, epsilon, rng, q_next, scratch)`` of ``q(S, A)``."""
+    values: Callable | None = None
+    """``values(rule, w, w2, actives, row, out, scratch)``: what the behaviour is ε-greedy in and the greedy
+    policy greedy in, when it is not ``q`` (Double Q-Learning's ``Q1 + Q2``)."""
+    snapshot: Callable | None = None
+    """``snapshot(rule, w, w2)``: the weights a snapshot keeps, when they are not ``w``."""
     reads: tuple[str, ...] = ()
     """Configuration fields it reads beyond the common ones (α, γ, ε and its schedule, the environment)."""
     next_action: str | None = None
@@ -40,23 +52,27 @@ class Method:
 
 
 METHODS = {m.name: m for m in (
-    Method("random", "random", "baseline", "the paper's random-action baseline", RANDOM, color="#7f7f7f"),
-    Method("q_learning", "Q-Learning", "one-step", "the paper's Algorithm 1, Sutton and Barto 6.5", Q_LEARNING,
-           next_action=AFTER_UPDATE, color="#e07b00"),
-    Method("sarsa", "SARSA", "one-step", "the paper's Algorithm 2, Sutton and Barto 6.4", SARSA,
+    Method("random", "random", "baseline", "the paper's random-action baseline", policies.RandomActions,
+           color="#7f7f7f"),
+    Method("q_learning", "Q-Learning", "one-step", "the paper's Algorithm 1, Sutton and Barto 6.5", td.QLearning,
+           td.q_learning_update, next_action=AFTER_UPDATE, color="#e07b00"),
+    Method("sarsa", "SARSA", "one-step", "the paper's Algorithm 2, Sutton and Barto 6.4", td.Sarsa, td.sarsa_update,
            next_action=BEFORE_UPDATE, color="#2a9d8f"),
-    Method("expected_sarsa", "Expected SARSA", "one-step", "Sutton and Barto 6.6", EXPECTED_SARSA,
-           reads=("target_epsilon",), next_action=AFTER_UPDATE),
-    Method("double_q_learning", "Double Q-Learning", "one-step", "Sutton and Barto 6.7", DOUBLE_Q,
-           next_action=AFTER_UPDATE),
-    Method("n_step_sarsa", "n-step SARSA", "n-step", "Sutton and Barto 7.2", N_STEP_SARSA, reads=("n",)),
-    Method("sarsa_lambda", "SARSA(λ)", "traces", "Sutton and Barto 12.7", SARSA_LAMBDA, reads=("lam", "trace")),
-    Method("q_lambda", "Q(λ)", "traces", "Watkins's Q(λ), Sutton and Barto 12.10", Q_LAMBDA, reads=("lam", "trace")),
-    Method("reinforce", "REINFORCE", "policy gradient", "the paper's Algorithm 3, as written (no γ^t)", REINFORCE,
-           discount_gradient=False),
-    Method("reinforce_book", "REINFORCE (book)", "policy gradient", "Sutton and Barto 13.3 (with γ^t)", REINFORCE),
-    Method("reinforce_baseline", "REINFORCE with baseline", "policy gradient", "Sutton and Barto 13.4", REINFORCE,
-           reads=("baseline_alpha",), baseline=True),
+    Method("expected_sarsa", "Expected SARSA", "one-step", "Sutton and Barto 6.6", td.ExpectedSarsa,
+           td.expected_sarsa_update, reads=("target_epsilon",), next_action=AFTER_UPDATE),
+    Method("double_q_learning", "Double Q-Learning", "one-step", "Sutton and Barto 6.7", td.DoubleQLearning,
+           td.double_q_update, values=td.double_q_values, snapshot=td.mean_of_tables, next_action=AFTER_UPDATE),
+    Method("n_step_sarsa", "n-step SARSA", "n-step", "Sutton and Barto 7.2", nstep.NStepSarsa, reads=("n",)),
+    Method("sarsa_lambda", "SARSA(λ)", "traces", "Sutton and Barto 12.7", traces.SarsaLambda,
+           reads=("lam", "trace")),
+    Method("q_lambda", "Q(λ)", "traces", "Watkins's Q(λ), Sutton and Barto 12.10", traces.QLambda,
+           reads=("lam", "trace")),
+    Method("reinforce", "REINFORCE", "policy gradient", "the paper's Algorithm 3, as written (no γ^t)",
+           reinforce.Reinforce, discount_gradient=False),
+    Method("reinforce_book", "REINFORCE (book)", "policy gradient", "Sutton and Barto 13.3 (with γ^t)",
+           reinforce.Reinforce),
+    Method("reinforce_baseline", "REINFORCE with baseline", "policy gradient", "Sutton and Barto 13.4",
+           reinforce.Reinforce, reads=("baseline_alpha",), baseline=True),
 )}
 """Every method, by the name a configuration gives."""
 

@@ -13,12 +13,49 @@ SARSA, section 6.5 for Q-Learning). They differ only in how the target values th
 At a terminal ``s'`` the value of the next state is zero and the target is ``R`` alone. An episode cut by
 the time limit is not terminal: its last target still bootstraps (Pardo et al. 2018), unless the caller
 asks for the old Gym behaviour of treating the cut as terminal.
+
+Each method is a small named tuple of what it reads beyond α, γ and ε (its type picks its update when the
+engine compiles) and an update of linear values ``q(s, a) = sum of w[i, a]`` over active features, so the
+same rule updates the paper's Q-table and a tile coder's weights. ``draw_before`` says when the next action
+A' is drawn: before updating ``q(S, A)`` as SARSA's box does, or after it, at the top of the loop, as
+Algorithm 1 does (``docs/why.md``).
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
+
+from rlcompare.algorithms.linear import action_value, action_values, add_to_action
+from rlcompare.algorithms.policies import epsilon_greedy_action
+from rlcompare.rng import next_double
+
+
+class QLearning(NamedTuple):
+    """Algorithm 1 (6.5)."""
+
+    draw_before: bool
+
+
+class Sarsa(NamedTuple):
+    """Algorithm 2 (6.4)."""
+
+    draw_before: bool
+
+
+class ExpectedSarsa(NamedTuple):
+    """Expected SARSA (6.6); ``target_epsilon`` < 0 means the behaviour's ε (on-policy)."""
+
+    draw_before: bool
+    target_epsilon: float
+
+
+class DoubleQLearning(NamedTuple):
+    """Double Q-Learning (6.7), with its second estimate in ``w2``."""
+
+    draw_before: bool
 
 
 @njit(inline="always")
@@ -72,6 +109,66 @@ def double_q_target(reward: float, q_next: np.ndarray, q_next_other: np.ndarray,
 
 
 @njit(inline="always")
-def td_update(q: np.ndarray, state: int, action: int, target: float, alpha: float) -> None:
-    """``Q(s, a) <- Q(s, a) + alpha * (target - Q(s, a))``, in place."""
-    q[state, action] += alpha * (target - q[state, action])
+def _step_toward(w: np.ndarray, actives: np.ndarray, row: int, action: int, target: float, alpha: float) -> None:
+    """``q(S, A) <- q(S, A) + alpha * (target - q(S, A))``, the semi-gradient form (9.5)."""
+    add_to_action(w, actives, row, action, alpha * (target - action_value(w, actives, row, action)))
+
+
+@njit(inline="always")
+def q_learning_update(rule: QLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int,
+                      action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
+                      epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
+    """Algorithm 1, line 7: toward ``R + gamma * max_a q(S', a)``. ``S`` is row ``now`` of ``actives``,
+    ``S'`` the other."""
+    target = q_learning_target(reward, action_values(w, actives, 1 - now, q_next), gamma, terminal)
+    _step_toward(w, actives, now, action, target, alpha)
+
+
+@njit(inline="always")
+def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int, action: int,
+                 next_action: int, reward: float, terminal: bool, alpha: float, gamma: float, epsilon: float,
+                 rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
+    """Algorithm 2, line 6: toward ``R + gamma * q(S', A')``. Drawing after the update, SARSA still needs an A'
+    for its target: it draws one here, from the values before the update."""
+    action_values(w, actives, 1 - now, q_next)
+    taken = next_action if rule.draw_before or terminal else epsilon_greedy_action(q_next, epsilon, rng)
+    _step_toward(w, actives, now, action, sarsa_target(reward, q_next[taken], gamma, terminal), alpha)
+
+
+@njit(inline="always")
+def expected_sarsa_update(rule: ExpectedSarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int,
+                          action: int, next_action: int, reward: float, terminal: bool, alpha: float,
+                          gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
+                          scratch: np.ndarray) -> None:
+    """6.6: toward ``R + gamma * E_pi[q(S', A)]`` for the ε-greedy target policy."""
+    target_epsilon = epsilon if rule.target_epsilon < 0 else rule.target_epsilon
+    target = expected_sarsa_target(reward, action_values(w, actives, 1 - now, q_next), target_epsilon, gamma,
+                                   terminal)
+    _step_toward(w, actives, now, action, target, alpha)
+
+
+@njit(inline="always")
+def double_q_update(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int,
+                    action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
+                    epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
+    """6.7: a fair coin picks which estimate learns; it picks the next action, the other values it."""
+    learner, other = (w, w2) if next_double(rng) < 0.5 else (w2, w)
+    then = 1 - now
+    target = double_q_target(reward, action_values(learner, actives, then, q_next),
+                             action_values(other, actives, then, scratch), gamma, terminal)
+    _step_toward(learner, actives, now, action, target, alpha)
+
+
+@njit(inline="always")
+def double_q_values(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: int,
+                    out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
+    """What Double Q-Learning's behaviour is ε-greedy in, and its greedy policy greedy in: ``Q1 + Q2``."""
+    action_values(w, actives, row, out)
+    out += action_values(w2, actives, row, scratch)
+    return out
+
+
+@njit(inline="always")
+def mean_of_tables(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray) -> np.ndarray:
+    """Double Q-Learning's single estimate, for snapshots and maps: ``(Q1 + Q2) / 2``."""
+    return (w + w2) / 2

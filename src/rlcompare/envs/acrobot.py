@@ -25,6 +25,7 @@ x86-64 builds without AVX-512 kernels for them, checked by the parity test) ever
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from llvmlite import ir
@@ -53,11 +54,20 @@ OBSERVATION_HIGH = np.array([1.0, 1.0, 1.0, 1.0, MAX_VEL_1, MAX_VEL_2], dtype=np
 OBSERVATION_LOW = -OBSERVATION_HIGH
 
 
+class Acrobot(NamedTuple):
+    """Acrobot has no parameter to choose; the field only gives the type a value."""
+
+    state_size: int = STATE_SIZE
+
+
 @njit(inline="always")
-def reset(state: np.ndarray, rng_state: np.ndarray) -> None:
-    """Write a start state into ``state``: four draws of ``U(-0.1, 0.1)``, each rounded to float32."""
-    for k in range(STATE_SIZE):
-        state[k] = np.float32(RESET_LOW + (RESET_HIGH - RESET_LOW) * next_double(rng_state))
+def reset(env: Acrobot, rng: np.ndarray) -> tuple[float, float, float, float]:
+    """A start state: four draws of ``U(-0.1, 0.1)``, each rounded to float32."""
+    low, width = RESET_LOW, RESET_HIGH - RESET_LOW
+    theta1 = float(np.float32(low + width * next_double(rng)))
+    theta2 = float(np.float32(low + width * next_double(rng)))
+    dtheta1 = float(np.float32(low + width * next_double(rng)))
+    return theta1, theta2, dtheta1, float(np.float32(low + width * next_double(rng)))
 
 
 @intrinsic
@@ -111,10 +121,11 @@ def _wrap(x: float, low: float, high: float) -> float:
 
 
 @njit
-def step(state: np.ndarray, action: int) -> tuple[float, bool]:
-    """One RK4 step of ``state`` in place: ``(reward, terminated)``."""
+def step(env: Acrobot, state: tuple[float, float, float, float], action: int,
+         rng: np.ndarray) -> tuple[tuple[float, float, float, float], float, bool]:
+    """One RK4 step: ``(state, reward, terminated)``; ``rng`` is not drawn from."""
     torque = action - 1.0
-    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    s0, s1, s2, s3 = state
     dt = DT - 0.0
     dt2 = dt / 2.0
     k1 = _dsdt(s0, s1, s2, s3, torque)
@@ -122,20 +133,18 @@ def step(state: np.ndarray, action: int) -> tuple[float, bool]:
     k3 = _dsdt(s0 + dt2 * k2[0], s1 + dt2 * k2[1], s2 + dt2 * k2[2], s3 + dt2 * k2[3], torque)
     k4 = _dsdt(s0 + dt * k3[0], s1 + dt * k3[1], s2 + dt * k3[2], s3 + dt * k3[3], torque)
     sixth = dt / 6.0
-    state[0] = _wrap(s0 + sixth * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]), -math.pi, math.pi)
-    state[1] = _wrap(s1 + sixth * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]), -math.pi, math.pi)
-    state[2] = min(max(s2 + sixth * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2]), -MAX_VEL_1), MAX_VEL_1)
-    state[3] = min(max(s3 + sixth * (k1[3] + 2 * k2[3] + 2 * k3[3] + k4[3]), -MAX_VEL_2), MAX_VEL_2)
-    terminated = -math.cos(state[0]) - math.cos(state[1] + state[0]) > 1.0
-    return (0.0 if terminated else -1.0), terminated
+    theta1 = _wrap(s0 + sixth * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]), -math.pi, math.pi)
+    theta2 = _wrap(s1 + sixth * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]), -math.pi, math.pi)
+    dtheta1 = min(max(s2 + sixth * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2]), -MAX_VEL_1), MAX_VEL_1)
+    dtheta2 = min(max(s3 + sixth * (k1[3] + 2 * k2[3] + 2 * k3[3] + k4[3]), -MAX_VEL_2), MAX_VEL_2)
+    terminated = -math.cos(theta1) - math.cos(theta2 + theta1) > 1.0
+    return (theta1, theta2, dtheta1, dtheta2), (0.0 if terminated else -1.0), terminated
 
 
 @njit(inline="always")
-def observe(state: np.ndarray, out: np.ndarray) -> None:
-    """The observation of ``state`` (float32 values held as float64)."""
-    out[0] = np.float32(math.cos(state[0]))
-    out[1] = np.float32(math.sin(state[0]))
-    out[2] = np.float32(math.cos(state[1]))
-    out[3] = np.float32(math.sin(state[1]))
-    out[4] = np.float32(state[2])
-    out[5] = np.float32(state[3])
+def observe(env: Acrobot, state: tuple[float, float, float, float]) -> tuple:
+    """What Gymnasium returns: ``(cos theta1, sin theta1, cos theta2, sin theta2, dtheta1, dtheta2)`` rounded
+    to float32."""
+    theta1, theta2, dtheta1, dtheta2 = state
+    return (np.float32(math.cos(theta1)), np.float32(math.sin(theta1)), np.float32(math.cos(theta2)),
+            np.float32(math.sin(theta2)), np.float32(dtheta1), np.float32(dtheta2))

@@ -20,6 +20,7 @@ equal (``==``) to Gymnasium's, and a reset from a stream seeded with ``seed`` eq
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -46,17 +47,28 @@ OBSERVATION_HIGH = np.array([X_THRESHOLD * 2, np.inf, THETA_THRESHOLD * 2, np.in
 OBSERVATION_LOW = -OBSERVATION_HIGH
 
 
+class CartPole(NamedTuple):
+    """CartPole has no parameter to choose; the field only gives the type a value."""
+
+    state_size: int = STATE_SIZE
+
+
 @njit(inline="always")
-def reset(state: np.ndarray, rng_state: np.ndarray) -> None:
-    """Write a start state into ``state``: four draws of ``U(-0.05, 0.05)``."""
-    for k in range(STATE_SIZE):
-        state[k] = RESET_LOW + (RESET_HIGH - RESET_LOW) * next_double(rng_state)
+def reset(env: CartPole, rng: np.ndarray) -> tuple[float, float, float, float]:
+    """A start state: four draws of ``U(-0.05, 0.05)``."""
+    low, width = RESET_LOW, RESET_HIGH - RESET_LOW
+    x = low + width * next_double(rng)
+    x_dot = low + width * next_double(rng)
+    theta = low + width * next_double(rng)
+    return x, x_dot, theta, low + width * next_double(rng)
 
 
 @njit
-def step(state: np.ndarray, action: int) -> bool:
-    """One transition of ``state`` in place; whether the pole fell or the cart left the track."""
-    x, x_dot, theta, theta_dot = state[0], state[1], state[2], state[3]
+def step(env: CartPole, state: tuple[float, float, float, float], action: int,
+         rng: np.ndarray) -> tuple[tuple[float, float, float, float], float, bool]:
+    """One transition: ``(state, reward, terminated)``, terminated when the pole fell or the cart left the
+    track; ``rng`` is not drawn from."""
+    x, x_dot, theta, theta_dot = state
     force = FORCE_MAG if action == 1 else -FORCE_MAG
     costheta = math.cos(theta)
     sintheta = math.sin(theta)
@@ -65,9 +77,15 @@ def step(state: np.ndarray, action: int) -> bool:
         LENGTH * (4.0 / 3.0 - MASS_POLE * (costheta * costheta) / TOTAL_MASS)
     )
     xacc = temp - POLEMASS_LENGTH * thetaacc * costheta / TOTAL_MASS
-    state[0] = x + TAU * x_dot
-    state[1] = x_dot + TAU * xacc
-    state[2] = theta + TAU * theta_dot
-    state[3] = theta_dot + TAU * thetaacc
-    return (state[0] < -X_THRESHOLD or state[0] > X_THRESHOLD
-            or state[2] < -THETA_THRESHOLD or state[2] > THETA_THRESHOLD)
+    x = x + TAU * x_dot
+    x_dot = x_dot + TAU * xacc
+    theta = theta + TAU * theta_dot
+    theta_dot = theta_dot + TAU * thetaacc
+    terminated = x < -X_THRESHOLD or x > X_THRESHOLD or theta < -THETA_THRESHOLD or theta > THETA_THRESHOLD
+    return (x, x_dot, theta, theta_dot), REWARD, terminated
+
+
+@njit(inline="always")
+def observe(env: CartPole, state: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    """What Gymnasium returns: the state rounded to float32."""
+    return np.float32(state[0]), np.float32(state[1]), np.float32(state[2]), np.float32(state[3])

@@ -32,6 +32,11 @@ class UniformGrid(NamedTuple):
     def n_cells(self) -> int:
         return int(np.prod(self.bins))
 
+    @property
+    def n_features(self) -> int:
+        """One feature per cell."""
+        return self.n_cells
+
 
 def make_grid(low: np.ndarray, high: np.ndarray, bins: int | tuple[int, ...]) -> UniformGrid:
     """The grid of ``DiscretizeObservation(env, bins)`` for a Box with bounds ``low`` and ``high``."""
@@ -78,12 +83,24 @@ def cell_index_2d(grid: UniformGrid, x0: float, x1: float) -> int:
 
 
 @njit(inline="always")
-def cell_of(grid: UniformGrid, observation: np.ndarray) -> int:
+def cell_of(grid: UniformGrid, observation: np.ndarray | tuple) -> int:
     """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
     flat = 0
-    for dim in range(grid.bins.size):
+    for dim in range(len(observation)):
         flat = flat * grid.bins[dim] + _bin(grid, dim, np.float32(observation[dim]))
     return flat
+
+
+@njit(inline="always")
+def n_active(features: UniformGrid) -> int:
+    """One cell is active at a time."""
+    return 1
+
+
+@njit(inline="always")
+def activate(features: UniformGrid, observation: np.ndarray | tuple, actives: np.ndarray, row: int) -> None:
+    """Write the observation's cell into ``actives[row, 0]``."""
+    actives[row, 0] = cell_of(features, observation)
 
 
 @njit(cache=True)

@@ -26,8 +26,10 @@ import contextlib
 import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit, objmode
 
 _OPEN: dict[int, list[tuple]] = {}
 """``(env, reset generator, transition generator)`` opened by :func:`opened`, by handle; instance ``2 * run``
@@ -120,7 +122,45 @@ def _pcg64(stream: np.ndarray) -> np.random.PCG64:
     return bit_generator
 
 
-def reset(handle: int, instance: int, x: np.ndarray) -> None:
+class Adapted(NamedTuple):
+    """Which of the environments opened by :func:`opened` the kernels step, and the length of its
+    observation."""
+
+    handle: int
+    instance: int
+    """``2 * run`` trains, ``2 * run + 1`` evaluates."""
+    observation_size: int
+
+
+@njit(inline="always")
+def for_instance(env: Adapted, instance: int) -> Adapted:
+    """The same environments, naming one instance."""
+    return Adapted(env.handle, instance, env.observation_size)
+
+
+@njit
+def reset(env: Adapted, rng: np.ndarray) -> np.ndarray:
+    """Reset the instance from its copy of the reset stream (``rng`` is not drawn from); its observation."""
+    observation = np.empty(env.observation_size)
+    with objmode():
+        _reset(env.handle, env.instance, observation)
+    return observation
+
+
+@njit
+def step(env: Adapted, state: np.ndarray, action: int, rng: np.ndarray) -> tuple[np.ndarray, float, bool]:
+    """Step the instance (``rng`` is not drawn from): ``(observation, reward, terminated)``."""
+    with objmode(reward="float64", terminated="boolean"):
+        reward, terminated = _step(env.handle, env.instance, action, state)
+    return state, reward, terminated
+
+
+@njit(inline="always")
+def observe(env: Adapted, state: np.ndarray) -> np.ndarray:
+    return state
+
+
+def _reset(handle: int, instance: int, x: np.ndarray) -> None:
     """Reset one environment from its reset stream and write its observation into ``x``."""
     env, resets, transitions = _OPEN[handle][instance]
     env.unwrapped.np_random = resets
@@ -129,7 +169,7 @@ def reset(handle: int, instance: int, x: np.ndarray) -> None:
     x[:] = np.ravel(observation)
 
 
-def step(handle: int, instance: int, action: int, x: np.ndarray) -> tuple[float, bool]:
+def _step(handle: int, instance: int, action: int, x: np.ndarray) -> tuple[float, bool]:
     """Step one environment, write its observation into ``x``; ``(reward, terminated)``."""
     observation, reward, terminated, _, _ = _OPEN[handle][instance][0].step(int(action))
     x[:] = np.ravel(observation)

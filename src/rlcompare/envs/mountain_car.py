@@ -21,6 +21,7 @@ equal (``==``) to Gymnasium's, and a reset from a stream seeded with ``seed`` eq
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -44,27 +45,35 @@ OBSERVATION_HIGH = np.array([MAX_POSITION, MAX_SPEED], dtype=np.float32)
 BOOK_MAX_POSITION = 0.5
 
 
+class MountainCar(NamedTuple):
+    """The dynamics' one parameter, the right bound of the position: Gymnasium's 0.6, or the book's 0.5
+    (Sutton and Barto, Example 10.1), which changes no trajectory but the bounds a tile coder spans."""
+
+    max_position: float = MAX_POSITION
+
+
 @njit(inline="always")
-def reset(rng_state: np.ndarray) -> tuple[float, float]:
+def reset(env: MountainCar, rng: np.ndarray) -> tuple[float, float]:
     """Start state ``(position, velocity)``: position uniform in [-0.6, -0.4), velocity 0."""
-    return RESET_LOW + (RESET_HIGH - RESET_LOW) * next_double(rng_state), 0.0
+    return RESET_LOW + (RESET_HIGH - RESET_LOW) * next_double(rng), 0.0
 
 
 @njit(inline="always")
-def step(
-    position: float, velocity: float, action: int, max_position: float = MAX_POSITION
-) -> tuple[float, float, bool]:
-    """One transition: the new ``(position, velocity)`` and whether the car reached the goal.
-
-    ``max_position`` is Gymnasium's right bound, 0.6; the book's variant (Sutton and Barto, Example 10.1)
-    bounds the position at 0.5, where the goal is, which changes no trajectory but the bounds a tile coder
-    spans.
-    """
+def step(env: MountainCar, state: tuple[float, float], action: int,
+         rng: np.ndarray) -> tuple[tuple[float, float], float, bool]:
+    """One transition: ``((position, velocity), reward, terminated)``; ``rng`` is not drawn from."""
+    position, velocity = state
     velocity = velocity + ((action - 1) * FORCE + math.cos(3 * position) * (-GRAVITY))
     velocity = min(max(velocity, -MAX_SPEED), MAX_SPEED)
     position = position + velocity
-    position = min(max(position, MIN_POSITION), max_position)
+    position = min(max(position, MIN_POSITION), env.max_position)
     if position == MIN_POSITION and velocity < 0:
         velocity = 0.0
     terminated = position >= GOAL_POSITION and velocity >= GOAL_VELOCITY
-    return position, velocity, terminated
+    return (position, velocity), REWARD, terminated
+
+
+@njit(inline="always")
+def observe(env: MountainCar, state: tuple[float, float]) -> tuple[float, float]:
+    """What Gymnasium returns: the state rounded to float32."""
+    return np.float32(state[0]), np.float32(state[1])

@@ -103,13 +103,19 @@ def _draw(cumulative: np.ndarray, rng_state: np.ndarray) -> int:
 
 
 @njit(inline="always")
-def reset(env: TableEnv, rng_state: np.ndarray) -> int:
+def reset(env: TableEnv, rng: np.ndarray) -> int:
     """A start state drawn from the start distribution."""
-    return _draw(env.start, rng_state)
+    return _draw(env.start, rng)
 
 
 @njit(inline="always")
-def step(env: TableEnv, state: int, action: int, rng_state: np.ndarray) -> tuple[int, float, bool]:
-    """``(next_state, reward, ends)`` of one transition."""
-    k = _draw(env.cumulative[state, action], rng_state)
+def step(env: TableEnv, state: int, action: int, rng: np.ndarray) -> tuple[int, float, bool]:
+    """``(next_state, reward, ends)`` of one transition, its outcome drawn from ``rng``."""
+    k = _draw(env.cumulative[state, action], rng)
     return env.next_state[state, action, k], env.reward[state, action, k], env.ends[state, action, k]
+
+
+@njit(inline="always")
+def observe(env: TableEnv, state: int) -> tuple[int]:
+    """What Gymnasium returns: the state's index."""
+    return (state,)

@@ -199,7 +199,7 @@ def _hash_step(state: int, coordinate: int) -> int:
 @njit(inline="always")
 def active_tiles_at(coding: TileCoding, x: np.ndarray, out: np.ndarray, row: int) -> None:
     """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``) into ``out[row]``."""
-    dims = coding.low.shape[0]
+    dims = len(x)
     for t in range(coding.offsets.shape[0]):
         flat = 0
         state = _hash_start(t)
@@ -210,6 +210,18 @@ def active_tiles_at(coding: TileCoding, x: np.ndarray, out: np.ndarray, row: int
             else:
                 flat += c * coding.strides[d]
         out[row, t] = state % coding.n_features if coding.hashed else t * coding.per_tiling + flat
+
+
+@njit(inline="always")
+def n_active(features: TileCoding) -> int:
+    """One tile per tiling is active at a time."""
+    return features.offsets.shape[0]
+
+
+@njit(inline="always")
+def activate(features: TileCoding, observation: np.ndarray | tuple, actives: np.ndarray, row: int) -> None:
+    """Write the observation's active tiles into ``actives[row]``."""
+    active_tiles_at(features, observation, actives, row)
 
 
 @njit(cache=True)

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rlcompare.engine.kernel import GRID, ONE_HOT, Features
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import cell_index
-from rlcompare.envs.tiles import active_tiles_nd
+from rlcompare.envs.discretize import UniformGrid, cell_index
+from rlcompare.envs.features import OneHot
+from rlcompare.envs.tiles import TileCoding, active_tiles_nd
 from rlcompare.experiment.problem import Environment, make_features
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.store import quote
@@ -83,7 +83,7 @@ class GreedyAgent:
     """
 
     weights: np.ndarray
-    features: Features
+    features: UniformGrid | TileCoding | OneHot
     seed: int
     stage: str
     env: str
@@ -96,12 +96,12 @@ class GreedyAgent:
     def active(self, observation: np.ndarray | int) -> np.ndarray:
         """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling."""
         valid = check_observation(observation, self.observation_shape, self.n_states, self.env)
-        if self.features.kind == ONE_HOT:
+        if isinstance(self.features, OneHot):
             return np.array([valid])
-        if self.features.kind == GRID:
-            return np.array([cell_index(self.features.grid, valid)])
-        out = np.empty(self.features.n_active, dtype=np.int64)
-        active_tiles_nd(self.features.tiles, valid, out)
+        if isinstance(self.features, UniformGrid):
+            return np.array([cell_index(self.features, valid)])
+        out = np.empty(self.features.n_tilings, dtype=np.int64)
+        active_tiles_nd(self.features, valid, out)
         return out
 
     def act(self, observation: np.ndarray | int) -> int:

@@ -18,6 +18,7 @@ bit for bit, whatever the number of workers.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import socket
 from collections.abc import Callable, Iterable
@@ -90,6 +91,8 @@ class RayBackend:
     address: str | None = "auto"
     max_retries: int = 3
     """Times Ray runs a task again when its worker or node dies."""
+    num_cpus: int | None = None
+    """CPUs of the new local Ray instance started where ``address`` is None; None: every core."""
 
     def connect(self) -> None:
         """Join the cluster, or fail with a :class:`BackendError` saying why."""
@@ -98,10 +101,15 @@ class RayBackend:
             return
         _check_reachable(self.address)
         try:
-            ray.init(address=self.address, logging_level="ERROR", log_to_driver=False, configure_logging=False)
+            ray.init(address=self.address, num_cpus=self.num_cpus, logging_level="ERROR", log_to_driver=False,
+                     configure_logging=False)
         except Exception as error:  # no cluster there, a refused token, a version mismatch
             raise BackendError(f"cannot use the Ray cluster at {self.address!r} ({error}); start one with "
                                "'ray start --head', or use --backend local") from None
+
+    def cpus(self) -> int:
+        """CPUs of the cluster, once connected."""
+        return int(_import_ray().cluster_resources().get("CPU", 1))
 
     def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
         self.connect()
@@ -130,6 +138,11 @@ def _check_reachable(address: str | None) -> None:
     except (OSError, ValueError) as error:
         raise BackendError(f"no Ray cluster at {address!r} ({error}); start one with 'ray start --head', or use "
                            "--backend local") from None
+
+
+def ray_installed() -> bool:
+    """Whether Ray can be imported (the optional dependency of the Ray backend), without importing it."""
+    return importlib.util.find_spec("ray") is not None
 
 
 def _import_ray():

@@ -190,3 +190,65 @@ def sweep_trials_per_second(backend, label: str, workers: int, trials: int = 200
         seconds = time.perf_counter() - started
         results = next(iter(load_configurations(Path(scratch) / "store")[0].values()))
     return SweepMeasurement(label, workers, trials, seconds, results.meta["timings"]["wall_seconds"])
+
+
+@dataclass(frozen=True)
+class BenchTable:
+    """Measurements as text for the command line to print: a title, the columns (a label, then numbers), rows of
+    cells, and notes on what was left out."""
+
+    title: str
+    columns: tuple[str, ...]
+    rows: list[tuple[str, ...]]
+    notes: tuple[str, ...] = ()
+
+
+def kernel_table(measurements: list[Measurement]) -> BenchTable:
+    """:func:`run_benchmark`'s measurements, each against the Gymnasium loop (the first) and its own 1 thread."""
+    reference = measurements[0].steps_per_second
+    single = {m.label: m.steps_per_second for m in measurements if m.threads == 1}
+    rows = [(m.label, str(m.threads), f"{m.steps:,}", f"{m.seconds:.3f}", f"{m.steps_per_second:,.0f}",
+             f"{m.steps_per_second / reference:,.0f}x", f"{m.steps_per_second / single[m.label]:.2f}x")
+            for m in measurements]
+    return BenchTable("Every algorithm on MountainCar-v0, 20 bins (one step: act, step, update)",
+                      ("what", "threads", "steps", "seconds", "steps/s", "vs Gymnasium", "vs 1 thread"), rows)
+
+
+def port_table(measurements: list[PortMeasurement]) -> BenchTable:
+    """:func:`run_port_benchmark`'s measurements, each against Gymnasium's loop on the same environment."""
+    rows = []
+    for m in measurements:
+        loop = m.gymnasium.steps_per_second
+        cells = [f"{x.steps_per_second:,.0f} ({x.steps_per_second / loop:,.0f}x)" for x in m.port]
+        rows.append((m.env, f"{loop:,.0f}", *cells,
+                     f"{m.adapter.steps_per_second:,.0f} ({m.adapter.steps_per_second / loop:.2f}x)"))
+    return BenchTable("Q-Learning, ε = 0.5, on each port: steps/s, and the ratio to Gymnasium's loop on the same "
+                      "environment", ("environment", "Gymnasium loop", "port, 1 thread", "port, all threads",
+                                      "adapter"), rows)
+
+
+def sweep_table(measurements: list[SweepMeasurement], notes: tuple[str, ...] = ()) -> BenchTable:
+    """:func:`sweep_trials_per_second`'s measurements: trials per second, and each trial's training and overhead."""
+    rows = [(m.backend, str(m.workers), str(m.trials), f"{m.seconds:.2f}", f"{m.trials_per_second:.1f}",
+             f"{m.kernel_seconds / m.trials * 1e3:.1f} ms", f"{m.overhead_per_trial * 1e3:.1f} ms")
+            for m in measurements]
+    return BenchTable("A sweep of 200 short trials (Q-Learning, Mountain Car, 20 episodes): store writes included",
+                      ("backend", "workers", "trials", "seconds", "trials/s", "training s/trial", "overhead s/trial"),
+                      rows, notes)
+
+
+def sweep_benchmark(address: str | None = None) -> BenchTable:
+    """A sweep of short trials on the local backend with 1 and 2 workers, and on Ray where it is installed: the
+    cluster at ``address``, or a new local instance with 2 CPUs. A cluster that cannot be reached raises
+    :class:`~rlcompare.experiment.backends.BackendError` before anything runs."""
+    from rlcompare.experiment.backends import LocalBackend, RayBackend, ray_installed
+
+    plan = [("local", LocalBackend(1), 1), ("local", LocalBackend(2), 2)]
+    notes: tuple[str, ...] = ()
+    if ray_installed():
+        ray = RayBackend(address, num_cpus=None if address else 2)
+        ray.connect()
+        plan.append(("ray", ray, ray.cpus()))
+    else:
+        notes = ("Ray is not installed: pip install 'rlcompare[ray]'",)
+    return sweep_table([sweep_trials_per_second(backend, label, workers) for label, backend, workers in plan], notes)

@@ -8,10 +8,16 @@ and limit (``docs/environments.md``), filled in on creation so that a configurat
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import functools
+import inspect
+import itertools
 import json
 import math
 import os
+import re
+import textwrap
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -95,7 +101,7 @@ class ExperimentConfig:
     trace: str = "replacing"
     """Eligibility traces: ``replacing`` or ``accumulating``."""
     target_epsilon: float | None = None
-    """ε of Expected SARSA's target policy: None for the behaviour's ε (on-policy), 0 for greedy."""
+    """ε of Expected SARSA's target policy: None for the behaviour's ε (on-policy), 0 for greedy (off-policy)."""
     next_action: str | None = None
     """When a one-step learner draws its next action A': ``before_update`` (from the values its target
     bootstraps on, before ``Q(S, A)`` moves: SARSA's box, Algorithm 2) or ``after_update`` (from the updated
@@ -121,7 +127,7 @@ class ExperimentConfig:
     Mountain Car). Finite environments ignore it: each state is its own feature."""
     bounds: tuple[tuple[float, float], ...] | None = None
     """``(low, high)`` per observation dimension for the grid and the tiles; None: the environment's
-    defaults (its observation box, with chosen bounds where the box is unbounded)."""
+    defaults (its observation box, with chosen bounds where the box is unbounded: ``docs/environments.md``)."""
     episodes: int = 5000
     """Training episodes per seed, >= 1."""
     max_steps: int | None = None
@@ -212,6 +218,26 @@ class ExperimentConfig:
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2, sort_keys=True)
+
+
+@functools.cache
+def field_docs() -> dict[str, str]:
+    """Each field of :class:`ExperimentConfig` and its docstring (the string under it in the class), as plain
+    text on one line: what the command line's help and the documentation say of it."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(ExperimentConfig)))
+    body = tree.body[0].body
+    docs = {}
+    for statement, following in itertools.pairwise(body):
+        if (isinstance(statement, ast.AnnAssign) and isinstance(statement.target, ast.Name)
+                and isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
+                and isinstance(following.value.value, str)):
+            docs[statement.target.id] = _plain(following.value.value)
+    return docs
+
+
+def _plain(text: str) -> str:
+    """reST on one line without its markup: ``x`` and :attr:`x` as x."""
+    return " ".join(re.sub(r"(:\w+:)?`+([^`]+)`+", r"\2", text).split())
 
 
 def _as_int(value: Any) -> int:

@@ -26,27 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rlcompare.engine.kernel import (
-    ACROBOT,
-    CARTPOLE,
-    GRID,
-    GYMNASIUM,
-    MOUNTAIN_CAR,
-    ONE_HOT,
-    TABLE,
-    TILES,
-    Env,
-    Features,
-)
 from rlcompare.envs import acrobot, cartpole, gymnasium_env, mountain_car
-from rlcompare.envs.discretize import make_grid
-from rlcompare.envs.table import TableEnv, chain, from_gymnasium
-from rlcompare.envs.tiles import make_tile_coding
+from rlcompare.envs.discretize import UniformGrid, make_grid
+from rlcompare.envs.features import OneHot
+from rlcompare.envs.table import TableEnv, from_gymnasium
+from rlcompare.envs.tiles import TileCoding, make_tile_coding
 
 PORTS = ("MountainCar-v0", "MountainCar-book", "CartPole-v1", "Acrobot-v1")
 TABLE_ENVIRONMENTS = ("CliffWalking-v1", "FrozenLake-v1", "Taxi-v4")
 """Finite environments stepped from their Gymnasium transition tables; their state is their feature."""
-_NO_TABLE = chain(1)  # the kernels' table slot, unused but by table environments
 _CARTPOLE_VELOCITY = 3.0  # m/s; see docs/environments.md
 _CARTPOLE_ANGULAR_VELOCITY = 3.5  # rad/s
 
@@ -56,15 +44,14 @@ class Environment:
     """What rlcompare knows of an environment: how the kernels step it and its defaults."""
 
     name: str
-    kind: int
-    """The kernels' code for its dynamics."""
+    dynamics: tuple | None
+    """What compiled code steps (a port's parameters, a table); None: Gymnasium, through the adapter."""
     n_actions: int
     n_states: int
     """Number of states of a finite environment (each its own feature); 0 for a box of observations."""
     low: np.ndarray
     """``(dims,)`` float64 default lower bounds of the grid and tiles (finite, or -inf where none is known)."""
     high: np.ndarray
-    state_size: int
     max_steps: int
     """The default episode limit."""
     bins: int | tuple[int, ...]
@@ -72,7 +59,6 @@ class Environment:
     success: str
     """When an episode counts as solved: ``terminated`` (the goal), ``truncated`` (survived to the limit)
     or ``positive_return``."""
-    max_position: float = mountain_car.MAX_POSITION
     action_names: tuple[str, ...] = ()
     """What each action does, for figures."""
     map_axes: tuple[str, str] | None = None
@@ -90,14 +76,14 @@ class Environment:
     @property
     def is_ported(self) -> bool:
         """Stepped by compiled code; otherwise by Gymnasium at Python speed."""
-        return self.kind != GYMNASIUM
+        return self.dynamics is not None
 
 
 def _mountain_car(name: str, right: float, bench_episodes: int = 0) -> Environment:
     low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
     high[0] = np.float32(right)
-    return Environment(name, MOUNTAIN_CAR, mountain_car.N_ACTIONS, 0, low, high, 2, 1000, 20, "terminated",
-                       max_position=right, action_names=("push left", "no push", "push right"),
+    return Environment(name, mountain_car.MountainCar(right), mountain_car.N_ACTIONS, 0, low, high, 1000, 20,
+                       "terminated", action_names=("push left", "no push", "push right"),
                        map_axes=("position", "velocity"), endings=("reached the flag", "out of time"),
                        bench_episodes=bench_episodes)
 
@@ -105,14 +91,15 @@ def _mountain_car(name: str, right: float, bench_episodes: int = 0) -> Environme
 def _cartpole() -> Environment:
     theta = np.float32(cartpole.THETA_THRESHOLD)
     high = np.array([np.float32(cartpole.X_THRESHOLD), _CARTPOLE_VELOCITY, theta, _CARTPOLE_ANGULAR_VELOCITY])
-    return Environment(cartpole.ENV_ID, CARTPOLE, cartpole.N_ACTIONS, 0, -high, high, cartpole.STATE_SIZE, 500,
-                       (1, 1, 6, 12), "truncated", endings=("the pole fell", "balanced to the end"),
+    return Environment(cartpole.ENV_ID, cartpole.CartPole(), cartpole.N_ACTIONS, 0, -high, high, 500, (1, 1, 6, 12),
+                       "truncated", endings=("the pole fell", "balanced to the end"),
                        bench_episodes=5000)
 
 
 def _acrobot() -> Environment:
-    return Environment(acrobot.ENV_ID, ACROBOT, acrobot.N_ACTIONS, 0, acrobot.OBSERVATION_LOW.astype(np.float64),
-                       acrobot.OBSERVATION_HIGH.astype(np.float64), acrobot.STATE_SIZE, 500, (4, 4, 4, 4, 8, 8),
+    return Environment(acrobot.ENV_ID, acrobot.Acrobot(), acrobot.N_ACTIONS, 0,
+                       acrobot.OBSERVATION_LOW.astype(np.float64), acrobot.OBSERVATION_HIGH.astype(np.float64), 500,
+                       (4, 4, 4, 4, 8, 8),
                        "terminated", endings=("swung above the bar", "out of time"), bench_episodes=300)
 
 
@@ -129,7 +116,7 @@ def environment(name: str, adapter: bool = False) -> Environment:
     if adapter and name in (*PORTS, *TABLE_ENVIRONMENTS):
         gymnasium_env.describe(name)  # MountainCar-book is not one of Gymnasium's
         port = environment(name)
-        return dataclasses.replace(port, kind=GYMNASIUM, state_size=port.observation_size)
+        return dataclasses.replace(port, dynamics=None)
     if name == "MountainCar-v0":
         return _mountain_car(name, mountain_car.MAX_POSITION, bench_episodes=300)
     if name == "MountainCar-book":
@@ -141,11 +128,11 @@ def environment(name: str, adapter: bool = False) -> Environment:
     if name in TABLE_ENVIRONMENTS:
         table = table_of(name)
         limit, success, bench_episodes = _TABLE_DEFAULTS[name]
-        return Environment(name, TABLE, table.n_actions, table.n_states, np.zeros(1), np.ones(1), 1, limit, 1,
-                           success, bench_episodes=bench_episodes)
+        return Environment(name, table, table.n_actions, table.n_states, np.zeros(1), np.ones(1), limit, 1, success,
+                           bench_episodes=bench_episodes)
     spaces = gymnasium_env.describe(name)
-    return Environment(name, GYMNASIUM, spaces.n_actions, spaces.n_states, spaces.low, spaces.high,
-                       spaces.observation_size, spaces.max_episode_steps or 1000, 10, "terminated")
+    return Environment(name, None, spaces.n_actions, spaces.n_states, spaces.low, spaces.high,
+                       spaces.max_episode_steps or 1000, 10, "terminated")
 
 
 @functools.cache
@@ -161,26 +148,25 @@ def grid_bounds(env: Environment, bounds: tuple[tuple[float, float], ...] | None
                                                                             dtype=np.float64)
 
 
-def make_env(env: Environment, handle: int = -1) -> Env:
-    """The kernels' description of ``env``; ``handle`` names the Gymnasium environments opened for the adapter.
-    Its transition stream is a placeholder: each run steps with its own."""
-    table = table_of(env.name) if env.kind == TABLE else _NO_TABLE
-    return Env(env.kind, env.max_position, table, env.n_actions, np.zeros(4, np.uint64), env.state_size,
-               env.observation_size, handle, 0)
+def make_env(env: Environment, handle: int = -1) -> tuple:
+    """What compiled code steps for ``env``: its port or table, or, for the adapter, the Gymnasium environments
+    opened under ``handle``."""
+    if env.is_ported:
+        return env.dynamics
+    return gymnasium_env.Adapted(handle, 0, env.observation_size)
 
 
 def make_features(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,
-                  hash_size: int, bounds: tuple[tuple[float, float], ...] | None = None) -> Features:
-    """The grid (one active cell) or the tile coder (one active tile per tiling); the other slot is a stub.
-    A finite environment's state is its only active feature, whatever ``features`` says."""
+                  hash_size: int, bounds: tuple[tuple[float, float], ...] | None = None,
+                  ) -> UniformGrid | TileCoding | OneHot:
+    """The grid (one active cell) or the tile coder (one active tile per tiling). A finite environment's state
+    is its only active feature, whatever ``features`` says."""
     if env.n_states:
-        return Features(ONE_HOT, _STUB_GRID, _STUB_TILES, env.n_states, 1)
+        return OneHot(env.n_states)
     low, high = grid_bounds(env, bounds)
     if features == "grid":
-        grid = make_grid(low, high, bins)
-        return Features(GRID, grid, _STUB_TILES, grid.n_cells, 1)
-    coding = make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
-    return Features(TILES, _STUB_GRID, coding, coding.n_features, coding.offsets.shape[0])
+        return make_grid(low, high, bins)
+    return make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
 
 
 def feature_count(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,
@@ -193,7 +179,3 @@ def feature_count(env: Environment, features: str, bins: int | tuple[int, ...], 
     if hash_size:
         return hash_size
     return tilings * math.prod(t + 1 for t in np.broadcast_to(np.asarray(tiles), env.low.shape).tolist())
-
-
-_STUB_GRID = make_grid(np.zeros(1), np.ones(1), 1)
-_STUB_TILES = make_tile_coding(np.zeros(1), np.ones(1), tilings=1, tiles=1)

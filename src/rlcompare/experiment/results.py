@@ -13,7 +13,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from rlcompare.engine.kernel import Records
+from rlcompare.engine.state import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 

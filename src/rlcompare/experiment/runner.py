@@ -15,16 +15,25 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, method
+from rlcompare.algorithms.registry import BEFORE_UPDATE, method
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
-from rlcompare.engine import kernel, tabular
+from rlcompare.engine import run as engine
+from rlcompare.engine.state import (
+    ENV_STREAM,
+    EVAL_ENV_STREAM,
+    EVAL_TRANSITION_STREAM,
+    TRANSITION_STREAM,
+    RunState,
+    Settings,
+    allocate_records,
+    initial_state,
+)
 from rlcompare.envs import gymnasium_env
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import make_env, make_features
 from rlcompare.experiment.results import Results
 
-NEXT_ACTION_CODES = {BEFORE_UPDATE: kernel.DRAW_BEFORE_UPDATE, AFTER_UPDATE: kernel.DRAW_AFTER_UPDATE}
 CHUNK_EPISODES = 250
 """Episodes per kernel call; between calls the progress bar moves. Results do not depend on it."""
 
@@ -60,12 +69,16 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
     epsilons = epsilon_schedule(config)
     features = make_features(config.environment, config.features, config.bins, config.tilings, config.tiles,
                              config.hash_size, config.bounds)
-    state = kernel.initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
+    state = initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
-    records = kernel.allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
+    records = allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
                                       config.eval_episodes, stage_episodes, state.w.shape[1:])
     with stepped_env(config, state) as env:
-        train = _trainer(config, env, features, state, epsilons, records)
+        rule, settings = method_rule(config), kernel_settings(config)
+
+        def train(first: int, stop: int) -> None:
+            engine.train_runs(rule, settings, env, features, state, epsilons, first, stop, records)
+
         started = time.perf_counter()
         train(0, 0)  # compile or load the kernel outside the clock
         compile_seconds = time.perf_counter() - started
@@ -83,46 +96,36 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
 
 
 @contextlib.contextmanager
-def stepped_env(config: ExperimentConfig, state: kernel.RunState) -> Iterator[kernel.Env]:
-    """The environment the kernels step: a port, or Gymnasium environments opened for every run (their
+def stepped_env(config: ExperimentConfig, state: RunState) -> Iterator[tuple]:
+    """The environment compiled code steps: a port, or Gymnasium environments opened for every run (their
     generators copies of the run's reset and transition streams) and closed afterwards."""
     if config.environment.is_ported:
         yield make_env(config.environment)
         return
-    training = state.rng[:, [kernel.ENV_STREAM, kernel.TRANSITION_STREAM]]
-    evaluation = state.rng[:, [kernel.EVAL_ENV_STREAM, kernel.EVAL_TRANSITION_STREAM]]
+    training = state.rng[:, [ENV_STREAM, TRANSITION_STREAM]]
+    evaluation = state.rng[:, [EVAL_ENV_STREAM, EVAL_TRANSITION_STREAM]]
     with gymnasium_env.opened(config.env, training, evaluation, config.max_steps) as handle:
         yield make_env(config.environment, handle)
 
 
-def uses_fast_path(config: ExperimentConfig) -> bool:
-    """The paper's configurations run on the specialised tabular kernel; everything else on the general one."""
-    return (config.features == "grid" and config.env == "MountainCar-v0" and config.environment.is_ported
-            and config.algorithm in tabular.ALGORITHM_CODES)
+def kernel_settings(config: ExperimentConfig) -> Settings:
+    """The scalars every method reads, as compiled code reads them."""
+    return Settings(alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
+                    truncation_is_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every))
 
 
-def _trainer(config: ExperimentConfig, env: kernel.Env, features: kernel.Features, state: kernel.RunState,
-             epsilons: np.ndarray, records: kernel.Records) -> Callable[[int, int], None]:
-    """``train(first, stop)``: episodes ``[first, stop)`` of every seed, in place."""
-    settings = kernel_settings(config)
-    if uses_fast_path(config):
-        return lambda first, stop: tabular.train_runs(settings, state, features.grid, epsilons, first, stop, records)
-    return lambda first, stop: kernel.train_runs(settings, env, features, state, epsilons, first, stop, records)
-
-
-def kernel_settings(config: ExperimentConfig) -> kernel.Settings:
-    """The scalars of ``config`` as the kernels read them."""
+def method_rule(config: ExperimentConfig) -> tuple:
+    """The configured method's rule: a named tuple of what it reads beyond α, γ and ε, taken from ``config``."""
     chosen = method(config.algorithm)
-    return kernel.Settings(
-        algorithm=chosen.code,
-        alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
-        truncation_is_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every),
-        n=int(config.n), lam=float(config.lam), replacing=config.trace == "replacing",
-        target_epsilon=-1.0 if config.target_epsilon is None else float(config.target_epsilon),
-        baseline_alpha=float(config.baseline_alpha) if chosen.baseline else 0.0,
-        next_action=NEXT_ACTION_CODES.get(config.next_action, kernel.DRAW_AS_BOX),
-        discount_gradient=chosen.discount_gradient,
-    )
+    values = {
+        "draw_before": (config.next_action or chosen.next_action) == BEFORE_UPDATE,
+        "target_epsilon": -1.0 if config.target_epsilon is None else float(config.target_epsilon),
+        "n": int(config.n), "lam": float(config.lam), "replacing": config.trace == "replacing",
+        "discount_gradient": chosen.discount_gradient,
+        "baseline_alpha": float(config.baseline_alpha) if chosen.baseline else 0.0,
+        "n_actions": int(config.environment.n_actions),
+    }
+    return chosen.rule(**{name: values[name] for name in chosen.rule._fields})
 
 
 def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:

@@ -28,7 +28,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
 
-from rlcompare.engine.kernel import Records
+from rlcompare.engine.state import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.sweep import Sweep, Trial, config_hash

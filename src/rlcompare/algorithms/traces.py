@@ -1,0 +1,72 @@
+"""Eligibility traces for SARSA(λ) (Sutton and Barto, 12.7) and Watkins's Q(λ) (12.10) with binary features.
+
+``z`` holds a trace per weight. Only the pairs listed in ``touched`` (flagged in ``listed``) can be non-zero, so
+decaying, applying or cutting the traces costs the number of pairs visited in the episode, not the size of
+``w``. A pair enters the list the first time its trace is marked and leaves it when the traces are cleared.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class SarsaLambda(NamedTuple):
+    """SARSA(λ) (12.7): the TD error bootstraps on the action taken next."""
+
+    lam: float
+    replacing: bool
+    """Replacing traces (set to 1) instead of accumulating ones (add 1)."""
+
+
+class QLambda(NamedTuple):
+    """Watkins's Q(λ) (12.10): the TD error bootstraps on the greedy action, and every trace is cut after an
+    exploratory one."""
+
+    lam: float
+    replacing: bool
+
+
+@njit(inline="always")
+def mark(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int, actives: np.ndarray, row: int,
+         action: int, replacing: bool) -> int:
+    """Raise the traces of ``(i, action)`` for the active features ``i``; the new length of the list."""
+    n_actions = z.shape[1]
+    for k in range(actives.shape[1]):
+        i = actives[row, k]
+        if not listed[i * n_actions + action]:
+            listed[i * n_actions + action] = True
+            touched[n_touched] = i * n_actions + action
+            n_touched += 1
+        z[i, action] = 1.0 if replacing else z[i, action] + 1.0
+    return n_touched
+
+
+@njit(inline="always")
+def apply(w: np.ndarray, z: np.ndarray, touched: np.ndarray, n_touched: int, step_size: float) -> None:
+    """``w += step_size * z`` over the listed pairs (``step_size`` is α δ)."""
+    n_actions = z.shape[1]
+    for k in range(n_touched):
+        i, a = divmod(touched[k], n_actions)
+        w[i, a] += step_size * z[i, a]
+
+
+@njit(inline="always")
+def decay(z: np.ndarray, touched: np.ndarray, n_touched: int, factor: float) -> None:
+    """``z *= factor`` (γ λ) over the listed pairs."""
+    n_actions = z.shape[1]
+    for k in range(n_touched):
+        i, a = divmod(touched[k], n_actions)
+        z[i, a] *= factor
+
+
+@njit(inline="always")
+def clear(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int) -> int:
+    """Every trace to 0 and the list emptied; returns its new length, 0."""
+    for k in range(n_touched):
+        i, a = divmod(touched[k], z.shape[1])
+        z[i, a] = 0.0
+        listed[touched[k]] = False
+    return 0

@@ -1,0 +1,305 @@
+"""One episode loop per family of methods, written once for every environment, features and method of the
+family; :func:`train_episode` picks the family's loop by the type of the rule when the run loop compiles.
+
+- one-step: Q-Learning (the paper's Algorithm 1), SARSA (Algorithm 2), Expected SARSA, Double Q-Learning;
+- n-step SARSA (7.2); SARSA(λ) and Watkins's Q(λ) (12.7, 12.10); REINFORCE (13.3, 13.4; Algorithm 3);
+- the random baseline.
+
+Every loop draws from the same streams in the same order: the start state from ``env_rng``, the agent's choices
+from ``agent_rng``, stochastic outcomes from ``transitions``. A time-limit cut is not terminal: the last target
+bootstraps unless ``settings.truncation_is_terminal``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from rlcompare.algorithms import nstep, traces
+from rlcompare.algorithms.linear import action_value, action_values, add_to_action, count_visit
+from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
+from rlcompare.algorithms.registry import METHODS
+from rlcompare.algorithms.reinforce import episode_update
+from rlcompare.algorithms.softmax import sample_softmax
+from rlcompare.engine.state import Settings
+from rlcompare.engine.steps import activate, behaviour_values, by_type, n_active, observe, reset, step, update
+
+
+class Traces(NamedTuple):
+    """The eligibility traces of a run and the list of the pairs they are non-zero on
+    (:mod:`rlcompare.algorithms.traces`); a stub for the other families."""
+
+    z: np.ndarray
+    touched: np.ndarray
+    listed: np.ndarray
+
+
+@njit(inline="always")
+def _outcome(settings: Settings, steps: int, terminated: bool) -> tuple[bool, bool]:
+    """``(truncated, terminal)`` after ``steps`` steps: cut by the limit, and whether the target stops there."""
+    truncated = not terminated and steps >= settings.max_steps
+    return truncated, terminated or (truncated and settings.truncation_is_terminal)
+
+
+# --- one-step methods -----------------------------------------------------------------------------------
+
+
+@njit
+def one_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
+                     epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                     visits: np.ndarray) -> tuple[float, int, bool]:
+    """One episode of a one-step method (6.4-6.7). The next action A' is drawn before the update of ``q(S, A)``
+    (SARSA's box) or after it, at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
+    n_actions = w.shape[1]
+    actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
+    q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
+    now = 0
+    state = reset(env, env_rng)
+    activate(features, observe(env, state), actives, now)
+    action = epsilon_greedy_action(behaviour_values(rule, w, w2, actives, now, q, scratch), epsilon, agent_rng)
+    episode_return, steps = 0.0, 0
+    while True:
+        then = 1 - now
+        count_visit(visits, actives, now)
+        state, reward, terminated = step(env, state, action, transitions)
+        episode_return += reward
+        steps += 1
+        truncated, terminal = _outcome(settings, steps, terminated)
+        activate(features, observe(env, state), actives, then)
+        next_action = 0
+        if rule.draw_before and not terminal:
+            next_action = epsilon_greedy_action(behaviour_values(rule, w, w2, actives, then, q, scratch), epsilon,
+                                                agent_rng)
+        update(rule, w, w2, actives, now, action, next_action, reward, terminal, settings.alpha, settings.gamma,
+               epsilon, agent_rng, q_next, scratch)
+        if terminated or truncated:
+            break
+        if not rule.draw_before:  # after the update, which may have changed q(S', .)
+            next_action = epsilon_greedy_action(behaviour_values(rule, w, w2, actives, then, q, scratch), epsilon,
+                                                agent_rng)
+        action = next_action
+        now = then
+    return episode_return, steps, terminated
+
+
+# --- the random baseline --------------------------------------------------------------------------------
+
+
+@njit
+def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
+                   epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                   visits: np.ndarray) -> tuple[float, int, bool]:
+    """One episode of uniformly random actions; nothing is learned, the visits are counted."""
+    actives = np.empty((1, n_active(features)), np.int64)
+    state = reset(env, env_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    action = uniform_action(rule.n_actions, agent_rng)
+    while True:
+        activate(features, observe(env, state), actives, 0)
+        count_visit(visits, actives, 0)
+        state, reward, terminated = step(env, state, action, transitions)
+        episode_return += reward
+        steps += 1
+        if terminated or steps >= settings.max_steps:
+            break
+        action = uniform_action(rule.n_actions, agent_rng)
+    return episode_return, steps, terminated
+
+
+# --- n-step SARSA ---------------------------------------------------------------------------------------
+
+
+@njit
+def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
+                   epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                   visits: np.ndarray) -> tuple[float, int, bool]:
+    """n-step SARSA (7.2): the n-step return updates ``q(S_τ, A_τ)``. States, actions and rewards live in ring
+    buffers of ``n + 1`` entries. A time-limit cut bootstraps from ``q(S_T, A_T)``, with ``A_T`` drawn from the
+    behaviour policy, unless it is treated as terminal."""
+    n, alpha, gamma = rule.n, settings.alpha, settings.gamma
+    size = n + 1
+    actives = np.empty((size, n_active(features)), np.int64)
+    actions = np.zeros(size, np.int64)
+    rewards = np.zeros(size)
+    q = np.empty(w.shape[1])
+    state = reset(env, env_rng)
+    activate(features, observe(env, state), actives, 0)
+    actions[0] = epsilon_greedy_action(action_values(w, actives, 0, q), epsilon, agent_rng)
+    horizon = np.iinfo(np.int64).max  # T
+    bootstrap_end = False  # whether the return at T is completed by q(S_T, A_T) (a time-limit cut)
+    episode_return, t, terminated = 0.0, 0, False
+    while True:
+        if t < horizon:
+            now, later = t % size, (t + 1) % size
+            count_visit(visits, actives, now)
+            state, reward, terminated = step(env, state, actions[now], transitions)
+            episode_return += reward
+            rewards[later] = reward
+            activate(features, observe(env, state), actives, later)
+            truncated, terminal = _outcome(settings, t + 1, terminated)
+            if terminated or truncated:
+                horizon = t + 1
+                bootstrap_end = not terminal
+            if not terminal:
+                actions[later] = epsilon_greedy_action(action_values(w, actives, later, q), epsilon, agent_rng)
+        tau = t - n + 1
+        if tau >= 0:
+            ret = nstep.n_step_rewards(rewards, tau, n, horizon, gamma)
+            end = min(tau + n, horizon)
+            if tau + n < horizon or bootstrap_end:
+                ret += gamma ** (end - tau) * action_value(w, actives, end % size, actions[end % size])
+            start = tau % size
+            add_to_action(w, actives, start, actions[start],
+                          alpha * (ret - action_value(w, actives, start, actions[start])))
+        if tau == horizon - 1:
+            break
+        t += 1
+    return episode_return, horizon, terminated
+
+
+# --- eligibility traces ---------------------------------------------------------------------------------
+
+
+@njit
+def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
+                   epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                   visits: np.ndarray) -> tuple[float, int, bool]:
+    """SARSA(λ) (12.7) or Watkins's Q(λ) (12.10) with binary features; Q(λ) cuts every trace after an
+    exploratory (non-greedy) action."""
+    alpha, gamma = settings.alpha, settings.gamma
+    watkins = isinstance_q_lambda(rule)
+    z, touched, listed = work
+    actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
+    q_next = np.empty(w.shape[1])
+    n_touched, now = 0, 0
+    state = reset(env, env_rng)
+    activate(features, observe(env, state), actives, now)
+    action = epsilon_greedy_action(action_values(w, actives, now, q_next), epsilon, agent_rng)
+    episode_return, steps = 0.0, 0
+    while True:
+        then = 1 - now
+        count_visit(visits, actives, now)
+        state, reward, terminated = step(env, state, action, transitions)
+        episode_return += reward
+        steps += 1
+        truncated, terminal = _outcome(settings, steps, terminated)
+        delta = reward - action_value(w, actives, now, action)
+        n_touched = traces.mark(z, touched, listed, n_touched, actives, now, action, rule.replacing)
+        activate(features, observe(env, state), actives, then)
+        next_action = 0
+        if not terminal:
+            action_values(w, actives, then, q_next)
+            next_action = epsilon_greedy_action(q_next, epsilon, agent_rng)
+            delta += gamma * (q_next.max() if watkins else q_next[next_action])
+        traces.apply(w, z, touched, n_touched, alpha * delta)
+        if terminated or truncated:
+            break
+        if watkins and q_next[next_action] < q_next.max():
+            n_touched = traces.clear(z, touched, listed, n_touched)
+        else:
+            traces.decay(z, touched, n_touched, gamma * rule.lam)
+        now, action = then, next_action
+    traces.clear(z, touched, listed, n_touched)  # fresh traces for the next episode
+    return episode_return, steps, terminated
+
+
+@njit(inline="always")
+def _false(rule):
+    return False
+
+
+@njit(inline="always")
+def _true(rule):
+    return True
+
+
+@by_type({traces.QLambda: _true}, default=_false)
+def isinstance_q_lambda(rule):
+    """Whether the rule is Watkins's Q(λ)."""
+
+
+# --- REINFORCE ------------------------------------------------------------------------------------------
+
+
+@njit
+def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
+                      epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                      visits: np.ndarray) -> tuple[float, int, bool]:
+    """REINFORCE (13.3, 13.4): a softmax policy over the preferences ``w`` acts for a whole episode, then
+    :func:`~rlcompare.algorithms.reinforce.episode_update` learns from it (the baseline's weights in
+    ``w2[:, 0]``)."""
+    n_actions, limit = w.shape[1], settings.max_steps
+    actives = np.empty((limit, n_active(features)), np.int64)
+    actions = np.empty(limit, np.int64)
+    rewards = np.empty(limit)
+    h, pi = np.empty(n_actions), np.empty(n_actions)
+    state = reset(env, env_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while not terminated and steps < limit:
+        activate(features, observe(env, state), actives, steps)
+        count_visit(visits, actives, steps)
+        action = sample_softmax(action_values(w, actives, steps, h), pi, agent_rng)
+        actions[steps] = action
+        state, reward, terminated = step(env, state, action, transitions)
+        rewards[steps] = reward
+        episode_return += reward
+        steps += 1
+    episode_update(rule, w, w2, actives, actions, rewards, steps, settings.alpha, settings.gamma, h, pi)
+    return episode_return, steps, terminated
+
+
+# --- evaluation -----------------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def greedy(rule, w, w2, actives, row, q, scratch, rng):
+    """The first action of highest value (``np.argmax``), as a loaded agent acts."""
+    return greedy_action(behaviour_values(rule, w, w2, actives, row, q, scratch))
+
+
+@njit(inline="always")
+def softmax_policy(rule, w, w2, actives, row, q, scratch, rng):
+    """REINFORCE's target policy is its behaviour: the softmax over its preferences."""
+    return sample_softmax(action_values(w, actives, row, q), scratch, rng)
+
+
+@njit(inline="always")
+def uniform(rule, w, w2, actives, row, q, scratch, rng):
+    return uniform_action(w.shape[1], rng)
+
+
+LOOPS = {"baseline": (random_episode, uniform), "one-step": (one_step_episode, greedy),
+         "n-step": (n_step_episode, greedy), "traces": (lambda_episode, greedy),
+         "policy gradient": (reinforce_episode, softmax_policy)}
+"""Each family's training episode and the action of its target policy."""
+
+
+@by_type({m.rule: LOOPS[m.family][0] for m in METHODS.values()})
+def train_episode(rule, settings, env, features, w, w2, work, epsilon, env_rng, agent_rng, transitions, visits):
+    """One training episode of the rule's family: ``(return, steps, terminated)``."""
+
+
+@by_type({m.rule: LOOPS[m.family][1] for m in METHODS.values()})
+def target_action(rule, w, w2, actives, row, q, scratch, rng):
+    """The action the target policy takes in the state whose features are ``actives[row]``."""
+
+
+@njit
+def evaluation_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray,
+                       env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray) -> tuple[float, int, bool]:
+    """One episode of the target policy: greedy (first maximum) in the learned values, the softmax policy for
+    REINFORCE, uniform for the baseline. It draws from the evaluation's own streams."""
+    n_actions = w.shape[1]
+    actives = np.empty((1, n_active(features)), np.int64)
+    q, scratch = np.empty(n_actions), np.empty(n_actions)
+    state = reset(env, env_rng)
+    episode_return, steps, terminated = 0.0, 0, False
+    while not terminated and steps < settings.max_steps:
+        activate(features, observe(env, state), actives, 0)
+        action = target_action(rule, w, w2, actives, 0, q, scratch, agent_rng)
+        state, reward, terminated = step(env, state, action, transitions)
+        episode_return += reward
+        steps += 1
+    return episode_return, steps, terminated

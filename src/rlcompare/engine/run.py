@@ -1,0 +1,114 @@
+"""The run loop, one for every method: episodes of a run with its evaluation rounds and snapshots, and runs
+spread over threads.
+
+``train_run`` compiles once per combination of (rule, environment, features) types, and numba caches it on
+disk; the compiled runs release the GIL, so :func:`train_runs` puts one on each of ``numba.get_num_threads()``
+threads.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+from numba import njit
+
+from rlcompare.algorithms.traces import QLambda, SarsaLambda
+from rlcompare.engine.episodes import Traces, evaluation_episode, train_episode
+from rlcompare.engine.state import (
+    AGENT_STREAM,
+    ENV_STREAM,
+    EVAL_AGENT_STREAM,
+    EVAL_ENV_STREAM,
+    EVAL_TRANSITION_STREAM,
+    TRANSITION_STREAM,
+    Records,
+    RunState,
+    Settings,
+)
+from rlcompare.engine.steps import by_type, for_instance, snapshot
+
+
+@njit(inline="always")
+def _no_traces(rule, w):
+    return Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
+
+
+@njit(inline="always")
+def _traces(rule, w):
+    return Traces(np.zeros(w.shape), np.empty(w.size, np.int64), np.zeros(w.size, np.bool_))
+
+
+@by_type({SarsaLambda: _traces, QLambda: _traces}, default=_no_traces)
+def workspace(rule, w):
+    """The traces a run of ``rule`` keeps between steps (a stub for methods without)."""
+
+
+@njit(cache=True, nogil=True)
+def train_run(
+    run: int, rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray, first_episode: int,
+    stop_episode: int, records: Records,
+) -> None:
+    """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
+    w, w2, rng = state.w[run], state.w2[run], state.rng[run]
+    training, evaluation = for_instance(env, 2 * run), for_instance(env, 2 * run + 1)
+    work = workspace(rule, w)
+    eval_episodes = records.eval_returns.shape[2]
+    for episode in range(first_episode, stop_episode):
+        ret, length, terminated = train_episode(
+            rule, settings, training, features, w, w2, work, epsilons[episode], rng[ENV_STREAM], rng[AGENT_STREAM],
+            rng[TRANSITION_STREAM], records.visits[run],
+        )
+        record_episode(records.returns, records.lengths, records.terminated, (run, episode), ret, length, terminated)
+        completed = episode + 1
+        round_ = evaluation_round(settings, completed)
+        if round_ >= 0:
+            for k in range(eval_episodes):
+                ret, length, terminated = evaluation_episode(
+                    rule, settings, evaluation, features, w, w2, rng[EVAL_ENV_STREAM], rng[EVAL_AGENT_STREAM],
+                    rng[EVAL_TRANSITION_STREAM],
+                )
+                record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated, (run, round_, k),
+                               ret, length, terminated)
+        for stage in range(records.snapshot_episodes.size):
+            if records.snapshot_episodes[stage] == completed:
+                records.snapshots[run, stage] = snapshot(rule, w, w2)
+
+
+@njit(inline="always")
+def record_episode(returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, at: tuple, ret: float,
+                   length: int, ended: bool) -> None:
+    """Write one episode's return, length and termination at index ``at`` (training or evaluation)."""
+    returns[at], lengths[at], terminated[at] = ret, length, ended
+
+
+@njit(inline="always")
+def evaluation_round(settings: Settings, completed: int) -> int:
+    """The evaluation round due after ``completed`` episodes, or -1 when none is."""
+    if settings.eval_every > 0 and completed % settings.eval_every == 0:
+        return completed // settings.eval_every - 1
+    return -1
+
+
+def train_runs(
+    rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray, first_episode: int,
+    stop_episode: int, records: Records,
+) -> None:
+    """Every run over episodes ``[first_episode, stop_episode)``, runs spread over threads."""
+    over_runs(lambda run: train_run(run, rule, settings, env, features, state, epsilons, first_episode, stop_episode,
+                                    records), state.w.shape[0])
+
+
+def over_runs(train: Callable[[int], None], runs: int) -> None:
+    """Call ``train(run)`` for every run on ``numba.get_num_threads()`` threads; each writes only its own
+    slices, so the order does not matter."""
+    threads = min(numba.get_num_threads(), runs)
+    if threads <= 1:
+        for run in range(runs):
+            train(run)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        for future in [pool.submit(train, run) for run in range(runs)]:
+            future.result()

@@ -1,0 +1,125 @@
+"""The parts a training loop is composed of, each chosen by the type of the value it is given when the loop
+compiles: an environment's dynamics (its module in :data:`rlcompare.envs.registry.DYNAMICS`), its features
+(:data:`~rlcompare.envs.registry.FEATURES`) and a method's rule (:data:`rlcompare.algorithms.registry.METHODS`).
+
+Compiled code calls ``step(env, state, action, rng)`` and gets Mountain Car's step when ``env`` is a
+``MountainCar``: no code tests a kind at run time, and a configuration compiles only the parts it uses. The
+functions here are signatures; their bodies are the registered implementations.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+
+from numba import njit
+from numba.extending import overload
+
+from rlcompare.algorithms.linear import action_values
+from rlcompare.algorithms.registry import METHODS
+from rlcompare.envs.registry import DYNAMICS, FEATURES
+
+
+def by_type(implementations: Mapping[type, Callable], default: Callable | None = None) -> Callable:
+    """Make a signature a function of compiled code whose implementation is ``implementations[type of its
+    first argument]`` (else ``default``); each implementation takes the same arguments by the same names."""
+
+    def decorate(signature: Callable) -> Callable:
+        parameters = ", ".join(inspect.signature(signature).parameters)
+
+        def choose(*types):
+            chosen = implementations.get(getattr(types[0], "instance_class", None), default)
+            return None if chosen is None else _calling(chosen, parameters)
+
+        choose.__signature__ = inspect.signature(signature)
+        overload(signature)(choose)
+        return signature
+
+    return decorate
+
+
+def _calling(function: Callable, parameters: str) -> Callable:
+    """``lambda <parameters>: function(<parameters>)``, with the parameters named as the signature names them."""
+    namespace = {"function": function}
+    exec(f"def call({parameters}):\n    return function({parameters})", namespace)
+    return namespace["call"]
+
+
+def _of_modules(modules: Mapping[type, object], name: str) -> dict[type, Callable]:
+    return {kind: getattr(module, name) for kind, module in modules.items() if hasattr(module, name)}
+
+
+def _of_methods(name: str) -> dict[type, Callable]:
+    return {m.rule: getattr(m, name) for m in METHODS.values() if getattr(m, name) is not None}
+
+
+# --- environments ---------------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _same_instance(env, instance):
+    return env
+
+
+@by_type(_of_modules(DYNAMICS, "reset"))
+def reset(env, rng):
+    """A start state, drawn from the reset stream ``rng``."""
+
+
+@by_type(_of_modules(DYNAMICS, "step"))
+def step(env, state, action, rng):
+    """``(next state, reward, terminated)``; a stochastic environment draws its outcome from ``rng``."""
+
+
+@by_type(_of_modules(DYNAMICS, "observe"))
+def observe(env, state):
+    """What Gymnasium would return for ``state``."""
+
+
+@by_type(_of_modules(DYNAMICS, "for_instance"), default=_same_instance)
+def for_instance(env, instance):
+    """``env`` naming one of the Gymnasium environments opened for the adapter (a port is itself)."""
+
+
+# --- features -------------------------------------------------------------------------------------------
+
+
+@by_type(_of_modules(FEATURES, "n_active"))
+def n_active(features):
+    """How many features are active in every state."""
+
+
+@by_type(_of_modules(FEATURES, "activate"))
+def activate(features, observation, actives, row):
+    """Write the indices of the features active in ``observation`` into ``actives[row]``."""
+
+
+# --- methods --------------------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _values_of_w(rule, w, w2, actives, row, out, scratch):
+    return action_values(w, actives, row, out)
+
+
+@njit(inline="always")
+def _w(rule, w, w2):
+    return w.copy()
+
+
+@by_type(_of_methods("values"), default=_values_of_w)
+def behaviour_values(rule, w, w2, actives, row, out, scratch):
+    """The values the behaviour is ε-greedy in and the greedy policy greedy in, into ``out``."""
+
+
+@by_type(_of_methods("update"))
+def update(rule, w, w2, actives, now, action, next_action, reward, terminal, alpha, gamma, epsilon, rng,
+           q_next, scratch):
+    """A one-step method's update of ``q(S, A)``, ``S`` in row ``now`` of ``actives`` and ``S'`` in the other."""
+
+
+@by_type(_of_methods("snapshot"), default=_w)
+def snapshot(rule, w, w2):
+    """The weights a snapshot keeps."""
+
+
