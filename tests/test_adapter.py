@@ -1,4 +1,4 @@
-"""The Gymnasium adapter: the same kernels stepping ``gymnasium.make(env_id)`` through Gymnasium's own API."""
+"""The Gymnasium adapter: the same engine stepping ``gymnasium.make(env_id)`` through Gymnasium's own API."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from rlcompare import ConfigError, ExperimentConfig, run
 from rlcompare.analysis.stats import interval
-from rlcompare.engine.kernel import Records
+from rlcompare.engine.state import Records
 
 PORTED = ["MountainCar-v0", "CartPole-v1", "Acrobot-v1", "CliffWalking-v1", "FrozenLake-v1", "Taxi-v4"]
 
@@ -22,7 +22,7 @@ def _assert_same_records(a: Records, b: Records) -> None:
 
 @pytest.mark.parametrize("env", PORTED)
 def test_adapter_gives_each_ports_results_bit_for_bit(env: str) -> None:
-    """Each port and Gymnasium's own environment, stepped by the same kernel from the same streams, give
+    """Each port and Gymnasium's own environment, stepped by the same engine from the same streams, give
     equal records: training and evaluation returns, lengths, terminations, tables and visits."""
     config = ExperimentConfig(env=env, algorithm="q_learning", seeds=(0, 1, 2), episodes=24, eval_every=8,
                               eval_episodes=2)
@@ -43,15 +43,15 @@ def test_every_algorithm_through_the_adapter_equals_the_port(algorithm: str) -> 
     _assert_same_records(run(config).records, run(replace(config, adapter=True)).records)
 
 
-def test_adapter_on_mountain_car_learns_as_the_fast_path_over_ten_seeds() -> None:
-    """SARSA through Gymnasium equals the paper's fast kernel on 10 seeds, so its greedy success and mean
-    returns lie inside each other's intervals (they are the same numbers)."""
+def test_adapter_on_mountain_car_learns_as_the_port_over_ten_seeds() -> None:
+    """SARSA through Gymnasium equals the compiled port in the paper's setting on 10 seeds, so its greedy
+    success and mean returns lie inside each other's intervals (they are the same numbers)."""
     config = ExperimentConfig(algorithm="sarsa", schedule="constant", seeds=tuple(range(10)), episodes=12,
                               eval_every=6, eval_episodes=1)
-    fast, adapter = run(config), run(replace(config, adapter=True))
-    _assert_same_records(fast.records, adapter.records)
+    port, adapter = run(config), run(replace(config, adapter=True))
+    _assert_same_records(port.records, adapter.records)
     for metric in (lambda r: r.records.returns.mean(axis=1), lambda r: r.records.eval_terminated[:, -1, 0] * 1.0):
-        a, b = interval(metric(fast)), interval(metric(adapter))
+        a, b = interval(metric(port)), interval(metric(adapter))
         assert a.low <= b.value <= a.high
         assert b.low <= a.value <= b.high
 

@@ -13,7 +13,14 @@ from rlcompare.algorithms.policies import (
     uniform_action,
 )
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
-from rlcompare.algorithms.td import q_learning_target, sarsa_target, td_update
+from rlcompare.algorithms.td import (
+    QLearning,
+    Sarsa,
+    q_learning_target,
+    q_learning_update,
+    sarsa_target,
+    sarsa_update,
+)
 from rlcompare.rng import stream_state
 
 IMPLS = ["compiled", "py_func"]
@@ -32,6 +39,8 @@ def _assert_uniform(counts: np.ndarray) -> None:
 
 # A tiny table: two states, three actions. The transition updated is s=0, a=0 -> s'=1, R=-1.
 Q_TABLE = np.array([[2.0, 0.0, 0.0], [1.0, 3.0, -2.0]])
+ACTIVES = np.array([[0], [1]])
+"""One active feature per state, the table's row: row 0 of ``actives`` is S = 0, row 1 is S' = 1."""
 
 
 @pytest.fixture
@@ -39,15 +48,27 @@ def q() -> np.ndarray:
     return Q_TABLE.copy()
 
 
+def _update(impl: str, update, rule: tuple, q: np.ndarray, *, reward: float = -1.0, gamma: float = 0.5,
+            alpha: float = 0.25, terminal: bool = False, next_action: int = 0, now: int = 0, action: int = 0,
+            epsilon: float = 0.0, rng: np.ndarray | None = None) -> np.ndarray:
+    """One update of ``q(S, A)`` on the table ``q``, S in row ``now`` of :data:`ACTIVES` and S' in the other;
+    returns the agent stream it was given (a fresh ``stream_state(0)`` unless one is passed)."""
+    rng = stream_state(0) if rng is None else rng
+    _impl(impl, update)(rule, q, np.zeros_like(q), ACTIVES, now, action, next_action, reward, terminal, alpha, gamma,
+                        epsilon, rng, np.empty(q.shape[1]), np.empty(q.shape[1]))
+    return rng
+
+
 @pytest.mark.parametrize("impl", IMPLS)
 def test_q_learning_update_by_hand(q, impl):
     """Q(0,0)=2, max_a Q(1,a)=3, α=0.25, γ=0.5: target -1+0.5*3 = 0.5; Q(0,0) <- 2+0.25*(0.5-2) = 1.625."""
     target = _impl(impl, q_learning_target)(-1.0, q[1], 0.5, False)
     assert target == 0.5
-    _impl(impl, td_update)(q, 0, 0, target, 0.25)
+    rng = _update(impl, q_learning_update, QLearning(False), q)
     assert q[0, 0] == 1.625
     q[0, 0] = Q_TABLE[0, 0]
     np.testing.assert_array_equal(q, Q_TABLE)  # nothing else moved
+    np.testing.assert_array_equal(rng, stream_state(0))  # and nothing was drawn
 
 
 @pytest.mark.parametrize("impl", IMPLS)
@@ -55,7 +76,7 @@ def test_q_learning_update_paper_parameters(q, impl):
     """α=0.05, γ=0.9: target -1+0.9*3 = 1.7; Q(0,0) <- 2+0.05*(1.7-2) = 1.985."""
     target = _impl(impl, q_learning_target)(-1.0, q[1], 0.9, False)
     assert target == pytest.approx(1.7, rel=1e-15)
-    _impl(impl, td_update)(q, 0, 0, target, 0.05)
+    _update(impl, q_learning_update, QLearning(False), q, gamma=0.9, alpha=0.05)
     assert q[0, 0] == pytest.approx(1.985, rel=1e-15)
 
 
@@ -84,13 +105,30 @@ def test_q_learning_target_uses_the_max(impl, row, expected):
     ],
 )
 def test_sarsa_update_uses_the_action_taken(q, impl, next_action, expected_target, expected_q):
-    """SARSA values s' by the action actually taken next, which need not be the greedy one."""
+    """SARSA values s' by the action actually taken next, which need not be the greedy one (drawn before the
+    update, as its box does: the update itself draws nothing)."""
     target = _impl(impl, sarsa_target)(-1.0, q[1, next_action], 0.5, False)
     assert target == expected_target
-    _impl(impl, td_update)(q, 0, 0, target, 0.25)
+    rng = _update(impl, sarsa_update, Sarsa(True), q, next_action=next_action)
     assert q[0, 0] == expected_q
+    np.testing.assert_array_equal(rng, stream_state(0))
     q_learning = _impl(impl, q_learning_target)(-1.0, q[1], 0.5, False)
     assert (target == q_learning) == (next_action == int(np.argmax(q[1])))
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+@pytest.mark.parametrize(("epsilon", "expected_q"), [(0.0, 1.625), (1.0, 1.375)])
+def test_sarsa_drawing_after_its_update_draws_the_target_action(q, impl, epsilon, expected_q):
+    """Drawing A' after the update, SARSA draws its target's A' itself, ε-greedy in Q(1) = [1, 3, -2], from the
+    agent stream: seed 0 draws 0.637 (explore iff < ε), then 0.270 (the uniform action int(3 * 0.270) = 0).
+    ε = 0: greedy, Q-Learning's 1.625 (one draw); ε = 1: action 0, -1 + 0.5*1 = -0.5, 2+0.25*(-2.5) = 1.375."""
+    draws = np.random.Generator(np.random.PCG64(0)).random(2)
+    assert int(3 * draws[1]) == 0
+    rng = _update(impl, sarsa_update, Sarsa(False), q, next_action=2, epsilon=epsilon)  # next_action is ignored
+    assert q[0, 0] == expected_q
+    expected = np.random.PCG64(0)
+    np.random.Generator(expected).random(1 if epsilon == 0.0 else 2)
+    assert (int(rng[0]) << 64 | int(rng[1])) == expected.state["state"]["state"]
 
 
 @pytest.mark.parametrize("impl", IMPLS)
@@ -100,17 +138,25 @@ def test_terminal_transitions_do_not_bootstrap(q, impl):
     assert _impl(impl, q_learning_target)(-1.0, big, 0.5, True) == -1.0
     assert _impl(impl, sarsa_target)(-1.0, 300.0, 0.5, True) == -1.0
     assert _impl(impl, q_learning_target)(-1.0, big, 0.5, False) == -1.0 + 150.0
-    _impl(impl, td_update)(q, 0, 0, -1.0, 0.25)
-    assert q[0, 0] == 1.25
+    for update, rule in ((q_learning_update, QLearning(False)), (sarsa_update, Sarsa(True)),
+                         (sarsa_update, Sarsa(False))):
+        table = q.copy()
+        table[1] = big  # Q(s') large: bootstrapping would show
+        rng = _update(impl, update, rule, table, next_action=2, epsilon=1.0, terminal=True)
+        assert table[0, 0] == 1.25
+        np.testing.assert_array_equal(rng, stream_state(0))  # no A' is drawn for a terminal s'
 
 
 @pytest.mark.parametrize("impl", IMPLS)
-def test_td_update_alpha_one_and_zero(q, impl):
-    """α=1 replaces the value by the target; α=0 leaves it."""
-    _impl(impl, td_update)(q, 1, 2, 7.5, 1.0)
+def test_update_alpha_one_and_zero(q, impl):
+    """α=1 replaces the value by the target; α=0 leaves it. S = 1 (row 1 of the actives), terminal, R = 7.5:
+    the target is 7.5."""
+    _update(impl, q_learning_update, QLearning(False), q, now=1, action=2, reward=7.5, terminal=True, alpha=1.0)
     assert q[1, 2] == 7.5
-    _impl(impl, td_update)(q, 1, 1, 7.5, 0.0)
+    _update(impl, q_learning_update, QLearning(False), q, now=1, action=1, reward=7.5, terminal=True, alpha=0.0)
     assert q[1, 1] == 3.0
+    q[1, 2] = Q_TABLE[1, 2]
+    np.testing.assert_array_equal(q, Q_TABLE)
 
 
 # --- action selection ------------------------------------------------------------------------------

@@ -1,20 +1,20 @@
-"""The algorithms beyond the paper, checked against answers known independently of the kernel.
+"""The algorithms beyond the paper, checked against answers known independently of the engine.
 
 - single targets worked out by hand: Expected SARSA (6.6), Double Q-Learning (6.7), the softmax policy (13.1);
-- single episodes worked out by hand on a two-state chain, for every episode loop of the general kernel
-  (one-step, n-step SARSA 7.2, SARSA(λ) and Watkins's Q(λ) 12.7 / 12.10, REINFORCE 13.3 / 13.4), called
-  directly (compiled, and as plain Python through ``py_func``) and through the kernel's ``train_run``;
+- single episodes worked out by hand on a two-state chain, for every episode loop of the engine (one-step, n-step
+  SARSA 7.2, SARSA(λ) and Watkins's Q(λ) 12.7 / 12.10, REINFORCE 13.3 / 13.4), called directly (compiled) and
+  through the engine's ``train_run`` (its choice of the loop by the rule's type included);
 - convergence to the known ``q*`` of a chain and to the better arm of a two-armed bandit, for every algorithm;
-- equalities between kernels and between algorithms that must coincide (the tabular fast path and the general
-  kernel; n-step SARSA with n = 1 and SARSA; SARSA(λ) with λ = 0 and SARSA);
+- the engine's one-step and random runs against a plain-Python reference written here, bit for bit, and equalities
+  between algorithms that must coincide (n-step SARSA with n = 1 and SARSA; SARSA(λ) with λ = 0 and SARSA);
 - REINFORCE's update is an unbiased estimate of the policy gradient (finite differences, many episodes);
 - every new algorithm through ``rlcompare.run`` with grid and tile features, and the configuration's checks.
 
 Chain used by the hand-worked episodes (``chain(2)``): states 0 and 1, start in 0; action 0 ("stay") keeps the
 state with reward 0; action 1 ("right") moves 0 -> 1 with reward 0, and from 1 ends the episode with reward 1.
-Neither the start nor a step of this chain draws from the environment stream. Unless a test says otherwise the
-hand-worked episodes use α = 0.5, γ = 0.5, ε = 0 and the initial weights ``W0`` below, under which every greedy
-choice is strict (no tie, so no tie-breaking draw).
+Neither the start nor a step of this chain depends on the environment or transition streams (each draws once).
+Unless a test says otherwise the hand-worked episodes use α = 0.5, γ = 0.5, ε = 0 and the initial weights ``W0``
+below, under which every greedy choice is strict (no tie, so no tie-breaking draw).
 """
 
 from __future__ import annotations
@@ -26,14 +26,33 @@ import numpy as np
 import pytest
 
 from rlcompare import ConfigError, ExperimentConfig, run
+from rlcompare.algorithms import nstep, td, traces
+from rlcompare.algorithms.policies import RandomActions, epsilon_greedy_action, uniform_action
+from rlcompare.algorithms.registry import BEFORE_UPDATE, METHODS
+from rlcompare.algorithms.reinforce import Reinforce
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.algorithms.softmax import sample_softmax, softmax
 from rlcompare.algorithms.td import double_q_target, expected_sarsa_target, q_learning_target
-from rlcompare.engine import kernel, tabular
+from rlcompare.engine import episodes as loops
+from rlcompare.engine.run import train_run, train_runs
+from rlcompare.engine.state import (
+    AGENT_STREAM,
+    ENV_STREAM,
+    EVAL_AGENT_STREAM,
+    EVAL_ENV_STREAM,
+    EVAL_TRANSITION_STREAM,
+    STREAMS,
+    TRANSITION_STREAM,
+    Records,
+    RunState,
+    Settings,
+    allocate_records,
+    initial_state,
+)
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import make_grid
+from rlcompare.envs.discretize import UniformGrid, cell_indices
+from rlcompare.envs.features import OneHot
 from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
-from rlcompare.envs.tiles import make_tile_coding
 from rlcompare.experiment.problem import environment, make_env, make_features
 from rlcompare.rng import next_double, stream_state
 
@@ -42,10 +61,6 @@ ALPHA, GAMMA = 0.5, 0.5
 W0 = [[0.25, 0.2], [0.1, 0.6]]  # state 0 prefers "stay" (0.25 > 0.2) until one update lowers it; state 1 "right"
 ENV_SEED = 1000  # the chain's one start and deterministic steps do not depend on the environment stream
 TRANSITION_SEED = 2000
-
-# Unused stubs for the grid and tile slots of one-hot features.
-GRID_STUB = make_grid(np.array([0.0, 0.0], np.float32), np.array([1.0, 1.0], np.float32), 1)
-TILES_STUB = make_tile_coding(np.zeros(2), np.ones(2), tilings=1, tiles=1)
 
 
 def _impl(name: str, fn):
@@ -56,39 +71,38 @@ def _impl(name: str, fn):
 _CACHED: dict = {}
 
 
-def _episode_impl(name: str, fn):
-    """An episode function, compiled or as plain Python.
+def _compiled(fn):
+    """An episode loop compiled by numba with the same (default) options, but cached on disk.
 
-    The kernel's episode functions are not cached on disk (only ``train_run`` is), and compiling them takes about
-    a minute, every session; "compiled" is the same Python function compiled by numba with the same (default)
-    options but cached on disk, so later sessions load it. The kernel's own compiled code runs the same episodes
-    under the ``train_run`` impl (the cached entry point that production calls).
+    The engine's loops are not cached on disk (only ``train_run`` is), and compiling them takes about a minute,
+    every session; this compiles the same Python function once, and later sessions load it. The engine's own
+    compiled code runs the same episodes under the ``train_run`` impl (the cached entry point that production
+    calls). A loop's inner calls are numba overloads, so it cannot run as plain Python (``py_func``).
     """
-    if name == "py_func":
-        return fn.py_func
     if fn not in _CACHED:
         _CACHED[fn] = numba.njit(cache=True)(fn.py_func)
     return _CACHED[fn]
 
 
-def _table_problem(table_env: TableEnv) -> tuple[kernel.Env, kernel.Features]:
-    env = kernel.Env(kernel.TABLE, 0.0, table_env, table_env.n_actions, stream_state(TRANSITION_SEED), 1, 1)
-    features = kernel.Features(kernel.ONE_HOT, GRID_STUB, TILES_STUB, table_env.n_states, 1)
-    return env, features
+def _settings(*, alpha: float = ALPHA, gamma: float = GAMMA, max_steps: int = 100,
+              truncation_is_terminal: bool = False, eval_every: int = 0) -> Settings:
+    """Settings with the scalar types the engine is compiled for (another type would compile anew)."""
+    return Settings(alpha=float(alpha), gamma=float(gamma), max_steps=int(max_steps),
+                    truncation_is_terminal=bool(truncation_is_terminal), eval_every=int(eval_every))
 
 
-def _settings(
-    algorithm: int, *, alpha: float = ALPHA, gamma: float = GAMMA, max_steps: int = 100,
-    truncation_is_terminal: bool = False, eval_every: int = 0, n: int = 1, lam: float = 0.0,
-    replacing: bool = True, target_epsilon: float = -1.0, baseline_alpha: float = 0.0,
-) -> kernel.Settings:
-    """Settings with the scalar types the kernel is compiled for (another type would compile anew)."""
-    return kernel.Settings(
-        algorithm=int(algorithm), alpha=float(alpha), gamma=float(gamma), max_steps=int(max_steps),
-        truncation_is_terminal=bool(truncation_is_terminal), eval_every=int(eval_every), n=int(n),
-        lam=float(lam), replacing=bool(replacing), target_epsilon=float(target_epsilon),
-        baseline_alpha=float(baseline_alpha),
-    )
+def _rule(algorithm: str, *, draw_before: bool | None = None, n: int = 1, lam: float = 0.0, replacing: bool = True,
+          target_epsilon: float = -1.0, baseline_alpha: float = 0.0, n_actions: int = 2) -> tuple:
+    """The rule of the method called ``algorithm``, with the scalar types the engine is compiled for; a one-step
+    method draws A' as its box does unless ``draw_before`` says otherwise."""
+    chosen = METHODS[algorithm]
+    values = {
+        "draw_before": chosen.next_action == BEFORE_UPDATE if draw_before is None else bool(draw_before),
+        "target_epsilon": float(target_epsilon), "n": int(n), "lam": float(lam), "replacing": bool(replacing),
+        "discount_gradient": chosen.discount_gradient, "baseline_alpha": float(baseline_alpha),
+        "n_actions": int(n_actions),
+    }
+    return chosen.rule(**{name: values[name] for name in chosen.rule._fields})
 
 
 def _draws(seed: int, count: int) -> list[float]:
@@ -105,55 +119,62 @@ def _advanced(seed: int, count: int) -> np.ndarray:
     return state
 
 
-EPISODE_IMPLS = ["compiled", "py_func", "train_run"]
+EPISODE_IMPLS = ["compiled", "train_run"]
+LOOPS = {
+    td.QLearning: loops.one_step_episode, td.Sarsa: loops.one_step_episode, td.ExpectedSarsa: loops.one_step_episode,
+    td.DoubleQLearning: loops.one_step_episode, nstep.NStepSarsa: loops.n_step_episode,
+    traces.SarsaLambda: loops.lambda_episode, traces.QLambda: loops.lambda_episode,
+    Reinforce: loops.reinforce_episode, RandomActions: loops.random_episode,
+}
+"""The episode loop of each rule, as the book groups the methods."""
+
+
+def _no_traces() -> loops.Traces:
+    """The stub the loops of methods without traces are given."""
+    return loops.Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
 class Episode:
-    """One episode of the general kernel on ``chain(2)``; what it returned and left behind.
+    """One episode of the engine on ``chain(2)``; what it returned and left behind.
 
-    ``compiled`` and ``py_func`` call the episode function directly; ``train_run`` runs one episode of one run
-    through the kernel's cached entry point (its dispatch, trace allocation and snapshot included).
+    ``compiled`` calls the rule's episode loop directly; ``train_run`` runs one episode of one run through the
+    engine's cached entry point (its choice of the loop, trace allocation and snapshot included).
     """
 
-    def __init__(self, impl: str, algorithm: int, w, *, w2=None, epsilon: float = 0.0, seed: int = 0, **kwargs):
+    def __init__(self, impl: str, rule: tuple, w, *, w2=None, epsilon: float = 0.0, seed: int = 0, **kwargs):
         table_env = chain(2)
-        env, features = _table_problem(table_env)
+        features = OneHot(table_env.n_states)
         self.transitions = stream_state(TRANSITION_SEED)
-        env = env._replace(transitions=self.transitions)
-        settings = _settings(algorithm, **kwargs)
+        settings = _settings(**kwargs)
         self.w = np.array(w, dtype=np.float64)
         self.w2 = np.zeros_like(self.w) if w2 is None else np.array(w2, dtype=np.float64)
         self.env_rng, self.agent_rng = stream_state(ENV_SEED), stream_state(seed)
         self.visits = np.zeros(table_env.n_states, dtype=np.int64)
-        self.z = np.zeros(self.w.shape)
-        self.touched, self.listed = np.empty(self.z.size, np.int64), np.zeros(self.z.size, np.bool_)
+        has_traces = isinstance(rule, traces.SarsaLambda | traces.QLambda)
+        self.work = loops.Traces(np.zeros(self.w.shape), np.empty(self.w.size, np.int64),
+                                 np.zeros(self.w.size, np.bool_)) if has_traces else _no_traces()
         if impl == "train_run":
-            out = self._train_run(settings, env, features, epsilon)
-        elif algorithm == kernel.N_STEP_SARSA:
-            fn = _episode_impl(impl, kernel.n_step_sarsa_episode)
-            out = fn(settings, env, features, self.w, epsilon, self.env_rng, self.agent_rng, self.visits)
-        elif algorithm in (kernel.SARSA_LAMBDA, kernel.Q_LAMBDA):
-            fn = _episode_impl(impl, kernel.lambda_episode)
-            out = fn(settings, env, features, self.w, self.z, self.touched, self.listed, epsilon, self.env_rng,
-                     self.agent_rng, self.visits)
-        elif algorithm == kernel.REINFORCE:
-            fn = _episode_impl(impl, kernel.reinforce_episode)
-            out = fn(settings, env, features, self.w, self.w2, self.env_rng, self.agent_rng, self.visits)
+            out = self._train_run(rule, settings, table_env, features, epsilon)
         else:
-            fn = _episode_impl(impl, kernel.one_step_episode)
-            out = fn(settings, env, features, self.w, self.w2, epsilon, self.env_rng, self.agent_rng, self.visits)
+            out = _compiled(LOOPS[type(rule)])(rule, settings, table_env, features, self.w, self.w2, self.work,
+                                               epsilon, self.env_rng, self.agent_rng, self.transitions, self.visits)
         self.ret, self.steps, self.terminated = float(out[0]), int(out[1]), bool(out[2])
 
-    def _train_run(self, settings, env, features, epsilon):
-        rng = np.stack([self.env_rng, self.agent_rng, stream_state(ENV_SEED + 1), stream_state(ENV_SEED + 2),
-                        self.transitions, stream_state(ENV_SEED + 3)])[None]
-        state = kernel.RunState(w=self.w[None].copy(), w2=self.w2[None].copy(), rng=rng)
-        records = kernel.allocate_records(1, 1, 0, 1, np.array([1], np.int64), self.w.shape)
-        kernel.train_run(0, settings, env, features, state, np.array([epsilon]), 0, 1, records)
-        self.w, self.w2, self.env_rng, self.agent_rng = state.w[0], state.w2[0], state.rng[0, 0], state.rng[0, 1]
-        self.transitions = state.rng[0, kernel.TRANSITION_STREAM]
+    def _train_run(self, rule, settings, table_env, features, epsilon):
+        rng = np.empty((1, STREAMS, 4), np.uint64)
+        rng[0, ENV_STREAM], rng[0, AGENT_STREAM], rng[0, TRANSITION_STREAM] = (self.env_rng, self.agent_rng,
+                                                                                self.transitions)
+        for stream, seed in ((EVAL_ENV_STREAM, ENV_SEED + 1), (EVAL_AGENT_STREAM, ENV_SEED + 2),
+                             (EVAL_TRANSITION_STREAM, ENV_SEED + 3)):
+            rng[0, stream] = stream_state(seed)
+        state = RunState(w=self.w[None].copy(), w2=self.w2[None].copy(), rng=rng)
+        records = allocate_records(1, 1, 0, 1, np.array([1], np.int64), self.w.shape)
+        train_run(0, rule, settings, table_env, features, state, np.array([epsilon]), 0, 1, records)
+        self.w, self.w2 = state.w[0], state.w2[0]
+        self.env_rng, self.agent_rng, self.transitions = (state.rng[0, ENV_STREAM], state.rng[0, AGENT_STREAM],
+                                                          state.rng[0, TRANSITION_STREAM])
         self.visits = records.visits[0]
-        snapshot = (self.w + self.w2) / 2 if settings.algorithm == kernel.DOUBLE_Q else self.w
+        snapshot = (self.w + self.w2) / 2 if isinstance(rule, td.DoubleQLearning) else self.w
         np.testing.assert_array_equal(records.snapshots[0, 0], snapshot)
         return records.returns[0, 0], records.lengths[0, 0], records.terminated[0, 0]
 
@@ -169,8 +190,8 @@ class Episode:
         np.testing.assert_array_equal(self.env_rng, _advanced(ENV_SEED, 1))
         np.testing.assert_array_equal(self.transitions, _advanced(TRANSITION_SEED, steps))
         np.testing.assert_array_equal(self.agent_rng, _advanced(seed, draws))
-        assert np.all(self.z == 0.0)  # traces are left fresh for the next episode
-        assert not self.listed.any()
+        assert np.all(self.work.z == 0.0)  # traces are left fresh for the next episode
+        assert not self.work.listed.any()
 
 
 # --- 1. single targets by hand ------------------------------------------------------------------------
@@ -250,7 +271,7 @@ def test_q_learning_episode_by_hand(impl):
     The next action is drawn after the update, from [0.1875, 0.2]: right.
     S=0, A=1 -> S'=1: target 0.5*max(0.1, 0.6) = 0.3; w[0,1] = 0.2 + 0.5*(0.3-0.2) = 0.25. Next: right (0.6 > 0.1).
     S=1, A=1 -> goal, R=1: target 1; w[1,1] = 0.6 + 0.5*(1-0.6) = 0.8. Three steps, three draws (one per choice)."""
-    episode = Episode(impl, kernel.Q_LEARNING, W0)
+    episode = Episode(impl, _rule("q_learning"), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.1875, 0.25], [0.1, 0.8]], draws=3)
 
 
@@ -261,7 +282,7 @@ def test_sarsa_episode_by_hand(impl):
     S=0, A=0 -> S'=0: A' from [0.1875, 0.2] = right; target 0.5*0.2 = 0.1; w[0,0] = 0.1875 + 0.5*(0.1-0.1875) = 0.14375.
     S=0, A=1 -> S'=1: A' = right; target 0.5*0.6 = 0.3; w[0,1] = 0.2 + 0.5*(0.3-0.2) = 0.25.
     S=1, A=1 -> goal: w[1,1] = 0.8. Four steps; four draws (no draw after the terminal step)."""
-    episode = Episode(impl, kernel.SARSA, W0)
+    episode = Episode(impl, _rule("sarsa"), W0)
     episode.check(steps=4, visits=[3, 1], w=[[0.14375, 0.25], [0.1, 0.8]], draws=4)
 
 
@@ -272,14 +293,14 @@ def test_expected_sarsa_episode_by_hand(impl):
     Next from [0.184375, 0.2]: right.
     S=0, A=1 -> S'=1: E = 0.25*0.1 + 0.75*0.6 = 0.475; target 0.2375; w[0,1] = 0.2 + 0.5*(0.2375-0.2) = 0.21875.
     S=1, A=1 -> goal: w[1,1] = 0.8."""
-    episode = Episode(impl, kernel.EXPECTED_SARSA, W0, target_epsilon=0.5)
+    episode = Episode(impl, _rule("expected_sarsa", target_epsilon=0.5), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.184375, 0.21875], [0.1, 0.8]], draws=3)
 
 
 @pytest.mark.parametrize("impl", EPISODE_IMPLS)
 def test_on_policy_expected_sarsa_with_greedy_behaviour_is_q_learning(impl):
     """target_epsilon < 0 takes the behaviour's ε = 0: the Q-Learning episode above, weights and all."""
-    episode = Episode(impl, kernel.EXPECTED_SARSA, W0, target_epsilon=-1.0)
+    episode = Episode(impl, _rule("expected_sarsa", target_epsilon=-1.0), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.1875, 0.25], [0.1, 0.8]], draws=3)
 
 
@@ -297,7 +318,7 @@ def test_double_q_episode_by_hand(impl):
     Draws: action, coin, action, coin = 4."""
     d = _draws(DOUBLE_Q_SEED, 4)
     assert d[1] < 0.5 <= d[3]  # the coins the comments above rely on
-    episode = Episode(impl, kernel.DOUBLE_Q, [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]],
+    episode = Episode(impl, _rule("double_q_learning"), [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]],
                       seed=DOUBLE_Q_SEED)
     episode.check(steps=2, visits=[1, 1], w=[[0.0, 0.25], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]], draws=4,
                   seed=DOUBLE_Q_SEED)
@@ -315,7 +336,7 @@ def test_n_step_sarsa_episode_by_hand(impl):
          w[0,0] = 0.103125 + 0.5*(0.15-0.103125) = 0.1265625.
     t=4: -> goal, R5=1, T=5. τ=3: G = R4 + 0.5*R5 = 0.5 (no bootstrap past T); w[0,1] = 0.2 + 0.5*(0.5-0.2) = 0.35.
     τ=4: G = R5 = 1; w[1,1] = 0.6 + 0.5*(1-0.6) = 0.8. Five steps, five draws."""
-    episode = Episode(impl, kernel.N_STEP_SARSA, W0, n=2)
+    episode = Episode(impl, _rule("n_step_sarsa", n=2), W0)
     episode.check(steps=5, visits=[4, 1], w=[[0.1265625, 0.35], [0.1, 0.8]], draws=5)
 
 
@@ -334,7 +355,7 @@ def test_n_step_sarsa_episode_by_hand(impl):
     ],
     ids=["replacing", "accumulating"],
 )
-@pytest.mark.parametrize("algorithm", [kernel.SARSA_LAMBDA, kernel.Q_LAMBDA], ids=["sarsa_lambda", "q_lambda"])
+@pytest.mark.parametrize("algorithm", ["sarsa_lambda", "q_lambda"])
 def test_lambda_episode_by_hand(impl, algorithm, replacing, w00):
     """λ = 0.5, so traces decay by γλ = 0.25 after each step. δ = R + γ q(S',A') - q(S,A), with A' drawn before
     the update; Watkins's max equals q(S',A') here because every action taken is greedy, so no trace is cut.
@@ -342,7 +363,7 @@ def test_lambda_episode_by_hand(impl, algorithm, replacing, w00):
     2: S=0, A=stay -> S'=0, A'=right ([0.1875, 0.2]): δ = -0.1875 + 0.5*0.2 = -0.0875 (w[0,0]: see the cases).
     3: S=0, A=right -> S'=1, A'=right: δ = -0.2 + 0.5*0.6 = 0.1; z[0,1] = 1; w[0,1] = 0.2 + 0.05 = 0.25; z[0,1] -> 0.25.
     4: S=1, A=right -> goal: δ = 1 - 0.6 = 0.4; z[1,1] = 1; αδ = 0.2: w[0,1] += 0.2*0.25 = 0.3; w[1,1] = 0.8."""
-    episode = Episode(impl, algorithm, W0, lam=0.5, replacing=replacing)
+    episode = Episode(impl, _rule(algorithm, lam=0.5, replacing=replacing), W0)
     episode.check(steps=4, visits=[3, 1], w=[[w00, 0.3], [0.1, 0.8]], draws=4)
 
 
@@ -355,10 +376,10 @@ Q_LAMBDA_SEED = 43  # agent draws 0.65 (greedy), 0.04 (explore), 0.02 (uniform: 
     [
         # Watkins: step 1 δ = -0.2 + 0.5*max(0.1, 0.6) = 0.1, w[0,1] = 0.2 + 0.05 = 0.25; A' = stay is exploratory
         # (0.1 < 0.6), so every trace is cut and w[0,1] moves no more.
-        (kernel.Q_LAMBDA, 0.25),
+        ("q_lambda", 0.25),
         # SARSA(λ) on the same actions: step 1 δ = -0.2 + 0.5*0.1 = -0.15, w[0,1] = 0.2 - 0.075 = 0.125, z[0,1] -> 0.5;
         # step 2 (αδ = 0.1) w[0,1] += 0.1*0.5 = 0.175, z -> 0.25; step 3 (αδ = 0.2) w[0,1] += 0.2*0.25 = 0.225.
-        (kernel.SARSA_LAMBDA, 0.225),
+        ("sarsa_lambda", 0.225),
     ],
     ids=["q_lambda", "sarsa_lambda"],
 )
@@ -374,8 +395,8 @@ def test_exploratory_action_cuts_watkins_traces(impl, algorithm, w01):
     assert d[0] >= 0.5 > d[1]  # greedy, then explore ...
     assert int(2 * d[2]) == 0  # ... with the uniform action stay
     assert d[3] >= 0.5  # then greedy
-    episode = Episode(impl, algorithm, [[0.0, 0.2], [0.1, 0.6]], epsilon=0.5, seed=Q_LAMBDA_SEED, lam=1.0,
-                      replacing=True)
+    episode = Episode(impl, _rule(algorithm, lam=1.0, replacing=True), [[0.0, 0.2], [0.1, 0.6]], epsilon=0.5,
+                      seed=Q_LAMBDA_SEED)
     episode.check(steps=3, visits=[1, 2], w=[[0.0, w01], [0.3, 0.8]], draws=4, seed=Q_LAMBDA_SEED)
 
 
@@ -401,31 +422,28 @@ def test_reinforce_episode_by_hand(impl, baseline):
     step1 = 0.09375 if baseline else 0.125
     theta = [[0.0625 - step1 * sigma, -0.0625 + step1 * sigma], [-0.0625, 0.0625]]
     b = [[0.3125, 0.0], [0.5, 0.0]] if baseline else [[0.0, 0.0], [0.0, 0.0]]
-    episode = Episode(impl, kernel.REINFORCE, np.zeros((2, 2)), seed=REINFORCE_SEED,
-                      baseline_alpha=0.5 if baseline else 0.0)
+    rule = Reinforce(discount_gradient=True, baseline_alpha=0.5 if baseline else 0.0)
+    episode = Episode(impl, rule, np.zeros((2, 2)), seed=REINFORCE_SEED)
     episode.check(steps=3, visits=[2, 1], w=theta, w2=b, draws=3, seed=REINFORCE_SEED)
 
 
 # --- 3. convergence to known answers ----------------------------------------------------------------------
 
-LEARNERS = [a for a in kernel.ALGORITHM_CODES if a != "random"] + ["reinforce_baseline"]
+LEARNERS = [name for name in METHODS if name != "random"]
 VALUE_METHODS = [a for a in LEARNERS if not a.startswith("reinforce")]
 
 
 def _train_table(algorithm: str, table_env: TableEnv, epsilons: np.ndarray, *, seeds, alpha: float,
                  gamma: float, max_steps: int = 100, n: int = 2, lam: float = 0.8,
-                 replacing: bool = True) -> tuple[kernel.RunState, kernel.Records]:
-    """Train every seed with ``kernel.train_runs``; one snapshot, after the last episode."""
-    baseline = algorithm == "reinforce_baseline"
-    code = kernel.REINFORCE if baseline else kernel.ALGORITHM_CODES[algorithm]
-    settings = _settings(code, alpha=alpha, gamma=gamma, max_steps=max_steps, n=n, lam=lam, replacing=replacing,
-                         baseline_alpha=0.05 if baseline else 0.0)
-    env, features = _table_problem(table_env)
-    state = kernel.initial_state(list(seeds), table_env.n_states, table_env.n_actions)
+                 replacing: bool = True) -> tuple[RunState, Records]:
+    """Train every seed with ``train_runs``; one snapshot, after the last episode."""
+    rule = _rule(algorithm, n=n, lam=lam, replacing=replacing,
+                 baseline_alpha=0.05 if METHODS[algorithm].baseline else 0.0, n_actions=table_env.n_actions)
+    state = initial_state(list(seeds), table_env.n_states, table_env.n_actions)
     episodes = epsilons.size
-    records = kernel.allocate_records(len(seeds), episodes, 0, 1, np.array([episodes], np.int64),
-                                      state.w.shape[1:])
-    kernel.train_runs(settings, env, features, state, epsilons, 0, episodes, records)
+    records = allocate_records(len(seeds), episodes, 0, 1, np.array([episodes], np.int64), state.w.shape[1:])
+    train_runs(rule, _settings(alpha=alpha, gamma=gamma, max_steps=max_steps), table_env,
+               OneHot(table_env.n_states), state, epsilons, 0, episodes, records)
     return state, records
 
 
@@ -504,52 +522,193 @@ def test_bandit_q_learning_values_are_the_arm_probabilities():
     np.testing.assert_allclose(q.mean(axis=0), [0.2, 0.8], atol=0.05)
 
 
-# --- 4. kernel equalities --------------------------------------------------------------------------------
+# --- 4. the engine against a plain-Python reference; algorithms that must coincide -----------------------------
 
 MC_SEEDS = [0, 1, 2]
 MC_EPISODES = 200
 
 
-def _train_mountain_car(algorithm: str, *, fast: bool = False, features: str = "grid", episodes: int = MC_EPISODES,
+def _train_mountain_car(algorithm: str, *, features: str = "grid", episodes: int = MC_EPISODES,
                         max_steps: int = 1000, truncation_is_terminal: bool = False, n: int = 1, lam: float = 0.0,
-                        replacing: bool = True) -> tuple[kernel.RunState, kernel.Records]:
-    """Mountain Car with 20 bins (or 4x4 tiles x 4 tilings), on the tabular kernel (``fast``) or the general
-    one; ε from 1 to 0.01 over half the episodes; evaluation every 50 episodes; snapshots at 100 and 200."""
+                        replacing: bool = True) -> tuple[RunState, Records]:
+    """Mountain Car with 20 bins (or 4x4 tiles x 4 tilings); ε from 1 to 0.01 over half the episodes; evaluation
+    every 50 episodes; snapshots at 100 and 200."""
     feats = make_features(environment("MountainCar-v0"), features, 20, 4, 4, 0)
     epsilons = linear_decay_epsilon(episodes, 1.0, 0.01, 0.5)
-    state = kernel.initial_state(MC_SEEDS, feats.n_features, mountain_car.N_ACTIONS)
+    state = initial_state(MC_SEEDS, feats.n_features, mountain_car.N_ACTIONS)
     stages = np.array([e for e in (100, 200) if e <= episodes], dtype=np.int64)
-    records = kernel.allocate_records(len(MC_SEEDS), episodes, episodes // 50, 3, stages, state.w.shape[1:])
-    common = {"alpha": 0.05, "gamma": 0.9, "max_steps": max_steps, "truncation_is_terminal": truncation_is_terminal,
-              "eval_every": 50}
-    if fast:
-        settings = tabular.Settings(algorithm=tabular.ALGORITHM_CODES[algorithm], **common)
-        tabular.train_runs(settings, state, feats.grid, epsilons, 0, episodes, records)
-    else:
-        settings = _settings(kernel.ALGORITHM_CODES[algorithm], n=n, lam=lam, replacing=replacing, **common)
-        env = make_env(environment("MountainCar-v0"))
-        kernel.train_runs(settings, env, feats, state, epsilons, 0, episodes, records)
+    records = allocate_records(len(MC_SEEDS), episodes, episodes // 50, 3, stages, state.w.shape[1:])
+    settings = _settings(alpha=0.05, gamma=0.9, max_steps=max_steps, truncation_is_terminal=truncation_is_terminal,
+                         eval_every=50)
+    rule = _rule(algorithm, n=n, lam=lam, replacing=replacing, n_actions=mountain_car.N_ACTIONS)
+    train_runs(rule, settings, make_env(environment("MountainCar-v0")), feats, state, epsilons, 0, episodes, records)
     return state, records
 
 
 def _assert_same_run(a, b) -> None:
     (state_a, records_a), (state_b, records_b) = a, b
-    for name in kernel.Records._fields:
+    for name in Records._fields:
         np.testing.assert_array_equal(getattr(records_a, name), getattr(records_b, name), err_msg=name)
     np.testing.assert_array_equal(state_a.w, state_b.w)
     np.testing.assert_array_equal(state_a.w2, state_b.w2)
     np.testing.assert_array_equal(state_a.rng, state_b.rng)
 
 
-@pytest.mark.parametrize("algorithm", ["random", "q_learning", "sarsa", "expected_sarsa", "double_q_learning"])
-def test_general_kernel_equals_tabular_kernel(algorithm):
-    """The one-step tabular configurations give the same records, tables and streams, bit for bit, on both kernels."""
-    general = _train_mountain_car(algorithm)
-    _assert_same_run(general, _train_mountain_car(algorithm, fast=True))
-    assert general[1].eval_returns.shape == (len(MC_SEEDS), MC_EPISODES // 50, 3)
-    if algorithm != "random":
-        assert general[1].terminated.any()  # something was learned
-        assert np.any(general[0].w != 0.0)
+class Reference:
+    """Training and evaluation on Mountain Car with the grid, as plain Python: the paper's boxes (Algorithms 1 and
+    2, and 6.6, 6.7) written out for a table, one cell per state, with the cells from NumPy (``cell_indices``) and
+    the targets' and the policies' plain Python functions. It draws from the same streams in the same order as
+    the engine says it does: the start from the reset stream, every choice and coin from the agent stream."""
+
+    def __init__(self, rule: tuple, settings: Settings, grid: UniformGrid):
+        self.rule, self.settings, self.grid = rule, settings, grid
+        self.env = mountain_car.MountainCar()
+
+    def cell(self, state: tuple[float, float]) -> int:
+        return int(cell_indices(self.grid, np.array(mountain_car.observe.py_func(self.env, state)))[0])
+
+    def values(self, w: np.ndarray, w2: np.ndarray, s: int) -> np.ndarray:
+        """What the behaviour is ε-greedy in and the target policy greedy in: Q, or Q1 + Q2 for Double Q."""
+        return w[s] + w2[s] if isinstance(self.rule, td.DoubleQLearning) else w[s].copy()
+
+    def update(self, w: np.ndarray, w2: np.ndarray, s: int, a: int, s_next: int, a_next: int, reward: float,
+               terminal: bool, epsilon: float, agent_rng: np.ndarray) -> None:
+        """``Q(S, A) <- Q(S, A) + α (target - Q(S, A))``, the target as each box writes it."""
+        rule, gamma, table = self.rule, self.settings.gamma, w
+        if isinstance(rule, td.QLearning):
+            target = q_learning_target.py_func(reward, w[s_next].copy(), gamma, terminal)
+        elif isinstance(rule, td.Sarsa):
+            if not rule.draw_before and not terminal:  # A' for the target, from the values before the update
+                a_next = epsilon_greedy_action.py_func(w[s_next].copy(), epsilon, agent_rng)
+            target = td.sarsa_target.py_func(reward, w[s_next, a_next], gamma, terminal)
+        elif isinstance(rule, td.ExpectedSarsa):
+            target_epsilon = epsilon if rule.target_epsilon < 0 else rule.target_epsilon
+            target = expected_sarsa_target.py_func(reward, w[s_next].copy(), target_epsilon, gamma, terminal)
+        else:  # Double Q-Learning: a fair coin picks the estimate that learns
+            table, other = (w, w2) if next_double.py_func(agent_rng) < 0.5 else (w2, w)
+            target = double_q_target.py_func(reward, table[s_next].copy(), other[s_next].copy(), gamma, terminal)
+        table[s, a] += self.settings.alpha * (target - table[s, a])
+
+    def training_episode(self, w, w2, epsilon, env_rng, agent_rng, visits) -> tuple[float, int, bool]:
+        if isinstance(self.rule, RandomActions):
+            return self.random_episode(env_rng, agent_rng, visits)
+        max_steps, before = self.settings.max_steps, self.rule.draw_before
+        state = mountain_car.reset.py_func(self.env, env_rng)
+        s = self.cell(state)
+        a = epsilon_greedy_action.py_func(self.values(w, w2, s), epsilon, agent_rng)
+        ret, steps = 0.0, 0
+        while True:
+            visits[s] += 1
+            state, reward, terminated = mountain_car.step.py_func(self.env, state, a, None)
+            ret, steps = ret + reward, steps + 1
+            truncated = not terminated and steps >= max_steps
+            terminal = terminated or (truncated and self.settings.truncation_is_terminal)
+            s_next, a_next = self.cell(state), 0
+            if before and not terminal:
+                a_next = epsilon_greedy_action.py_func(self.values(w, w2, s_next), epsilon, agent_rng)
+            self.update(w, w2, s, a, s_next, a_next, reward, terminal, epsilon, agent_rng)
+            if terminated or truncated:
+                return ret, steps, terminated
+            if not before:
+                a_next = epsilon_greedy_action.py_func(self.values(w, w2, s_next), epsilon, agent_rng)
+            s, a = s_next, a_next
+
+    def random_episode(self, env_rng, agent_rng, visits) -> tuple[float, int, bool]:
+        state = mountain_car.reset.py_func(self.env, env_rng)
+        ret, steps, terminated = 0.0, 0, False
+        while not terminated and steps < self.settings.max_steps:
+            a = uniform_action.py_func(mountain_car.N_ACTIONS, agent_rng)
+            visits[self.cell(state)] += 1
+            state, reward, terminated = mountain_car.step.py_func(self.env, state, a, None)
+            ret, steps = ret + reward, steps + 1
+        return ret, steps, terminated
+
+    def evaluation_episode(self, w, w2, env_rng, agent_rng) -> tuple[float, int, bool]:
+        """Greedy (first maximum, ``np.argmax``) in the learned values; uniform for the baseline."""
+        state = mountain_car.reset.py_func(self.env, env_rng)
+        ret, steps, terminated = 0.0, 0, False
+        while not terminated and steps < self.settings.max_steps:
+            if isinstance(self.rule, RandomActions):
+                a = uniform_action.py_func(mountain_car.N_ACTIONS, agent_rng)
+            else:
+                a = int(np.argmax(self.values(w, w2, self.cell(state))))
+            state, reward, terminated = mountain_car.step.py_func(self.env, state, a, None)
+            ret, steps = ret + reward, steps + 1
+        return ret, steps, terminated
+
+    def runs(self, state: RunState, epsilons: np.ndarray, records: Records) -> None:
+        """Every run, every episode, with its evaluation rounds and snapshots."""
+        eval_every, eval_episodes = self.settings.eval_every, records.eval_returns.shape[2]
+        for run_, (w, w2, rng) in enumerate(zip(state.w, state.w2, state.rng, strict=True)):
+            for episode, epsilon in enumerate(epsilons):
+                at = (run_, episode)
+                records.returns[at], records.lengths[at], records.terminated[at] = self.training_episode(
+                    w, w2, epsilon, rng[ENV_STREAM], rng[AGENT_STREAM], records.visits[run_])
+                completed = episode + 1
+                if eval_every > 0 and completed % eval_every == 0:
+                    for k in range(eval_episodes):
+                        at = (run_, completed // eval_every - 1, k)
+                        records.eval_returns[at], records.eval_lengths[at], records.eval_terminated[at] = (
+                            self.evaluation_episode(w, w2, rng[EVAL_ENV_STREAM], rng[EVAL_AGENT_STREAM]))
+                for stage in np.flatnonzero(records.snapshot_episodes == completed):
+                    records.snapshots[run_, stage] = (w + w2) / 2 if isinstance(self.rule, td.DoubleQLearning) else w
+
+
+REFERENCE_EPISODES, REFERENCE_SPLIT = 8, 3
+REFERENCE_CASES = [("random", False, -1.0)] + [
+    (algorithm, before, target_epsilon)
+    for algorithm, target_epsilon in [("q_learning", -1.0), ("sarsa", -1.0), ("expected_sarsa", -1.0),
+                                      ("expected_sarsa", 0.0), ("double_q_learning", -1.0)]
+    for before in (False, True)
+]
+
+
+def _pumping_values() -> np.ndarray:
+    """Initial values on the 20 x 20 grid (position bins, then velocity bins) of a policy that pumps energy into
+    the car, so that greedy episodes reach the goal: 100 for pushing the way it moves, 0 for the other actions;
+    at the two smallest speed bins every value is 0, so greedy choices there break ties."""
+    w = np.zeros((20, 20, mountain_car.N_ACTIONS))
+    w[:, :9, 0] = 100.0
+    w[:, 11:, 2] = 100.0
+    return w.reshape(400, mountain_car.N_ACTIONS)
+
+
+def _mountain_car_reference_runs(rule: tuple, settings: Settings, engine: bool) -> tuple[RunState, Records]:
+    """Two seeds of ``REFERENCE_EPISODES`` episodes from :func:`_pumping_values`, ε from 1 to 0 over half of them,
+    two evaluation episodes every ``settings.eval_every``, snapshots at episodes 4 and 8: by the engine (in two
+    chunks) or by the reference."""
+    grid = make_features(environment("MountainCar-v0"), "grid", 20, 1, 1, 0)
+    epsilons = linear_decay_epsilon(REFERENCE_EPISODES, 1.0, 0.0, 0.5)
+    state = initial_state([0, 1], grid.n_features, mountain_car.N_ACTIONS)
+    state.w[:] = _pumping_values()
+    records = allocate_records(2, REFERENCE_EPISODES, REFERENCE_EPISODES // settings.eval_every, 2,
+                               np.array([4, 8], np.int64), state.w.shape[1:])
+    if engine:
+        env = make_env(environment("MountainCar-v0"))
+        for first, stop in ((0, REFERENCE_SPLIT), (REFERENCE_SPLIT, REFERENCE_EPISODES)):
+            train_runs(rule, settings, env, grid, state, epsilons, first, stop, records)
+    else:
+        Reference(rule, settings, grid).runs(state, epsilons, records)
+    return state, records
+
+
+@pytest.mark.parametrize("truncation_is_terminal", [False, True], ids=["bootstrap", "terminal"])
+@pytest.mark.parametrize(("algorithm", "before", "target_epsilon"), REFERENCE_CASES)
+def test_engine_equals_plain_python_reference(algorithm, before, target_epsilon, truncation_is_terminal):
+    """The one-step methods (drawing A' before or after the update) and the random baseline: the same records,
+    tables and streams, bit for bit, as the plain-Python reference, the engine's run split into two chunks.
+    Episodes both reach the goal and are cut by the limit, and a cut bootstraps (or not) as asked."""
+    rule = _rule(algorithm, draw_before=before, target_epsilon=target_epsilon, n_actions=mountain_car.N_ACTIONS)
+    settings = _settings(alpha=0.5, gamma=0.9, max_steps=400, truncation_is_terminal=truncation_is_terminal,
+                         eval_every=4)
+    engine = _mountain_car_reference_runs(rule, settings, engine=True)
+    _assert_same_run(engine, _mountain_car_reference_runs(rule, settings, engine=False))
+    state, records = engine
+    assert not records.terminated.all()  # cut by the limit ...
+    if algorithm != "random":  # ... and at the goal (the random baseline never reaches it in 400 steps)
+        assert records.terminated.any()
+        assert records.eval_terminated.any()
+        assert np.any(state.w + state.w2 != _pumping_values())  # something was learned
 
 
 @pytest.mark.parametrize(
@@ -615,20 +774,21 @@ def test_policy_gradient_matches_finite_differences():
 
 
 def test_mean_reinforce_update_is_alpha_times_the_gradient():
-    """10 000 one-pull episodes of the kernel from the same θ, each with its own streams: the mean update is
+    """10 000 one-pull episodes of the engine from the same θ, each with its own streams: the mean update is
     α ∇J within 4 standard errors (and ∇J is tens of standard errors away from zero, so this has power)."""
     alpha, runs = 0.01, 10_000
-    env, features = _table_problem(two_armed_bandit(*P_ARMS))
-    settings = _settings(kernel.REINFORCE, alpha=alpha, gamma=1.0, max_steps=5)
-    streams = kernel.initial_state(list(range(runs)), 1, 2).rng
+    table_env = two_armed_bandit(*P_ARMS)
+    rule, settings = Reinforce(discount_gradient=True, baseline_alpha=0.0), _settings(alpha=alpha, gamma=1.0,
+                                                                                       max_steps=5)
+    streams = initial_state(list(range(runs)), 1, 2).rng
     updates = np.empty((runs, 2))
     visits = np.zeros(1, dtype=np.int64)
-    episode = _episode_impl("compiled", kernel.reinforce_episode)
+    episode = _compiled(loops.reinforce_episode)
     for k in range(runs):
         theta = THETA[None, :].copy()
-        ret, steps, terminated = episode(settings, env._replace(transitions=streams[k, kernel.TRANSITION_STREAM]),
-                                         features, theta, np.zeros((1, 2)), streams[k, kernel.ENV_STREAM],
-                                         streams[k, kernel.AGENT_STREAM], visits)
+        ret, steps, terminated = episode(rule, settings, table_env, OneHot(1), theta, np.zeros((1, 2)), _no_traces(),
+                                         0.0, streams[k, ENV_STREAM], streams[k, AGENT_STREAM],
+                                         streams[k, TRANSITION_STREAM], visits)
         assert (steps, terminated) == (1, True)
         assert ret in (0.0, 1.0)
         updates[k] = theta[0] - THETA

@@ -14,6 +14,10 @@ from rlcompare.envs import acrobot, cartpole
 from rlcompare.rng import stream_state
 
 ROLLOUT_STEPS = 60_000
+ENVS = {cartpole: cartpole.CartPole(), acrobot: acrobot.Acrobot()}
+"""The value each port's functions are given."""
+NO_DRAWS = np.zeros(4, dtype=np.uint64)
+"""The stream ``step`` is given; both ports are deterministic and never draw from it."""
 
 
 def _numpy_trigonometry_is_libm() -> bool:
@@ -23,7 +27,7 @@ def _numpy_trigonometry_is_libm() -> bool:
     return all(np.cos(v) == math.cos(v) and np.sin(v) == math.sin(v) for v in x)
 
 
-def _cartpole_policy(kind: str, state: np.ndarray, generator: np.random.Generator) -> int:
+def _cartpole_policy(kind: str, state: tuple, generator: np.random.Generator) -> int:
     """Random pushes, or a balancing controller that keeps the pole up and lets the cart drift off the track
     (or reach the time limit), with 20% random pushes."""
     if kind == "random" or generator.random() < 0.2:
@@ -31,7 +35,7 @@ def _cartpole_policy(kind: str, state: np.ndarray, generator: np.random.Generato
     return int(state[2] + 0.5 * state[3] > 0.0)
 
 
-def _acrobot_policy(kind: str, state: np.ndarray, generator: np.random.Generator) -> int:
+def _acrobot_policy(kind: str, state: tuple, generator: np.random.Generator) -> int:
     """Random torques, or pumping energy (torque along the second joint's velocity): reaches the goal."""
     if kind == "random" or generator.random() < 0.1:
         return int(generator.integers(3))
@@ -47,8 +51,9 @@ def test_transitions_equal_gymnasium(port, policy) -> None:
         pytest.skip("this NumPy's sin and cos differ from the C library's; Gymnasium's Acrobot cannot be matched")
     limit = 500
     env = gym.make(port.ENV_ID, max_episode_steps=limit)
+    ours = ENVS[port]
     generator = np.random.default_rng(7)
-    state, rng = np.empty(port.STATE_SIZE), None
+    rng = None
     total = episodes = terminations = truncations = 0
     while total < ROLLOUT_STEPS:
         if episodes % 3 == 0:
@@ -57,19 +62,17 @@ def test_transitions_equal_gymnasium(port, policy) -> None:
             rng = stream_state(seed)
         else:
             observation, _ = env.reset()
-        port.reset(state, rng)
-        np.testing.assert_array_equal(state, env.unwrapped.state)
+        state = port.reset(ours, rng)
+        assert len(state) == port.STATE_SIZE
+        assert state == _gym_state(env)
         _assert_observation(port, state, observation, first=True)
         kind = "random" if episodes % 2 else "controlled"
         for steps in range(1, limit + 1):
             action = policy(kind, state, generator)
             observation, reward, terminated, truncated, _ = env.step(action)
-            if port is acrobot:
-                our_reward, done = acrobot.step(state, action)
-            else:
-                our_reward, done = cartpole.REWARD, cartpole.step(state, action)
+            state, our_reward, done = port.step(ours, state, action, NO_DRAWS)
             total += 1
-            assert np.array_equal(state, env.unwrapped.state), (episodes, steps)
+            assert state == _gym_state(env), (episodes, steps)
             _assert_observation(port, state, observation)
             assert (our_reward, done) == (reward, terminated)
             if terminated or truncated:
@@ -79,17 +82,23 @@ def test_transitions_equal_gymnasium(port, policy) -> None:
         episodes += 1
     assert terminations > 30
     assert truncations > 3
+    np.testing.assert_array_equal(NO_DRAWS, 0)
 
 
-def _assert_observation(port, state: np.ndarray, observation: np.ndarray, first: bool = False) -> None:
-    """Equal, but for Acrobot's first observation: Gymnasium computes it from the float32 start state with
-    NumPy's float32 sin and cos (SIMD approximations), the port in float64 rounded once; they may differ in
-    the last bit of the float32 (about 0.2% of resets; the start state itself is equal)."""
-    if port is acrobot:
-        ours = np.empty(acrobot.OBSERVATION_SIZE)
-        acrobot.observe(state, ours)
-    else:
-        ours = state
+def _gym_state(env) -> tuple[float, ...]:
+    """Gymnasium's state as a tuple of floats (Acrobot's start state is a float32 array, exact in float64)."""
+    return tuple(float(x) for x in env.unwrapped.state)
+
+
+def _assert_observation(port, state: tuple, observation: np.ndarray, first: bool = False) -> None:
+    """``observe`` equals Gymnasium's observation, but for Acrobot's first: Gymnasium computes it from the
+    float32 start state with NumPy's float32 sin and cos (SIMD approximations), the port in float64 rounded
+    once; they may differ in the last bit of the float32 (about 0.2% of resets; the start state itself is
+    equal)."""
+    ours = port.observe(ENVS[port], state)
+    assert len(ours) == (acrobot.OBSERVATION_SIZE if port is acrobot else cartpole.STATE_SIZE)
+    ours = np.array(ours, dtype=np.float64)
+    np.testing.assert_array_equal(ours, ours.astype(np.float32))  # observe rounds to float32 itself
     if port is acrobot and first:
         np.testing.assert_array_max_ulp(observation, ours.astype(np.float32), maxulp=1)
     else:
@@ -98,22 +107,24 @@ def _assert_observation(port, state: np.ndarray, observation: np.ndarray, first:
 
 def test_acrobot_clips_velocities_and_wraps_angles() -> None:
     """From a fast spin the port clips ``dtheta2`` at 9 pi and keeps the angles in [-pi, pi]."""
-    state = np.array([3.0, 3.1, 4 * math.pi, 9 * math.pi])
+    ours = ENVS[acrobot]
+    start = (3.0, 3.1, 4 * math.pi, 9 * math.pi)
+    state = start
     for _ in range(20):
-        acrobot.step(state, 2)
+        state, _, _ = acrobot.step(ours, state, 2, NO_DRAWS)
         assert -math.pi <= state[0] <= math.pi
         assert -math.pi <= state[1] <= math.pi
         assert abs(state[2]) <= acrobot.MAX_VEL_1
         assert abs(state[3]) <= acrobot.MAX_VEL_2
     env = gym.make("Acrobot-v1").unwrapped
     env.reset(seed=0)
-    env.state = np.array([3.0, 3.1, 4 * math.pi, 9 * math.pi])
-    ours = env.state.copy()
+    env.state = np.array(start)
+    state = start
     for _ in range(20):
         env.step(2)
-        acrobot.step(ours, 2)
+        state, _, _ = acrobot.step(ours, state, 2, NO_DRAWS)
     if _numpy_trigonometry_is_libm():
-        np.testing.assert_array_equal(ours, env.state)
+        np.testing.assert_array_equal(np.array(state), env.state)
 
 
 def test_sarsa_learns_cartpole_and_its_agent_balances_as_well_in_gymnasium(tmp_path) -> None:

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rlcompare import ConfigError, ExperimentConfig
-from rlcompare.engine import kernel
+from rlcompare.engine.state import allocate_records
 from rlcompare.experiment import config as config_module
 from rlcompare.experiment.config import quote, records_bytes
 from rlcompare.experiment.problem import make_features
@@ -168,8 +168,8 @@ def test_records_bytes_equals_what_the_kernel_allocates(env: str, features: str,
     coded = make_features(config.environment, config.features, config.bins, config.tilings, config.tiles,
                           config.hash_size, config.bounds)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
-    records = kernel.allocate_records(seeds, episodes, config.evaluation_rounds, eval_episodes, stage_episodes,
-                                      (coded.n_features, config.environment.n_actions))
+    records = allocate_records(seeds, episodes, config.evaluation_rounds, eval_episodes, stage_episodes,
+                               (coded.n_features, config.environment.n_actions))
     allocated = sum(array.nbytes for array in records) + epsilon_schedule(config).nbytes
     assert records_bytes(config) == allocated
 

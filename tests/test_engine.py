@@ -1,4 +1,5 @@
-"""The fused tabular kernels: reproducibility, common random numbers, truncation, and one episode by hand."""
+"""The engine in the paper's setting (Mountain Car on a 20 x 20 grid): reproducibility, common random numbers,
+truncation, and one episode by hand."""
 
 from __future__ import annotations
 
@@ -7,21 +8,21 @@ import numba
 import numpy as np
 import pytest
 
-from rlcompare.algorithms.policies import epsilon_greedy_action, uniform_action
+from rlcompare.algorithms.policies import RandomActions, epsilon_greedy_action, uniform_action
 from rlcompare.algorithms.schedules import linear_decay_epsilon
-from rlcompare.engine.kernel import EVAL_TRANSITION_STREAM, TRANSITION_STREAM
-from rlcompare.engine.tabular import (
+from rlcompare.algorithms.td import QLearning, Sarsa
+from rlcompare.engine.run import train_run, train_runs
+from rlcompare.engine.state import (
     AGENT_STREAM,
-    ALGORITHM_CODES,
     ENV_STREAM,
     EVAL_AGENT_STREAM,
     EVAL_ENV_STREAM,
+    EVAL_TRANSITION_STREAM,
+    TRANSITION_STREAM,
     Records,
     Settings,
     allocate_records,
     initial_state,
-    train_run,
-    train_runs,
 )
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import cell_index_2d, make_grid
@@ -36,14 +37,19 @@ GAMMA = 0.9
 EVAL_EVERY = 50
 EVAL_EPISODES = 5
 SNAPSHOT_EPISODES = (100, 300)
+ENV = mountain_car.MountainCar()
 GRID = make_grid(mountain_car.OBSERVATION_LOW, mountain_car.OBSERVATION_HIGH, BINS)
+RULES = {
+    "random": RandomActions(mountain_car.N_ACTIONS),
+    "q_learning": QLearning(draw_before=False),  # Algorithm 1: A' drawn after the update
+    "sarsa": Sarsa(draw_before=True),  # Algorithm 2: A' drawn before the update
+}
 EPSILONS = linear_decay_epsilon(EPISODES, 1.0, 0.01, 0.5)
 TRAINING_FIELDS = ("returns", "lengths", "terminated", "snapshots", "visits")
 EVAL_FIELDS = ("eval_returns", "eval_lengths", "eval_terminated")
 
 
 def make_settings(
-    algorithm: str,
     *,
     max_steps: int = MAX_STEPS,
     truncation_is_terminal: bool = False,
@@ -51,9 +57,8 @@ def make_settings(
     alpha: float = ALPHA,
     gamma: float = GAMMA,
 ) -> Settings:
-    """Settings with the scalar types the kernel is compiled for (another type would compile anew)."""
+    """Settings with the scalar types the engine is compiled for (another type would compile anew)."""
     return Settings(
-        algorithm=ALGORITHM_CODES[algorithm],
         alpha=float(alpha),
         gamma=float(gamma),
         max_steps=int(max_steps),
@@ -75,15 +80,13 @@ def train(
     epsilons: np.ndarray = EPSILONS,
 ):
     """Train every seed with ``train_runs``, over ``chunks`` of episodes (one call by default)."""
-    settings = make_settings(
-        algorithm, max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=eval_every
-    )
+    settings = make_settings(max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=eval_every)
     state = initial_state(list(seeds), GRID.n_cells, mountain_car.N_ACTIONS)
     rounds = episodes // eval_every if eval_every else 0
     snapshots = np.array([e for e in SNAPSHOT_EPISODES if e <= episodes], dtype=np.int64)
     records = allocate_records(len(seeds), episodes, rounds, eval_episodes, snapshots, state.w.shape[1:])
     for first, stop in chunks or [(0, episodes)]:
-        train_runs(settings, state, GRID, epsilons, first, stop, records)
+        train_runs(RULES[algorithm], settings, ENV, GRID, state, epsilons, first, stop, records)
     return state, records
 
 
@@ -231,7 +234,7 @@ def test_snapshot_is_the_table_after_its_episode(algorithm):
 def _start_states(seed: int, episodes: int) -> list[tuple[float, float]]:
     """The start states of a run: ``reset`` repeated on the stream ``PCG64(seed)``."""
     state = stream_state(seed)
-    return [mountain_car.reset(state) for _ in range(episodes)]
+    return [mountain_car.reset(ENV, state) for _ in range(episodes)]
 
 
 @pytest.mark.parametrize("seed", [0, 3])
@@ -242,12 +245,12 @@ def test_start_states_are_shared_across_algorithms(seed):
     expected = _start_states(seed, episodes)
     records = allocate_records(1, episodes, 0, 0, np.zeros(0, dtype=np.int64), (GRID.n_cells, 3))
     for algorithm in ALGORITHMS:
-        settings = make_settings(algorithm, eval_every=0)
+        settings = make_settings(eval_every=0)
         state = initial_state([seed], GRID.n_cells, mountain_car.N_ACTIONS)
         starts = []
         for episode in range(episodes):
-            starts.append(mountain_car.reset(state.rng[0, ENV_STREAM].copy()))
-            train_run(0, settings, state, GRID, EPSILONS, episode, episode + 1, records)
+            starts.append(mountain_car.reset(ENV, state.rng[0, ENV_STREAM].copy()))
+            train_run(0, RULES[algorithm], settings, ENV, GRID, state, EPSILONS, episode, episode + 1, records)
         assert starts == expected, algorithm
 
 
@@ -258,7 +261,7 @@ def test_environment_streams_end_where_resets_leave_them(q_learning_result, sars
     for run, seed in enumerate(SEEDS):
         expected = stream_state(seed)
         for _ in range(EPISODES):
-            mountain_car.reset(expected)
+            mountain_car.reset(ENV, expected)
         for state in states:
             np.testing.assert_array_equal(state.rng[run, ENV_STREAM], expected)
         agent_streams = {tuple(state.rng[run, AGENT_STREAM].tolist()) for state in states}
@@ -275,7 +278,7 @@ def test_environment_stream_is_gymnasiums():
             for k in range(4):
                 env.reset(seed=seed) if k == 0 else env.reset()
                 position, velocity = env.unwrapped.state
-                assert mountain_car.reset(env_stream) == (float(position), float(velocity))
+                assert mountain_car.reset(ENV, env_stream) == (float(position), float(velocity))
     finally:
         env.close()
 
@@ -366,34 +369,37 @@ def test_truncation_as_terminal_does_not_affect_the_random_baseline():
 # --- one episode by hand ---------------------------------------------------------------------------
 
 
-def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, max_steps, truncation_is_terminal, visits):
+def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_steps, truncation_is_terminal,
+                    visits):
     """One training episode written out in plain Python, with the helpers' ``py_func`` versions."""
     reset, step = mountain_car.reset.py_func, mountain_car.step.py_func
     cell, choose, uniform = cell_index_2d.py_func, epsilon_greedy_action.py_func, uniform_action.py_func
     n_actions = q.shape[1]
-    position, velocity = reset(env_rng)
+    position, velocity = reset(ENV, env_rng)
     state = cell(GRID, position, velocity)
     action = uniform(n_actions, agent_rng) if algorithm == "random" else choose(q[state], epsilon, agent_rng)
-    steps = 0
+    steps, episode_return = 0, 0.0
     while True:
         visits[state] += 1
-        position, velocity, terminated = step(position, velocity, action)
+        (position, velocity), reward, terminated = step(ENV, (position, velocity), action, transitions)
+        assert reward == -1.0
+        episode_return += reward
         steps += 1
         truncated = not terminated and steps >= max_steps
         terminal = terminated or (truncated and truncation_is_terminal)
         next_state = cell(GRID, position, velocity)
         if algorithm == "q_learning":
-            target = -1.0 if terminal else -1.0 + GAMMA * max(q[next_state])
+            target = reward if terminal else reward + GAMMA * max(q[next_state])
             q[state, action] += ALPHA * (target - q[state, action])
             if terminated or truncated:
                 break
             action = choose(q[next_state], epsilon, agent_rng)
         elif algorithm == "sarsa":
             if terminal:
-                target = -1.0
+                target = reward
             else:
                 next_action = choose(q[next_state], epsilon, agent_rng)
-                target = -1.0 + GAMMA * q[next_state, next_action]
+                target = reward + GAMMA * q[next_state, next_action]
             q[state, action] += ALPHA * (target - q[state, action])
             if terminated or truncated:
                 break
@@ -403,7 +409,7 @@ def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, max_steps, trunca
                 break
             action = uniform(n_actions, agent_rng)
         state = next_state
-    return -float(steps), steps, terminated
+    return episode_return, steps, terminated
 
 
 @pytest.mark.parametrize("q_init", ["zeros", "random", "bang_bang"])
@@ -411,9 +417,10 @@ def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, max_steps, trunca
     ("max_steps", "truncation_is_terminal"), [(1000, False), (60, False), (60, True)], ids=["1000", "60", "60-cut"]
 )
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_kernel_equals_python_episodes(algorithm, max_steps, truncation_is_terminal, q_init):
-    """Three training episodes of the kernel equal the plain-Python re-implementation exactly: the table,
-    the visit counts, the records and where both random streams end."""
+def test_engine_equals_python_episodes(algorithm, max_steps, truncation_is_terminal, q_init):
+    """Three training episodes of the engine equal the plain-Python re-implementation exactly: the table,
+    the visit counts, the records, where the reset and agent streams end, and the transition stream, which
+    the deterministic Mountain Car never draws from."""
     episodes, epsilon, seed = 3, 0.3, 11
     state = initial_state([seed], GRID.n_cells, mountain_car.N_ACTIONS)
     if q_init == "random":  # distinct negative values: few ties, so the max and the taken action matter
@@ -425,23 +432,25 @@ def test_kernel_equals_python_episodes(algorithm, max_steps, truncation_is_termi
     initial_q = state.w[0].copy()
     q = initial_q.copy()
     env_rng, agent_rng = state.rng[0, ENV_STREAM].copy(), state.rng[0, AGENT_STREAM].copy()
+    transitions = state.rng[0, TRANSITION_STREAM].copy()
     visits = np.zeros(GRID.n_cells, dtype=np.int64)
     with np.errstate(over="ignore"):
         expected = [
-            _python_episode(algorithm, q, epsilon, env_rng, agent_rng, max_steps, truncation_is_terminal, visits)
+            _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_steps, truncation_is_terminal,
+                            visits)
             for _ in range(episodes)
         ]
 
-    settings = make_settings(
-        algorithm, max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=0
-    )
+    settings = make_settings(max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=0)
     records = allocate_records(1, episodes, 0, 0, np.zeros(0, dtype=np.int64), q.shape)
-    train_run(0, settings, state, GRID, np.full(episodes, epsilon), 0, episodes, records)
+    train_run(0, RULES[algorithm], settings, ENV, GRID, state, np.full(episodes, epsilon), 0, episodes, records)
 
     np.testing.assert_array_equal(state.w[0], q)
     np.testing.assert_array_equal(records.visits[0], visits)
     np.testing.assert_array_equal(state.rng[0, ENV_STREAM], env_rng)
     np.testing.assert_array_equal(state.rng[0, AGENT_STREAM], agent_rng)
+    np.testing.assert_array_equal(state.rng[0, TRANSITION_STREAM], transitions)
+    np.testing.assert_array_equal(transitions, initial_state([seed], 1, 1).rng[0, TRANSITION_STREAM])
     assert [
         (r, n, t) for r, n, t in zip(records.returns[0], records.lengths[0], records.terminated[0], strict=True)
     ] == expected

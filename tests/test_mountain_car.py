@@ -11,6 +11,9 @@ from rlcompare.rng import stream_state
 
 MAX_EPISODE_STEPS = 1000
 TOTAL_STEPS = 100_000
+ENV = mountain_car.MountainCar()
+NO_DRAWS = np.zeros(4, dtype=np.uint64)
+"""The stream ``step`` is given; Mountain Car is deterministic and never draws from it."""
 
 
 @pytest.fixture
@@ -47,18 +50,19 @@ def test_transitions_equal_gymnasium(env):
             rng_state = stream_state(seed)
         else:
             observation, _ = env.reset()
-        position, velocity = mountain_car.reset(rng_state)
-        assert (position, velocity) == _gym_state(env)
-        np.testing.assert_array_equal(observation, np.array([position, velocity], dtype=np.float32))
+        state = mountain_car.reset(ENV, rng_state)
+        assert state == _gym_state(env)
+        _assert_observation(observation, state)
         kind = kinds[episodes % len(kinds)]
         for steps in range(1, MAX_EPISODE_STEPS + 1):
-            action = _policy(kind, velocity, generator)
+            action = _policy(kind, state[1], generator)
             observation, reward, terminated, truncated, _ = env.step(action)
-            position, velocity, done = mountain_car.step(position, velocity, action)
+            state, our_reward, done = mountain_car.step(ENV, state, action, NO_DRAWS)
+            position, velocity = state
             total += 1
-            assert (position, velocity) == _gym_state(env), (episodes, steps)
-            np.testing.assert_array_equal(observation, np.array([position, velocity], dtype=np.float32))
-            assert reward == mountain_car.REWARD == -1.0
+            assert state == _gym_state(env), (episodes, steps)
+            _assert_observation(observation, state)
+            assert our_reward == reward == mountain_car.REWARD == -1.0
             assert done == terminated
             assert truncated == (not done and steps == MAX_EPISODE_STEPS)
             if position == mountain_car.MIN_POSITION:
@@ -74,6 +78,14 @@ def test_transitions_equal_gymnasium(env):
     assert terminations > 20
     assert wall_hits > 20
     assert truncations > 20
+    np.testing.assert_array_equal(NO_DRAWS, 0)
+
+
+def _assert_observation(observation: np.ndarray, state: tuple[float, float]) -> None:
+    """``observe`` gives Gymnasium's observation (``==``): the state rounded to float32."""
+    ours = mountain_car.observe(ENV, state)
+    np.testing.assert_array_equal(observation, np.array(ours, dtype=np.float32))
+    assert ours == tuple(float(np.float32(x)) for x in state)
 
 
 def test_reset_stream_equals_seeded_then_plain_resets(env):
@@ -83,9 +95,10 @@ def test_reset_stream_equals_seeded_then_plain_resets(env):
         starts = []
         for k in range(6):
             observation, _ = env.reset(seed=seed) if k == 0 else env.reset()
-            start = mountain_car.reset(rng_state)
+            start = mountain_car.reset(ENV, rng_state)
             assert start == _gym_state(env), (seed, k)
             assert observation[0] == np.float32(start[0])
+            _assert_observation(observation, start)
             starts.append(start)
         positions = [p for p, _ in starts]
         assert all(mountain_car.RESET_LOW <= p < mountain_car.RESET_HIGH for p in positions)
@@ -94,17 +107,19 @@ def test_reset_stream_equals_seeded_then_plain_resets(env):
 
 
 def test_reset_py_func_equals_compiled():
-    """The Python source of ``reset`` and ``step`` give what the compiled versions give."""
+    """The Python source of ``reset``, ``step`` and ``observe`` give what the compiled versions give."""
     compiled_state, python_state = stream_state(7), stream_state(7)
     with np.errstate(over="ignore"):
         for _ in range(20):
-            start = mountain_car.reset(compiled_state)
-            assert mountain_car.reset.py_func(python_state) == start
-            position, velocity = start
+            start = mountain_car.reset(ENV, compiled_state)
+            assert mountain_car.reset.py_func(ENV, python_state) == start
+            state = start
             for action in (0, 0, 2, 1, 2, 0):
-                expected = mountain_car.step(position, velocity, action)
-                assert mountain_car.step.py_func(position, velocity, action) == expected
-                position, velocity, _ = expected
+                expected = mountain_car.step(ENV, state, action, NO_DRAWS)
+                assert mountain_car.step.py_func(ENV, state, action, NO_DRAWS) == expected
+                state = expected[0]
+                assert mountain_car.observe.py_func(ENV, state) == mountain_car.observe(ENV, state)
+    np.testing.assert_array_equal(compiled_state, python_state)
 
 
 @pytest.mark.parametrize(
@@ -122,11 +137,13 @@ def test_edge_states_equal_gymnasium(env, position, velocity, action, expected_t
     env.reset(seed=0)
     env.unwrapped.state = np.array([position, velocity])
     _, _, terminated, _, _ = env.step(action)
-    got = mountain_car.step(position, velocity, action)
-    assert got[:2] == _gym_state(env)
-    assert got[2] == terminated == expected_terminated
-    assert mountain_car.MIN_POSITION <= got[0] <= mountain_car.MAX_POSITION
-    assert -mountain_car.MAX_SPEED <= got[1] <= mountain_car.MAX_SPEED
+    (got_position, got_velocity), reward, got_terminated = mountain_car.step(ENV, (position, velocity), action,
+                                                                             NO_DRAWS)
+    assert (got_position, got_velocity) == _gym_state(env)
+    assert got_terminated == terminated == expected_terminated
+    assert reward == -1.0
+    assert mountain_car.MIN_POSITION <= got_position <= mountain_car.MAX_POSITION
+    assert -mountain_car.MAX_SPEED <= got_velocity <= mountain_car.MAX_SPEED
 
 
 def test_observation_bounds_match_gymnasium(env):

@@ -16,52 +16,54 @@ import numpy as np
 import pytest
 
 from rlcompare import ConfigError, ExperimentConfig, run
+from rlcompare.algorithms.registry import METHODS
+from rlcompare.algorithms.reinforce import Reinforce
 from rlcompare.algorithms.schedules import linear_decay_epsilon
-from rlcompare.engine import kernel, tabular
+from rlcompare.engine import episodes
+from rlcompare.engine.run import train_runs
+from rlcompare.engine.state import Settings, allocate_records, initial_state
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import make_grid
+from rlcompare.envs.features import OneHot
 from rlcompare.envs.table import chain
-from rlcompare.envs.tiles import make_tile_coding
 from rlcompare.experiment.problem import environment, make_env, make_features
-from rlcompare.experiment.runner import kernel_settings
+from rlcompare.experiment.runner import method_rule
 from rlcompare.rng import stream_state
 
 W0 = [[0.25, 0.2], [0.1, 0.6]]
-IMPLS = ["compiled", "py_func"]
 COIN_SEED = 343
 """An agent stream whose uniforms 1 to 7 all fall below 0.5: Double Q-Learning's coin always updates Q1."""
 _CACHED: dict = {}
 
 
-def _impl(name: str, fn):
-    """The episode function as plain Python, or compiled (cached on disk, as the kernel's own entry point is)."""
-    if name == "py_func":
-        return fn.py_func
+def _compiled(fn):
+    """The episode loop compiled with the same (default) options, but cached on disk, as the run loop is: the loops
+    themselves are not, and compiling them takes a while every session."""
     if fn not in _CACHED:
         _CACHED[fn] = numba.njit(cache=True)(fn.py_func)
     return _CACHED[fn]
 
 
-def _order(before: bool) -> int:
-    return kernel.DRAW_BEFORE_UPDATE if before else kernel.DRAW_AFTER_UPDATE
+def _rule(algorithm: str, before: bool, target_epsilon: float = -1.0) -> tuple:
+    """The one-step method's rule, drawing A' before or after its update."""
+    rule = METHODS[algorithm].rule
+    return rule(before, float(target_epsilon)) if "target_epsilon" in rule._fields else rule(before)
 
 
-def _settings(algorithm: int, before: bool, target_epsilon: float = -1.0) -> kernel.Settings:
-    return kernel.Settings(algorithm=algorithm, alpha=0.5, gamma=0.5, max_steps=100, truncation_is_terminal=False,
-                           eval_every=0, target_epsilon=float(target_epsilon), next_action=_order(before))
+def _no_traces() -> episodes.Traces:
+    return episodes.Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
-def _chain_episode(impl: str, algorithm: int, before: bool, seed: int = 0, w2=None):
+SETTINGS = Settings(alpha=0.5, gamma=0.5, max_steps=100, truncation_is_terminal=False, eval_every=0)
+
+
+def _chain_episode(algorithm: str, before: bool, seed: int = 0, w2=None):
     table_env = chain(2)
-    env = kernel.Env(kernel.TABLE, 0.0, table_env, 2, stream_state(2000), 1, 1)
-    grid = make_grid(np.zeros(2, np.float32), np.ones(2, np.float32), 1)
-    tiles = make_tile_coding(np.zeros(2), np.ones(2), tilings=1, tiles=1)
-    features = kernel.Features(kernel.ONE_HOT, grid, tiles, 2, 1)
     w = np.array(W0)
     w2 = np.zeros_like(w) if w2 is None else np.array(w2)
     agent_rng, visits = stream_state(seed), np.zeros(2, np.int64)
-    ret, steps, terminated = _impl(impl, kernel.one_step_episode)(
-        _settings(algorithm, before), env, features, w, w2, 0.0, stream_state(1000), agent_rng, visits)
+    ret, steps, terminated = _compiled(episodes.one_step_episode)(
+        _rule(algorithm, before), SETTINGS, table_env, OneHot(2), w, w2, _no_traces(), 0.0, stream_state(1000),
+        agent_rng, stream_state(2000), visits)
     assert (ret, terminated) == (1.0, True)
     return w, w2, steps, visits, agent_rng
 
@@ -92,19 +94,17 @@ HAND_CASES = [
 ]
 
 
-@pytest.mark.parametrize("impl", IMPLS)
 @pytest.mark.parametrize(("algorithm", "before", "w", "steps", "visits", "draws"), HAND_CASES)
-def test_one_step_episode_by_hand(impl, algorithm, before, w, steps, visits, draws):
-    w_out, _, steps_out, visits_out, agent_rng = _chain_episode(impl, kernel.ALGORITHM_CODES[algorithm], before)
+def test_one_step_episode_by_hand(algorithm, before, w, steps, visits, draws):
+    w_out, _, steps_out, visits_out, agent_rng = _chain_episode(algorithm, before)
     np.testing.assert_allclose(w_out, w, rtol=1e-15)
     assert steps_out == steps
     np.testing.assert_array_equal(visits_out, visits)
     np.testing.assert_array_equal(agent_rng, _after(0, draws))
 
 
-@pytest.mark.parametrize("impl", IMPLS)
 @pytest.mark.parametrize("before", [False, True])
-def test_double_q_learning_episode_by_hand(impl, before):
+def test_double_q_learning_episode_by_hand(before):
     """Q2 = 0 and every coin updates Q1, so each target is R + γ Q2(S', argmax Q1) = R.
 
     After: Q1(0, stay) = 0.25 / 2 = 0.125 < 0.2, right: Q1(0, right) = 0.1, Q1(1, right) = 0.8; draws: the first
@@ -114,7 +114,7 @@ def test_double_q_learning_episode_by_hand(impl, before):
     """
     draws = np.random.Generator(np.random.PCG64(COIN_SEED)).random(8)
     assert (draws[1:] < 0.5).all()
-    w1, w2, steps, visits, agent_rng = _chain_episode(impl, kernel.DOUBLE_Q, before, seed=COIN_SEED)
+    w1, w2, steps, visits, agent_rng = _chain_episode("double_q_learning", before, seed=COIN_SEED)
     expected = [[0.0625, 0.1], [0.1, 0.8]] if before else [[0.125, 0.1], [0.1, 0.8]]
     np.testing.assert_allclose(w1, expected, rtol=1e-15)
     np.testing.assert_array_equal(w2, 0.0)
@@ -123,75 +123,34 @@ def test_double_q_learning_episode_by_hand(impl, before):
     np.testing.assert_array_equal(agent_rng, _after(COIN_SEED, 8 if before else 6))
 
 
-# --- the tabular fast path: the same rule, bit for bit ----------------------------------------------------
+# --- Mountain Car: the order changes what is learned ---------------------------------------------------------
+# (The engine's runs in either order, bit for bit against a plain-Python reference:
+# test_algorithms_beyond_paper.py::test_engine_equals_plain_python_reference.)
 
 ONE_STEP = [("q_learning", -1.0), ("sarsa", -1.0), ("expected_sarsa", -1.0), ("expected_sarsa", 0.0),
             ("double_q_learning", -1.0)]
 
 
-def _mountain_car_runs(algorithm: str, before: bool, target_epsilon: float, fast: bool, episodes: int = 60,
+def _mountain_car_runs(algorithm: str, before: bool, target_epsilon: float, episodes: int = 60,
                        epsilon_start: float = 1.0):
     feats = make_features(environment("MountainCar-v0"), "grid", 20, 1, 1, 0)
     epsilons = linear_decay_epsilon(episodes, epsilon_start, 0.0, 0.5)
-    state = kernel.initial_state([0, 1], feats.n_features, mountain_car.N_ACTIONS)
-    records = kernel.allocate_records(2, episodes, 2, 2, np.array([episodes], np.int64), state.w.shape[1:])
-    settings = kernel.Settings(algorithm=kernel.ALGORITHM_CODES[algorithm], alpha=0.05, gamma=0.9, max_steps=1000,
-                               truncation_is_terminal=False, eval_every=30, target_epsilon=target_epsilon,
-                               next_action=_order(before))
-    if fast:
-        tabular.train_runs(settings, state, feats.grid, epsilons, 0, episodes, records)
-    else:
-        kernel.train_runs(settings, make_env(environment("MountainCar-v0")), feats, state, epsilons, 0, episodes,
-                          records)
+    state = initial_state([0, 1], feats.n_features, mountain_car.N_ACTIONS)
+    records = allocate_records(2, episodes, 2, 2, np.array([episodes], np.int64), state.w.shape[1:])
+    settings = Settings(alpha=0.05, gamma=0.9, max_steps=1000, truncation_is_terminal=False, eval_every=30)
+    train_runs(_rule(algorithm, before, target_epsilon), settings, make_env(environment("MountainCar-v0")), feats,
+               state, epsilons, 0, episodes, records)
     return state, records
-
-
-@pytest.mark.parametrize(("algorithm", "target_epsilon"), ONE_STEP)
-@pytest.mark.parametrize("before", [False, True])
-def test_fast_path_equals_general_kernel_in_either_order(algorithm, target_epsilon, before):
-    fast = _mountain_car_runs(algorithm, before, target_epsilon, fast=True)
-    general = _mountain_car_runs(algorithm, before, target_epsilon, fast=False)
-    for name in kernel.Records._fields:
-        np.testing.assert_array_equal(getattr(fast[1], name), getattr(general[1], name), err_msg=name)
-    np.testing.assert_array_equal(fast[0].w, general[0].w)
-    np.testing.assert_array_equal(fast[0].rng, general[0].rng)
 
 
 @pytest.mark.parametrize(("algorithm", "target_epsilon"), ONE_STEP)
 def test_the_order_changes_what_is_learned_on_mountain_car(algorithm, target_epsilon):
     """On the 20 x 20 grid the car stays in its cell for most steps, so the two orders part at once (with
     ε < 1: at ε = 1 the values choose nothing)."""
-    after = _mountain_car_runs(algorithm, False, target_epsilon, fast=True, episodes=1, epsilon_start=0.5)
-    before = _mountain_car_runs(algorithm, True, target_epsilon, fast=True, episodes=1, epsilon_start=0.5)
+    after = _mountain_car_runs(algorithm, False, target_epsilon, episodes=1, epsilon_start=0.5)
+    before = _mountain_car_runs(algorithm, True, target_epsilon, episodes=1, epsilon_start=0.5)
     assert not np.array_equal(after[1].visits, before[1].visits)
     assert not np.array_equal(after[0].w, before[0].w)
-
-
-@pytest.mark.parametrize("impl", IMPLS)
-@pytest.mark.parametrize("algorithm", ["q_learning", "sarsa", "expected_sarsa", "double_q_learning"])
-@pytest.mark.parametrize("before", [False, True])
-def test_fast_episode_compiled_equals_py_func(impl, algorithm, before):
-    """One Mountain Car episode of the fast kernel, compiled and as plain Python, against the general kernel."""
-    grid = make_features(environment("MountainCar-v0"), "grid", 20, 1, 1, 0)
-    settings = kernel.Settings(algorithm=kernel.ALGORITHM_CODES[algorithm], alpha=0.05, gamma=0.9, max_steps=300,
-                               truncation_is_terminal=False, eval_every=0, next_action=_order(before))
-    outcomes = []
-    for episode in (_impl(impl, tabular.train_episode), None):
-        q, q2 = np.zeros((400, 3)), np.zeros((400, 3))
-        env_rng, agent_rng, visits = stream_state(5), stream_state(6), np.zeros(400, np.int64)
-        if episode is None:
-            out = kernel.one_step_episode(settings, make_env(environment("MountainCar-v0")), grid, q, q2, 0.3,
-                                          env_rng, agent_rng, visits)
-        else:
-            out = episode(settings, q, q2, grid.grid, 0.3, env_rng, agent_rng, visits)
-        outcomes.append((tuple(out), q, q2, agent_rng, visits))
-    (out_a, q_a, q2_a, rng_a, visits_a), (out_b, q_b, q2_b, rng_b, visits_b) = outcomes
-    assert out_a == out_b
-    np.testing.assert_array_equal(q_a, q_b)
-    np.testing.assert_array_equal(q2_a, q2_b)
-    np.testing.assert_array_equal(rng_a, rng_b)
-    np.testing.assert_array_equal(visits_a, visits_b)
-    assert np.any(q_a != 0.0)
 
 
 # --- the configuration field ---------------------------------------------------------------------------------
@@ -204,13 +163,15 @@ def test_each_method_defaults_to_its_book_box(algorithm, default):
     config = ExperimentConfig(algorithm=algorithm)
     assert config.next_action is None
     assert config.drawn_next == default
-    assert kernel_settings(config).next_action == kernel.DRAW_AS_BOX
+    rule = method_rule(config)
+    assert type(rule) is METHODS[algorithm].rule
+    assert rule.draw_before == (default == "before_update")
+    assert rule == method_rule(ExperimentConfig(algorithm=algorithm, next_action=default))
     assert config.name == ExperimentConfig(algorithm=algorithm, next_action=default).name == f"{algorithm}-decay"
     other = "before_update" if default == "after_update" else "after_update"
     moved = ExperimentConfig(algorithm=algorithm, next_action=other)
     assert moved.name == f"{algorithm}-decay-{other}"
-    assert kernel_settings(moved).next_action == (kernel.DRAW_BEFORE_UPDATE if other == "before_update"
-                                                   else kernel.DRAW_AFTER_UPDATE)
+    assert method_rule(moved).draw_before == (other == "before_update")
 
 
 @pytest.mark.parametrize(("algorithm", "value", "allowed"), [
@@ -237,9 +198,9 @@ def test_next_action_is_recorded_and_changes_results():
 @pytest.mark.parametrize("variant", ["reinforce", "reinforce_book"])
 def test_reinforce_variants_differ_only_by_the_discount_of_the_step(variant):
     """The paper's Algorithm 3 steps by α G_t; the book's 13.3 box by α γ^t G_t. With γ = 1 they coincide."""
-    settings = kernel_settings(ExperimentConfig(algorithm=variant))
-    assert settings.algorithm == kernel.REINFORCE
-    assert settings.discount_gradient == (variant == "reinforce_book")
+    rule = method_rule(ExperimentConfig(algorithm=variant))
+    assert type(rule) is Reinforce
+    assert rule == Reinforce(discount_gradient=variant == "reinforce_book", baseline_alpha=0.0)
     short = {"episodes": 3, "seeds": (0,), "eval_every": 0, "env": "CliffWalking-v1", "alpha": 0.1}
     for gamma, same in ((1.0, True), (0.9, False)):
         paper = run(ExperimentConfig(algorithm="reinforce", gamma=gamma, **short)).records.snapshots

@@ -1,5 +1,5 @@
-"""One registry of methods: the configuration, the kernels' settings, the fast path, the benchmark and the
-command line all read it."""
+"""One registry of methods: the configuration, the engine's rules, the benchmark and the command line all
+read it."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ from typer.testing import CliRunner
 from rlcompare import ConfigError, ExperimentConfig
 from rlcompare.algorithms.registry import METHODS, label
 from rlcompare.cli import app
-from rlcompare.engine import kernel, tabular
-from rlcompare.experiment.benchmark import FAST_ALGORITHMS, GENERAL_ALGORITHMS
+from rlcompare.algorithms.registry import BEFORE_UPDATE, FAMILIES
+from rlcompare.engine.episodes import LOOPS
+from rlcompare.experiment.benchmark import MULTI_STEP, ONE_STEP
 from rlcompare.experiment.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
-from rlcompare.experiment.runner import kernel_settings, uses_fast_path
+from rlcompare.experiment.runner import method_rule
 
 
 def test_the_configuration_accepts_exactly_the_registered_methods():
@@ -23,21 +24,28 @@ def test_the_configuration_accepts_exactly_the_registered_methods():
 
 
 @pytest.mark.parametrize("name", list(METHODS))
-def test_each_method_sets_the_kernel_as_its_entry_says(name):
+def test_each_method_gets_the_rule_its_entry_says(name):
     m = METHODS[name]
-    settings = kernel_settings(ExperimentConfig(algorithm=name))
-    assert settings.algorithm == m.code
-    assert settings.discount_gradient == m.discount_gradient
-    assert (settings.baseline_alpha > 0) == m.baseline
-    assert uses_fast_path(ExperimentConfig(algorithm=name)) == (m.one_step or m.family == "baseline")
-    assert uses_fast_path(ExperimentConfig(algorithm=name)) == (name in tabular.ALGORITHM_CODES)
-    assert kernel.ALGORITHM_CODES[name] == m.code
+    rule = method_rule(ExperimentConfig(algorithm=name))
+    assert type(rule) is m.rule
+    assert m.family in FAMILIES and m.family in LOOPS
+    if m.family == "policy gradient":
+        assert rule.discount_gradient == m.discount_gradient
+        assert (rule.baseline_alpha > 0) == m.baseline
+    if m.one_step:
+        assert rule.draw_before == (m.next_action == BEFORE_UPDATE)
+        assert m.update is not None
     assert NEXT_ACTION_DEFAULTS.get(name) == m.next_action
     assert label(name) == m.label
 
 
+def test_a_configured_order_overrides_the_box():
+    moved = method_rule(ExperimentConfig(algorithm="q_learning", next_action="before_update"))
+    assert moved.draw_before and not method_rule(ExperimentConfig(algorithm="q_learning")).draw_before
+
+
 def test_the_benchmark_measures_every_learner_once():
-    assert sorted((*FAST_ALGORITHMS, *GENERAL_ALGORITHMS)) == sorted(n for n, m in METHODS.items()
+    assert sorted((*ONE_STEP, *MULTI_STEP)) == sorted(n for n, m in METHODS.items()
                                                                      if m.family != "baseline")
 
 

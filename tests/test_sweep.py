@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from rlcompare import cli, run
-from rlcompare.engine.kernel import Records
+from rlcompare.engine.state import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.backends import LocalBackend
 from rlcompare.experiment.sweep import CONFIG_KEYS, SweepError, derive_seeds, load_sweep, parse_sweep

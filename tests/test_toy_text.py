@@ -6,13 +6,14 @@ import gymnasium as gym
 import numpy as np
 
 from rlcompare import ExperimentConfig, run
-from rlcompare.envs.table import from_gymnasium, reset, step
+from rlcompare.envs.table import from_gymnasium, observe, reset, step
 from rlcompare.rng import stream_state
 
 
 def test_taxi_resets_and_steps_as_gymnasium() -> None:
     """Taxi is deterministic; its start state is drawn as Gymnasium draws it (``cumsum > random()``), so
-    the first reset of stream ``PCG64(s)`` equals ``env.reset(seed=s)``."""
+    the first reset of stream ``PCG64(s)`` equals ``env.reset(seed=s)``; ``observe`` gives Gymnasium's
+    observation, the state's index."""
     table = from_gymnasium("Taxi-v4")
     env = gym.make("Taxi-v4")
     rng = np.random.default_rng(1)
@@ -21,11 +22,13 @@ def test_taxi_resets_and_steps_as_gymnasium() -> None:
         ours_rng = stream_state(seed)
         state = reset(table, ours_rng)
         assert state == observation
+        assert observe(table, state) == (observation,)
         for _ in range(100):
             action = int(rng.integers(6))
             observation, reward, terminated, _, _ = env.step(action)
             state, our_reward, ends = step(table, state, action, ours_rng)
             assert (state, our_reward, ends) == (observation, reward, terminated)
+            assert observe(table, state) == (observation,)
             if terminated:
                 break
 
@@ -82,10 +85,11 @@ def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
     """Resets draw from the environment stream and slips from a stream of their own, so after the same number
     of episodes every method has drawn the same starts, however long its episodes were and however often it
     slipped: the start state of episode k of seed s is the same for every method (common random numbers)."""
-    from rlcompare.engine import kernel
+    from rlcompare.engine.run import train_runs
+    from rlcompare.engine.state import ENV_STREAM, TRANSITION_STREAM, allocate_records, initial_state
     from rlcompare.experiment.config import ExperimentConfig
     from rlcompare.experiment.problem import make_env, make_features
-    from rlcompare.experiment.runner import epsilon_schedule, kernel_settings
+    from rlcompare.experiment.runner import epsilon_schedule, kernel_settings, method_rule
 
     for env_id in ("FrozenLake-v1", "Taxi-v4"):
         table, streams, lengths = from_gymnasium(env_id), {}, {}
@@ -93,20 +97,19 @@ def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
             config = ExperimentConfig(env=env_id, algorithm=algorithm, episodes=40, seeds=(3, 4), eval_every=20,
                                       schedule="constant", epsilon=0.3)
             features = make_features(config.environment, "grid", config.bins, 1, 1, 0)
-            state = kernel.initial_state(list(config.seeds), features.n_features, table.n_actions)
-            records = kernel.allocate_records(2, 40, 2, config.eval_episodes, np.array([40]), state.w.shape[1:])
-            kernel.train_runs(kernel_settings(config), make_env(config.environment), features, state,
-                              epsilon_schedule(config), 0, 40, records)
+            state = initial_state(list(config.seeds), features.n_features, table.n_actions)
+            records = allocate_records(2, 40, 2, config.eval_episodes, np.array([40]), state.w.shape[1:])
+            train_runs(method_rule(config), kernel_settings(config), make_env(config.environment), features, state,
+                       epsilon_schedule(config), 0, 40, records)
             streams[algorithm], lengths[algorithm] = state.rng.copy(), records.lengths.copy()
         for seed_index, seed in enumerate((3, 4)):
             expected = stream_state(seed)
             for _ in range(40):
                 reset(table, expected)
             for algorithm, rng in streams.items():
-                np.testing.assert_array_equal(rng[seed_index, kernel.ENV_STREAM], expected, err_msg=algorithm)
+                np.testing.assert_array_equal(rng[seed_index, ENV_STREAM], expected, err_msg=algorithm)
         assert not np.array_equal(lengths["random"], lengths["q_learning"])  # the episodes did differ
-        assert not np.array_equal(streams["random"][:, kernel.TRANSITION_STREAM],
-                                  streams["q_learning"][:, kernel.TRANSITION_STREAM])
+        assert not np.array_equal(streams["random"][:, TRANSITION_STREAM], streams["q_learning"][:, TRANSITION_STREAM])
 
 
 def test_the_adapter_draws_starts_and_slips_from_the_same_streams_as_the_table() -> None:

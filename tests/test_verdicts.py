@@ -36,7 +36,7 @@ from rlcompare.analysis.tables import (
     judge,
     judge_by_rule,
 )
-from rlcompare.engine.kernel import Records
+from rlcompare.engine.state import Records
 from rlcompare.envs.discretize import make_grid
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import grid_bounds

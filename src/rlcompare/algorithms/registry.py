@@ -34,7 +34,7 @@ class Method:
     """``values(rule, w, w2, actives, row, out, scratch)``: what the behaviour is ε-greedy in and the greedy
     policy greedy in, when it is not ``q`` (Double Q-Learning's ``Q1 + Q2``)."""
     snapshot: Callable | None = None
-    """``snapshot(rule, w, w2)``: the weights a snapshot keeps, when they are not ``w``."""
+    """``snapshot(rule, w, w2, out)``: write the weights a snapshot keeps into ``out``, when they are not ``w``."""
     reads: tuple[str, ...] = ()
     """Configuration fields it reads beyond the common ones (α, γ, ε and its schedule, the environment)."""
     next_action: str | None = None

@@ -164,11 +164,15 @@ def double_q_values(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, active
                     out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
     """What Double Q-Learning's behaviour is ε-greedy in, and its greedy policy greedy in: ``Q1 + Q2``."""
     action_values(w, actives, row, out)
-    out += action_values(w2, actives, row, scratch)
+    action_values(w2, actives, row, scratch)
+    for a in range(out.size):
+        out[a] += scratch[a]
     return out
 
 
 @njit(inline="always")
-def mean_of_tables(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray) -> np.ndarray:
-    """Double Q-Learning's single estimate, for snapshots and maps: ``(Q1 + Q2) / 2``."""
-    return (w + w2) / 2
+def mean_of_tables(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, out: np.ndarray) -> None:
+    """Double Q-Learning's single estimate, for snapshots and maps: ``(Q1 + Q2) / 2``, into ``out``."""
+    for i in range(w.shape[0]):
+        for a in range(w.shape[1]):
+            out[i, a] = (w[i, a] + w2[i, a]) / 2

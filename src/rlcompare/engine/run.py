@@ -74,7 +74,7 @@ def train_run(
                                ret, length, terminated)
         for stage in range(records.snapshot_episodes.size):
             if records.snapshot_episodes[stage] == completed:
-                records.snapshots[run, stage] = snapshot(rule, w, w2)
+                snapshot(rule, w, w2, records.snapshots[run, stage])
 
 
 @njit(inline="always")

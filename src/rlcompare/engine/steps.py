@@ -103,8 +103,10 @@ def _values_of_w(rule, w, w2, actives, row, out, scratch):
 
 
 @njit(inline="always")
-def _w(rule, w, w2):
-    return w.copy()
+def _copy_w(rule, w, w2, out):
+    for i in range(w.shape[0]):
+        for a in range(w.shape[1]):
+            out[i, a] = w[i, a]
 
 
 @by_type(_of_methods("values"), default=_values_of_w)
@@ -118,8 +120,9 @@ def update(rule, w, w2, actives, now, action, next_action, reward, terminal, alp
     """A one-step method's update of ``q(S, A)``, ``S`` in row ``now`` of ``actives`` and ``S'`` in the other."""
 
 
-@by_type(_of_methods("snapshot"), default=_w)
-def snapshot(rule, w, w2):
-    """The weights a snapshot keeps."""
+@by_type(_of_methods("snapshot"), default=_copy_w)
+def snapshot(rule, w, w2, out):
+    """Write the weights a snapshot keeps into ``out`` (element by element: an array assignment would compile
+    numba's shape-error messages, seconds of compile time)."""
 
 

@@ -23,10 +23,11 @@ from rlcompare.algorithms.registry import METHODS
 from rlcompare.envs.discretize import cell_indices, make_grid
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, environment, grid_bounds
-from rlcompare.experiment.runner import run, uses_fast_path
+from rlcompare.experiment.runner import run
 
-FAST_ALGORITHMS = tuple(name for name, m in METHODS.items() if m.one_step)
-GENERAL_ALGORITHMS = tuple(name for name, m in METHODS.items() if m.family not in ("baseline", "one-step"))
+ONE_STEP = tuple(name for name, m in METHODS.items() if m.one_step)
+MULTI_STEP = tuple(name for name, m in METHODS.items() if m.family not in ("baseline", "one-step"))
+"""The other learners: n-step, traces and policy gradient, benchmarked on shorter runs."""
 PORT_EPISODES = {name: environment(name).bench_episodes for name in (*PORTS, *TABLE_ENVIRONMENTS)
                  if environment(name).bench_episodes}
 """Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps on each port (its entry's)."""
@@ -61,8 +62,8 @@ def kernel_steps_per_second(
         timings = [run(config).meta["timings"] for _ in range(repeats)]
     finally:
         numba.set_num_threads(previous)
-    path = "Gymnasium adapter" if adapter else "fast kernel" if uses_fast_path(config) else "general kernel"
-    what = f"{algorithm} ({features}, {path})" if env == "MountainCar-v0" and not adapter else f"{env}, {path}"
+    what = f"{algorithm} ({features})" if env == "MountainCar-v0" and not adapter else \
+        f"{env}, {'Gymnasium adapter' if adapter else 'compiled port'}"
     return Measurement(what, threads, timings[0]["training_steps"],
                        statistics.median(t["wall_seconds"] for t in timings))
 
@@ -100,11 +101,11 @@ def gymnasium_steps_per_second(env: str = "MountainCar-v0", steps: int = 60_000,
 
 
 def run_benchmark(report: Callable[[Measurement], None] = lambda m: None) -> list[Measurement]:
-    """Every measurement, reported as it is taken: the Gymnasium loop, the paper's algorithms on the fast
-    kernel, then every other algorithm on the general kernel (shorter runs, as it is slower), and two on tiles."""
+    """Every measurement, reported as it is taken: the Gymnasium loop, the one-step methods, then the other
+    learners (shorter runs), and two on tiles."""
     threads = sorted({1, numba.config.NUMBA_NUM_THREADS})
-    plan = [(algorithm, "grid", 2000) for algorithm in FAST_ALGORITHMS]
-    plan += [(algorithm, "grid", 300) for algorithm in GENERAL_ALGORITHMS]
+    plan = [(algorithm, "grid", 2000) for algorithm in ONE_STEP]
+    plan += [(algorithm, "grid", 300) for algorithm in MULTI_STEP]
     plan += [(algorithm, "tiles", 300) for algorithm in ("sarsa", "sarsa_lambda")]
     measurements = [gymnasium_steps_per_second(steps=30_000)]
     report(measurements[-1])
