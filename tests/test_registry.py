@@ -7,9 +7,8 @@ import pytest
 from typer.testing import CliRunner
 
 from rlcompare import ConfigError, ExperimentConfig
-from rlcompare.algorithms.registry import METHODS, label
+from rlcompare.algorithms.registry import BEFORE_UPDATE, FAMILIES, METHODS, label
 from rlcompare.cli import app
-from rlcompare.algorithms.registry import BEFORE_UPDATE, FAMILIES
 from rlcompare.engine.episodes import LOOPS
 from rlcompare.experiment.benchmark import MULTI_STEP, ONE_STEP
 from rlcompare.experiment.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
@@ -28,7 +27,8 @@ def test_each_method_gets_the_rule_its_entry_says(name):
     m = METHODS[name]
     rule = method_rule(ExperimentConfig(algorithm=name))
     assert type(rule) is m.rule
-    assert m.family in FAMILIES and m.family in LOOPS
+    assert m.family in FAMILIES
+    assert m.family in LOOPS
     if m.family == "policy gradient":
         assert rule.discount_gradient == m.discount_gradient
         assert (rule.baseline_alpha > 0) == m.baseline
@@ -41,7 +41,8 @@ def test_each_method_gets_the_rule_its_entry_says(name):
 
 def test_a_configured_order_overrides_the_box():
     moved = method_rule(ExperimentConfig(algorithm="q_learning", next_action="before_update"))
-    assert moved.draw_before and not method_rule(ExperimentConfig(algorithm="q_learning")).draw_before
+    assert moved.draw_before
+    assert not method_rule(ExperimentConfig(algorithm="q_learning")).draw_before
 
 
 def test_the_benchmark_measures_every_learner_once():
