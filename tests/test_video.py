@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import os
 import subprocess
@@ -177,6 +178,30 @@ def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir:
         video.render_stage_videos(run_dir, tmp_path / "x", seed=0, stages=["late"])
     with pytest.raises(KeyError, match="seed"):
         video.render_stage_videos(run_dir, tmp_path / "x", seed=5)
+
+
+def test_workers_write_the_same_files_as_one_process(tmp_path: Path, run_dir: Path) -> None:
+    def plan(out: Path) -> list[video.VideoJob]:
+        return video.plan_stage_videos(run_dir, out, seed=0, stages=["early", "final"], max_steps=40)
+
+    serial = video.render_videos(plan(tmp_path / "serial"), workers=1)
+    parallel = video.render_videos(plan(tmp_path / "parallel"), workers=2)
+    stems = ["q_learning-decay-seed0-early", "q_learning-decay-seed0-final"]
+    assert [p.name for p in parallel] == [p.name for p in serial] == [f"{s}.{e}" for s in stems for e in ("mp4", "gif")]
+    assert [p.read_bytes() for p in parallel] == [p.read_bytes() for p in serial]
+    assert serial[0].read_bytes() != serial[2].read_bytes()  # two different videos, not one twice
+    assert sorted(p.name for p in (tmp_path / "parallel").iterdir()) == sorted(p.name for p in parallel)
+
+    for workers in (1, 2):  # a worker's error is raised as it is in this process
+        out = tmp_path / f"bad{workers}"
+        good = plan(out)[0]
+        bad = dataclasses.replace(good, stage="late", mp4=out / "late.mp4", gif=None)
+        with pytest.raises(KeyError, match="stage 'late' is not in this run"):
+            video.render_videos([good, bad], workers=workers)
+        assert not (out / "late.mp4").exists()
+        assert not list(out.glob(".*tmp*"))  # no temporary file left
+    with pytest.raises(ValueError, match="workers"):
+        video.render_videos([good], workers=0)
 
 
 def test_random_baseline_gets_one_video(tmp_path: Path) -> None:

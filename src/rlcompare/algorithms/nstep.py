@@ -20,10 +20,20 @@ class NStepSarsa(NamedTuple):
 
 
 @njit(inline="always")
-def n_step_rewards(rewards: np.ndarray, tau: int, n: int, horizon: int, gamma: float) -> float:
-    """``sum over i from τ+1 to min(τ+n, T) of γ^(i-τ-1) R_i``, the rewards part of the n-step return."""
+def powers(gamma: float, n: int) -> np.ndarray:
+    """``γ^0 .. γ^n``, each computed as ``gamma ** j``."""
+    out = np.empty(n + 1)
+    for j in range(n + 1):
+        out[j] = gamma ** j
+    return out
+
+
+@njit(inline="always")
+def n_step_rewards(rewards: np.ndarray, tau: int, n: int, horizon: int, discounts: np.ndarray) -> float:
+    """``sum over i from τ+1 to min(τ+n, T) of γ^(i-τ-1) R_i``, the rewards part of the n-step return
+    (``discounts`` holds the powers of γ)."""
     size = rewards.size
     ret = 0.0
     for k in range(tau + 1, min(tau + n, horizon) + 1):
-        ret += gamma ** (k - tau - 1) * rewards[k % size]
+        ret += discounts[k - tau - 1] * rewards[k % size]
     return ret

@@ -152,7 +152,16 @@ def double_q_update(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, active
                     action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
                     epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """6.7: a fair coin picks which estimate learns; it picks the next action, the other values it."""
-    learner, other = (w, w2) if next_double(rng) < 0.5 else (w2, w)
+    if next_double(rng) < 0.5:
+        _double_q_step(w, w2, actives, now, action, reward, terminal, alpha, gamma, q_next, scratch)
+    else:
+        _double_q_step(w2, w, actives, now, action, reward, terminal, alpha, gamma, q_next, scratch)
+
+
+@njit(inline="always")
+def _double_q_step(learner: np.ndarray, other: np.ndarray, actives: np.ndarray, now: int, action: int,
+                   reward: float, terminal: bool, alpha: float, gamma: float, q_next: np.ndarray,
+                   scratch: np.ndarray) -> None:
     then = 1 - now
     target = double_q_target(reward, action_values(learner, actives, then, q_next),
                              action_values(other, actives, then, scratch), gamma, terminal)

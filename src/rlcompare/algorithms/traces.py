@@ -2,7 +2,8 @@
 
 ``z`` holds a trace per weight. Only the pairs listed in ``touched`` (flagged in ``listed``) can be non-zero, so
 decaying, applying or cutting the traces costs the number of pairs visited in the episode, not the size of
-``w``. A pair enters the list the first time its trace is marked and leaves it when the traces are cleared.
+``w``. A pair enters the list the first time its trace is marked and leaves it when the traces are cleared. Pairs
+are listed by their flat index ``i * actions + a`` into ``w`` and ``z``, which are C-contiguous.
 """
 
 from __future__ import annotations
@@ -47,26 +48,24 @@ def mark(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int,
 @njit(inline="always")
 def apply(w: np.ndarray, z: np.ndarray, touched: np.ndarray, n_touched: int, step_size: float) -> None:
     """``w += step_size * z`` over the listed pairs (``step_size`` is α δ)."""
-    n_actions = z.shape[1]
+    w_flat, z_flat = w.reshape(w.size), z.reshape(z.size)
     for k in range(n_touched):
-        i, a = divmod(touched[k], n_actions)
-        w[i, a] += step_size * z[i, a]
+        w_flat[touched[k]] += step_size * z_flat[touched[k]]
 
 
 @njit(inline="always")
 def decay(z: np.ndarray, touched: np.ndarray, n_touched: int, factor: float) -> None:
     """``z *= factor`` (γ λ) over the listed pairs."""
-    n_actions = z.shape[1]
+    z_flat = z.reshape(z.size)
     for k in range(n_touched):
-        i, a = divmod(touched[k], n_actions)
-        z[i, a] *= factor
+        z_flat[touched[k]] *= factor
 
 
 @njit(inline="always")
 def clear(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int) -> int:
     """Every trace to 0 and the list emptied; returns its new length, 0."""
+    z_flat = z.reshape(z.size)
     for k in range(n_touched):
-        i, a = divmod(touched[k], z.shape[1])
-        z[i, a] = 0.0
+        z_flat[touched[k]] = 0.0
         listed[touched[k]] = False
     return 0

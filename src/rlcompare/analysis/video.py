@@ -21,22 +21,34 @@ Rendering needs no display: the first call that renders sets ``SDL_VIDEODRIVER=d
 pygame's banner) with ``os.environ.setdefault``, so a value set by the user wins. Importing this module
 changes nothing.
 
-Cost, measured on 2 cores: Gymnasium's renderer takes about 1.7 ms a frame and the whole Python side
-(step, render, caption, GIF frame) about 2.6 ms; ffmpeg encodes the MP4 in its own process meanwhile
-(about 2.4 ms of CPU a frame), so one pass over an episode does everything. A 1000-step video (MP4 and
-GIF) takes about 3.3 s, a 150-step one about 0.5 s; the five paper configurations (random and 4 x 3
-stages) took 13.5 s in all.
+Videos render in parallel, one per worker process (:func:`render_videos`; ``workers=1`` renders them in
+this process, one after the other), and the files are the same byte for byte whatever the number of
+workers. Workers start with ``spawn``, so a script that renders with more than one worker needs the usual
+``if __name__ == "__main__":`` guard.
+
+Cost, measured on 2 cores: Gymnasium's step and render take about 2 to 4 ms a frame and the whole Python
+side (with the caption and the GIF frame) about 4 to 6 ms; ffmpeg 9 encodes the MP4 in its own process meanwhile
+(about 4.8 ms of CPU a frame, 1.3 ms of it turning RGB into YUV), so one video already keeps about 1.7
+cores busy. A 1000-step video (MP4 and GIF) takes about 6 s alone. So by default one worker renders per
+two cores (:func:`default_workers`): on 2 cores two workers took 5 to 15 % more CPU time than one and were
+no faster. Each worker spends about 1.5 s of a core starting (imports, the compiled grid lookup), once for
+all its videos.
 """
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import itertools
 import math
+import multiprocessing
 import os
 import re
 import secrets
+import time
 from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -460,7 +472,38 @@ def _render_video(agent: Agent, title: str, mp4: Path, gif: Path | None, *, seed
     return [mp4, small.save(gif, fps)]
 
 
-def render_stage_videos(
+@dataclass(frozen=True)
+class VideoJob:
+    """One video to render: paths and numbers only, so it pickles small for a worker process, which loads
+    the agent from the run directory itself."""
+
+    run_dir: Path
+    seed: int
+    """Training seed of the agent."""
+    stage: str
+    """Stage whose Q-table is loaded (the random baseline: the last; its policy does not depend on it)."""
+    title: str
+    mp4: Path
+    gif: Path | None
+    episode_seed: int
+    max_steps: int
+    fps: float
+    env_id: str
+
+    @property
+    def outputs(self) -> list[Path]:
+        """The files it writes: the MP4, then the GIF if any."""
+        return [self.mp4] if self.gif is None else [self.mp4, self.gif]
+
+
+def render_job(job: VideoJob) -> list[Path]:
+    """Load the agent of ``job`` and render its video (MP4, then GIF); the paths written."""
+    agent = load_agent(job.run_dir, seed=job.seed, stage=job.stage)
+    return _render_video(agent, job.title, job.mp4, job.gif, seed=job.seed, episode_seed=job.episode_seed,
+                         max_steps=job.max_steps, fps=job.fps, env_id=job.env_id)
+
+
+def plan_stage_videos(
     run_dir: Path,
     out_dir: Path,
     *,
@@ -470,20 +513,15 @@ def render_stage_videos(
     max_steps: int | None = None,
     gif: bool = True,
     fps: float = FPS,
-) -> list[Path]:
-    """One MP4 (and GIF) per stage of learning of training seed ``seed`` in ``run_dir``.
+    config: ExperimentConfig | None = None,
+) -> list[VideoJob]:
+    """The videos :func:`render_stage_videos` renders, in its order, without rendering any.
 
-    Files are ``{config.name}-seed{seed}-{stage}.mp4`` / ``.gif`` in ``out_dir``, returned in stage
-    order, each MP4 followed by its GIF. ``stages`` defaults to the run's ``config.stages``; ``max_steps``
-    to the run's episode limit. The random baseline gets one video, ``random-seed{seed}.mp4`` (``stages``
-    is then ignored), since its policy does not change with training.
-
-    Stages are rendered one after the other: the MP4 encoder already runs beside the renderer, so on
-    two cores extra processes only add start-up time (each has to import Gymnasium and compile the
-    grid lookup). To use more cores, render several configurations at once.
+    ``config`` is the run's, where the caller has loaded it already; else it is read from ``run_dir``.
+    Unknown seeds and stages raise :class:`KeyError` here, before anything is rendered.
     """
     run_dir, out_dir = Path(run_dir), Path(out_dir)
-    config = Results.load(run_dir).config
+    config = Results.load(run_dir).config if config is None else config
     known = [name for name, _ in config.stages]
     if seed not in config.seeds:
         raise KeyError(f"seed {seed} is not in this run; seeds: {list(config.seeds)}")
@@ -496,10 +534,135 @@ def render_stage_videos(
         if unknown:
             raise KeyError(f"stage {unknown[0]!r} is not in this run; stages: {known}")
         plan = [(name, stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
-    written: list[Path] = []
-    for stage, title, stem in plan:
-        agent = load_agent(run_dir, seed=seed, stage=stage)
-        written += _render_video(agent, title, out_dir / f"{stem}.mp4", out_dir / f"{stem}.gif" if gif else None,
-                                 seed=seed, episode_seed=int(episode_seed), max_steps=limit, fps=fps,
-                                 env_id=gymnasium_id(config))
-    return written
+    return [VideoJob(run_dir=run_dir, seed=int(seed), stage=stage, title=title, mp4=out_dir / f"{stem}.mp4",
+                     gif=out_dir / f"{stem}.gif" if gif else None, episode_seed=int(episode_seed), max_steps=limit,
+                     fps=float(fps), env_id=gymnasium_id(config))
+            for stage, title, stem in plan]
+
+
+_START_METHOD = "spawn"
+"""How worker processes start: fresh interpreters (not ``fork``, which would copy the parent's threads and
+open renderers); each imports what it needs, about 1.5 s of one core, once for all its videos."""
+
+
+def default_workers() -> int:
+    """Processes that render at once by default: one per two cores, since each render keeps about 1.7
+    cores busy (Python steps and draws, ffmpeg encodes beside it); so 1, in this process, on 2 cores."""
+    return max(1, (os.cpu_count() or 1) // 2)
+
+
+class VideoRenders:
+    """Videos being rendered, from :func:`start_videos`; :meth:`wait` for their paths.
+
+    With more than one worker and more than one job they render in a pool of worker processes, started
+    at once, so the caller can do other work meanwhile; otherwise they render in this process when
+    :meth:`wait` is called. Use it as a context manager: leaving the block cancels what has not started
+    and waits for what has (a render is never cut off halfway; each file is written atomically anyway).
+    """
+
+    def __init__(self, jobs: Sequence[VideoJob], workers: int | None = None) -> None:
+        workers = default_workers() if workers is None else int(workers)
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1; got {workers}")
+        self.jobs = list(jobs)
+        self.workers = min(workers, len(self.jobs))
+        self._pool: ProcessPoolExecutor | None = None
+        self._futures: list[Future[list[Path]]] = []
+        self.started: float | None = None
+        """``time.perf_counter()`` when rendering began: here with a pool, else when :meth:`wait` was called."""
+        if self.workers > 1:
+            self.started = time.perf_counter()
+            # Workers enter nothing in a directory's list of outputs (each process would rewrite the list
+            # from what it read): every file is entered here, once, before any is rendered.
+            for paths in _by_directory(path for job in self.jobs for path in job.outputs):
+                store.enter_outputs(*paths)
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context(_START_METHOD))
+            try:
+                self._futures = [self._pool.submit(render_job, job) for job in self.jobs]
+            except BaseException:
+                self.close()
+                raise
+
+    def wait(self) -> list[Path]:
+        """The files written, in the jobs' order, each MP4 followed by its GIF.
+
+        The first job (in their order) that failed raises what it raised, as it would in this process;
+        the others that had not started are cancelled.
+        """
+        if self._pool is None:
+            self.started = time.perf_counter()
+            return [path for job in self.jobs for path in render_job(job)]
+        concurrent.futures.wait(self._futures, return_when=concurrent.futures.FIRST_EXCEPTION)
+        if any(f.done() and not f.cancelled() and f.exception() is not None for f in self._futures):
+            self.close()  # cancel what has not started, let the rest finish
+            for job, future in zip(self.jobs, self._futures, strict=True):
+                error = None if future.cancelled() else future.exception()
+                if isinstance(error, BrokenProcessPool):
+                    raise RuntimeError(f"{job.mp4}: a process rendering the videos died before it finished "
+                                       "(killed, out of memory, or started from a script without "
+                                       f"'if __name__ == \"__main__\":'?): {error}") from error
+                if error is not None:
+                    raise error
+        return [path for future in self._futures for path in future.result()]
+
+    def close(self) -> None:
+        """Cancel the jobs not started and wait for the worker processes to finish the others."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> VideoRenders:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+def _by_directory(paths: Iterable[Path]) -> list[list[Path]]:
+    groups: dict[Path, list[Path]] = {}
+    for path in paths:
+        groups.setdefault(Path(path).absolute().parent, []).append(Path(path))
+    return list(groups.values())
+
+
+def start_videos(jobs: Sequence[VideoJob], *, workers: int | None = None) -> VideoRenders:
+    """Start rendering ``jobs`` on ``workers`` processes (default: :func:`default_workers`; 1: in this
+    process, when waited for). Use the result as a context manager and call its ``wait()`` for the paths."""
+    return VideoRenders(jobs, workers)
+
+
+def render_videos(jobs: Sequence[VideoJob], *, workers: int | None = None) -> list[Path]:
+    """Render ``jobs`` on ``workers`` processes (see :func:`start_videos`); the files, in the jobs' order.
+
+    The files are the same, byte for byte, whatever the number of workers: each video is rendered by one
+    process, from the same agent and start state, and x264 runs on one thread.
+    """
+    with start_videos(jobs, workers=workers) as renders:
+        return renders.wait()
+
+
+def render_stage_videos(
+    run_dir: Path,
+    out_dir: Path,
+    *,
+    seed: int,
+    stages: Sequence[str] | None = None,
+    episode_seed: int = DEFAULT_EPISODE_SEED,
+    max_steps: int | None = None,
+    gif: bool = True,
+    fps: float = FPS,
+    workers: int | None = None,
+) -> list[Path]:
+    """One MP4 (and GIF) per stage of learning of training seed ``seed`` in ``run_dir``.
+
+    Files are ``{config.name}-seed{seed}-{stage}.mp4`` / ``.gif`` in ``out_dir``, returned in stage
+    order, each MP4 followed by its GIF. ``stages`` defaults to the run's ``config.stages``; ``max_steps``
+    to the run's episode limit. The random baseline gets one video, ``random-seed{seed}.mp4`` (``stages``
+    is then ignored), since its policy does not change with training.
+
+    The stages render at once on ``workers`` processes (default: :func:`default_workers`; 1: one after
+    the other in this process); the files are the same either way. To render several runs' videos in one pool,
+    pass their :func:`plan_stage_videos` together to :func:`render_videos`.
+    """
+    jobs = plan_stage_videos(run_dir, out_dir, seed=seed, stages=stages, episode_seed=episode_seed,
+                             max_steps=max_steps, gif=gif, fps=fps)
+    return render_videos(jobs, workers=workers)

@@ -124,6 +124,7 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     actions = np.zeros(size, np.int64)
     rewards = np.zeros(size)
     q = np.empty(w.shape[1])
+    discounts = nstep.powers(gamma, n)
     state = reset(env, env_rng)
     activate(features, observe(env, state), actives, 0)
     actions[0] = epsilon_greedy_action(action_values(w, actives, 0, q), epsilon, agent_rng)
@@ -146,10 +147,10 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
                 actions[later] = epsilon_greedy_action(action_values(w, actives, later, q), epsilon, agent_rng)
         tau = t - n + 1
         if tau >= 0:
-            ret = nstep.n_step_rewards(rewards, tau, n, horizon, gamma)
+            ret = nstep.n_step_rewards(rewards, tau, n, horizon, discounts)
             end = min(tau + n, horizon)
             if tau + n < horizon or bootstrap_end:
-                ret += gamma ** (end - tau) * action_value(w, actives, end % size, actions[end % size])
+                ret += discounts[end - tau] * action_value(w, actives, end % size, actions[end % size])
             start = tau % size
             add_to_action(w, actives, start, actions[start],
                           alpha * (ret - action_value(w, actives, start, actions[start])))

@@ -37,7 +37,7 @@ from rlcompare.analysis.tables import (
     table_i,
     table_ii,
 )
-from rlcompare.analysis.video import gymnasium_id, render_stage_videos
+from rlcompare.analysis.video import VideoJob, VideoRenders, gymnasium_id, plan_stage_videos, start_videos
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
 from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
@@ -86,7 +86,11 @@ def _scaled(claim: Claim, episodes: int) -> Claim:
 
 @dataclass
 class ReportOutcome:
-    """Where the report went, what could not be built, and how long each part took."""
+    """Where the report went, what could not be built, and how long each part took.
+
+    With more than one video worker the videos render in other processes from the start, beside the
+    tables and figures, so their ``seconds`` (from their start until the last is written) overlap the
+    others'."""
 
     path: Path
     findings: list[str] = field(default_factory=list)
@@ -173,18 +177,44 @@ def first_actions_figure(runs: list[Results]) -> Figure:
     return figure
 
 
-def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None) -> ReportOutcome:
-    """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``."""
+def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None,
+                 video_workers: int | None = None) -> ReportOutcome:
+    """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``.
+
+    The videos render on ``video_workers`` processes (default: see
+    :func:`~rlcompare.analysis.video.default_workers`; 1: in this process, after the figures) while this
+    process builds the tables and figures; the files are the same whatever the number.
+    """
     with store.rewriting(Path(study_dir), "study"):
-        return _build_report(Path(study_dir), videos, video_seed)
+        return _build_report(Path(study_dir), videos, video_seed, video_workers)
 
 
-def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> ReportOutcome:
+def _video_plan(study_dir: Path, runs: dict[str, Results], video_seed: int | None) -> list[tuple[str, VideoJob]]:
+    """Each video of the paper's configurations with its caption in the report, in the report's order."""
+    plan = []
+    for name, results in ((n, r) for n, r in runs.items() if n in CONFIGURATIONS):
+        seed = results.seeds[0] if video_seed is None else video_seed
+        for job in plan_stage_videos(study_dir / name, study_dir / "videos", seed=seed, config=results.config):
+            stage = "random policy" if results.config.algorithm == "random" else job.stage
+            plan.append((f"{label(results)}, seed {seed}: {stage}", job))
+    return plan
+
+
+def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> ReportOutcome:
     started = time.perf_counter()
     runs, problems = load_study(study_dir)
     if not runs:
         raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
                                + "; ".join(problems))
+    plan = _video_plan(study_dir, runs, video_seed) if videos else []
+    with start_videos([job for _, job in plan], workers=video_workers) as renders:
+        return _build_report_beside(study_dir, runs, problems, plan, renders, started)
+
+
+def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: list[str],
+                         plan: list[tuple[str, VideoJob]], renders: VideoRenders,
+                         started: float) -> ReportOutcome:
+    """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page."""
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
     position_velocity = on_position_velocity_grid(first.config)
@@ -236,19 +266,13 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None) -> Repo
                                        "SARSA minus Q-Learning = order + target + interaction"))
     seconds["figures"] = time.perf_counter() - mark
 
-    mark = time.perf_counter()
     video_cells = []
-    if videos:
-        for name, results in ((n, r) for n, r in runs.items() if n in CONFIGURATIONS):
-            seed = results.seeds[0] if video_seed is None else video_seed
-            stages = iter([None] if results.config.algorithm == "random" else [n for n, _ in results.config.stages])
-            for mp4 in (p for p in render_stage_videos(study_dir / name, study_dir / "videos", seed=seed)
-                        if p.suffix == ".mp4"):
-                gif = mp4.with_suffix(".gif")
-                stage = next(stages) or "random policy"
-                video_cells.append((f"videos/{mp4.name}", f"videos/{gif.name}" if gif.exists() else "",
-                                    f"{label(results)}, seed {seed}: {stage}"))
-        seconds["videos"] = time.perf_counter() - mark
+    if plan:
+        written = set(renders.wait())
+        for caption, job in plan:
+            gif = job.gif if job.gif is not None and job.gif in written else None
+            video_cells.append((f"videos/{job.mp4.name}", f"videos/{gif.name}" if gif is not None else "", caption))
+        seconds["videos"] = time.perf_counter() - (renders.started or started)
 
     sections = [Section("Findings", findings),
                 *_sections(first, runs, metrics, tables, curve_figures, explanation_figures, video_cells)]
