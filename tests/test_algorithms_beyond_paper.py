@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from rlcompare import ConfigError, ExperimentConfig, run
-from rlcompare.algorithms import nstep, td, traces
+from rlcompare.algorithms import td, traces
 from rlcompare.algorithms.policies import RandomActions, epsilon_greedy_action, uniform_action
 from rlcompare.algorithms.registry import BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.reinforce import Reinforce
@@ -51,9 +51,9 @@ from rlcompare.engine.state import (
 )
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_indices
-from rlcompare.envs.features import OneHot
+from rlcompare.envs.features import OneHot, make_features
+from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
-from rlcompare.experiment.problem import environment, make_env, make_features
 from rlcompare.rng import next_double, stream_state
 
 IMPLS = ["compiled", "py_func"]
@@ -120,15 +120,6 @@ def _advanced(seed: int, count: int) -> np.ndarray:
 
 
 EPISODE_IMPLS = ["compiled", "train_run"]
-LOOPS = {
-    td.QLearning: loops.one_step_episode, td.Sarsa: loops.one_step_episode, td.ExpectedSarsa: loops.one_step_episode,
-    td.DoubleQLearning: loops.one_step_episode, nstep.NStepSarsa: loops.n_step_episode,
-    traces.SarsaLambda: loops.lambda_episode, traces.QLambda: loops.lambda_episode,
-    Reinforce: loops.reinforce_episode, RandomActions: loops.random_episode,
-}
-"""The episode loop of each rule, as the book groups the methods."""
-
-
 def _no_traces() -> loops.Traces:
     """The stub the loops of methods without traces are given."""
     return loops.Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
@@ -156,7 +147,7 @@ class Episode:
         if impl == "train_run":
             out = self._train_run(rule, settings, table_env, features, epsilon)
         else:
-            out = _compiled(LOOPS[type(rule)])(rule, settings, table_env, features, self.w, self.w2, self.work,
+            out = _compiled(loops.LOOPS[type(rule)][0])(rule, settings, table_env, features, self.w, self.w2, self.work,
                                                epsilon, self.env_rng, self.agent_rng, self.transitions, self.visits)
         self.ret, self.steps, self.terminated = float(out[0]), int(out[1]), bool(out[2])
 

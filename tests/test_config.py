@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from rlcompare import ConfigError, ExperimentConfig
 from rlcompare.engine.state import allocate_records
+from rlcompare.envs.features import make_features
 from rlcompare.experiment import config as config_module
 from rlcompare.experiment.config import quote, records_bytes
-from rlcompare.experiment.problem import make_features
 from rlcompare.experiment.runner import epsilon_schedule
 
 

@@ -23,9 +23,9 @@ from rlcompare.engine import episodes
 from rlcompare.engine.run import train_runs
 from rlcompare.engine.state import Settings, allocate_records, initial_state
 from rlcompare.envs import mountain_car
-from rlcompare.envs.features import OneHot
+from rlcompare.envs.features import OneHot, make_features
+from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import chain
-from rlcompare.experiment.problem import environment, make_env, make_features
 from rlcompare.experiment.runner import method_rule
 from rlcompare.rng import stream_state
 
@@ -61,8 +61,9 @@ def _chain_episode(algorithm: str, before: bool, seed: int = 0, w2=None):
     w = np.array(W0)
     w2 = np.zeros_like(w) if w2 is None else np.array(w2)
     agent_rng, visits = stream_state(seed), np.zeros(2, np.int64)
-    ret, steps, terminated = _compiled(episodes.one_step_episode)(
-        _rule(algorithm, before), SETTINGS, table_env, OneHot(2), w, w2, _no_traces(), 0.0, stream_state(1000),
+    rule = _rule(algorithm, before)
+    ret, steps, terminated = _compiled(episodes.LOOPS[type(rule)][0])(
+        rule, SETTINGS, table_env, OneHot(2), w, w2, _no_traces(), 0.0, stream_state(1000),
         agent_rng, stream_state(2000), visits)
     assert (ret, terminated) == (1.0, True)
     return w, w2, steps, visits, agent_rng

@@ -28,7 +28,7 @@ def test_each_method_gets_the_rule_its_entry_says(name):
     rule = method_rule(ExperimentConfig(algorithm=name))
     assert type(rule) is m.rule
     assert m.family in FAMILIES
-    assert m.family in LOOPS
+    assert m.rule in LOOPS
     if m.family == "policy gradient":
         assert rule.discount_gradient == m.discount_gradient
         assert (rule.baseline_alpha > 0) == m.baseline
@@ -71,8 +71,8 @@ def test_every_study_listed_is_one_the_command_can_run():
 
 
 def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entrys():
+    from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, environment
     from rlcompare.experiment.benchmark import PORT_EPISODES
-    from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, environment
 
     assert set(PORT_EPISODES) == {*PORTS, *TABLE_ENVIRONMENTS} - {"MountainCar-book"}
     assert all(PORT_EPISODES[name] == environment(name).bench_episodes for name in PORT_EPISODES)

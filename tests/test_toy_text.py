@@ -87,8 +87,9 @@ def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
     slipped: the start state of episode k of seed s is the same for every method (common random numbers)."""
     from rlcompare.engine.run import train_runs
     from rlcompare.engine.state import ENV_STREAM, TRANSITION_STREAM, allocate_records, initial_state
+    from rlcompare.envs.features import make_features
+    from rlcompare.envs.registry import make_env
     from rlcompare.experiment.config import ExperimentConfig
-    from rlcompare.experiment.problem import make_env, make_features
     from rlcompare.experiment.runner import epsilon_schedule, kernel_settings, method_rule
 
     for env_id in ("FrozenLake-v1", "Taxi-v4"):

@@ -38,8 +38,8 @@ from rlcompare.analysis.tables import (
 )
 from rlcompare.engine.state import Records
 from rlcompare.envs.discretize import make_grid
+from rlcompare.envs.features import grid_bounds
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import grid_bounds
 from rlcompare.experiment.results import Results
 
 

@@ -17,10 +17,11 @@ from numba import njit
 def action_value(w: np.ndarray, actives: np.ndarray, row: int, action: int) -> float:
     """``q(s, action)`` for the state whose active features are ``actives[row]``."""
     if actives.shape[1] == 1:  # the grid, a table: one feature, no loop
-        return w[actives[row, 0], action]
-    total = 0.0
-    for k in range(actives.shape[1]):
-        total += w[actives[row, k], action]
+        total = w[actives[row, 0], action]
+    else:
+        total = 0.0
+        for k in range(actives.shape[1]):
+            total += w[actives[row, k], action]
     return total
 
 
@@ -37,9 +38,9 @@ def add_to_action(w: np.ndarray, actives: np.ndarray, row: int, action: int, amo
     """A semi-gradient step of ``amount`` on ``q(s, action)`` (9.5)."""
     if actives.shape[1] == 1:
         w[actives[row, 0], action] += amount
-        return
-    for k in range(actives.shape[1]):
-        w[actives[row, k], action] += amount
+    else:
+        for k in range(actives.shape[1]):
+            w[actives[row, k], action] += amount
 
 
 @njit(inline="always")
@@ -47,6 +48,6 @@ def count_visit(visits: np.ndarray, actives: np.ndarray, row: int) -> None:
     """One more step taken with each of the state's features active."""
     if actives.shape[1] == 1:
         visits[actives[row, 0]] += 1
-        return
-    for k in range(actives.shape[1]):
-        visits[actives[row, k]] += 1
+    else:
+        for k in range(actives.shape[1]):
+            visits[actives[row, k]] += 1

@@ -7,8 +7,8 @@ import numpy as np
 from rlcompare.analysis.plots import MapFrame
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
+from rlcompare.envs.features import grid_bounds
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import grid_bounds
 from rlcompare.experiment.results import Results
 
 

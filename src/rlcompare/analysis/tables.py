@@ -50,7 +50,7 @@ from rlcompare.analysis.stats import (
     verdict,
 )
 from rlcompare.envs.discretize import make_grid
-from rlcompare.experiment.problem import grid_bounds
+from rlcompare.envs.features import grid_bounds
 from rlcompare.experiment.results import Results
 
 LEFT = 0

@@ -58,10 +58,10 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from rlcompare.algorithms.registry import label as method_label
+from rlcompare.envs.registry import environment
 from rlcompare.experiment import store
 from rlcompare.experiment.agent import load_agent
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import environment
 from rlcompare.experiment.results import Results
 
 DEFAULT_EPISODE_SEED = 10_000

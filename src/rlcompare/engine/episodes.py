@@ -1,5 +1,10 @@
 """One episode loop per family of methods, written once for every environment, features and method of the
-family; :func:`train_episode` picks the family's loop by the type of the rule when the run loop compiles.
+family; :func:`train_episode` picks the method's loop by the type of its rule when the run loop compiles.
+
+The one-step loop is built for each method with its update and the values it acts on compiled in
+(:func:`one_step_loop`), and the evaluation loop with the action of its target policy (:func:`evaluation_loop`):
+a call chosen by type on every step would cost a third of the speed, and inlining it at numba's level several
+times the compile time.
 
 - one-step: Q-Learning (the paper's Algorithm 1), SARSA (Algorithm 2), Expected SARSA, Double Q-Learning;
 - n-step SARSA (7.2); SARSA(λ) and Watkins's Q(λ) (12.7, 12.10); REINFORCE (13.3, 13.4; Algorithm 3);
@@ -12,6 +17,7 @@ bootstraps unless ``settings.truncation_is_terminal``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -20,11 +26,11 @@ from numba import njit
 from rlcompare.algorithms import nstep, traces
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action, count_visit
 from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
-from rlcompare.algorithms.registry import METHODS
+from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
 from rlcompare.engine.state import Settings
-from rlcompare.engine.steps import activate, behaviour_values, by_type, n_active, observe, reset, step, update
+from rlcompare.engine.steps import activate, by_type, n_active, observe, reset, step
 
 
 class Traces(NamedTuple):
@@ -46,42 +52,54 @@ def _outcome(settings: Settings, steps: int, terminated: bool) -> tuple[bool, bo
 # --- one-step methods -----------------------------------------------------------------------------------
 
 
-@njit
-def one_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
-                     epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
-                     visits: np.ndarray) -> tuple[float, int, bool]:
-    """One episode of a one-step method (6.4-6.7). The next action A' is drawn before the update of ``q(S, A)``
-    (SARSA's box) or after it, at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
-    n_actions = w.shape[1]
-    actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
-    q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
-    now = 0
-    state = reset(env, env_rng)
-    activate(features, observe(env, state), actives, now)
-    action = epsilon_greedy_action(behaviour_values(rule, w, w2, actives, now, q, scratch), epsilon, agent_rng)
-    episode_return, steps = 0.0, 0
-    while True:
-        then = 1 - now
-        count_visit(visits, actives, now)
-        state, reward, terminated = step(env, state, action, transitions)
-        episode_return += reward
-        steps += 1
-        truncated, terminal = _outcome(settings, steps, terminated)
-        activate(features, observe(env, state), actives, then)
-        next_action = 0
-        if rule.draw_before and not terminal:
-            next_action = epsilon_greedy_action(behaviour_values(rule, w, w2, actives, then, q, scratch), epsilon,
-                                                agent_rng)
-        update(rule, w, w2, actives, now, action, next_action, reward, terminal, settings.alpha, settings.gamma,
-               epsilon, agent_rng, q_next, scratch)
-        if terminated or truncated:
-            break
-        if not rule.draw_before:  # after the update, which may have changed q(S', .)
-            next_action = epsilon_greedy_action(behaviour_values(rule, w, w2, actives, then, q, scratch), epsilon,
-                                                agent_rng)
-        action = next_action
-        now = then
-    return episode_return, steps, terminated
+@njit(inline="always")
+def values_of_w(rule, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: int, out: np.ndarray,
+                scratch: np.ndarray) -> np.ndarray:
+    """``q(s, .)``: what a method acts on unless its entry says otherwise (Double Q-Learning's ``Q1 + Q2``)."""
+    return action_values(w, actives, row, out)
+
+
+def one_step_loop(update: Callable, values: Callable = values_of_w) -> Callable:
+    """The one-step loop (6.4-6.7) of a method with this update of ``q(S, A)`` and these behaviour values."""
+
+    @njit
+    def one_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
+                         epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                         visits: np.ndarray) -> tuple[float, int, bool]:
+        """One episode. The next action A' is drawn before the update of ``q(S, A)`` (SARSA's box) or after it,
+        at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
+        n_actions = w.shape[1]
+        actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
+        q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
+        now = 0
+        state = reset(env, env_rng)
+        activate(features, observe(env, state), actives, now)
+        action = epsilon_greedy_action(values(rule, w, w2, actives, now, q, scratch), epsilon, agent_rng)
+        episode_return, steps = 0.0, 0
+        while True:
+            then = 1 - now
+            count_visit(visits, actives, now)
+            state, reward, terminated = step(env, state, action, transitions)
+            episode_return += reward
+            steps += 1
+            truncated, terminal = _outcome(settings, steps, terminated)
+            activate(features, observe(env, state), actives, then)
+            next_action = 0
+            if rule.draw_before and not terminal:
+                next_action = epsilon_greedy_action(values(rule, w, w2, actives, then, q, scratch), epsilon,
+                                                    agent_rng)
+            update(rule, w, w2, actives, now, action, next_action, reward, terminal, settings.alpha,
+                   settings.gamma, epsilon, agent_rng, q_next, scratch)
+            if terminated or truncated:
+                break
+            if not rule.draw_before:  # after the update, which may have changed q(S', .)
+                next_action = epsilon_greedy_action(values(rule, w, w2, actives, then, q, scratch), epsilon,
+                                                    agent_rng)
+            action = next_action
+            now = then
+        return episode_return, steps, terminated
+
+    return one_step_episode
 
 
 # --- the random baseline --------------------------------------------------------------------------------
@@ -254,10 +272,14 @@ def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2
 # --- evaluation -----------------------------------------------------------------------------------------
 
 
-@njit(inline="always")
-def greedy(rule, w, w2, actives, row, q, scratch, rng):
-    """The first action of highest value (``np.argmax``), as a loaded agent acts."""
-    return greedy_action(behaviour_values(rule, w, w2, actives, row, q, scratch))
+def greedy(values: Callable = values_of_w) -> Callable:
+    """The first action of highest value (``np.argmax``) in these values, as a loaded agent acts."""
+
+    @njit(inline="always")
+    def greedy_in(rule, w, w2, actives, row, q, scratch, rng):
+        return greedy_action(values(rule, w, w2, actives, row, q, scratch))
+
+    return greedy_in
 
 
 @njit(inline="always")
@@ -271,36 +293,51 @@ def uniform(rule, w, w2, actives, row, q, scratch, rng):
     return uniform_action(w.shape[1], rng)
 
 
-LOOPS = {"baseline": (random_episode, uniform), "one-step": (one_step_episode, greedy),
-         "n-step": (n_step_episode, greedy), "traces": (lambda_episode, greedy),
-         "policy gradient": (reinforce_episode, softmax_policy)}
-"""Each family's training episode and the action of its target policy."""
+def evaluation_loop(target_action: Callable) -> Callable:
+    """Episodes of the target policy whose action in a state is ``target_action(...)``."""
+
+    @njit
+    def evaluation_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray,
+                           env_rng: np.ndarray, agent_rng: np.ndarray,
+                           transitions: np.ndarray) -> tuple[float, int, bool]:
+        """One episode of the target policy, drawing from the evaluation's own streams."""
+        n_actions = w.shape[1]
+        actives = np.empty((1, n_active(features)), np.int64)
+        q, scratch = np.empty(n_actions), np.empty(n_actions)
+        state = reset(env, env_rng)
+        episode_return, steps, terminated = 0.0, 0, False
+        while not terminated and steps < settings.max_steps:
+            activate(features, observe(env, state), actives, 0)
+            action = target_action(rule, w, w2, actives, 0, q, scratch, agent_rng)
+            state, reward, terminated = step(env, state, action, transitions)
+            episode_return += reward
+            steps += 1
+        return episode_return, steps, terminated
+
+    return evaluation_episode
 
 
-@by_type({m.rule: LOOPS[m.family][0] for m in METHODS.values()})
+def _loops(method: Method) -> tuple[Callable, Callable]:
+    """A method's training episode and its target policy's episode: greedy in the learned values, the softmax
+    policy for REINFORCE, uniform for the baseline."""
+    values = method.values or values_of_w
+    if method.family == "one-step":
+        return one_step_loop(method.update, values), evaluation_loop(greedy(values))
+    train, act = {"baseline": (random_episode, uniform), "n-step": (n_step_episode, greedy()),
+                  "traces": (lambda_episode, greedy()), "policy gradient": (reinforce_episode, softmax_policy),
+                  }[method.family]
+    return train, evaluation_loop(act)
+
+
+LOOPS = {m.rule: _loops(m) for m in METHODS.values()}
+"""Each rule's training episode and evaluation episode."""
+
+
+@by_type({rule: loops[0] for rule, loops in LOOPS.items()})
 def train_episode(rule, settings, env, features, w, w2, work, epsilon, env_rng, agent_rng, transitions, visits):
-    """One training episode of the rule's family: ``(return, steps, terminated)``."""
+    """One training episode of the rule's method: ``(return, steps, terminated)``."""
 
 
-@by_type({m.rule: LOOPS[m.family][1] for m in METHODS.values()})
-def target_action(rule, w, w2, actives, row, q, scratch, rng):
-    """The action the target policy takes in the state whose features are ``actives[row]``."""
-
-
-@njit
-def evaluation_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray,
-                       env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray) -> tuple[float, int, bool]:
-    """One episode of the target policy: greedy (first maximum) in the learned values, the softmax policy for
-    REINFORCE, uniform for the baseline. It draws from the evaluation's own streams."""
-    n_actions = w.shape[1]
-    actives = np.empty((1, n_active(features)), np.int64)
-    q, scratch = np.empty(n_actions), np.empty(n_actions)
-    state = reset(env, env_rng)
-    episode_return, steps, terminated = 0.0, 0, False
-    while not terminated and steps < settings.max_steps:
-        activate(features, observe(env, state), actives, 0)
-        action = target_action(rule, w, w2, actives, 0, q, scratch, agent_rng)
-        state, reward, terminated = step(env, state, action, transitions)
-        episode_return += reward
-        steps += 1
-    return episode_return, steps, terminated
+@by_type({rule: loops[1] for rule, loops in LOOPS.items()})
+def evaluation_episode(rule, settings, env, features, w, w2, env_rng, agent_rng, transitions):
+    """One episode of the rule's target policy: ``(return, steps, terminated)``."""

@@ -15,12 +15,11 @@ from collections.abc import Callable, Mapping
 from numba import njit
 from numba.extending import overload
 
-from rlcompare.algorithms.linear import action_values
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.envs.registry import DYNAMICS, FEATURES
 
 
-def by_type(implementations: Mapping[type, Callable], default: Callable | None = None, inline: bool = False) -> Callable:
+def by_type(implementations: Mapping[type, Callable], default: Callable | None = None) -> Callable:
     """Make a signature a function of compiled code whose implementation is ``implementations[type of its
     first argument]`` (else ``default``); each implementation takes the same arguments by the same names."""
 
@@ -32,7 +31,7 @@ def by_type(implementations: Mapping[type, Callable], default: Callable | None =
             return None if chosen is None else _calling(chosen, parameters)
 
         choose.__signature__ = inspect.signature(signature)
-        overload(signature, inline="always" if inline else "never")(choose)
+        overload(signature)(choose)
         return signature
 
     return decorate
@@ -98,26 +97,10 @@ def activate(features, observation, actives, row):
 
 
 @njit(inline="always")
-def _values_of_w(rule, w, w2, actives, row, out, scratch):
-    return action_values(w, actives, row, out)
-
-
-@njit(inline="always")
 def _copy_w(rule, w, w2, out):
     for i in range(w.shape[0]):
         for a in range(w.shape[1]):
             out[i, a] = w[i, a]
-
-
-@by_type(_of_methods("values"), default=_values_of_w, inline=True)
-def behaviour_values(rule, w, w2, actives, row, out, scratch):
-    """The values the behaviour is ε-greedy in and the greedy policy greedy in, into ``out``."""
-
-
-@by_type(_of_methods("update"), inline=True)
-def update(rule, w, w2, actives, now, action, next_action, reward, terminal, alpha, gamma, epsilon, rng,
-           q_next, scratch):
-    """A one-step method's update of ``q(S, A)``, ``S`` in row ``now`` of ``actives`` and ``S'`` in the other."""
 
 
 @by_type(_of_methods("snapshot"), default=_copy_w)

@@ -1,13 +1,21 @@
-"""The features of a finite environment: each state is its own feature (Sutton and Barto, 9.5: a table is the
-linear case with one-hot features). The grid and the tile coder are in :mod:`~rlcompare.envs.discretize` and
-:mod:`~rlcompare.envs.tiles`; all three give compiled code ``n_active`` and ``activate``."""
+"""The features of a configuration's states: the grid (:mod:`~rlcompare.envs.discretize`), the tile coder
+(:mod:`~rlcompare.envs.tiles`), or, for a finite environment, one feature per state (Sutton and Barto, 9.5: a table
+is the linear case with one-hot features), defined here. All three give compiled code ``n_active`` and
+``activate``."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import math
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit
+
+from rlcompare.envs.discretize import UniformGrid, make_grid
+from rlcompare.envs.tiles import TileCoding, make_tile_coding
+
+if TYPE_CHECKING:
+    from rlcompare.envs.registry import Environment
 
 
 class OneHot(NamedTuple):
@@ -25,3 +33,36 @@ def n_active(features: OneHot) -> int:
 def activate(features: OneHot, observation: np.ndarray | tuple, actives: np.ndarray, row: int) -> None:
     """The state's index is its feature."""
     actives[row, 0] = int(observation[0])
+
+
+def grid_bounds(env: Environment, bounds: tuple[tuple[float, float], ...] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The box the grid and the tiles span: ``bounds`` if given, else the environment's defaults."""
+    if bounds is None:
+        return env.low, env.high
+    return np.array([low for low, _ in bounds], dtype=np.float64), np.array([high for _, high in bounds],
+                                                                            dtype=np.float64)
+
+
+def make_features(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,
+                  hash_size: int, bounds: tuple[tuple[float, float], ...] | None = None,
+                  ) -> UniformGrid | TileCoding | OneHot:
+    """The grid (one active cell) or the tile coder (one active tile per tiling). A finite environment's state
+    is its only active feature, whatever ``features`` says."""
+    if env.n_states:
+        return OneHot(env.n_states)
+    low, high = grid_bounds(env, bounds)
+    if features == "grid":
+        return make_grid(low, high, bins)
+    return make_tile_coding(low, high, tilings=tilings, tiles=tiles, hash_size=hash_size or None)
+
+
+def feature_count(env: Environment, features: str, bins: int | tuple[int, ...], tilings: int, tiles: int,
+                  hash_size: int) -> int:
+    """How many features a configuration has, without building them."""
+    if env.n_states:
+        return env.n_states
+    if features == "grid":
+        return math.prod(np.broadcast_to(np.asarray(bins), env.low.shape).tolist())
+    if hash_size:
+        return hash_size
+    return tilings * math.prod(t + 1 for t in np.broadcast_to(np.asarray(tiles), env.low.shape).tolist())

@@ -1,12 +1,39 @@
-"""Which module steps each kind of dynamics and which computes each kind of features, by the type of the value
-compiled code is given. Every dynamics module has the same three functions, ``reset(env, rng) -> state``,
-``step(env, state, action, rng) -> (state, reward, terminated)`` and ``observe(env, state) -> observation``; every
-features module has ``n_active(features)`` and ``activate(features, observation, actives, row)``.
+"""Every environment rlcompare knows, one entry each: what compiled code steps, its spaces, default grid and
+bounds, step limit, what counts as solved, and what figures and videos say of it.
+
+| environment          | stepped by                        | features              | default grid    | limit |
+|----------------------|-----------------------------------|-----------------------|-----------------|-------|
+| ``MountainCar-v0``   | the port (the paper)              | grid or tiles         | 20 x 20         | 1000  |
+| ``MountainCar-book`` | the port, position bounded at 0.5 | grid or tiles         | 20 x 20         | 1000  |
+| ``CartPole-v1``      | the port                          | grid or tiles         | 1 x 1 x 6 x 12  | 500   |
+| ``Acrobot-v1``       | the port                          | grid or tiles         | 4^4 x 8 x 8     | 500   |
+| ``CliffWalking-v1``  | Gymnasium's transition table      | one per state         |                 | 1000  |
+| ``FrozenLake-v1``    | Gymnasium's transition table      | one per state         |                 | 100   |
+| ``Taxi-v4``          | Gymnasium's transition table      | one per state         |                 | 200   |
+| any other            | Gymnasium, through the adapter    | one per state, or grid or tiles over a Box; 10 bins per |
+|                      |                                   | dimension; Gymnasium's registered limit, else 1000     |
+
+The grid and the tiles span the observation box, except where it is unbounded (CartPole's velocities) or
+where the episode ends before its edge (CartPole's position and angle): ``docs/environments.md`` gives
+every default and why. ``bounds`` in the configuration replaces them.
+
+Compiled code is given the entry's ``dynamics`` and picks the module that steps it by its type
+(:data:`DYNAMICS`); every dynamics module has ``reset(env, rng) -> state``, ``step(env, state, action, rng) ->
+(state, reward, terminated)`` and ``observe(env, state) -> observation``. Features likewise (:data:`FEATURES`):
+``n_active(features)`` and ``activate(features, observation, actives, row)``. Adding a port is its dynamics file,
+its line in :data:`DYNAMICS` and its entry in ``_PORTED``.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
 from rlcompare.envs import acrobot, cartpole, discretize, features, gymnasium_env, mountain_car, table, tiles
+from rlcompare.envs.table import TableEnv, from_gymnasium
 
 DYNAMICS = {
     mountain_car.MountainCar: mountain_car,
@@ -15,4 +42,120 @@ DYNAMICS = {
     table.TableEnv: table,
     gymnasium_env.Adapted: gymnasium_env,
 }
+"""The module that steps each type of dynamics."""
 FEATURES = {discretize.UniformGrid: discretize, tiles.TileCoding: tiles, features.OneHot: features}
+"""The module that computes each type of features."""
+_CARTPOLE_VELOCITY = 3.0  # m/s; see docs/environments.md
+_CARTPOLE_ANGULAR_VELOCITY = 3.5  # rad/s
+
+
+@dataclass(frozen=True)
+class Environment:
+    """What rlcompare knows of an environment: how the kernels step it and its defaults."""
+
+    name: str
+    dynamics: tuple | None
+    """What compiled code steps (a port's parameters, a table); None: Gymnasium, through the adapter."""
+    n_actions: int
+    n_states: int
+    """Number of states of a finite environment (each its own feature); 0 for a box of observations."""
+    low: np.ndarray
+    """``(dims,)`` float64 default lower bounds of the grid and tiles (finite, or -inf where none is known)."""
+    high: np.ndarray
+    max_steps: int
+    """The default episode limit."""
+    bins: int | tuple[int, ...]
+    """The default grid."""
+    success: str
+    """When an episode counts as solved: ``terminated`` (the goal), ``truncated`` (survived to the limit)
+    or ``positive_return``."""
+    action_names: tuple[str, ...] = ()
+    """What each action does, for figures."""
+    map_axes: tuple[str, str] | None = None
+    """The names of the two observation dimensions the report draws maps over; None: no maps."""
+    endings: tuple[str, str] = ("terminated", "out of time")
+    """How a video's last frame says the episode ended: terminated, truncated."""
+    bench_episodes: int = 0
+    """Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps (``rlcompare bench``);
+    0: not benchmarked."""
+
+    @property
+    def observation_size(self) -> int:
+        return 1 if self.n_states else self.low.size
+
+    @property
+    def is_ported(self) -> bool:
+        """Stepped by compiled code; otherwise by Gymnasium at Python speed."""
+        return self.dynamics is not None
+
+
+def _mountain_car(name: str, right: float, bench_episodes: int = 0) -> Environment:
+    low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
+    high[0] = np.float32(right)
+    return Environment(name, mountain_car.MountainCar(right), mountain_car.N_ACTIONS, 0, low, high, 1000, 20,
+                       "terminated", action_names=("push left", "no push", "push right"),
+                       map_axes=("position", "velocity"), endings=("reached the flag", "out of time"),
+                       bench_episodes=bench_episodes)
+
+
+def _cartpole() -> Environment:
+    theta = np.float32(cartpole.THETA_THRESHOLD)
+    high = np.array([np.float32(cartpole.X_THRESHOLD), _CARTPOLE_VELOCITY, theta, _CARTPOLE_ANGULAR_VELOCITY])
+    return Environment(cartpole.ENV_ID, cartpole.CartPole(), cartpole.N_ACTIONS, 0, -high, high, 500, (1, 1, 6, 12),
+                       "truncated", endings=("the pole fell", "balanced to the end"),
+                       bench_episodes=5000)
+
+
+def _acrobot() -> Environment:
+    return Environment(acrobot.ENV_ID, acrobot.Acrobot(), acrobot.N_ACTIONS, 0,
+                       acrobot.OBSERVATION_LOW.astype(np.float64), acrobot.OBSERVATION_HIGH.astype(np.float64), 500,
+                       (4, 4, 4, 4, 8, 8),
+                       "terminated", endings=("swung above the bar", "out of time"), bench_episodes=300)
+
+
+_PORTED = {
+    "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300),
+    "MountainCar-book": lambda: _mountain_car("MountainCar-book", mountain_car.BOOK_MAX_POSITION),
+    "CartPole-v1": _cartpole,
+    "Acrobot-v1": _acrobot,
+}
+_TABLE_DEFAULTS = {"CliffWalking-v1": (1000, "terminated", 3000), "FrozenLake-v1": (100, "positive_return", 20000),
+                   "Taxi-v4": (200, "terminated", 1000)}
+"""Step limit, what counts as solved, and benchmark episodes of each table environment."""
+PORTS = tuple(_PORTED)
+TABLE_ENVIRONMENTS = tuple(_TABLE_DEFAULTS)
+"""Finite environments stepped from their Gymnasium transition tables; their state is their feature."""
+
+
+@functools.cache
+def environment(name: str, adapter: bool = False) -> Environment:
+    """The environment called ``name``: a port, a table, or any Gymnasium environment the adapter can run
+    (:class:`rlcompare.envs.gymnasium_env.UnsupportedEnvironment` otherwise). ``adapter``: step a port's
+    environment through Gymnasium's API instead, with the port's defaults."""
+    if adapter and name in (*PORTS, *TABLE_ENVIRONMENTS):
+        gymnasium_env.describe(name)  # MountainCar-book is not one of Gymnasium's
+        port = environment(name)
+        return dataclasses.replace(port, dynamics=None)
+    if name in _PORTED:
+        return _PORTED[name]()
+    if name in TABLE_ENVIRONMENTS:
+        tabled = table_of(name)
+        limit, success, bench_episodes = _TABLE_DEFAULTS[name]
+        return Environment(name, tabled, tabled.n_actions, tabled.n_states, np.zeros(1), np.ones(1), limit, 1, success,
+                           bench_episodes=bench_episodes)
+    spaces = gymnasium_env.describe(name)
+    return Environment(name, None, spaces.n_actions, spaces.n_states, spaces.low, spaces.high,
+                       spaces.max_episode_steps or 1000, 10, "terminated")
+
+
+@functools.cache
+def table_of(name: str) -> TableEnv:
+    return from_gymnasium(name)
+
+
+def make_env(env: Environment, handle: int = -1) -> tuple:
+    """What compiled code steps for ``env``: its port or table, or, for the adapter, the Gymnasium environments
+    opened under ``handle``."""
+    if env.is_ported:
+        return env.dynamics
+    return gymnasium_env.Adapted(handle, 0, env.observation_size)

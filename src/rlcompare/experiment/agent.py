@@ -16,9 +16,9 @@ import numpy as np
 
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_index
-from rlcompare.envs.features import OneHot
+from rlcompare.envs.features import OneHot, make_features
+from rlcompare.envs.registry import Environment
 from rlcompare.envs.tiles import TileCoding, active_tiles_nd
-from rlcompare.experiment.problem import Environment, make_features
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.store import quote
 

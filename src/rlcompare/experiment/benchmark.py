@@ -21,8 +21,9 @@ import numpy as np
 
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.envs.discretize import cell_indices, make_grid
+from rlcompare.envs.features import grid_bounds
+from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, environment
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import PORTS, TABLE_ENVIRONMENTS, environment, grid_bounds
 from rlcompare.experiment.runner import run
 
 ONE_STEP = tuple(name for name, m in METHODS.items() if m.one_step)

@@ -23,15 +23,9 @@ from typing import Any
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.schedules import SCHEDULES
+from rlcompare.envs.features import feature_count, make_features
 from rlcompare.envs.gymnasium_env import UnsupportedEnvironment
-from rlcompare.experiment.problem import (
-    PORTS,
-    TABLE_ENVIRONMENTS,
-    Environment,
-    environment,
-    feature_count,
-    make_features,
-)
+from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, Environment, environment
 from rlcompare.experiment.store import cut, quote
 
 ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS)

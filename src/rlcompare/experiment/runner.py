@@ -29,9 +29,10 @@ from rlcompare.engine.state import (
     initial_state,
 )
 from rlcompare.envs import gymnasium_env
+from rlcompare.envs.features import make_features
+from rlcompare.envs.registry import make_env
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import make_env, make_features
 from rlcompare.experiment.results import Results
 
 CHUNK_EPISODES = 250

@@ -30,10 +30,10 @@ from rlcompare.analysis import plots
 from rlcompare.analysis.curves import mean_band
 from rlcompare.analysis.report import Section, save_figure, write_report
 from rlcompare.analysis.stats import interval
+from rlcompare.envs.registry import table_of
 from rlcompare.envs.table import TableEnv
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.problem import table_of
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.studies import TITLES
