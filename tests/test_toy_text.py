@@ -1,4 +1,4 @@
-"""Gymnasium's toy-text environments stepped from their own tables: FrozenLake-v1 and Taxi-v4."""
+"""Gymnasium's toy-text environments stepped from their own tables: FrozenLake (4x4 and 8x8) and Taxi-v4."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def test_tables_stay_in_step_with_gymnasium_over_many_episodes() -> None:
     as Gymnasium's ``categorical_sample`` does, so starts (Taxi) and slips (FrozenLake) stay equal episode
     after episode, not only until the first reset."""
     rng = np.random.default_rng(5)
-    for env_id, limit in (("Taxi-v4", 200), ("FrozenLake-v1", 100)):
+    for env_id, limit in (("Taxi-v4", 200), ("FrozenLake-v1", 100), ("FrozenLake8x8-v1", 200)):
         table, env = from_gymnasium(env_id), gym.make(env_id, max_episode_steps=limit)
         observation, _ = env.reset(seed=11)
         ours_rng = stream_state(11)

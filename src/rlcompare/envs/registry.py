@@ -9,6 +9,7 @@ bounds, step limit, what counts as solved, and what figures and videos say of it
 | ``Acrobot-v1``       | the port                          | grid or tiles         | 4^4 x 8 x 8     | 500   |
 | ``CliffWalking-v1``  | Gymnasium's transition table      | one per state         |                 | 1000  |
 | ``FrozenLake-v1``    | Gymnasium's transition table      | one per state         |                 | 100   |
+| ``FrozenLake8x8-v1`` | Gymnasium's transition table      | one per state         |                 | 200   |
 | ``Taxi-v4``          | Gymnasium's transition table      | one per state         |                 | 200   |
 | any other            | Gymnasium, through the adapter    | one per state, or grid or tiles over a Box; 10 bins per |
 |                      |                                   | dimension; Gymnasium's registered limit, else 1000     |
@@ -120,7 +121,7 @@ _PORTED = {
     "Acrobot-v1": _acrobot,
 }
 _TABLE_DEFAULTS = {"CliffWalking-v1": (1000, "terminated", 3000), "FrozenLake-v1": (100, "positive_return", 20000),
-                   "Taxi-v4": (200, "terminated", 1000)}
+                   "FrozenLake8x8-v1": (200, "positive_return", 5000), "Taxi-v4": (200, "terminated", 1000)}
 """Step limit, what counts as solved, and benchmark episodes of each table environment."""
 PORTS = tuple(_PORTED)
 TABLE_ENVIRONMENTS = tuple(_TABLE_DEFAULTS)
