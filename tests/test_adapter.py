@@ -86,15 +86,17 @@ def test_q_learning_learns_taxi_and_frozen_lake_through_the_adapter() -> None:
 
 @pytest.mark.filterwarnings("ignore:.*out of date:DeprecationWarning")
 def test_environments_without_a_port_run_through_the_adapter() -> None:
-    """A Discrete-observation environment with no port (FrozenLake8x8-v1, one feature per state) and a Box
-    one (CartPole-v0, over bounds the user gives) run, reproducibly, with Gymnasium's defaults."""
-    lake = ExperimentConfig(env="FrozenLake8x8-v1", algorithm="q_learning", seeds=(0, 1), episodes=30, eval_every=0)
-    assert not lake.environment.is_ported
-    assert (lake.max_steps, lake.environment.n_states) == (200, 64)  # Gymnasium's registered limit
-    first, again = run(lake), run(lake)
+    """A Discrete-observation environment with no port (CliffWalkingSlippery-v1, one feature per state) and a
+    Box one (CartPole-v0, over bounds the user gives) run, reproducibly, with Gymnasium's defaults (the cliff
+    registers no limit: 1000)."""
+    cliff = ExperimentConfig(env="CliffWalkingSlippery-v1", algorithm="q_learning", seeds=(0, 1), episodes=30,
+                             eval_every=0)
+    assert not cliff.environment.is_ported
+    assert (cliff.max_steps, cliff.environment.n_states) == (1000, 48)
+    first, again = run(cliff), run(cliff)
     _assert_same_records(first.records, again.records)
-    assert first.records.visits.shape == (2, 64)
-    assert np.all(first.records.lengths <= 200)
+    assert first.records.visits.shape == (2, 48)
+    assert np.all(first.records.lengths <= 1000)
     cartpole = ExperimentConfig(env="CartPole-v0", algorithm="sarsa", seeds=(0,), episodes=20, eval_every=0,
                                 bounds=((-2.4, 2.4), (-3.0, 3.0), (-0.21, 0.21), (-3.5, 3.5)), bins=(1, 1, 6, 12))
     results = run(cartpole)

@@ -178,13 +178,13 @@ def test_output_path_that_is_a_file_is_refused(command: str, tmp_path: Path) -> 
 
 
 def test_run_on_an_environment_without_a_port_says_it_runs_at_python_speed(tmp_path: Path) -> None:
-    result = invoke("run", "--env", "FrozenLake8x8-v1", "--algorithm", "q_learning", "--episodes", "5", "--seeds",
-                    "1", "--out", str(tmp_path / "lake"))
+    result = invoke("run", "--env", "CliffWalkingSlippery-v1", "--algorithm", "q_learning", "--episodes", "5",
+                    "--seeds", "1", "--out", str(tmp_path / "cliff"))
     assert result.exit_code == 0, result.output
-    assert "FrozenLake8x8-v1 through Gymnasium's API: Python speed" in result.output
-    loaded = Results.load(tmp_path / "lake")
+    assert "CliffWalkingSlippery-v1 through Gymnasium's API: Python speed" in result.output
+    loaded = Results.load(tmp_path / "cliff")
     assert loaded.meta["stepped_by"] == "Gymnasium adapter (Python speed)"
-    assert (loaded.config.env, loaded.config.max_steps) == ("FrozenLake8x8-v1", 200)
+    assert (loaded.config.env, loaded.config.max_steps) == ("CliffWalkingSlippery-v1", 1000)
 
 
 def test_run_resolves_grid_bounds_and_the_adapter(tmp_path: Path) -> None:
