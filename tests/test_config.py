@@ -100,7 +100,7 @@ def test_names_of_configurations() -> None:
 @pytest.mark.parametrize(("env", "bins", "max_steps"), [
     ("MountainCar-v0", 20, 1000), ("MountainCar-book", 20, 1000), ("CartPole-v1", (1, 1, 6, 12), 500),
     ("Acrobot-v1", (4, 4, 4, 4, 8, 8), 500), ("FrozenLake-v1", 1, 100), ("Taxi-v4", 1, 200),
-    ("CliffWalking-v1", 1, 1000), ("FrozenLake8x8-v1", 10, 200),
+    ("CliffWalking-v1", 1, 1000), ("FrozenLake8x8-v1", 1, 200), ("CliffWalkingSlippery-v1", 10, 1000),
 ])
 def test_each_environment_fills_in_its_own_grid_and_limit(env: str, bins, max_steps: int) -> None:
     """None means the environment's default, written into the configuration so that config.json says what ran;

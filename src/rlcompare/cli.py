@@ -446,13 +446,13 @@ def _announce_compiling() -> None:
     from rlcompare._numba_cache import holds_nothing_yet
 
     if holds_nothing_yet():
-        console.print("Compiling the kernels: the first run of this version of rlcompare compiles them (one to two "
-                      "minutes on two cores); later runs load them.")
+        console.print("Compiling: the first run of each method on each environment and features compiles its "
+                      "training loop (10-20 s on two cores); later runs load it.")
 
 
 def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
     timings = results.meta["timings"]
-    compiled = f" (and {timings['compile_seconds']:.0f} s loading or compiling kernels)" \
+    compiled = f" (and {timings['compile_seconds']:.0f} s compiling or loading its loop)" \
         if timings.get("compile_seconds", 0) >= 1 else ""
     how = "loaded (already complete)" if reused else f"{timings['wall_seconds']:.1f} s{compiled}"
     progress.console.print(f"{name:<24} {len(results.seeds)} seeds x {results.config.episodes} episodes: {how}")
