@@ -74,8 +74,8 @@ class ExperimentConfig:
     """``MountainCar-v0`` (Gymnasium's, ported exactly), ``MountainCar-book`` (Sutton and Barto's Example
     10.1: the same dynamics with the position bounded at the goal, 0.5), ``CartPole-v1`` and ``Acrobot-v1``
     (ported exactly), a toy-text environment stepped from Gymnasium's own transition table:
-    ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4, slippery), ``FrozenLake8x8-v1``, ``Taxi-v4``; or any other
-    registered Gymnasium environment with Discrete actions and Discrete or Box observations, stepped
+    ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4, slippery), ``FrozenLake8x8-v1``, ``Taxi-v4``; or
+    any other registered Gymnasium environment with Discrete actions and Discrete or Box observations, stepped
     through Gymnasium's API at Python speed."""
     adapter: bool = False
     """Step the environment through Gymnasium's own API (the adapter, at Python speed) even where a compiled
