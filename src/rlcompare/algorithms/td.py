@@ -130,9 +130,12 @@ def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray
                  rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """Algorithm 2, line 6: toward ``R + gamma * q(S', A')``. Drawing after the update, SARSA still needs an A'
     for its target: it draws one here, from the values before the update."""
-    action_values(w, actives, 1 - now, q_next)
-    taken = next_action if rule.draw_before or terminal else epsilon_greedy_action(q_next, epsilon, rng)
-    _step_toward(w, actives, now, action, sarsa_target(reward, q_next[taken], gamma, terminal), alpha)
+    if rule.draw_before or terminal:
+        taken_value = action_value(w, actives, 1 - now, next_action)
+    else:
+        action_values(w, actives, 1 - now, q_next)
+        taken_value = q_next[epsilon_greedy_action(q_next, epsilon, rng)]
+    _step_toward(w, actives, now, action, sarsa_target(reward, taken_value, gamma, terminal), alpha)
 
 
 @njit(inline="always")
