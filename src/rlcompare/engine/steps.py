@@ -4,7 +4,8 @@ compiles: an environment's dynamics (its module in :data:`rlcompare.envs.registr
 
 Compiled code calls ``step(env, state, action, rng)`` and gets Mountain Car's step when ``env`` is a
 ``MountainCar``: no code tests a kind at run time, and a configuration compiles only the parts it uses. The
-functions here are signatures; their bodies are the registered implementations.
+functions here are signatures; their bodies are the registered implementations. A method's update and values,
+called several times a step, are compiled into its own loops instead (:mod:`rlcompare.engine.episodes`).
 """
 
 from __future__ import annotations
