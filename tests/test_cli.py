@@ -94,7 +94,7 @@ def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.Monkey
     from rlcompare.experiment import benchmark
 
     measured = [benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0),
-                benchmark.Measurement("sarsa (grid, fast kernel)", 1, 5000, 0.05)]
+                benchmark.Measurement("sarsa (grid)", 1, 5000, 0.05)]
     monkeypatch.setattr(benchmark, "run_benchmark", lambda: measured)
     result = invoke("bench", "--no-environments")
     assert result.exit_code == 0, result.output
