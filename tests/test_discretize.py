@@ -8,7 +8,7 @@ import pytest
 from gymnasium.wrappers import DiscretizeObservation
 
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import cell_index, cell_index_2d, cell_indices, make_grid
+from rlcompare.envs.discretize import cell_index, cell_indices, cell_of, make_grid
 
 BINS = [20, 7, 2, (10, 13), (1, 5)]
 
@@ -65,7 +65,7 @@ def _assert_same_cells(grid, wrapper, observations: np.ndarray) -> None:
     observations = np.asarray(observations, dtype=np.float32)
     expected = np.array([wrapper.observation(o) for o in observations])
     flat = np.array([cell_index(grid, o) for o in observations])
-    flat_2d = np.array([cell_index_2d(grid, float(o[0]), float(o[1])) for o in observations])
+    flat_2d = np.array([cell_of(grid, (float(o[0]), float(o[1]))) for o in observations])
     vectorised = cell_indices(grid, observations)
     mismatch = np.flatnonzero((flat != expected) | (flat_2d != expected) | (vectorised != expected))
     assert mismatch.size == 0, [(observations[i].tolist(), expected[i], flat[i], flat_2d[i]) for i in mismatch[:5]]
@@ -144,14 +144,14 @@ def test_cell_on_edge_is_the_upper_one(grid, wrapper):
 
 
 def test_float64_state_is_rounded_to_float32(grid, wrapper):
-    """``cell_index_2d`` on the float64 state equals the wrapper on Gymnasium's float32 observation."""
+    """``cell_of`` on the float64 state equals the wrapper on Gymnasium's float32 observation."""
     generator = np.random.default_rng(3)
     states = np.column_stack([generator.uniform(-1.3, 0.7, 3000), generator.uniform(-0.08, 0.08, 3000)])
     # Include float64 values just beside float32 edges, where rounding decides the cell.
     for edge in wrapper.bin_edges[0]:
         states = np.vstack([states, [float(edge) - 1e-12, 0.0], [float(edge) + 1e-12, 0.0]])
     expected = [wrapper.observation(np.array(s, dtype=np.float32)) for s in states]
-    got = [cell_index_2d(grid, float(p), float(v)) for p, v in states]
+    got = [cell_of(grid, (float(p), float(v))) for p, v in states]
     assert got == expected
 
 

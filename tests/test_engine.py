@@ -25,7 +25,7 @@ from rlcompare.engine.state import (
     initial_state,
 )
 from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import cell_index_2d, make_grid
+from rlcompare.envs.discretize import cell_of, make_grid
 from rlcompare.rng import stream_state
 
 SEEDS = [0, 1, 2, 3, 4]
@@ -373,10 +373,10 @@ def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_
                     visits):
     """One training episode written out in plain Python, with the helpers' ``py_func`` versions."""
     reset, step = mountain_car.reset.py_func, mountain_car.step.py_func
-    cell, choose, uniform = cell_index_2d.py_func, epsilon_greedy_action.py_func, uniform_action.py_func
+    cell, choose, uniform = cell_of.py_func, epsilon_greedy_action.py_func, uniform_action.py_func
     n_actions = q.shape[1]
     position, velocity = reset(ENV, env_rng)
-    state = cell(GRID, position, velocity)
+    state = cell(GRID, (position, velocity))
     action = uniform(n_actions, agent_rng) if algorithm == "random" else choose(q[state], epsilon, agent_rng)
     steps, episode_return = 0, 0.0
     while True:
@@ -387,7 +387,7 @@ def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_
         steps += 1
         truncated = not terminated and steps >= max_steps
         terminal = terminated or (truncated and truncation_is_terminal)
-        next_state = cell(GRID, position, velocity)
+        next_state = cell(GRID, (position, velocity))
         if algorithm == "q_learning":
             target = reward if terminal else reward + GAMMA * max(q[next_state])
             q[state, action] += ALPHA * (target - q[state, action])

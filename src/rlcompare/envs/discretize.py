@@ -77,12 +77,6 @@ def _bin(grid: UniformGrid, dim: int, x: float) -> int:
 
 
 @njit(inline="always")
-def cell_index_2d(grid: UniformGrid, x0: float, x1: float) -> int:
-    """Flat cell of a two-dimensional observation, each coordinate first rounded to float32."""
-    return _bin(grid, 0, np.float32(x0)) * grid.bins[1] + _bin(grid, 1, np.float32(x1))
-
-
-@njit(inline="always")
 def cell_of(grid: UniformGrid, observation: np.ndarray | tuple) -> int:
     """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
     flat = 0
