@@ -387,37 +387,42 @@ def remove_stale_temporaries(directory: Path) -> None:
             stale.unlink(missing_ok=True)
 
 
-def is_complete(run_dir: Path) -> bool:
+def is_complete(run_dir: Path, files: tuple[str, ...] = RUN_FILES) -> bool:
     """Whether every file of a finished run is present (``meta.json`` is written last); whether they belong
-    together is :func:`rlcompare.experiment.results.verify`'s question."""
-    return all((Path(run_dir) / name).is_file() for name in RUN_FILES)
+    together is :func:`verify_run`'s question. ``files``: a deep run's, :data:`DEEP_RUN_FILES`."""
+    return all((Path(run_dir) / name).is_file() for name in files)
 
 
 # --- what a finished run contains -------------------------------------------------------------------------
 
 CONTENT_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, QTABLES_FILE)
 """The files whose checksums ``meta.json`` records."""
+PARAMS_FILE = "params.npz"
+DEEP_CONTENT_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, PARAMS_FILE)
+"""A deep run's: the network's parameters stand where a tabular run keeps its Q-tables."""
+DEEP_RUN_FILES = (*DEEP_CONTENT_FILES, META_FILE)
 
 
 def file_record(data: bytes) -> dict[str, Any]:
     return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
-def verify_run(run_dir: Path, expected_config: dict | None = None) -> dict:
+def verify_run(run_dir: Path, expected_config: dict | None = None, content_files: tuple[str, ...] = CONTENT_FILES
+               ) -> dict:
     """``meta.json`` of a finished run whose files belong together: each one's size and checksum equal what
     ``meta.json`` recorded when the run was written, and ``config.json`` is ``expected_config`` where given.
     Anything else is a :class:`StoreError` naming the file."""
     run_dir = Path(run_dir)
-    missing = [name for name in RUN_FILES if not (run_dir / name).is_file()]
+    missing = [name for name in (*content_files, META_FILE) if not (run_dir / name).is_file()]
     if missing:
         raise StoreError(f"{run_dir}: not a complete run directory; missing {', '.join(missing)}")
     meta = read_json(run_dir / META_FILE)
     contents = meta.get("contents") if isinstance(meta, dict) else None
     files = contents.get("files") if isinstance(contents, dict) else None
-    if not isinstance(files, dict) or sorted(files) != sorted(CONTENT_FILES):
+    if not isinstance(files, dict) or sorted(files) != sorted(content_files):
         raise StoreError(f"{run_dir / META_FILE}: no record of the run's contents (not written by this version of "
                          "rlcompare, or damaged); run it again")
-    for name in CONTENT_FILES:
+    for name in content_files:
         recorded = files[name] if isinstance(files[name], dict) else {}
         if (run_dir / name).stat().st_size != recorded.get("bytes") or _record_of(run_dir / name) != recorded:
             raise StoreError(f"{run_dir / name}: does not belong to this run (its size or checksum differs from "

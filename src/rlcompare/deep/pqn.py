@@ -1,0 +1,292 @@
+"""The paper's pair with a network: Q(λ), SARSA(λ) and Expected SARSA(λ) in one online engine.
+
+The engine is PQN's (Gallici et al. 2024, "Simplifying Deep Temporal Difference Learning"; purejaxql
+``pqn_gymnax.py``): many environments stepped in parallel, a LayerNorm MLP, no replay buffer and no target
+network, and λ-returns computed backwards over each rollout. The only switch between the three methods is the
+value the return bootstraps from at the next state, which is what separates Algorithm 1 from Algorithm 2:
+
+| target     | method                 | bootstrap at ``s'``                            | policy     |
+|------------|------------------------|------------------------------------------------|------------|
+| ``max``      | Peng's Q(λ)            | ``max_a Q(s', a)``                             | off-policy |
+| ``sample``   | SARSA(λ)               | ``Q(s', a')``, ``a'`` the action taken next     | on-policy  |
+| ``expected`` | Expected SARSA(λ)      | ``Σ_a π_ε(a|s') Q(s', a)``                      | on-policy  |
+
+With ``lam = 0`` the return is the one-step target of the paper's Algorithms 1 and 2. ``draw_before`` is the
+tabular engine's ``next_action`` order at the only place where it changes anything here, the end of a
+rollout: the action SARSA bootstraps from there is drawn before the update and taken at the start of the next
+rollout (``True``, Algorithm 2's order), or drawn again after the update (``False``). ``docs/deep.md`` lists
+where this departs from purejaxql.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax.training.train_state import TrainState
+
+from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
+from rlcompare.deep.networks import MLP
+from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
+from rlcompare.experiment.config import ConfigError
+
+TARGETS = ("max", "sample", "expected")
+
+
+@dataclass(frozen=True)
+class PQNConfig:
+    """One PQN-style configuration (defaults: purejaxql's ``pqn_cartpole.yaml``, but a 2 x 128 network)."""
+
+    target: str = "max"
+    """What the return bootstraps from: ``max`` (Q(λ)), ``sample`` (SARSA(λ)), ``expected`` (Expected SARSA(λ))."""
+    lam: float = 0.95
+    """λ of the λ-return; 0 gives the one-step target."""
+    gamma: float = 0.99
+    """Discount."""
+    total_steps: int = 500_000
+    """Environment steps over all parallel environments."""
+    n_envs: int = 32
+    """Environments stepped in parallel."""
+    n_steps: int = 64
+    """Steps of each environment per rollout (one update)."""
+    n_epochs: int = 4
+    """Passes over each rollout."""
+    n_minibatches: int = 16
+    """Minibatches per pass."""
+    learning_rate: float = 1e-4
+    """RAdam's step size."""
+    anneal_lr: bool = True
+    """Decay the step size linearly to zero over the training."""
+    max_grad_norm: float = 10.0
+    """Gradients clipped to this global norm."""
+    epsilon_start: float = 1.0
+    """ε of the first rollout."""
+    epsilon_end: float = 0.05
+    """ε after the decay."""
+    decay_fraction: float = 0.2
+    """Fraction of the updates over which ε decays linearly."""
+    reward_scale: float = 0.1
+    """Rewards are multiplied by this in the return (the recorded returns are the environment's own)."""
+    hidden: tuple[int, ...] = (128, 128)
+    """Widths of the hidden layers, each followed by LayerNorm and ReLU."""
+    draw_before: bool = True
+    """Draw the action bootstrapped at a rollout's end before the update and take it next (Algorithm 2's order)."""
+
+    def __post_init__(self) -> None:
+        _check(self.target in TARGETS, "target", self.target, ", ".join(TARGETS))
+        _check(0.0 <= self.lam <= 1.0, "lam", self.lam, "a number in [0, 1]")
+        _check(0.0 < self.gamma <= 1.0, "gamma", self.gamma, "a number in (0, 1]")
+        _check(self.learning_rate > 0.0, "learning_rate", self.learning_rate, "a positive number")
+        _check(self.max_grad_norm > 0.0, "max_grad_norm", self.max_grad_norm, "a positive number")
+        for name in ("epsilon_start", "epsilon_end"):
+            _check(0.0 <= getattr(self, name) <= 1.0, name, getattr(self, name), "a number in [0, 1]")
+        _check(0.0 < self.decay_fraction <= 1.0, "decay_fraction", self.decay_fraction, "a number in (0, 1]")
+        _check(self.reward_scale > 0.0, "reward_scale", self.reward_scale, "a positive number")
+        for name in ("n_envs", "n_steps", "n_epochs", "n_minibatches", "total_steps"):
+            _check(getattr(self, name) >= 1, name, getattr(self, name), "a positive integer")
+        _check((self.n_envs * self.n_steps) % self.n_minibatches == 0, "n_minibatches", self.n_minibatches,
+               f"a divisor of n_envs x n_steps = {self.n_envs * self.n_steps}")
+        _check(self.total_steps >= self.n_envs * self.n_steps, "total_steps", self.total_steps,
+               f"at least one rollout, n_envs x n_steps = {self.n_envs * self.n_steps}")
+        _check(len(self.hidden) >= 1 and all(w >= 1 for w in self.hidden), "hidden", self.hidden,
+               "one or more positive layer widths")
+
+    @property
+    def updates(self) -> int:
+        return self.total_steps // (self.n_envs * self.n_steps)
+
+
+def _check(ok: bool, name: str, value: object, allowed: str) -> None:
+    if not ok:
+        raise ConfigError(name, value, allowed)
+
+
+class Rollout(NamedTuple):
+    """One rollout, time-major ``(n_steps, n_envs)``."""
+
+    observations: jax.Array
+    actions: jax.Array
+    rewards: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    last_observations: jax.Array
+    """The observation each action led to (before a reset): the next state the return bootstraps from."""
+
+
+class Runner(NamedTuple):
+    train_state: TrainState
+    env_state: EnvState
+    observation: jax.Array
+    next_action: jax.Array
+    """The action each environment takes first in the next rollout where ``draw_before``; redrawn otherwise."""
+    episodes: Episodes
+    update: jax.Array
+
+
+def network(config: PQNConfig, env: DeepEnv) -> MLP:
+    return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True)
+
+
+def act(config: PQNConfig, env: DeepEnv) -> Callable[[dict, jax.Array], jax.Array]:
+    """The greedy policy: ``(params, observations) -> argmax_a Q``."""
+    net = network(config, env)
+    return lambda params, observations: jnp.argmax(net.apply(params, observations), axis=-1)
+
+
+def epsilon_greedy(key: jax.Array, q: jax.Array, epsilon: jax.Array) -> jax.Array:
+    """ε-greedy actions for a batch of action values ``(envs, actions)``; ties go to the first greedy action."""
+    explore_key, action_key = jax.random.split(key)
+    explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
+    random_actions = jax.random.randint(action_key, q.shape[:-1], 0, q.shape[-1])
+    return jnp.where(explore, random_actions, jnp.argmax(q, axis=-1))
+
+
+def expected_value(q: jax.Array, epsilon: jax.Array) -> jax.Array:
+    """``Σ_a π(a|s) Q(s, a)`` under ε-greedy with the greedy action first among ties (Sutton and Barto 6.6)."""
+    n_actions = q.shape[-1]
+    greedy = jax.nn.one_hot(jnp.argmax(q, axis=-1), n_actions, dtype=q.dtype)
+    probabilities = epsilon / n_actions + (1.0 - epsilon) * greedy
+    return jnp.sum(probabilities * q, axis=-1)
+
+
+def lambda_returns(rewards: jax.Array, terminated: jax.Array, truncated: jax.Array, next_values: jax.Array,
+                   gamma: float, lam: float) -> jax.Array:
+    """λ-returns over a time-major rollout, computed backwards (Sutton and Barto 12.1, the recursive form):
+
+    ``G_t = r_t + γ (1 - terminated_t) [(1 - λ) v_t + λ G_{t+1}]``, where ``v_t`` is the bootstrap value at the
+    state the action led to. An episode's end stops the recursion: termination bootstraps from nothing, a
+    time-limit cut from ``v_t`` alone, and so does the rollout's last step, whose ``G_{t+1}`` is not known.
+    """
+
+    def backwards(later_return: jax.Array, step: tuple) -> tuple[jax.Array, jax.Array]:
+        reward, term, trunc, value = step
+        continues = (1.0 - lam) * value + lam * later_return
+        bootstrap = jnp.where(trunc, value, continues)
+        g = reward + gamma * jnp.where(term, 0.0, bootstrap)
+        return g, g
+
+    last = rewards[-1] + gamma * jnp.where(terminated[-1], 0.0, next_values[-1])
+    _, earlier = jax.lax.scan(backwards, last, (rewards[:-1], terminated[:-1], truncated[:-1], next_values[:-1]),
+                              reverse=True)
+    return jnp.concatenate([earlier, last[None]])
+
+
+def bootstrap_values(target: str, q_next: jax.Array, bootstrap_actions: jax.Array, epsilon: jax.Array
+                     ) -> jax.Array:
+    """The value at each next state that the return bootstraps from (see the module's table)."""
+    if target == "max":
+        return jnp.max(q_next, axis=-1)
+    if target == "expected":
+        return expected_value(q_next, epsilon)
+    return jnp.take_along_axis(q_next, bootstrap_actions[..., None], axis=-1)[..., 0]
+
+
+def sarsa_actions(actions: jax.Array, done: jax.Array, drawn: jax.Array, carried: jax.Array) -> jax.Array:
+    """The action SARSA bootstraps from after each step: the next one taken in the same episode; where the
+    episode was cut, one drawn by the policy at the cut state; after the rollout's last step, ``carried``."""
+    following = jnp.concatenate([actions[1:], carried[None]])
+    return jnp.where(done, drawn, following)
+
+
+def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
+               ) -> Callable[[jax.Array], TrainOutput]:
+    """One seed's whole training, jittable and vmappable over keys: ``rounds`` x (``updates // rounds``) updates,
+    each one rollout of ``n_envs`` x ``n_steps`` steps and ``n_epochs`` x ``n_minibatches`` gradient steps."""
+    updates_per_round = config.updates // rounds
+    _check(updates_per_round >= 1, "total_steps", config.total_steps,
+           f"at least {rounds} rollouts of n_envs x n_steps = {config.n_envs * config.n_steps} steps")
+    net = network(config, env)
+    updates = updates_per_round * rounds
+    decay_updates = max(1, int(config.decay_fraction * updates))
+    epsilon_at = optax.linear_schedule(config.epsilon_start, config.epsilon_end, decay_updates)
+    gradient_steps = updates * config.n_epochs * config.n_minibatches
+    learning_rate = (optax.linear_schedule(config.learning_rate, 0.0, gradient_steps) if config.anneal_lr
+                     else config.learning_rate)
+    optimiser = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.radam(learning_rate))
+    q_values = jax.vmap(net.apply, in_axes=(None, 0))  # over time: (steps, envs, obs) -> (steps, envs, actions)
+
+    def collect(runner: Runner, key: jax.Array, epsilon: jax.Array) -> tuple[Runner, Rollout, Finished]:
+        params = runner.train_state.params
+
+        def one_step(carry: tuple, step_key: jax.Array) -> tuple[tuple, tuple]:
+            env_state, observation, action, episodes = carry
+            draw_key, reset_key = jax.random.split(step_key)
+            step = jax.vmap(step_autoreset, in_axes=(None, 0, 0, 0))(env, env_state, action,
+                                                                      jax.random.split(reset_key, config.n_envs))
+            episodes, finished = track(episodes, step.reward, step.terminated, step.truncated)
+            next_action = epsilon_greedy(draw_key, net.apply(params, step.observation), epsilon)
+            transition = (observation, action, step.reward, step.terminated, step.truncated, step.last_observation)
+            return (step.state, step.observation, next_action, episodes), (transition, finished)
+
+        start = (runner.env_state, runner.observation, runner.next_action, runner.episodes)
+        (env_state, observation, next_action, episodes), (transitions, finished) = jax.lax.scan(
+            one_step, start, jax.random.split(key, config.n_steps))
+        rollout = Rollout(*transitions)
+        runner = runner._replace(env_state=env_state, observation=observation, next_action=next_action,
+                                 episodes=episodes)
+        return runner, rollout, finished
+
+    def targets(params: dict, rollout: Rollout, carried: jax.Array, key: jax.Array, epsilon: jax.Array
+                ) -> jax.Array:
+        q_next = q_values(params, rollout.last_observations)
+        done = rollout.terminated | rollout.truncated
+        drawn = epsilon_greedy(key, q_next, epsilon)
+        values = bootstrap_values(config.target, q_next, sarsa_actions(rollout.actions, done, drawn, carried),
+                                  epsilon)
+        rewards = config.reward_scale * rollout.rewards.astype(jnp.float32)
+        return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, config.gamma, config.lam)
+
+    def loss(params: dict, observations: jax.Array, actions: jax.Array, returns: jax.Array) -> jax.Array:
+        q = net.apply(params, observations)
+        taken = jnp.take_along_axis(q, actions[:, None], axis=-1)[:, 0]
+        return 0.5 * jnp.mean(jnp.square(taken - returns))
+
+    def learn(train_state: TrainState, rollout: Rollout, returns: jax.Array, key: jax.Array) -> TrainState:
+        batch = (rollout.observations.reshape(-1, env.observation_size), rollout.actions.reshape(-1),
+                 returns.reshape(-1))
+
+        def epoch(state: TrainState, epoch_key: jax.Array) -> tuple[TrainState, None]:
+            order = jax.random.permutation(epoch_key, batch[1].shape[0])
+            minibatches = jax.tree.map(lambda x: x[order].reshape(config.n_minibatches, -1, *x.shape[1:]), batch)
+
+            def gradient_step(state: TrainState, minibatch: tuple) -> tuple[TrainState, None]:
+                return state.apply_gradients(grads=jax.grad(loss)(state.params, *minibatch)), None
+
+            return jax.lax.scan(gradient_step, state, minibatches)[0], None
+
+        return jax.lax.scan(epoch, train_state, jax.random.split(key, config.n_epochs))[0]
+
+    def update(runner: Runner, key: jax.Array) -> tuple[Runner, Finished]:
+        collect_key, target_key, learn_key, redraw_key = jax.random.split(key, 4)
+        epsilon = epsilon_at(runner.update)
+        runner, rollout, finished = collect(runner, collect_key, epsilon)
+        returns = targets(runner.train_state.params, rollout, runner.next_action, target_key, epsilon)
+        train_state = learn(runner.train_state, rollout, returns, learn_key)
+        next_action = runner.next_action
+        if not config.draw_before:
+            q = net.apply(train_state.params, runner.observation)
+            next_action = epsilon_greedy(redraw_key, q, epsilon_at(runner.update + 1))
+        return runner._replace(train_state=train_state, next_action=next_action, update=runner.update + 1), finished
+
+    def start(key: jax.Array) -> Runner:
+        init_key, reset_key, action_key = jax.random.split(key, 3)
+        params = net.init(init_key, jnp.zeros((1, env.observation_size), jnp.float32))
+        train_state = TrainState.create(apply_fn=net.apply, params=params, tx=optimiser)
+        env_state = jax.vmap(env.reset)(jax.random.split(reset_key, config.n_envs))
+        observation = jax.vmap(env.observe)(env_state.physics)
+        first_action = epsilon_greedy(action_key, net.apply(params, observation), epsilon_at(0))
+        return Runner(train_state, env_state, observation, first_action, Episodes.start(config.n_envs),
+                      jnp.zeros((), jnp.int32))
+
+    run_rounds = train_in_rounds(update, lambda runner: runner.train_state.params, env, act(config, env), rounds,
+                                 updates_per_round, eval_episodes)
+
+    def train(key: jax.Array) -> TrainOutput:
+        start_key, train_key = jax.random.split(key)
+        return run_rounds(start(start_key), train_key)
+
+    return train

@@ -1,0 +1,101 @@
+"""What every deep method shares: episode bookkeeping inside the jitted loop, greedy evaluation, the shape of
+a training's output, and training in rounds of updates with an evaluation after each round."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from rlcompare.deep.envs import DeepEnv, EnvState
+
+Params = Any
+Act = Callable[[Params, jax.Array], jax.Array]
+"""``(params, observations) -> greedy actions``."""
+
+
+class Episodes(NamedTuple):
+    """Running return and length of each parallel environment's current episode."""
+
+    returns: jax.Array
+    """(envs,) float32"""
+    lengths: jax.Array
+    """(envs,) int32"""
+
+    @classmethod
+    def start(cls, n_envs: int) -> Episodes:
+        return cls(jnp.zeros(n_envs, jnp.float32), jnp.zeros(n_envs, jnp.int32))
+
+
+class Finished(NamedTuple):
+    """Per environment step, which episodes ended and with what return and length (meaningful where ``done``)."""
+
+    done: jax.Array
+    returns: jax.Array
+    lengths: jax.Array
+    terminated: jax.Array
+
+
+def track(episodes: Episodes, reward: jax.Array, terminated: jax.Array, truncated: jax.Array
+          ) -> tuple[Episodes, Finished]:
+    """Add one step to each running episode; report and restart those that ended."""
+    returns = episodes.returns + reward.astype(jnp.float32)
+    lengths = episodes.lengths + 1
+    done = terminated | truncated
+    restarted = Episodes(jnp.where(done, 0.0, returns).astype(jnp.float32), jnp.where(done, 0, lengths))
+    return restarted, Finished(done, returns, lengths, terminated)
+
+
+class TrainOutput(NamedTuple):
+    """What one seed's training returns (a leading seed axis under ``vmap``)."""
+
+    params: Params
+    """The final parameters of the greedy policy."""
+    finished: Finished
+    """(rounds, updates per round, steps per update, envs): the training episodes as they ended."""
+    eval_returns: jax.Array
+    """(rounds, eval episodes) greedy returns after each round."""
+    eval_lengths: jax.Array
+    eval_terminated: jax.Array
+
+
+def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: int
+             ) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Greedy episodes run side by side to the limit: ``(returns, lengths, terminated)``, each ``(episodes,)``."""
+    states = jax.vmap(env.reset)(jax.random.split(key, episodes))
+
+    def one_step(carry: tuple[EnvState, jax.Array, jax.Array, jax.Array, jax.Array], _: None):
+        state, running, returns, lengths, terminated = carry
+        action = act(params, jax.vmap(env.observe)(state.physics))
+        state, reward, term, trunc = jax.vmap(env.step)(state, action)
+        returns = returns + jnp.where(running, reward, 0.0).astype(jnp.float32)
+        lengths = lengths + running.astype(jnp.int32)
+        terminated = terminated | (running & term)
+        return (state, running & ~(term | trunc), returns, lengths, terminated), None
+
+    start = (states, jnp.ones(episodes, bool), jnp.zeros(episodes, jnp.float32), jnp.zeros(episodes, jnp.int32),
+             jnp.zeros(episodes, bool))
+    (_, _, returns, lengths, terminated), _ = jax.lax.scan(one_step, start, None, length=env.max_steps)
+    return returns, lengths, terminated
+
+
+def train_in_rounds(update: Callable[[Any, jax.Array], tuple[Any, Finished]], params_of: Callable[[Any], Params],
+                    env: DeepEnv, act: Act, rounds: int, updates_per_round: int, eval_episodes: int
+                    ) -> Callable[[Any, jax.Array], TrainOutput]:
+    """``(runner, key) -> TrainOutput``: ``rounds`` x ``updates_per_round`` calls of ``update(runner, key) ->
+    (runner, finished)`` (``finished`` stacked over an update's steps), a greedy evaluation after each round."""
+
+    def one_round(runner: Any, key: jax.Array) -> tuple[Any, tuple]:
+        update_key, eval_key = jax.random.split(key)
+        runner, finished = jax.lax.scan(update, runner, jax.random.split(update_key, updates_per_round))
+        returns, lengths, terminated = evaluate(env, act, params_of(runner), eval_key, eval_episodes)
+        return runner, (finished, returns, lengths, terminated)
+
+    def train(runner: Any, key: jax.Array) -> TrainOutput:
+        runner, (finished, returns, lengths, terminated) = jax.lax.scan(one_round, runner,
+                                                                         jax.random.split(key, rounds))
+        return TrainOutput(params_of(runner), finished, returns, lengths, terminated)
+
+    return train

@@ -1,0 +1,293 @@
+"""``run(config) -> DeepResults``: train every seed of a deep configuration in one jitted program, and the run
+directory it writes (the tabular engine's layout, :mod:`rlcompare.experiment.store`, with ``params.npz`` for the
+Q-tables).
+
+Seeds train ``vmap_width`` at a time, the last group padded with copies of its first seed: XLA batches the
+matrix products of a vmap by its width, so a seed's numbers depend on the width (by about 1e-7 after twenty
+updates) but not on which seeds train beside it or how many a user asks for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+import pandas as pd
+from flax.traverse_util import flatten_dict, unflatten_dict
+
+from rlcompare.deep.envs import DEEP_ENVS, DeepEnv
+from rlcompare.deep.methods import DEEP_METHODS, deep_method, hyperparameters
+from rlcompare.deep.rollout import TrainOutput
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.results import _parquet_bytes, _with_labels
+from rlcompare.experiment.runner import _version, versions
+
+
+@dataclass(frozen=True)
+class DeepConfig:
+    """One deep configuration, run once per seed. Frozen and validated on creation."""
+
+    algorithm: str = "pqn_q_lambda"
+    """A deep method: ``pqn_q_lambda``, ``pqn_sarsa_lambda``, ``pqn_expected_sarsa_lambda``, ``dqn``,
+    ``double_dqn`` or ``ppo`` (``docs/deep.md``)."""
+    env: str = "CartPole-v1"
+    """``CartPole-v1``, ``Acrobot-v1`` or ``MountainCar-v0``, at Gymnasium's registered limits."""
+    preset: str = "default"
+    """A named set of the method's hyperparameters (``docs/deep.md``)."""
+    hyperparameters: dict[str, Any] = field(default_factory=dict)
+    """Overrides of the preset, by field name."""
+    seeds: tuple[int, ...] = tuple(range(10))
+    """One run per seed; seed ``s`` trains from ``jax.random.key(s)``."""
+    eval_rounds: int = 20
+    """Greedy evaluations, evenly spaced over the training, >= 1."""
+    eval_episodes: int = 10
+    """Episodes per evaluation, >= 1."""
+    vmap_width: int = 10
+    """Seeds trained side by side in one program (results depend on it; see the module's docstring), >= 1."""
+
+    def __post_init__(self) -> None:
+        deep_method(self.algorithm)
+        if self.env not in DEEP_ENVS:
+            raise ConfigError("env", self.env, ", ".join(DEEP_ENVS))
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds) or any(
+                not isinstance(s, int) or s < 0 for s in self.seeds):
+            raise ConfigError("seeds", self.seeds, "distinct non-negative integers, at least one")
+        for name in ("eval_rounds", "eval_episodes", "vmap_width"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ConfigError(name, value, "a positive integer")
+        if not isinstance(self.hyperparameters, dict):
+            raise ConfigError("hyperparameters", self.hyperparameters, "a table of field names and values")
+        object.__setattr__(self, "seeds", tuple(self.seeds))
+        self.method_config()  # validates the preset and the overrides
+
+    def method_config(self) -> Any:
+        """The method's own config: preset, fixed settings and overrides, validated."""
+        return hyperparameters(self.algorithm, self.env, self.preset, self.hyperparameters)
+
+    @property
+    def environment(self) -> DeepEnv:
+        return DEEP_ENVS[self.env]
+
+    @property
+    def name(self) -> str:
+        return f"{self.algorithm}-{self.env}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """What ``config.json`` holds: the fields, and every hyperparameter the run used."""
+        data = dataclasses.asdict(self)
+        data["engine"] = "deep"
+        data["seeds"] = list(self.seeds)
+        data["resolved"] = _jsonable(dataclasses.asdict(self.method_config()))
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> DeepConfig:
+        known = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: (tuple(v) if k == "seeds" else v) for k, v in data.items() if k in known})
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+@dataclass
+class DeepResults:
+    """Every seed of one deep configuration: its episodes, evaluations, final parameters and how the run went."""
+
+    config: DeepConfig
+    episodes: pd.DataFrame
+    """One row per seed x training episode, in the order they ended: ``env_step`` (environment steps of the
+    seed's training when it ended, over all parallel environments), ``return``, ``length``, ``terminated``."""
+    evaluations: pd.DataFrame
+    """One row per seed x round x greedy episode; ``after_step``: the training steps before the round."""
+    params: dict[str, np.ndarray]
+    """Flattened parameter names (``/``-joined) -> arrays with a leading seed axis."""
+    meta: dict[str, Any]
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        return self.config.seeds
+
+    def seed_params(self, seed: int) -> dict:
+        """The nested parameters of one seed, as the method's network takes them."""
+        index = self.seeds.index(seed)
+        return unflatten_dict({tuple(k.split("/")): v[index] for k, v in self.params.items()})
+
+    def save(self, run_dir: Path) -> Path:
+        """Write the run directory: the files under temporary names first, ``meta.json`` last."""
+        run_dir = Path(run_dir)
+        store.claim(run_dir, store.RUN, outputs=store.DEEP_RUN_FILES)
+        labels = {"study": self.meta.get("study", ""), "env": self.config.env, "algorithm": self.config.algorithm,
+                  "schedule": self.config.preset}
+        contents = {
+            store.CONFIG_FILE: (json.dumps(self.config.to_dict(), indent=2, sort_keys=True) + "\n").encode(),
+            store.EPISODES_FILE: _parquet_bytes(_table(self.episodes, labels)),
+            store.EVALUATIONS_FILE: _parquet_bytes(_table(self.evaluations, labels)),
+            store.PARAMS_FILE: _npz_bytes({**self.params, "seeds": np.asarray(self.seeds)}),
+        }
+        store.enter_outputs(*(run_dir / name for name in store.DEEP_RUN_FILES))
+        (run_dir / store.META_FILE).unlink(missing_ok=True)
+        for name, data in contents.items():
+            store.write_bytes_atomic(run_dir / name, data)
+        files = {name: store.file_record(data) for name, data in contents.items()}
+        record = {"seeds": list(self.seeds), "files": files}
+        store.write_json_atomic(run_dir / store.META_FILE, {**self.meta, "contents": record})
+        return run_dir
+
+    @classmethod
+    def load(cls, run_dir: Path, expected: DeepConfig | None = None) -> DeepResults:
+        """Read a finished deep run directory after checking that its files belong together (and hold
+        ``expected`` where given); anything else is a :class:`~rlcompare.experiment.store.StoreError`."""
+        run_dir = Path(run_dir)
+        meta = store.verify_run(run_dir, None if expected is None else _json_round_trip(expected.to_dict()),
+                                store.DEEP_CONTENT_FILES)
+        try:
+            config = DeepConfig.from_dict(store.read_json(run_dir / store.CONFIG_FILE))
+        except (ValueError, TypeError) as error:
+            raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: {error}") from None
+        try:
+            episodes = pd.read_parquet(run_dir / store.EPISODES_FILE)
+            evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)
+            with np.load(run_dir / store.PARAMS_FILE, allow_pickle=False) as arrays:
+                params = {key: arrays[key] for key in arrays.files}
+        except Exception as error:
+            raise store.StoreError(f"{run_dir}: cannot read the stored records ({store.cut(str(error), 200)})"
+                                   ) from None
+        seeds = params.pop("seeds", np.array([])).tolist()
+        if seeds != list(config.seeds) or set(episodes["seed"]) - set(seeds):
+            raise store.StoreError(f"{run_dir}: the seeds of {store.PARAMS_FILE} or {store.EPISODES_FILE} differ "
+                                   f"from those of {store.CONFIG_FILE}")
+        columns = ["seed", "episode", "env_step", "return", "length", "terminated"]
+        return cls(config, episodes[columns].reset_index(drop=True),
+                   evaluations[["seed", "round", "after_step", "return", "length", "terminated"]].reset_index(
+                       drop=True), params, meta)
+
+
+def _json_round_trip(data: dict) -> dict:
+    return json.loads(json.dumps(data))
+
+
+def _table(frame: pd.DataFrame, labels: dict[str, Any]):
+    return _with_labels({name: frame[name].to_numpy() for name in frame.columns}, labels, len(frame))
+
+
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    return buffer.getvalue()
+
+
+def groups(seeds: tuple[int, ...], width: int) -> Iterator[tuple[tuple[int, ...], tuple[int, ...]]]:
+    """``(seeds, padded)``: the seeds in groups of ``width``, the last padded with copies of its first seed."""
+    for first in range(0, len(seeds), width):
+        group = seeds[first:first + width]
+        yield group, group + (group[0],) * (width - len(group))
+
+
+def compiled_training(config: DeepConfig) -> tuple[Callable[[jax.Array], TrainOutput], Any]:
+    """The jitted, vmapped training of ``vmap_width`` seeds, and the method's config."""
+    method_config = config.method_config()
+    train = deep_method(config.algorithm).module.make_train(method_config, config.environment, config.eval_rounds,
+                                                            config.eval_episodes)
+    return jax.jit(jax.vmap(train)), method_config
+
+
+def seed_keys(seeds: tuple[int, ...]) -> jax.Array:
+    return jax.numpy.stack([jax.random.key(seed) for seed in seeds])
+
+
+def episodes_frame(seeds: tuple[int, ...], output: TrainOutput) -> pd.DataFrame:
+    """The training episodes of every seed, in the order they ended, with the step at which each did."""
+    done = np.asarray(output.finished.done)
+    n_envs = done.shape[-1]
+    frames = []
+    for index, seed in enumerate(seeds):
+        flat_done = done[index].reshape(-1, n_envs)  # (vector steps, envs), in time order
+        vector_step, _ = np.nonzero(flat_done)
+        pick = {name: np.asarray(getattr(output.finished, name))[index].reshape(-1, n_envs)[flat_done]
+                for name in ("returns", "lengths", "terminated")}
+        frames.append(pd.DataFrame({
+            "seed": np.full(len(vector_step), seed, np.int64),
+            "episode": np.arange(len(vector_step), dtype=np.int64),
+            "env_step": ((vector_step + 1) * n_envs).astype(np.int64),
+            "return": pick["returns"].astype(np.float64),
+            "length": pick["lengths"].astype(np.int64),
+            "terminated": pick["terminated"].astype(bool),
+        }))
+    return pd.concat(frames, ignore_index=True)
+
+
+def evaluations_frame(seeds: tuple[int, ...], output: TrainOutput, steps_per_round: int) -> pd.DataFrame:
+    returns = np.asarray(output.eval_returns)
+    _, rounds, per_round = returns.shape
+    runs = len(seeds)
+    return pd.DataFrame({
+        "seed": np.repeat(np.asarray(seeds, np.int64), rounds * per_round),
+        "round": np.tile(np.repeat(np.arange(rounds, dtype=np.int64), per_round), runs),
+        "after_step": np.tile(np.repeat((np.arange(rounds, dtype=np.int64) + 1) * steps_per_round, per_round), runs),
+        "return": returns.reshape(-1).astype(np.float64),
+        "length": np.asarray(output.eval_lengths).reshape(-1).astype(np.int64),
+        "terminated": np.asarray(output.eval_terminated).reshape(-1).astype(bool),
+    })
+
+
+def run(config: DeepConfig, *, out: Path | None = None, study: str = "",
+        progress: Callable[[int], None] | None = None) -> DeepResults:
+    """Train every seed of ``config``; write the run directory to ``out`` if given. ``progress`` is called with
+    the number of seeds finished since its last call."""
+    if out is None:
+        return _train(config, study, progress)
+    with store.output_directory(Path(out), store.RUN):
+        results = _train(config, study, progress)
+        results.save(out)
+    return results
+
+
+def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | None) -> DeepResults:
+    train, _ = compiled_training(config)
+    started = time.perf_counter()
+    train = train.lower(seed_keys(next(groups(config.seeds, config.vmap_width))[1])).compile()
+    compile_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    outputs = []
+    for group, padded in groups(config.seeds, config.vmap_width):
+        output = jax.device_get(jax.block_until_ready(train(seed_keys(padded))))
+        kept = len(group)
+        outputs.append(jax.tree.map(lambda x, kept=kept: x[:kept], output))
+        if progress is not None:
+            progress(len(group))
+    wall = time.perf_counter() - started
+    output = jax.tree.map(lambda *parts: np.concatenate(parts), *outputs)
+    done = output.finished.done  # (seeds, rounds, updates per round, steps per update, environments)
+    steps_per_round = int(np.prod(done.shape[2:]))
+    steps = steps_per_round * done.shape[1]
+    meta = {
+        "study": study, "name": config.name, "engine": "deep", "seeds": list(config.seeds),
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "command": sys.argv,
+        "timings": {"compile_seconds": compile_seconds, "wall_seconds": wall, "training_steps": steps,
+                    "steps_per_second": steps * len(config.seeds) / wall if wall > 0 else None,
+                    "device": str(jax.devices()[0])},
+        "versions": {**versions(), **{pkg: _version(pkg) for pkg in ("jax", "flax", "optax")}},
+    }
+    params = {"/".join(k): np.asarray(v) for k, v in flatten_dict(output.params).items()}
+    return DeepResults(config, episodes_frame(config.seeds, output),
+                       evaluations_frame(config.seeds, output, steps_per_round), params, meta)
+
+
+__all__ = ["DEEP_METHODS", "DeepConfig", "DeepResults", "run"]
