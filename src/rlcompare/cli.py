@@ -252,12 +252,12 @@ def reproduce(
     seeds: Annotated[int | None, typer.Option(
         help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, why, "
              "cartpole and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for "
-             "cliff); 20 for sensitivity, whose seeds come from its sweep (SeedSequence(0).spawn(N)).",
+             "cliff); 10 for deep; 20 for sensitivity, whose seeds come from its sweep (SeedSequence(0).spawn(N)).",
         show_default=False)] = None,
     first_seed: FirstSeed = 0,
     episodes: Annotated[int | None, typer.Option(
-        help="Training episodes per seed (paper, why, cartpole, acrobot and sensitivity; the paper gives none). "
-             "Default: 5000; 1500 for sensitivity.", show_default=False)] = None,
+        help="Training episodes per seed (paper, why, cartpole, acrobot, sensitivity, and deep's tabular pair; the "
+             "paper gives none). Default: 5000; 1500 for sensitivity.", show_default=False)] = None,
     algorithms: Annotated[str, typer.Option(
         help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
              "one. Each adds rows to Tables I and II.")] = "q_learning,sarsa",
@@ -274,6 +274,14 @@ def reproduce(
     address: Annotated[str | None, typer.Option(
         help="Sensitivity: run the trials on the Ray cluster at this address ('auto': the one 'ray start' began "
              "here; or HOST:PORT) instead of this machine's cores.", show_default=False)] = None,
+    steps: Annotated[int | None, typer.Option(
+        help="Deep: environment steps of every training, in place of each preset's (for a quick look).",
+        show_default=False)] = None,
+    methods: Annotated[str | None, typer.Option(
+        help="Deep: comma-separated deep methods. Default: every one.", show_default=False)] = None,
+    envs: Annotated[str | None, typer.Option(
+        help="Deep: comma-separated environments (CartPole-v1, Acrobot-v1, MountainCar-v0). Default: all three.",
+        show_default=False)] = None,
     list_studies: Annotated[bool, typer.Option("--list", help="List the studies and exit.")] = False,
     force: Force = False,
 ) -> None:
@@ -293,6 +301,9 @@ def reproduce(
         raise typer.BadParameter(f"got {study!r}; allowed: {', '.join(TITLES)}", param_hint="'STUDY'")
     out_dir = _out_path(out, Path("runs") / study)
     _check_out(out_dir, store.Owner("study", study), force)
+    if study == "deep":
+        _reproduce_deep(seeds, first_seed, steps, episodes, methods, envs, out_dir, force)
+        return
     _announce_compiling()
     if study == "sensitivity":
         _reproduce_sensitivity(seeds, first_seed, episodes, grid or [], out_dir, workers, address, force)
@@ -360,6 +371,73 @@ def _why_report(out: Path, runs=None) -> None:
     path, findings = build_why_report(out, runs)
     for sentence in findings:
         console.print(Text(sentence), highlight=False)
+    console.print(f"Report: {path}")
+
+
+def _deep_study():
+    """The deep study's module, or one line saying how to install the ``deep`` extra (exit 2)."""
+    try:
+        from rlcompare.studies import deep
+    except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
+        _fail(str(error))
+    return deep
+
+
+def _listed(spec: str | None, allowed: tuple[str, ...], option: str) -> tuple[str, ...]:
+    """A comma-separated choice among ``allowed``; None: all of them."""
+    if spec is None:
+        return allowed
+    chosen = tuple(name.strip() for name in spec.split(",") if name.strip())
+    if not chosen or any(name not in allowed for name in chosen):
+        raise typer.BadParameter(f"got {spec!r}; allowed: a comma-separated list of {', '.join(allowed)}",
+                                 param_hint=f"'{option}'")
+    return chosen
+
+
+def _reproduce_deep(seeds: int | None, first_seed: int, steps: int | None, episodes: int | None,
+                    methods: str | None, envs: str | None, out: Path, force: bool) -> None:
+    deep = _deep_study()
+    from rlcompare.deep.methods import DEEP_METHODS
+
+    for value, option in ((steps, "--steps"), (episodes, "--episodes")):
+        if value is not None and value < 1:
+            raise typer.BadParameter(f"got {value}; allowed: an integer >= 1", param_hint=f"'{option}'")
+    plan = deep.Plan(seeds=_seeds(deep.DEFAULT_SEEDS if seeds is None else seeds, first_seed),
+                     methods=_listed(methods, tuple(DEEP_METHODS), "--methods"),
+                     envs=_listed(envs, deep.ENVS, "--envs"), steps=steps,
+                     tabular_episodes=deep.TABULAR_EPISODES if episodes is None else episodes)
+    try:
+        configs = plan.deep_configs()
+    except ConfigError as error:
+        hint = "'--steps'" if error.field_name == "total_steps" else error.field_name
+        raise typer.BadParameter(f"got {store.quote(error.value)}; allowed: {error.allowed}", param_hint=hint) from None
+    console.print(Text(f"Training {len(configs)} deep configurations x {len(plan.seeds)} seeds; each compiles its "
+                       "program first (10-40 s, once per machine).", style="dim"))
+    with _progress() as progress:
+        tasks = {"tabular": progress.add_task("tabular", total=sum(
+                     c.progress_total for c in plan.tabular_configs().values())),
+                 "deep": progress.add_task("deep (seeds)", total=sum(c.progress_total for c in configs.values()))}
+        for name, results, reused in deep.reproduce(out, plan, force=force,
+                                                    progress=lambda kind, n: progress.advance(tasks[kind], n)):
+            _print_deep_done(progress, name, results, reused)
+    _deep_report(out)
+
+
+def _print_deep_done(progress: Progress, name: str, results, reused: bool) -> None:
+    timings = results.meta.get("timings", {})
+    how = "loaded" if reused else (f"{timings.get('wall_seconds', 0):.1f} s, compiled in "
+                                   f"{timings.get('compile_seconds', 0):.1f} s")
+    progress.console.print(f"{name}: {how}")
+
+
+def _deep_report(out: Path) -> None:
+    deep = _deep_study()
+    with console.status("Building the report"):
+        path, lines, problems = deep.build_report(out)
+    for line in lines:
+        console.print(Text(f"  {line}"), highlight=False)
+    for problem in problems:
+        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
     console.print(f"Report: {path}")
 
 
@@ -524,6 +602,8 @@ def report(
         _sensitivity_report(study_dir)
     elif owner == store.Owner("study", "why"):
         _why_report(study_dir)
+    elif owner == store.Owner("study", "deep"):
+        _deep_report(study_dir)
     elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
         console.print(f"Report: {write_study_report(STUDIES[owner.name], study_dir)}")
     elif owner is not None and owner.kind == "study":

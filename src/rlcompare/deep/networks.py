@@ -21,10 +21,15 @@ class MLP(nn.Module):
     layer_norm: bool = False
     last_scale: float = 1.0
     """Scale of the last layer's orthogonal initialisation (PPO's 0.01 for the policy); 1.0 keeps flax's default."""
+    box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    """``(low, high)`` of the observation: inputs are mapped linearly onto [-1, 1] first (None: as they are)."""
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         x = x.astype(jnp.float32)
+        if self.box is not None:
+            low, high = (jnp.asarray(bound, jnp.float32) for bound in self.box)
+            x = 2.0 * (x - low) / (high - low) - 1.0
         for width in self.hidden:
             x = nn.Dense(width, param_dtype=jnp.float32, dtype=jnp.float32)(x)
             if self.layer_norm:

@@ -20,6 +20,7 @@ where this departs from purejaxql.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -32,9 +33,15 @@ from flax.training.train_state import TrainState
 from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
 from rlcompare.deep.networks import MLP
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
+from rlcompare.envs import acrobot, mountain_car
 from rlcompare.experiment.config import ConfigError
 
 TARGETS = ("max", "sample", "expected")
+OBSERVATION_BOXES = {
+    "MountainCar-v0": (tuple(mountain_car.OBSERVATION_LOW.tolist()), tuple(mountain_car.OBSERVATION_HIGH.tolist())),
+    "Acrobot-v1": (tuple(acrobot.OBSERVATION_LOW.tolist()), tuple(acrobot.OBSERVATION_HIGH.tolist())),
+}
+"""Gymnasium's observation boxes where every bound is finite."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +82,8 @@ class PQNConfig:
     """Widths of the hidden layers, each followed by LayerNorm and ReLU."""
     draw_before: bool = True
     """Draw the action bootstrapped at a rollout's end before the update and take it next (Algorithm 2's order)."""
+    scale_observations: bool = False
+    """Map a bounded observation box onto [-1, 1] before the network (Mountain Car's velocity spans ±0.07)."""
 
     def __post_init__(self) -> None:
         _check(self.target in TARGETS, "target", self.target, ", ".join(TARGETS))
@@ -105,6 +114,20 @@ def _check(ok: bool, name: str, value: object, allowed: str) -> None:
         raise ConfigError(name, value, allowed)
 
 
+_SMALL = PQNConfig(total_steps=500_000, n_envs=16, n_steps=128, n_epochs=4, n_minibatches=4, hidden=(64, 64),
+                   learning_rate=1e-3)
+PRESETS = {"default": {
+    "CartPole-v1": _SMALL,
+    "Acrobot-v1": _SMALL,
+    "MountainCar-v0": dataclasses.replace(_SMALL, total_steps=1_000_000, scale_observations=True),
+}}
+"""Preset name -> environment -> config. ``default``: the shape the speed target is set on (16 environments x 128
+steps, 4 epochs x 4 minibatches, 2 x 64 LayerNorm MLP), with purejaxql's CartPole settings otherwise
+(``pqn_cartpole.yaml``: λ 0.95, γ 0.99, RAdam, gradients clipped at 10, rewards scaled by 0.1, ε from 1 over the
+first fifth) but ε ending at 0.05, a step size of 1e-3 for the smaller batches, and twice the steps on
+Mountain Car, whose observations are scaled onto [-1, 1]."""
+
+
 class Rollout(NamedTuple):
     """One rollout, time-major ``(n_steps, n_envs)``."""
 
@@ -128,7 +151,8 @@ class Runner(NamedTuple):
 
 
 def network(config: PQNConfig, env: DeepEnv) -> MLP:
-    return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True)
+    box = OBSERVATION_BOXES.get(env.name) if config.scale_observations else None
+    return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True, box=box)
 
 
 def act(config: PQNConfig, env: DeepEnv) -> Callable[[dict, jax.Array], jax.Array]:

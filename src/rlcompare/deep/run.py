@@ -23,7 +23,6 @@ from typing import Any
 import jax
 import numpy as np
 import pandas as pd
-from flax.traverse_util import flatten_dict, unflatten_dict
 
 from rlcompare.deep.envs import DEEP_ENVS, DeepEnv
 from rlcompare.deep.methods import DEEP_METHODS, deep_method, hyperparameters
@@ -70,7 +69,8 @@ class DeepConfig:
         if not isinstance(self.hyperparameters, dict):
             raise ConfigError("hyperparameters", self.hyperparameters, "a table of field names and values")
         object.__setattr__(self, "seeds", tuple(self.seeds))
-        self.method_config()  # validates the preset and the overrides
+        make_train = deep_method(self.algorithm).module.make_train  # builds closures only: cheap
+        make_train(self.method_config(), self.environment, self.eval_rounds, self.eval_episodes)  # validates
 
     def method_config(self) -> Any:
         """The method's own config: preset, fixed settings and overrides, validated."""
@@ -83,6 +83,11 @@ class DeepConfig:
     @property
     def name(self) -> str:
         return f"{self.algorithm}-{self.env}"
+
+    @property
+    def progress_total(self) -> int:
+        """What a run's ``progress`` callback counts to: seeds (trained ``vmap_width`` at a time)."""
+        return len(self.seeds)
 
     def to_dict(self) -> dict[str, Any]:
         """What ``config.json`` holds: the fields, and every hyperparameter the run used."""
@@ -117,17 +122,31 @@ class DeepResults:
     evaluations: pd.DataFrame
     """One row per seed x round x greedy episode; ``after_step``: the training steps before the round."""
     params: dict[str, np.ndarray]
-    """Flattened parameter names (``/``-joined) -> arrays with a leading seed axis."""
+    """Each parameter's path in the method's parameter tree (``jax.tree_util.keystr``) -> its array, with a
+    leading seed axis."""
     meta: dict[str, Any]
 
     @property
     def seeds(self) -> tuple[int, ...]:
         return self.config.seeds
 
-    def seed_params(self, seed: int) -> dict:
-        """The nested parameters of one seed, as the method's network takes them."""
+    def stacked_params(self, template: Any) -> Any:
+        """Every seed's parameters in the tree shape of ``template`` (the method's own, :func:`params_template`),
+        with a leading seed axis; a name the stored file lacks is a :class:`~rlcompare.experiment.store.StoreError`."""
+        paths, tree = jax.tree_util.tree_flatten_with_path(template)
+        names = [jax.tree_util.keystr(path) for path, _ in paths]
+        missing = [name for name in names if name not in self.params]
+        if missing or len(names) != len(self.params):
+            raise store.StoreError(f"{store.PARAMS_FILE}: its parameters are not those of {self.config.algorithm}'s "
+                                   f"network (missing {missing[:3]}, {len(self.params)} stored, {len(names)} expected)")
+        return jax.tree_util.tree_unflatten(tree, [self.params[name] for name in names])
+
+    def seed_params(self, seed: int, template: Any) -> Any:
+        """One seed's parameters (see :meth:`stacked_params`)."""
+        if seed not in self.seeds:
+            raise KeyError(f"seed {seed} is not in this run; seeds: {list(self.seeds)}")
         index = self.seeds.index(seed)
-        return unflatten_dict({tuple(k.split("/")): v[index] for k, v in self.params.items()})
+        return jax.tree.map(lambda leaf: leaf[index], self.stacked_params(template))
 
     def save(self, run_dir: Path) -> Path:
         """Write the run directory: the files under temporary names first, ``meta.json`` last."""
@@ -179,6 +198,17 @@ class DeepResults:
                        drop=True), params, meta)
 
 
+def load_if_complete(run_dir: Path, config: DeepConfig) -> DeepResults | None:
+    """The stored results of ``config`` in ``run_dir`` if that run finished and its files belong together, else
+    None (so it is run again)."""
+    if not store.is_complete(run_dir, store.DEEP_RUN_FILES):
+        return None
+    try:
+        return DeepResults.load(run_dir, expected=config)
+    except store.StoreError:
+        return None
+
+
 def _json_round_trip(data: dict) -> dict:
     return json.loads(json.dumps(data))
 
@@ -206,6 +236,13 @@ def compiled_training(config: DeepConfig) -> tuple[Callable[[jax.Array], TrainOu
     train = deep_method(config.algorithm).module.make_train(method_config, config.environment, config.eval_rounds,
                                                             config.eval_episodes)
     return jax.jit(jax.vmap(train)), method_config
+
+
+def params_template(config: DeepConfig) -> Any:
+    """The shape of one seed's parameter tree, traced without training."""
+    train = deep_method(config.algorithm).module.make_train(config.method_config(), config.environment,
+                                                            config.eval_rounds, config.eval_episodes)
+    return jax.eval_shape(train, jax.random.key(0)).params
 
 
 def seed_keys(seeds: tuple[int, ...]) -> jax.Array:
@@ -285,7 +322,8 @@ def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | Non
                     "device": str(jax.devices()[0])},
         "versions": {**versions(), **{pkg: _version(pkg) for pkg in ("jax", "flax", "optax")}},
     }
-    params = {"/".join(k): np.asarray(v) for k, v in flatten_dict(output.params).items()}
+    params = {jax.tree_util.keystr(path): np.asarray(leaf)
+              for path, leaf in jax.tree_util.tree_flatten_with_path(output.params)[0]}
     return DeepResults(config, episodes_frame(config.seeds, output),
                        evaluations_frame(config.seeds, output, steps_per_round), params, meta)
 

@@ -194,6 +194,11 @@ class ExperimentConfig:
     def evaluation_rounds(self) -> int:
         return self.episodes // self.eval_every if self.eval_every else 0
 
+    @property
+    def progress_total(self) -> int:
+        """What a run's ``progress`` callback counts to: episodes (each seed's, trained side by side)."""
+        return self.episodes
+
     def stage_episodes(self) -> dict[str, int]:
         """Episodes completed when each stage's snapshot is taken (at least 1)."""
         return {name: max(1, round(share * self.episodes)) for name, share in self.stages}

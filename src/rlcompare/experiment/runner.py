@@ -160,10 +160,12 @@ def _version(package: str) -> str | None:
 
 def run_or_load(
     out: Path, configs: dict[str, ExperimentConfig], *, study: str, progress: Callable[[int], None] | None = None,
-    force: bool = False,
+    force: bool = False, train: Callable[..., Results] | None = None,
+    load_finished: Callable[[Path, ExperimentConfig], Results | None] | None = None,
 ) -> Iterator[tuple[str, Results, bool]]:
     """Run each configuration into ``out / name``, or load it if that run already finished and its files belong
-    together.
+    together. ``train`` and ``load_finished`` stand for :func:`run` and :func:`load_if_complete` where another
+    engine trains (the deep one, :mod:`rlcompare.deep.run`).
 
     ``out`` is claimed as the study's directory (``force``: even beside files rlcompare did not write) and
     locked while this runs. Yields ``(name, results, reused)`` as each configuration completes, so an
@@ -172,13 +174,13 @@ def run_or_load(
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
         for name, config in configs.items():
             run_dir = Path(out) / name
-            stored = load_if_complete(run_dir, config)
+            stored = (load_finished or load_if_complete)(run_dir, config)
             if stored is not None:
                 if progress is not None:
-                    progress(config.episodes)
+                    progress(config.progress_total)
                 yield name, stored, True
             else:
-                yield name, run(config, out=run_dir, study=study, progress=progress), False
+                yield name, (train or run)(config, out=run_dir, study=study, progress=progress), False
 
 
 def load(run_dir: Path) -> Results:

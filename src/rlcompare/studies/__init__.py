@@ -8,6 +8,8 @@ TITLES = {
     "book-10.2": "Semi-gradient SARSA with tile coding (Figure 10.2)",
     "book-12.10": "SARSA(λ) with replacing traces (Figure 12.10)",
     "cliff": "Cliff Walking: SARSA, Q-Learning and Expected SARSA (Example 6.6)",
+    "deep": "the paper's question with neural networks: Q(λ), SARSA(λ), DQN, PPO on CartPole, Acrobot, MountainCar "
+            "(needs the 'deep' extra)",
     "sensitivity": "does SARSA still beat Q-Learning across α, γ, ε_end and the time limit? (a sweep; Ray: --address)",
 }
 """Every study, in the order ``--list`` shows them."""

@@ -1,0 +1,290 @@
+"""``rlcompare reproduce deep``: the paper's question asked again with neural networks, as its future work asks.
+
+On CartPole-v1, Acrobot-v1 and MountainCar-v0 (Gymnasium's limits), every deep method trains on paired seeds:
+Q(λ), SARSA(λ) and Expected SARSA(λ) in one PQN-style engine whose only switch is the bootstrap, DQN and Double
+DQN, PPO. Beside them, the tabular pair (Q-Learning, SARSA) on the same environments with the paper's settings.
+The report draws learning curves against environment steps and against seconds, tabulates the final greedy
+return and the area under the curve (mean and IQM with 95% intervals), the probability of improvement on paired
+seeds, and judges "on-policy against off-policy target" per environment, with and without a network.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.analysis import stats
+from rlcompare.analysis.plots import plot_return_curves
+from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.analysis.tables import per_seed_metrics
+from rlcompare.deep import run as deep_run
+from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
+from rlcompare.experiment.runner import run_or_load
+
+STUDY = "deep"
+ENVS = ("CartPole-v1", "Acrobot-v1", "MountainCar-v0")
+DEFAULT_SEEDS = 10
+SCORE = {"CartPole-v1": 475.0, "Acrobot-v1": -100.0, "MountainCar-v0": -130.0}
+"""The score whose first reaching, in environment steps and seconds, the report times."""
+MARGIN = {"CartPole-v1": 25.0, "Acrobot-v1": 25.0, "MountainCar-v0": 10.0}
+"""Differences of mean return smaller than this count as no difference (5% of each environment's return range),
+declared here before any run."""
+TABULAR_EPISODES = 5000
+PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
+"""The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
+TABULAR_PAIR = ("sarsa", "q_learning")
+METRIC_NAMES = {"final": "final greedy return", "auc": "area under the greedy curve"}
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """A published number to read ours against, with what it is."""
+
+    env: str
+    method: str
+    value: float
+    source: str
+
+
+ANCHORS = (
+    Anchor("CartPole-v1", "dqn", 500.0, "rl-baselines3-zoo benchmark: one trained agent"),
+    Anchor("CartPole-v1", "ppo", 500.0, "rl-baselines3-zoo benchmark: one trained agent"),
+    Anchor("Acrobot-v1", "dqn", -76.6, "rl-baselines3-zoo benchmark: one trained agent"),
+    Anchor("Acrobot-v1", "ppo", -73.5, "rl-baselines3-zoo benchmark: one trained agent"),
+    Anchor("MountainCar-v0", "dqn", -100.8, "rl-baselines3-zoo benchmark: one trained agent"),
+    Anchor("MountainCar-v0", "ppo", -110.4, "rl-baselines3-zoo benchmark: one trained agent"),
+    *(Anchor(env, method, value, f"cleanrl {method}.py docs: episodic return at the end of training, 3 seeds")
+      for env, method, value in (("CartPole-v1", "dqn", 488.69), ("Acrobot-v1", "dqn", -91.54),
+                                 ("MountainCar-v0", "dqn", -194.95), ("CartPole-v1", "ppo", 490.04),
+                                 ("Acrobot-v1", "ppo", -86.36), ("MountainCar-v0", "ppo", -200.0))),
+)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What the study trains: the seeds, the deep methods and the environments, and how long."""
+
+    seeds: tuple[int, ...] = tuple(range(DEFAULT_SEEDS))
+    methods: tuple[str, ...] = tuple(DEEP_METHODS)
+    envs: tuple[str, ...] = ENVS
+    steps: int | None = None
+    """Environment steps of every deep training in place of each preset's (None: the presets')."""
+    tabular_episodes: int = TABULAR_EPISODES
+
+    def deep_configs(self) -> dict[str, DeepConfig]:
+        """Each deep method on each environment with its default preset."""
+        overrides = {} if self.steps is None else {"total_steps": self.steps}
+        return {f"{method}-{env}": DeepConfig(algorithm=method, env=env, seeds=self.seeds, hyperparameters=overrides,
+                                              vmap_width=min(len(self.seeds), DEFAULT_SEEDS))
+                for env in self.envs for method in self.methods}
+
+    def tabular_configs(self) -> dict[str, ExperimentConfig]:
+        """The paper's pair, ε decaying, on each environment with the paper's settings and that environment's
+        grid and limit."""
+        return {f"tabular-{algorithm}-{env}": ExperimentConfig(algorithm=algorithm, env=env, seeds=self.seeds,
+                                                               episodes=self.tabular_episodes)
+                for env in self.envs for algorithm in TABULAR_PAIR}
+
+
+def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | None = None, force: bool = False
+              ) -> Iterator[tuple[str, DeepResults | Results, bool]]:
+    """Train (or load, where finished) the tabular pair, then every deep configuration, into ``out``."""
+    def advance(kind: str) -> Callable[[int], None] | None:
+        return None if progress is None else (lambda n: progress(kind, n))
+
+    yield from run_or_load(Path(out), plan.tabular_configs(), study=STUDY, progress=advance("tabular"), force=force)
+    yield from run_or_load(Path(out), plan.deep_configs(), study=STUDY, progress=advance("deep"), force=force,
+                           train=deep_run.run, load_finished=deep_run.load_if_complete)
+
+
+# --- what the report computes from the run directories ----------------------------------------------------
+
+def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], list[str]]:
+    """The finished runs of a deep study directory, deep and tabular, and what is missing or broken."""
+    deep, tabular, problems = {}, {}, []
+    for run_dir in sorted(p for p in Path(out).iterdir() if p.is_dir()):
+        try:
+            if run_dir.name.startswith("tabular-"):
+                tabular[run_dir.name] = Results.load(run_dir)
+            else:
+                deep[run_dir.name] = DeepResults.load(run_dir)
+        except (store.StoreError, ValueError) as error:
+            problems.append(str(error))
+    return deep, tabular, problems
+
+
+def eval_curves(results: DeepResults) -> tuple[np.ndarray, np.ndarray]:
+    """``(after_step, (seeds, rounds) mean greedy return)``."""
+    frame = results.evaluations.groupby(["seed", "round"], sort=True)["return"].mean()
+    curves = frame.to_numpy().reshape(len(results.seeds), -1)
+    steps = np.sort(results.evaluations["after_step"].unique())
+    return steps, curves
+
+
+def per_seed(results: DeepResults) -> pd.DataFrame:
+    """One row per seed: final greedy return (last round), area under the greedy curve (mean over rounds), and
+    the environment steps and seconds at which the greedy curve first reached the environment's score."""
+    steps, curves = eval_curves(results)
+    score = SCORE[results.config.env]
+    reached = curves >= score
+    first = np.where(reached.any(axis=1), steps[reached.argmax(axis=1)], np.nan)
+    seconds_per_step = results.meta["timings"]["wall_seconds"] / (steps[-1] * len(results.seeds))
+    return pd.DataFrame({"seed": list(results.seeds), "final": curves[:, -1], "auc": curves.mean(axis=1),
+                         "steps_to_score": first, "seconds_to_score": first * seconds_per_step * len(results.seeds)})
+
+
+def summary_table(deep: dict[str, DeepResults]) -> pd.DataFrame:
+    """Per environment and method: final greedy return and area under the curve (mean and IQM, 95% intervals),
+    seeds that reached the score, median steps and seconds to reach it."""
+    rows = []
+    for results in deep.values():
+        metrics = per_seed(results)
+        reached = metrics["steps_to_score"].notna()
+        rows.append({
+            "env": results.config.env, "method": DEEP_METHODS[results.config.algorithm].label,
+            "final, mean": stats.interval(metrics["final"].to_numpy()).format(1),
+            "final, IQM": stats.interval(metrics["final"].to_numpy(), "iqm").format(1),
+            "AUC, mean": stats.interval(metrics["auc"].to_numpy()).format(1),
+            "reached score": f"{int(reached.sum())}/{len(metrics)}",
+            "median steps to score": float(metrics["steps_to_score"].median()) if reached.any() else np.nan,
+            "median seconds to score": float(metrics["seconds_to_score"].median()) if reached.any() else np.nan,
+            "steps/s": results.meta["timings"]["steps_per_second"],
+        })
+    return pd.DataFrame(rows)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """On-policy against off-policy target on one environment: paired differences of one metric."""
+
+    env: str
+    engine: str
+    metric: str
+    difference: stats.Estimate
+    p_value: float
+    improvement: stats.Estimate
+    equivalence: stats.Equivalence
+
+
+def compare(on_policy: np.ndarray, off_policy: np.ndarray, env: str, engine: str, metric: str) -> Comparison:
+    difference = stats.paired_difference(on_policy, off_policy)
+    margin = MARGIN[env]
+    return Comparison(env, engine, metric, difference, stats.rank_test(on_policy, off_policy),
+                      stats.probability_of_improvement(on_policy, off_policy),
+                      stats.tost(on_policy - off_policy, -margin, margin))
+
+
+def verdict_label(comparison: Comparison, p_adjusted: float, level: float = stats.ALPHA) -> str:
+    """"on-policy better", "off-policy better", "equivalent (within ±margin)", or "not resolved" when the
+    seeds can decide neither a direction nor an equivalence."""
+    direction = stats.verdict(comparison.difference, p_adjusted, +1, level)
+    if direction == stats.SUPPORTED:
+        return "on-policy better"
+    if direction == stats.CONTRADICTED:
+        return "off-policy better"
+    if direction == stats.NO_DATA:
+        return stats.NO_DATA
+    if stats.equivalence_verdict(comparison.equivalence, level=level) == stats.SUPPORTED:
+        return f"equivalent (within ±{MARGIN[comparison.env]:g})"
+    return stats.NOT_RESOLVED
+
+
+def comparisons(deep: dict[str, DeepResults], tabular: dict[str, Results]) -> list[Comparison]:
+    """The paper's question per environment: SARSA(λ) against Q(λ) with a network (final greedy return and area
+    under the curve), SARSA against Q-Learning in a table (final greedy return)."""
+    found = []
+    for env in ENVS:
+        on, off = deep.get(f"{PAIR[0]}-{env}"), deep.get(f"{PAIR[1]}-{env}")
+        if on is not None and off is not None and on.seeds == off.seeds:
+            a, b = per_seed(on), per_seed(off)
+            found += [compare(a[m].to_numpy(), b[m].to_numpy(), env, "network", m) for m in ("final", "auc")]
+        on_t, off_t = (tabular.get(f"tabular-{name}-{env}") for name in TABULAR_PAIR)
+        if on_t is not None and off_t is not None and on_t.seeds == off_t.seeds:
+            a, b = per_seed_metrics(on_t)["greedy_return"], per_seed_metrics(off_t)["greedy_return"]
+            found.append(compare(a.to_numpy(), b.to_numpy(), env, "table", "final"))
+    return found
+
+
+def verdict_table(found: list[Comparison]) -> pd.DataFrame:
+    """One row per comparison, p-values Holm-adjusted over all of them (one family of claims)."""
+    adjusted = stats.holm(c.p_value for c in found)
+    return pd.DataFrame([{
+        "env": c.env, "engine": c.engine, "metric": METRIC_NAMES[c.metric],
+        "on - off (mean, 95% CI)": c.difference.format(1), "P(on > off)": c.improvement.format(2),
+        "p (Holm)": p, "verdict": verdict_label(c, p),
+    } for c, p in zip(found, adjusted, strict=True)])
+
+
+def anchor_table(deep: dict[str, DeepResults]) -> pd.DataFrame:
+    rows = []
+    for anchor in ANCHORS:
+        results = deep.get(f"{anchor.method}-{anchor.env}")
+        ours = stats.interval(per_seed(results)["final"].to_numpy(), "iqm").format(1) if results else "not run"
+        rows.append({"env": anchor.env, "method": DEEP_METHODS[anchor.method].label, "published": anchor.value,
+                     "what it is": anchor.source, "ours: final greedy IQM [95% CI]": ours})
+    return pd.DataFrame(rows)
+
+
+def curves_figure(deep: dict[str, DeepResults], env: str, against: str) -> Figure:
+    """Greedy return against environment steps (``steps``) or wall-clock seconds (``seconds``), mean over seeds
+    with a 95% bootstrap band, one line per method."""
+    figure = Figure(figsize=(7, 4.2))
+    ax = figure.subplots()
+    for results in (r for r in deep.values() if r.config.env == env):
+        steps, curves = eval_curves(results)
+        x = steps if against == "steps" else steps * results.meta["timings"]["wall_seconds"] / steps[-1]
+        plot_return_curves(ax, x, {DEEP_METHODS[results.config.algorithm].label: curves}, window=1,
+                           ylabel="greedy return")
+    ax.set_xlabel("environment steps" if against == "steps" else "seconds of training (all seeds together)")
+    ax.set_title(env)
+    return figure
+
+
+def build_report(out: Path) -> tuple[Path, list[str], list[str]]:
+    """Tables, verdicts, figures and ``report.html`` of a deep study directory: ``(path, verdict lines, problems)``."""
+    with store.rewriting(Path(out), "study"):
+        return _build_report(Path(out))
+
+
+def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
+    deep, tabular, problems = load_runs(out)
+    tables, figures = out / "tables", out / "figures"
+    summary = summary_table(deep)
+    verdicts = verdict_table(comparisons(deep, tabular))
+    anchors = anchor_table(deep)
+    for name, frame in (("deep_summary", summary), ("deep_verdicts", verdicts), ("deep_anchors", anchors)):
+        write_table(frame, tables, name)
+    curve_figures = []
+    for env in ENVS:
+        for against in ("steps", "seconds"):
+            path = figures / f"curves-{env}-{against}.png"
+            curve_figures.append((save_figure(curves_figure(deep, env, against), path),
+                                  f"{env}: greedy return against {against} (mean over seeds, 95% band)"))
+    lines = [f"{row.env}, {row.engine}, {row.metric}: {row.verdict}" for row in verdicts.itertuples()]
+    sections = [
+        Section("On-policy or off-policy target, with a network and in a table",
+                [f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds; "
+                 f"SARSA against Q-Learning in a table with the paper's settings. Margins of no difference, "
+                 f"declared before the runs: {', '.join(f'{e} ±{m:g}' for e, m in MARGIN.items())}. "
+                 "p-values Holm-adjusted over the whole table."], [("Verdicts", verdicts)]),
+        Section("Every method", ["Final: the greedy return of the last evaluation round, averaged over its "
+                                 "episodes; AUC: the mean over all rounds."], [("Summary", summary)]),
+        Section("Published anchors", ["The zoo's numbers are one trained agent each; ours are IQMs over seeds."],
+                [("Anchors", anchors)]),
+        Section("Learning curves", figures=curve_figures),
+    ]
+    path = write_report(out / "report.html", "On- vs off-policy with neural networks", sections, problems)
+    return path, lines, problems
