@@ -104,7 +104,7 @@ def test_update_stores_true_last_observations_refreshes_the_target_and_waits_for
 
 # --- learning ---
 
-LEARNING = dataclasses.replace(dqn.PRESETS["small"]["CartPole-v1"], total_steps=10_000)
+LEARNING = dataclasses.replace(dqn.PRESETS["default"]["CartPole-v1"], total_steps=10_000)
 """The zoo's CartPole-v1 settings on a 2 x 64 network, a fifth of its steps."""
 
 
@@ -133,14 +133,14 @@ def test_same_key_same_training(cartpole_runs: tuple) -> None:
 
 # --- configuration ---
 
-def test_presets_are_the_zoos_and_small_changes_only_the_network() -> None:
-    default, smaller = dqn.PRESETS["default"], dqn.PRESETS["small"]
-    assert set(default) == set(smaller) == {"CartPole-v1", "MountainCar-v0", "Acrobot-v1"}
-    assert default["CartPole-v1"].hidden == (256, 256)
-    assert default["CartPole-v1"].gradient_steps == 128
-    for env, config in smaller.items():
+def test_presets_are_the_zoos_and_the_default_changes_only_the_network() -> None:
+    zoo, default = dqn.PRESETS["zoo"], dqn.PRESETS["default"]
+    assert set(zoo) == set(default) == {"CartPole-v1", "MountainCar-v0", "Acrobot-v1"}
+    assert zoo["CartPole-v1"].hidden == (256, 256)
+    assert zoo["CartPole-v1"].gradient_steps == 128
+    for env, config in default.items():
         assert config.hidden == (64, 64)
-        assert dataclasses.replace(config, hidden=(256, 256)) == default[env]
+        assert dataclasses.replace(config, hidden=(256, 256)) == zoo[env]
 
 
 @pytest.mark.parametrize(("field", "value"), [

@@ -397,13 +397,11 @@ def _listed(spec: str | None, allowed: tuple[str, ...], option: str) -> tuple[st
 def _reproduce_deep(seeds: int | None, first_seed: int, steps: int | None, episodes: int | None,
                     methods: str | None, envs: str | None, out: Path, force: bool) -> None:
     deep = _deep_study()
-    from rlcompare.deep.methods import DEEP_METHODS
-
     for value, option in ((steps, "--steps"), (episodes, "--episodes")):
         if value is not None and value < 1:
             raise typer.BadParameter(f"got {value}; allowed: an integer >= 1", param_hint=f"'{option}'")
     plan = deep.Plan(seeds=_seeds(deep.DEFAULT_SEEDS if seeds is None else seeds, first_seed),
-                     methods=_listed(methods, tuple(DEEP_METHODS), "--methods"),
+                     methods=_listed(methods, tuple(deep.DEEP_METHODS), "--methods"),
                      envs=_listed(envs, deep.ENVS, "--envs"), steps=steps,
                      tabular_episodes=deep.TABULAR_EPISODES if episodes is None else episodes)
     try:

@@ -138,12 +138,17 @@ def per_seed(results: DeepResults) -> pd.DataFrame:
     """One row per seed: final greedy return (last round), area under the greedy curve (mean over rounds), and
     the environment steps and seconds at which the greedy curve first reached the environment's score."""
     steps, curves = eval_curves(results)
-    score = SCORE[results.config.env]
-    reached = curves >= score
+    reached = curves >= SCORE[results.config.env]
     first = np.where(reached.any(axis=1), steps[reached.argmax(axis=1)], np.nan)
-    seconds_per_step = results.meta["timings"]["wall_seconds"] / (steps[-1] * len(results.seeds))
     return pd.DataFrame({"seed": list(results.seeds), "final": curves[:, -1], "auc": curves.mean(axis=1),
-                         "steps_to_score": first, "seconds_to_score": first * seconds_per_step * len(results.seeds)})
+                         "steps_to_score": first, "seconds_to_score": first * seconds_per_step(results)})
+
+
+def seconds_per_step(results: DeepResults) -> float:
+    """Wall-clock seconds per environment step of one seed: its group of ``vmap_width`` seeds trains side by side
+    at a steady pace, so a seed reached step ``k`` about ``k`` times this after its group began."""
+    groups = -(-len(results.seeds) // results.config.vmap_width)
+    return results.meta["timings"]["wall_seconds"] / (groups * results.meta["timings"]["training_steps"])
 
 
 def summary_table(deep: dict[str, DeepResults]) -> pd.DataFrame:
@@ -245,10 +250,10 @@ def curves_figure(deep: dict[str, DeepResults], env: str, against: str) -> Figur
     ax = figure.subplots()
     for results in (r for r in deep.values() if r.config.env == env):
         steps, curves = eval_curves(results)
-        x = steps if against == "steps" else steps * results.meta["timings"]["wall_seconds"] / steps[-1]
+        x = steps if against == "steps" else steps * seconds_per_step(results)
         plot_return_curves(ax, x, {DEEP_METHODS[results.config.algorithm].label: curves}, window=1,
                            ylabel="greedy return")
-    ax.set_xlabel("environment steps" if against == "steps" else "seconds of training (all seeds together)")
+    ax.set_xlabel("environment steps" if against == "steps" else "seconds of training")
     ax.set_title(env)
     return figure
 
@@ -268,7 +273,7 @@ def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
     for name, frame in (("deep_summary", summary), ("deep_verdicts", verdicts), ("deep_anchors", anchors)):
         write_table(frame, tables, name)
     curve_figures = []
-    for env in ENVS:
+    for env in (e for e in ENVS if any(r.config.env == e for r in deep.values())):
         for against in ("steps", "seconds"):
             path = figures / f"curves-{env}-{against}.png"
             curve_figures.append((save_figure(curves_figure(deep, env, against), path),

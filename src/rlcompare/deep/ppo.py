@@ -1,0 +1,505 @@
+"""Proximal policy optimisation (Schulman et al. 2017, "Proximal Policy Optimization Algorithms"), one seed's whole
+training a single jit-able, vmap-able program, as in purejaxrl (Lu et al. 2022, ``purejaxrl/ppo.py``).
+
+The semantics are Stable-Baselines3's (``stable_baselines3/ppo/ppo.py``, ``common/on_policy_algorithm.py``,
+``common/buffers.py``, ``common/policies.py``, ``common/vec_env/vec_normalize.py``): separate actor and critic
+MLPs with orthogonal initialisation, Adam with ε = 1e-5, GAE with a time-limit cut bootstrapped from
+V(last observation), advantages normalised per minibatch, unclipped value loss, global gradient-norm clipping,
+and ``VecNormalize``'s running observation and reward normalisation where rl-baselines3-zoo sets ``normalize``.
+
+Departures from SB3:
+
+* ``total_steps`` is rounded down to whole updates of ``n_envs * n_steps`` transitions (SB3 rounds up: the zoo's
+  1e5 CartPole steps are 390 updates here, 391 there), so a linear schedule ends just above 0, never below;
+  and to whole rounds of updates between evaluations (390 updates in 20 rounds: 380 run).
+* Resets are drawn from JAX's generator (:mod:`rlcompare.deep.envs`), and minibatch permutations too.
+* Gradient clipping is optax's ``clip_by_global_norm`` (PyTorch's ``clip_grad_norm_`` divides by norm + 1e-6).
+* Not implemented: ``clip_range_vf``, ``target_kl`` (both off in SB3's defaults and in the zoo presets here),
+  gSDE, continuous actions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
+from rlcompare.deep.networks import ACTIVATIONS
+from rlcompare.deep.rollout import Act, Episodes, Finished, TrainOutput, track, train_in_rounds
+from rlcompare.experiment.config import ConfigError
+
+NORMALIZE_EPSILON = 1e-8
+"""``VecNormalize``'s ε under the square root, and the advantage normalisation's (SB3)."""
+NORMALIZE_CLIP = 10.0
+"""``VecNormalize``'s ``clip_obs`` and ``clip_reward``."""
+ADAM_EPSILON = 1e-5
+"""SB3's Adam ε for its actor-critic policies (``ActorCriticPolicy.__init__``)."""
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO's settings; the defaults are SB3's ``PPO`` and ``MlpPolicy`` defaults (zoo's ``n_envs: 1`` and
+    ``n_timesteps: 1e6``). Frozen and validated on creation."""
+
+    n_envs: int = 1
+    """Environments stepped side by side."""
+    n_steps: int = 2048
+    """Steps per environment collected for each update."""
+    batch_size: int = 64
+    """Minibatch size (SB3's meaning); must divide ``n_envs * n_steps``."""
+    n_epochs: int = 10
+    """Passes over each update's transitions, each in a fresh random order."""
+    learning_rate: float = 3e-4
+    """Adam's step size (at the start, where ``anneal_lr``)."""
+    anneal_lr: bool = False
+    """Decay the learning rate linearly to 0 over training (the zoo's ``lin_``)."""
+    gamma: float = 0.99
+    """Discount factor."""
+    gae_lambda: float = 0.95
+    """GAE's λ (Schulman et al. 2016)."""
+    clip_range: float = 0.2
+    """The surrogate's ε: the probability ratio is clipped to [1 - ε, 1 + ε] (at the start, where annealed)."""
+    anneal_clip_range: bool = False
+    """Decay ``clip_range`` linearly to 0 over training (the zoo's ``lin_``)."""
+    ent_coef: float = 0.0
+    """Weight of the entropy bonus in the loss."""
+    vf_coef: float = 0.5
+    """Weight of the value loss in the loss."""
+    max_grad_norm: float = 0.5
+    """The gradient's global norm is clipped to this."""
+    normalize_advantage: bool = True
+    """Normalise the advantages within each minibatch (to zero mean, unit sample standard deviation)."""
+    normalize_observations: bool = False
+    """Normalise observations by running mean and variance, clipped to ±10 (``VecNormalize(norm_obs=True)``)."""
+    normalize_rewards: bool = False
+    """Divide rewards by the running standard deviation of the discounted return, clipped to ±10
+    (``VecNormalize(norm_reward=True)``)."""
+    hidden: tuple[int, ...] = (64, 64)
+    """Widths of the hidden layers of each of the two networks, actor and critic (SB3's ``net_arch``)."""
+    activation: str = "tanh"
+    """Hidden activation: ``tanh`` (SB3's default) or ``relu``."""
+    total_steps: int = 1_000_000
+    """Environment steps of training in all, rounded down to whole updates."""
+
+    def __post_init__(self) -> None:
+        for name, allowed in _CHECKS.items():
+            if not allowed.holds(getattr(self, name), self):
+                raise ConfigError(name, getattr(self, name), allowed.text)
+
+    @property
+    def batch(self) -> int:
+        """Transitions collected per update."""
+        return self.n_envs * self.n_steps
+
+    @property
+    def updates(self) -> int:
+        """Updates in the whole training."""
+        return self.total_steps // self.batch
+
+    @property
+    def minibatches(self) -> int:
+        """Minibatches per epoch."""
+        return self.batch // self.batch_size
+
+
+class _Allowed(NamedTuple):
+    holds: Callable[[Any, PPOConfig], bool]
+    text: str
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
+
+
+def _is_number(value: Any) -> bool:
+    return (_is_int(value) or isinstance(value, float | np.floating)) and bool(np.isfinite(value))
+
+
+def _positive_int(value: Any, _: PPOConfig) -> bool:
+    return _is_int(value) and value >= 1
+
+
+def _is_bool(value: Any, _: PPOConfig) -> bool:
+    return isinstance(value, bool)
+
+
+def _in(low: float, high: float, *, open_low: bool = False) -> Callable[[Any, PPOConfig], bool]:
+    def holds(value: Any, _: PPOConfig) -> bool:
+        return _is_number(value) and (low < value if open_low else low <= value) and value <= high
+    return holds
+
+
+_CHECKS: dict[str, _Allowed] = {
+    "n_envs": _Allowed(_positive_int, "an integer >= 1"),
+    "n_steps": _Allowed(_positive_int, "an integer >= 1"),
+    "batch_size": _Allowed(lambda v, c: _positive_int(v, c) and (c.n_envs * c.n_steps) % v == 0,
+                           "an integer >= 1 dividing n_envs * n_steps"),
+    "n_epochs": _Allowed(_positive_int, "an integer >= 1"),
+    "learning_rate": _Allowed(_in(0.0, np.inf, open_low=True), "a number > 0"),
+    "anneal_lr": _Allowed(_is_bool, "true or false"),
+    "gamma": _Allowed(_in(0.0, 1.0, open_low=True), "a number in (0, 1]"),
+    "gae_lambda": _Allowed(_in(0.0, 1.0), "a number in [0, 1]"),
+    "clip_range": _Allowed(_in(0.0, np.inf, open_low=True), "a number > 0"),
+    "anneal_clip_range": _Allowed(_is_bool, "true or false"),
+    "ent_coef": _Allowed(_in(0.0, np.inf), "a number >= 0"),
+    "vf_coef": _Allowed(_in(0.0, np.inf), "a number >= 0"),
+    "max_grad_norm": _Allowed(_in(0.0, np.inf, open_low=True), "a number > 0"),
+    "normalize_advantage": _Allowed(_is_bool, "true or false"),
+    "normalize_observations": _Allowed(_is_bool, "true or false"),
+    "normalize_rewards": _Allowed(_is_bool, "true or false"),
+    "hidden": _Allowed(lambda v, c: isinstance(v, tuple) and all(_positive_int(w, c) for w in v),
+                       "a tuple of layer widths, each an integer >= 1"),
+    "activation": _Allowed(lambda v, _: v in ACTIVATIONS, " or ".join(ACTIVATIONS)),
+    "total_steps": _Allowed(lambda v, c: _is_int(v) and v >= c.n_envs * c.n_steps,
+                            "an integer >= n_envs * n_steps (one update)"),
+}
+assert set(_CHECKS) == {f.name for f in fields(PPOConfig)}
+
+
+ZOO: dict[str, PPOConfig] = {
+    "CartPole-v1": PPOConfig(n_envs=8, n_steps=32, batch_size=256, gae_lambda=0.8, gamma=0.98, n_epochs=20,
+                             ent_coef=0.0, learning_rate=1e-3, anneal_lr=True, clip_range=0.2,
+                             anneal_clip_range=True, total_steps=100_000),
+    "Acrobot-v1": PPOConfig(n_envs=16, n_steps=256, gae_lambda=0.94, gamma=0.99, n_epochs=4, ent_coef=0.0,
+                            normalize_observations=True, normalize_rewards=True, total_steps=1_000_000),
+    "MountainCar-v0": PPOConfig(n_envs=16, n_steps=16, gae_lambda=0.98, gamma=0.99, n_epochs=4, ent_coef=0.0,
+                                normalize_observations=True, normalize_rewards=True, total_steps=1_000_000),
+}
+"""Environment -> rl-baselines3-zoo's tuned PPO settings, ``hyperparams/ppo.yml`` (DLR-RM/rl-baselines3-zoo at
+22e3ff2, 2026-04): ``lin_x`` is ``x`` with the matching ``anneal_*``; ``normalize: true`` is ``VecNormalize`` of
+observations and rewards (with the algorithm's γ); fields the file leaves out keep SB3's defaults."""
+
+PRESETS: dict[str, dict[str, PPOConfig]] = {"default": ZOO}
+"""Preset name -> environment -> config. ``default``: the zoo's (:data:`ZOO`)."""
+
+
+# --- networks (SB3's MlpPolicy: separate actor and critic, orthogonal initialisation, zero biases) ---
+
+class OrthogonalMLP(nn.Module):
+    """``observation -> outputs``: dense layers initialised orthogonally with gain √2, each followed by the
+    activation, then a linear layer with gain ``last_scale`` (SB3's ``ActorCriticPolicy`` with ``ortho_init``);
+    :class:`~rlcompare.deep.networks.MLP` keeps flax's LeCun-normal hidden layers."""
+
+    hidden: Sequence[int]
+    outputs: int
+    activation: str
+    last_scale: float
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        x = x.astype(jnp.float32)
+        for width in self.hidden:
+            x = nn.Dense(width, kernel_init=nn.initializers.orthogonal(np.sqrt(2.0)), param_dtype=jnp.float32,
+                         dtype=jnp.float32)(x)
+            x = ACTIVATIONS[self.activation](x)
+        return nn.Dense(self.outputs, kernel_init=nn.initializers.orthogonal(self.last_scale),
+                        param_dtype=jnp.float32, dtype=jnp.float32)(x)
+
+
+class ActorCritic(nn.Module):
+    """``observation -> (logits, value)`` from two separate MLPs; the policy head's gain is 0.01, the value
+    head's 1.0 (SB3)."""
+
+    hidden: Sequence[int]
+    n_actions: int
+    activation: str
+
+    def setup(self) -> None:
+        self.actor = OrthogonalMLP(self.hidden, self.n_actions, self.activation, 0.01)
+        self.critic = OrthogonalMLP(self.hidden, 1, self.activation, 1.0)
+
+    def __call__(self, observation: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return self.logits(observation), self.value(observation)
+
+    def logits(self, observation: jax.Array) -> jax.Array:
+        return self.actor(observation)
+
+    def value(self, observation: jax.Array) -> jax.Array:
+        return self.critic(observation)[..., 0]
+
+
+def network(config: PPOConfig, env: DeepEnv) -> ActorCritic:
+    """The flax module whose variables are :attr:`PolicyParams.network`."""
+    return ActorCritic(config.hidden, env.n_actions, config.activation)
+
+
+# --- running normalisation (SB3's RunningMeanStd and VecNormalize; statistics in float64, as there) ---
+
+class RunningMeanStd(NamedTuple):
+    """Running mean and (population) variance of a stream of batches (Chan et al.'s parallel update)."""
+
+    mean: jax.Array
+    var: jax.Array
+    count: jax.Array
+
+    @classmethod
+    def start(cls, shape: tuple[int, ...]) -> RunningMeanStd:
+        """SB3's start: mean 0, variance 1, count 1e-4."""
+        return cls(jnp.zeros(shape, jnp.float64), jnp.ones(shape, jnp.float64), jnp.asarray(1e-4, jnp.float64))
+
+
+def update_running(stats: RunningMeanStd, batch: jax.Array) -> RunningMeanStd:
+    """Add a batch (leading axis) to the statistics (SB3's ``RunningMeanStd.update``)."""
+    batch = batch.astype(jnp.float64)
+    batch_mean, batch_var, batch_count = batch.mean(axis=0), batch.var(axis=0), batch.shape[0]
+    delta = batch_mean - stats.mean
+    count = stats.count + batch_count
+    m2 = stats.var * stats.count + batch_var * batch_count + delta**2 * stats.count * batch_count / count
+    return RunningMeanStd(stats.mean + delta * batch_count / count, m2 / count, count)
+
+
+def normalize_observation(observation: jax.Array, stats: RunningMeanStd) -> jax.Array:
+    """``VecNormalize.normalize_obs``: standardised, clipped to ±10, float32."""
+    scaled = (observation - stats.mean) / jnp.sqrt(stats.var + NORMALIZE_EPSILON)
+    return jnp.clip(scaled, -NORMALIZE_CLIP, NORMALIZE_CLIP).astype(jnp.float32)
+
+
+def normalize_reward(reward: jax.Array, stats: RunningMeanStd) -> jax.Array:
+    """``VecNormalize.normalize_reward``: divided by the discounted return's standard deviation, clipped to ±10."""
+    return jnp.clip(reward / jnp.sqrt(stats.var + NORMALIZE_EPSILON), -NORMALIZE_CLIP, NORMALIZE_CLIP
+                    ).astype(jnp.float32)
+
+
+class PolicyParams(NamedTuple):
+    """What the greedy policy needs: the network's variables and the observation statistics (left at their
+    start, and unused, without ``normalize_observations``)."""
+
+    network: Any
+    observations: RunningMeanStd
+
+
+def init_params(config: PPOConfig, env: DeepEnv, key: jax.Array) -> PolicyParams:
+    """Fresh parameters; also the template to restore saved ones into."""
+    variables = network(config, env).init(key, jnp.zeros((1, env.observation_size), jnp.float32))
+    return PolicyParams(variables, RunningMeanStd.start((env.observation_size,)))
+
+
+def _observe(config: PPOConfig, params: PolicyParams, observation: jax.Array) -> jax.Array:
+    if config.normalize_observations:
+        return normalize_observation(observation, params.observations)
+    return observation.astype(jnp.float32)
+
+
+def act(config: PPOConfig, env: DeepEnv) -> Act:
+    """``(params, raw observations) -> greedy actions``: the argmax of the logits (SB3's ``deterministic=True``),
+    observations normalised with the frozen statistics where trained so (the zoo's evaluation)."""
+    module = network(config, env)
+
+    def greedy(params: PolicyParams, observation: jax.Array) -> jax.Array:
+        logits = module.apply(params.network, _observe(config, params, observation), method=ActorCritic.logits)
+        return jnp.argmax(logits, axis=-1)
+
+    return greedy
+
+
+# --- the pieces of the objective ---
+
+def gae(rewards: jax.Array, values: jax.Array, next_values: jax.Array, terminated: jax.Array, dones: jax.Array,
+        gamma: float, lam: float) -> jax.Array:
+    """Generalised advantage estimates (Schulman et al. 2016), time-major ``(steps, envs)``.
+
+    ``next_values[t]`` is V of the observation step ``t`` led to (before any reset); it counts unless the episode
+    terminated, so a time-limit cut bootstraps from it, as SB3's ``rewards += gamma * V(terminal_observation)``;
+    the trace stops where an episode ended either way (``dones``).
+    """
+    continues = 1.0 - terminated.astype(values.dtype)
+    deltas = rewards + gamma * next_values * continues - values
+    carries = gamma * lam * (1.0 - dones.astype(values.dtype))
+
+    def backward(later: jax.Array, step: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
+        delta, carry = step
+        advantage = delta + carry * later
+        return advantage, advantage
+
+    _, advantages = jax.lax.scan(backward, jnp.zeros_like(values[0]), (deltas, carries), reverse=True)
+    return advantages
+
+
+def normalize_advantages(advantages: jax.Array) -> jax.Array:
+    """Zero mean, unit sample standard deviation (``ddof=1``, PyTorch's ``std``), as SB3 per minibatch."""
+    return (advantages - advantages.mean()) / (advantages.std(ddof=1) + NORMALIZE_EPSILON)
+
+
+def clipped_surrogate_loss(log_prob: jax.Array, old_log_prob: jax.Array, advantages: jax.Array,
+                           clip_range: float | jax.Array) -> jax.Array:
+    """``-mean(min(r A, clip(r, 1 - ε, 1 + ε) A))`` with ``r = π(a|s) / π_old(a|s)`` (Schulman et al. 2017, eq. 7)."""
+    ratio = jnp.exp(log_prob - old_log_prob)
+    clipped = jnp.clip(ratio, 1.0 - clip_range, 1.0 + clip_range)
+    return -jnp.minimum(ratio * advantages, clipped * advantages).mean()
+
+
+def value_loss(values: jax.Array, returns: jax.Array) -> jax.Array:
+    """Mean squared error to the TD(λ) returns, unclipped and without a ½ (SB3's ``F.mse_loss``)."""
+    return jnp.mean((returns - values) ** 2)
+
+
+def entropy(logits: jax.Array) -> jax.Array:
+    """Entropy of each categorical distribution given by ``logits`` (last axis)."""
+    log_p = jax.nn.log_softmax(logits)
+    return -jnp.sum(jnp.exp(log_p) * log_p, axis=-1)
+
+
+def log_probability(logits: jax.Array, actions: jax.Array) -> jax.Array:
+    """``log π(a|s)`` of each action under the categorical ``logits``."""
+    return jnp.take_along_axis(jax.nn.log_softmax(logits), actions[..., None], axis=-1)[..., 0]
+
+
+class Batch(NamedTuple):
+    """Transitions to learn from, with what the policy said when it acted."""
+
+    observations: jax.Array
+    actions: jax.Array
+    log_probs: jax.Array
+    advantages: jax.Array
+    returns: jax.Array
+
+
+def ppo_loss(module: ActorCritic, variables: Any, batch: Batch, clip_range: jax.Array, config: PPOConfig
+             ) -> jax.Array:
+    """SB3's loss: ``policy_loss - ent_coef * entropy + vf_coef * value_loss`` on one minibatch."""
+    logits, values = module.apply(variables, batch.observations)
+    advantages = batch.advantages
+    if config.normalize_advantage and config.batch_size > 1:
+        advantages = normalize_advantages(advantages)
+    policy = clipped_surrogate_loss(log_probability(logits, batch.actions), batch.log_probs, advantages, clip_range)
+    return policy - config.ent_coef * entropy(logits).mean() + config.vf_coef * value_loss(values, batch.returns)
+
+
+def progress_remaining(config: PPOConfig, update: jax.Array) -> jax.Array:
+    """SB3's ``1 - num_timesteps / total_timesteps`` during update ``update`` (from 0), its rollout counted."""
+    return 1.0 - (update + 1) * config.batch / config.total_steps
+
+
+def optimizer(config: PPOConfig) -> optax.GradientTransformation:
+    """Global-norm clipping, then Adam (ε 1e-5), its step size annealed per update where ``anneal_lr``."""
+    steps_per_update = config.n_epochs * config.minibatches
+
+    def learning_rate(count: jax.Array) -> jax.Array:
+        scale = progress_remaining(config, count // steps_per_update) if config.anneal_lr else 1.0
+        return jnp.asarray(config.learning_rate * scale, jnp.float32)
+
+    return optax.chain(optax.clip_by_global_norm(config.max_grad_norm),
+                       optax.adam(learning_rate, eps=ADAM_EPSILON))
+
+
+# --- the training program ---
+
+class Runner(NamedTuple):
+    """Everything one seed's training carries from update to update."""
+
+    params: PolicyParams
+    opt_state: Any
+    rewards: RunningMeanStd
+    """Statistics of the discounted return, for ``normalize_rewards``."""
+    discounted: jax.Array
+    """(envs,) each environment's running discounted return, for ``normalize_rewards``."""
+    env_state: EnvState
+    observation: jax.Array
+    """(envs, observation size) float32, normalised where ``normalize_observations``."""
+    episodes: Episodes
+    update: jax.Array
+
+
+class Transition(NamedTuple):
+    observation: jax.Array
+    action: jax.Array
+    log_prob: jax.Array
+    value: jax.Array
+    reward: jax.Array
+    """Normalised where ``normalize_rewards``."""
+    last_observation: jax.Array
+    terminated: jax.Array
+    done: jax.Array
+
+
+def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
+               ) -> Callable[[jax.Array], TrainOutput]:
+    """``key -> TrainOutput``: one seed's training, ``config.updates // rounds`` updates in each of ``rounds``
+    rounds (the remainder, fewer than ``rounds`` updates, is not run; the schedules still span ``total_steps``),
+    with a greedy evaluation of ``eval_episodes`` episodes after each; ``finished`` is ``(rounds, updates per
+    round, n_steps, n_envs)``. Jit-able and vmap-able over keys."""
+    if not _is_int(rounds) or not 1 <= rounds <= config.updates:
+        raise ConfigError("total_steps", config.total_steps, f"at least {rounds} updates of n_envs x n_steps = "
+                                                             f"{config.batch} steps (one per evaluation round)")
+    module = network(config, env)
+    tx = optimizer(config)
+    greedy = act(config, env)
+
+    def step(runner: Runner, key: jax.Array) -> tuple[Runner, tuple[Transition, Finished]]:
+        action_key, reset_key = jax.random.split(key)
+        logits, value = module.apply(runner.params.network, runner.observation)
+        action = jax.random.categorical(action_key, logits)
+        out = jax.vmap(step_autoreset, in_axes=(None, 0, 0, 0))(
+            env, runner.env_state, action, jax.random.split(reset_key, config.n_envs))
+        episodes, finished = track(runner.episodes, out.reward, out.terminated, out.truncated)
+        done = out.terminated | out.truncated
+        params, reward_stats, discounted, reward = runner.params, runner.rewards, runner.discounted, out.reward
+        if config.normalize_observations:
+            params = params._replace(observations=update_running(params.observations, out.observation))
+        if config.normalize_rewards:
+            discounted = discounted * config.gamma + reward
+            reward_stats = update_running(reward_stats, discounted)
+            reward = normalize_reward(reward, reward_stats)
+            discounted = jnp.where(done, 0.0, discounted)
+        transition = Transition(runner.observation, action, log_probability(logits, action), value,
+                                reward.astype(jnp.float32), _observe(config, params, out.last_observation),
+                                out.terminated, done)
+        runner = runner._replace(params=params, rewards=reward_stats, discounted=discounted, env_state=out.state,
+                                 observation=_observe(config, params, out.observation), episodes=episodes)
+        return runner, (transition, finished)
+
+    def minibatch_step(carry: tuple[Any, Any, jax.Array], batch: Batch) -> tuple[tuple[Any, Any, jax.Array], None]:
+        variables, opt_state, clip_range = carry
+        grads = jax.grad(lambda v: ppo_loss(module, v, batch, clip_range, config))(variables)
+        updates, opt_state = tx.update(grads, opt_state, variables)
+        return (optax.apply_updates(variables, updates), opt_state, clip_range), None
+
+    def epoch(carry: tuple[Any, Any, jax.Array], key: jax.Array, batch: Batch
+              ) -> tuple[tuple[Any, Any, jax.Array], None]:
+        order = jax.random.permutation(key, config.batch)
+        shuffled = jax.tree.map(lambda x: x[order].reshape(config.minibatches, config.batch_size, *x.shape[1:]),
+                                batch)
+        carry, _ = jax.lax.scan(minibatch_step, carry, shuffled)
+        return carry, None
+
+    def update(runner: Runner, key: jax.Array) -> tuple[Runner, Finished]:
+        rollout_key, epochs_key = jax.random.split(key)
+        runner, (transitions, finished) = jax.lax.scan(step, runner, jax.random.split(rollout_key, config.n_steps))
+        next_values = module.apply(runner.params.network, transitions.last_observation, method=ActorCritic.value)
+        advantages = gae(transitions.reward, transitions.value, next_values, transitions.terminated,
+                         transitions.done, config.gamma, config.gae_lambda)
+        flat = jax.tree.map(lambda x: x.reshape(config.batch, *x.shape[2:]),
+                            Batch(transitions.observation, transitions.action, transitions.log_prob, advantages,
+                                  advantages + transitions.value))
+        clip_range = config.clip_range * (progress_remaining(config, runner.update)
+                                          if config.anneal_clip_range else 1.0)
+        carry = (runner.params.network, runner.opt_state, jnp.asarray(clip_range, jnp.float32))
+        (variables, opt_state, _), _ = jax.lax.scan(lambda c, k: epoch(c, k, flat), carry,
+                                                    jax.random.split(epochs_key, config.n_epochs))
+        runner = runner._replace(params=runner.params._replace(network=variables), opt_state=opt_state,
+                                 update=runner.update + 1)
+        return runner, finished
+
+    run = train_in_rounds(update, lambda runner: runner.params, env, greedy, rounds, config.updates // rounds,
+                          eval_episodes)
+
+    def train(key: jax.Array) -> TrainOutput:
+        init_key, reset_key, train_key = jax.random.split(key, 3)
+        params = init_params(config, env, init_key)
+        env_state = jax.vmap(env.reset)(jax.random.split(reset_key, config.n_envs))
+        observation = jax.vmap(env.observe)(env_state.physics)
+        if config.normalize_observations:
+            params = params._replace(observations=update_running(params.observations, observation))
+        runner = Runner(params, tx.init(params.network), RunningMeanStd.start(()),
+                        jnp.zeros(config.n_envs, jnp.float64), env_state, _observe(config, params, observation),
+                        Episodes.start(config.n_envs), jnp.zeros((), jnp.int32))
+        return run(runner, train_key)
+
+    return train

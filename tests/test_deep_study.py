@@ -1,0 +1,140 @@
+"""The deep study through the CLI at a tiny size, its run directories, resuming, agents in Gymnasium, bad input."""
+
+import json
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+pytest.importorskip("jax")
+
+import gymnasium as gym
+import jax
+import jax.numpy as jnp
+
+from rlcompare.cli import app
+from rlcompare.deep.agent import load_agent
+from rlcompare.deep.envs import DEEP_ENVS
+from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.deep.run import run as deep_run
+from rlcompare.experiment.config import ConfigError
+
+TINY = ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50", "--methods",
+        "pqn_q_lambda,pqn_sarsa_lambda", "--envs", "CartPole-v1"]
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("deep") / "study"
+    result = CliRunner().invoke(app, [*TINY, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def test_the_study_writes_run_directories_and_a_report(study):
+    out, output = study
+    names = sorted(p.name for p in out.iterdir() if p.is_dir())
+    assert names == ["figures", "pqn_q_lambda-CartPole-v1", "pqn_sarsa_lambda-CartPole-v1", "tables",
+                     "tabular-q_learning-CartPole-v1", "tabular-sarsa-CartPole-v1"]
+    config = json.loads((out / "pqn_sarsa_lambda-CartPole-v1" / "config.json").read_text())
+    assert (config["algorithm"], config["resolved"]["target"], config["resolved"]["total_steps"]) == (
+        "pqn_sarsa_lambda", "sample", 41000)
+    verdicts = pd.read_csv(out / "tables" / "deep_verdicts.csv")
+    assert verdicts[["engine", "metric"]].to_numpy().tolist() == [["network", "final greedy return"],
+                                                                  ["network", "area under the greedy curve"],
+                                                                  ["table", "final greedy return"]]
+    assert "CartPole-v1, network, final greedy return:" in output
+    assert (out / "report.html").read_text().count("<img") == 2  # steps and seconds, CartPole only
+
+
+def test_episodes_are_recorded_with_the_step_at_which_they_ended(study):
+    results = DeepResults.load(study[0] / "pqn_q_lambda-CartPole-v1")
+    for _, episodes in results.episodes.groupby("seed"):
+        assert np.all(np.diff(episodes["env_step"].to_numpy()) >= 0)
+        assert episodes["episode"].tolist() == list(range(len(episodes)))
+        np.testing.assert_array_equal(episodes["return"], episodes["length"])  # CartPole pays 1 a step
+    assert results.episodes["env_step"].max() <= 41000
+    rounds = results.evaluations.groupby("seed")["round"].nunique()
+    assert rounds.tolist() == [20, 20]
+
+
+def test_a_finished_study_is_loaded_not_trained_again(study):
+    out, _ = study
+    before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+    result = CliRunner().invoke(app, [*TINY, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert result.output.count("loaded") == 4
+    assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+
+
+def test_a_deep_agent_acts_in_gymnasium_as_in_the_port(study):
+    """The greedy agent from the run directory takes the same actions on Gymnasium's observations as on the
+    port's, and both environments give the same episode."""
+    agent = load_agent(study[0] / "pqn_q_lambda-CartPole-v1", seed=1)
+    env, port = gym.make("CartPole-v1"), DEEP_ENVS["CartPole-v1"]
+    observation, _ = env.reset(seed=3)
+    state = port.reset(jax.random.key(0))._replace(physics=jnp.asarray(env.unwrapped.state, jnp.float64))
+    done, length = False, 0
+    while not done:
+        action = agent.act(observation)
+        assert action == agent.act(np.asarray(port.observe(state.physics)))
+        observation, _, terminated, truncated, _ = env.step(action)
+        state, _, port_terminated, port_truncated = port.step(state, action)
+        np.testing.assert_array_equal(np.asarray(port.observe(state.physics)), observation)
+        assert (bool(port_terminated), bool(port_truncated)) == (terminated, truncated)
+        done, length = terminated or truncated, length + 1
+    assert length > 0
+    with pytest.raises(ValueError, match="observation"):
+        agent.act(np.zeros(3))
+
+
+def test_a_seed_gives_the_same_results_whatever_seeds_train_beside_it(study):
+    config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=(0, 1),
+                        hyperparameters={"total_steps": 41000}, vmap_width=2)
+    stored = DeepResults.load(study[0] / "pqn_q_lambda-CartPole-v1")
+    alone = deep_run(DeepConfig(**{**config.__dict__, "seeds": (1,)}))  # padded with a copy of itself
+    pd.testing.assert_frame_equal(alone.episodes, stored.episodes[stored.episodes["seed"] == 1].reset_index(drop=True))
+    for name, values in alone.params.items():
+        np.testing.assert_array_equal(values[0], stored.params[name][1])
+
+
+@pytest.mark.parametrize(("arguments", "named"), [
+    (["--methods", "pqn_q_lambda,nope"], "--methods"),
+    (["--envs", "Pong-v5"], "--envs"),
+    (["--steps", "100"], "--steps"),
+])
+def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
+    result = CliRunner().invoke(app, ["reproduce", "deep", "--seeds", "2", *arguments, "--out", str(tmp_path / "x")])
+    assert result.exit_code == 2
+    assert named in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(("fields", "named"), [
+    ({"algorithm": "a2c"}, "algorithm"),
+    ({"env": "Pong-v5"}, "env"),
+    ({"preset": "huge"}, "preset"),
+    ({"hyperparameters": {"lam": "high"}}, "hyperparameters.lam"),
+    ({"hyperparameters": {"target": "sample"}}, "hyperparameters.target"),
+    ({"hyperparameters": {"widths": [3]}}, "hyperparameters.widths"),
+    ({"seeds": ()}, "seeds"),
+])
+def test_bad_deep_configurations_name_the_field(fields, named):
+    with pytest.raises(ConfigError, match=named.replace(".", r"\.")):
+        DeepConfig(**fields)
+
+
+def test_without_jax_the_deep_study_says_how_to_install_it(monkeypatch, tmp_path):
+    import rlcompare.studies
+
+    for name in [m for m in sys.modules if m.startswith(("rlcompare.deep", "rlcompare.studies.deep"))]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.delattr(rlcompare.studies, "deep", raising=False)
+    monkeypatch.setitem(sys.modules, "jax", None)
+    result = CliRunner().invoke(app, ["reproduce", "deep", "--out", str(tmp_path / "x")])
+    assert result.exit_code == 2
+    assert "pip install -e '.[deep]'" in result.output
+    assert "Traceback" not in result.output
