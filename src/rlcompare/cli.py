@@ -645,11 +645,21 @@ def bench(
                                               "local backend (1 and 2 workers) and on Ray.")] = False,
     address: Annotated[str | None, typer.Option(help="With --sweeps: the Ray cluster (default: a new local Ray "
                                                      "instance with 2 CPUs).")] = None,
+    deep: Annotated[bool, typer.Option(help="Only measure the deep engine, beside Stable-Baselines3 where the "
+                                            "'bench' extra is installed.")] = False,
 ) -> None:
     """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
     from rlcompare.experiment import benchmark
     from rlcompare.experiment.backends import BackendError
 
+    if deep:
+        try:
+            from rlcompare.deep.bench import deep_table
+        except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
+            _fail(str(error))
+        with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):
+            _print_table(deep_table())
+        return
     if sweeps:
         try:
             _print_table(benchmark.sweep_benchmark(address))
