@@ -176,10 +176,14 @@ class DeepResults:
         run_dir = Path(run_dir)
         meta = store.verify_run(run_dir, None if expected is None else _json_round_trip(expected.to_dict()),
                                 store.DEEP_CONTENT_FILES)
+        stored = store.read_json(run_dir / store.CONFIG_FILE)
         try:
-            config = DeepConfig.from_dict(store.read_json(run_dir / store.CONFIG_FILE))
+            config = DeepConfig.from_dict(stored)
         except (ValueError, TypeError) as error:
             raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: {error}") from None
+        if _json_round_trip(config.to_dict()) != stored:
+            raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: its hyperparameters are not what its preset "
+                                   "gives now (written by another version of rlcompare); run it again")
         try:
             episodes = pd.read_parquet(run_dir / store.EPISODES_FILE)
             evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)

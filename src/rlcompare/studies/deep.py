@@ -27,6 +27,7 @@ from rlcompare.analysis.plots import plot_return_curves
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.deep import run as deep_run
+from rlcompare.deep.agent import gymnasium_returns
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.experiment import store
@@ -39,6 +40,10 @@ ENVS = ("CartPole-v1", "Acrobot-v1", "MountainCar-v0")
 DEFAULT_SEEDS = 10
 SCORE = {"CartPole-v1": 475.0, "Acrobot-v1": -100.0, "MountainCar-v0": -130.0}
 """The score whose first reaching, in environment steps and seconds, the report times."""
+GOAL = {"CartPole-v1": 490.0, "Acrobot-v1": -85.0, "MountainCar-v0": -115.0}
+"""The greedy return in Gymnasium's own environment that the study sets out to reach with the best method."""
+GYMNASIUM_EPISODES = 10
+"""Episodes of each seed's final greedy policy in Gymnasium's own environment, from the same start states."""
 MARGIN = {"CartPole-v1": 25.0, "Acrobot-v1": 25.0, "MountainCar-v0": 10.0}
 """Differences of mean return smaller than this count as no difference (5% of each environment's return range),
 declared here before any run."""
@@ -115,7 +120,7 @@ def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | N
 def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], list[str]]:
     """The finished runs of a deep study directory, deep and tabular, and what is missing or broken."""
     deep, tabular, problems = {}, {}, []
-    for run_dir in sorted(p for p in Path(out).iterdir() if p.is_dir()):
+    for run_dir in sorted(p for p in Path(out).iterdir() if p.is_dir() and store.owner_of(p) == store.RUN):
         try:
             if run_dir.name.startswith("tabular-"):
                 tabular[run_dir.name] = Results.load(run_dir)
@@ -151,16 +156,20 @@ def seconds_per_step(results: DeepResults) -> float:
     return results.meta["timings"]["wall_seconds"] / (groups * results.meta["timings"]["training_steps"])
 
 
-def summary_table(deep: dict[str, DeepResults]) -> pd.DataFrame:
-    """Per environment and method: final greedy return and area under the curve (mean and IQM, 95% intervals),
-    seeds that reached the score, median steps and seconds to reach it."""
+def summary_table(deep: dict[str, DeepResults], gymnasium: dict[str, np.ndarray]) -> pd.DataFrame:
+    """Per environment and method: the final greedy return in Gymnasium's own environment and in the port's
+    evaluation, the area under the curve (mean and IQM, 95% intervals), the seeds that reached the score, and
+    the median steps and seconds to reach it."""
     rows = []
-    for results in deep.values():
+    for name, results in deep.items():
         metrics = per_seed(results)
         reached = metrics["steps_to_score"].notna()
+        in_gymnasium = gymnasium[name].mean(axis=1)
         rows.append({
             "env": results.config.env, "method": DEEP_METHODS[results.config.algorithm].label,
-            "final, mean": stats.interval(metrics["final"].to_numpy()).format(1),
+            "Gymnasium, IQM": stats.interval(in_gymnasium, "iqm").format(1),
+            "Gymnasium, mean": stats.interval(in_gymnasium).format(1),
+            "seeds at the goal": f"{int((in_gymnasium >= GOAL[results.config.env]).sum())}/{len(in_gymnasium)}",
             "final, IQM": stats.interval(metrics["final"].to_numpy(), "iqm").format(1),
             "AUC, mean": stats.interval(metrics["auc"].to_numpy()).format(1),
             "reached score": f"{int(reached.sum())}/{len(metrics)}",
@@ -267,7 +276,8 @@ def build_report(out: Path) -> tuple[Path, list[str], list[str]]:
 def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
     deep, tabular, problems = load_runs(out)
     tables, figures = out / "tables", out / "figures"
-    summary = summary_table(deep)
+    gymnasium = {name: gymnasium_returns(results, GYMNASIUM_EPISODES) for name, results in deep.items()}
+    summary = summary_table(deep, gymnasium)
     verdicts = verdict_table(comparisons(deep, tabular))
     anchors = anchor_table(deep)
     for name, frame in (("deep_summary", summary), ("deep_verdicts", verdicts), ("deep_anchors", anchors)):
@@ -285,8 +295,12 @@ def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
                  f"SARSA against Q-Learning in a table with the paper's settings. Margins of no difference, "
                  f"declared before the runs: {', '.join(f'{e} ±{m:g}' for e, m in MARGIN.items())}. "
                  "p-values Holm-adjusted over the whole table."], [("Verdicts", verdicts)]),
-        Section("Every method", ["Final: the greedy return of the last evaluation round, averaged over its "
-                                 "episodes; AUC: the mean over all rounds."], [("Summary", summary)]),
+        Section("Every method", [
+            f"Gymnasium: each seed's final greedy policy in Gymnasium's own environment (gym.make), "
+            f"{GYMNASIUM_EPISODES} episodes from the same start states for every seed and method; at the goal: seeds "
+            f"whose mean reaches {', '.join(f'{e} {g:g}' for e, g in GOAL.items())}. Final: the greedy return of "
+            "the last evaluation round in the port; AUC: its mean over all rounds. Seeds that failed count in "
+            "every number."], [("Summary", summary)]),
         Section("Published anchors", ["The zoo's numbers are one trained agent each; ours are IQMs over seeds."],
                 [("Anchors", anchors)]),
         Section("Learning curves", figures=curve_figures),
