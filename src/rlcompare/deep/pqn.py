@@ -11,11 +11,12 @@ value the return bootstraps from at the next state, which is what separates Algo
 | ``sample``   | SARSA(λ)               | ``Q(s', a')``, ``a'`` the action taken next     | on-policy  |
 | ``expected`` | Expected SARSA(λ)      | ``Σ_a π_ε(a|s') Q(s', a)``                      | on-policy  |
 
-With ``lam = 0`` the return is the one-step target of the paper's Algorithms 1 and 2. ``draw_before`` is the
-tabular engine's ``next_action`` order at the only place where it changes anything here, the end of a
-rollout: the action SARSA bootstraps from there is drawn before the update and taken at the start of the next
-rollout (``True``, Algorithm 2's order), or drawn again after the update (``False``). ``docs/deep.md`` lists
-where this departs from purejaxql.
+With ``lam = 0`` the return is the one-step target of the paper's Algorithms 1 and 2. ``next_action`` is the
+tabular engine's option of the same name, at the only place where it changes anything here, the end of a
+rollout: the action the return bootstraps from there (SARSA's) is drawn before the update and taken at the start
+of the next rollout (``before_update``, Algorithm 2's order), or every environment's next action is drawn again
+from the updated network (``after_update``, Algorithm 1's). ``docs/deep.md`` lists where this departs from
+purejaxql.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
+from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
 from rlcompare.deep.networks import MLP
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
@@ -37,6 +39,7 @@ from rlcompare.envs import acrobot, mountain_car
 from rlcompare.experiment.config import ConfigError
 
 TARGETS = ("max", "sample", "expected")
+NEXT_ACTIONS = (BEFORE_UPDATE, AFTER_UPDATE)
 OBSERVATION_BOXES = {
     "MountainCar-v0": (tuple(mountain_car.OBSERVATION_LOW.tolist()), tuple(mountain_car.OBSERVATION_HIGH.tolist())),
     "Acrobot-v1": (tuple(acrobot.OBSERVATION_LOW.tolist()), tuple(acrobot.OBSERVATION_HIGH.tolist())),
@@ -80,13 +83,16 @@ class PQNConfig:
     """Rewards are multiplied by this in the return (the recorded returns are the environment's own)."""
     hidden: tuple[int, ...] = (128, 128)
     """Widths of the hidden layers, each followed by LayerNorm and ReLU."""
-    draw_before: bool = True
-    """Draw the action bootstrapped at a rollout's end before the update and take it next (Algorithm 2's order)."""
+    next_action: str = BEFORE_UPDATE
+    """When the action after a rollout's last step is drawn: ``before_update`` (Algorithm 2's order: the one the
+    return bootstraps from is taken next) or ``after_update`` (Algorithm 1's: drawn again from the updated
+    network)."""
     scale_observations: bool = False
     """Map a bounded observation box onto [-1, 1] before the network (Mountain Car's velocity spans ±0.07)."""
 
     def __post_init__(self) -> None:
         _check(self.target in TARGETS, "target", self.target, ", ".join(TARGETS))
+        _check(self.next_action in NEXT_ACTIONS, "next_action", self.next_action, ", ".join(NEXT_ACTIONS))
         _check(0.0 <= self.lam <= 1.0, "lam", self.lam, "a number in [0, 1]")
         _check(0.0 < self.gamma <= 1.0, "gamma", self.gamma, "a number in (0, 1]")
         _check(self.learning_rate > 0.0, "learning_rate", self.learning_rate, "a positive number")
@@ -145,7 +151,7 @@ class Runner(NamedTuple):
     env_state: EnvState
     observation: jax.Array
     next_action: jax.Array
-    """The action each environment takes first in the next rollout where ``draw_before``; redrawn otherwise."""
+    """The action each environment takes first in the next rollout (``before_update``; redrawn ``after_update``)."""
     episodes: Episodes
     update: jax.Array
 
@@ -291,7 +297,7 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
         returns = targets(runner.train_state.params, rollout, runner.next_action, target_key, epsilon)
         train_state = learn(runner.train_state, rollout, returns, learn_key)
         next_action = runner.next_action
-        if not config.draw_before:
+        if config.next_action == AFTER_UPDATE:
             q = net.apply(train_state.params, runner.observation)
             next_action = epsilon_greedy(redraw_key, q, epsilon_at(runner.update + 1))
         return runner._replace(train_state=train_state, next_action=next_action, update=runner.update + 1), finished
