@@ -88,8 +88,8 @@ def test_sarsa_bootstraps_from_the_next_action_taken_in_the_same_episode():
     assert np.asarray(got)[:, 0].tolist() == [1, 8, 0, 5]
 
 
-@pytest.mark.parametrize(("field", "value"), [("target", "greedy"), ("lam", 1.5), ("gamma", 0.0), ("next_action", "soon"),
-                                              ("n_minibatches", 3), ("learning_rate", -1.0)])
+@pytest.mark.parametrize(("field", "value"), [("target", "greedy"), ("lam", 1.5), ("gamma", 0.0),
+                                              ("next_action", "soon"), ("n_minibatches", 3), ("learning_rate", -1.0)])
 def test_bad_hyperparameters_name_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         PQNConfig(**{field: value})
