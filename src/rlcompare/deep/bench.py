@@ -60,7 +60,7 @@ def ours_steps_per_second(row: DeepRow, seeds: int, steps: int) -> tuple[float, 
     return int(np.prod(output.finished.done.shape)) / seconds, compile_seconds
 
 
-def sb3_model(row: DeepRow):
+def sb3_model(row: DeepRow, env_id: str = ENV, seed: int = 0):
     """Stable-Baselines3's model with the row's settings (the zoo's, as our presets hold them)."""
     import gymnasium as gym
     import stable_baselines3 as sb3
@@ -69,18 +69,19 @@ def sb3_model(row: DeepRow):
 
     c = row.config
     if row.sb3 == "dqn":
-        return sb3.DQN("MlpPolicy", gym.make(ENV), learning_rate=c.learning_rate, buffer_size=c.buffer_size,
+        return sb3.DQN("MlpPolicy", gym.make(env_id), learning_rate=c.learning_rate, buffer_size=c.buffer_size,
                        learning_starts=c.learning_starts, batch_size=c.batch_size, gamma=c.gamma,
                        train_freq=c.train_freq, gradient_steps=c.gradient_steps,
                        target_update_interval=c.target_update_interval, exploration_fraction=c.decay_fraction,
                        exploration_final_eps=c.epsilon_end, policy_kwargs={"net_arch": list(c.hidden)},
-                       device="cpu", seed=0)
-    env = make_vec_env(ENV, n_envs=c.n_envs, seed=0)
+                       device="cpu", seed=seed)
+    env = make_vec_env(env_id, n_envs=c.n_envs, seed=seed)
     if c.normalize_observations:
         env = VecNormalize(env, gamma=c.gamma)
     return sb3.PPO("MlpPolicy", env, n_steps=c.n_steps, batch_size=c.batch_size, n_epochs=c.n_epochs,
                    learning_rate=c.learning_rate, gamma=c.gamma, gae_lambda=c.gae_lambda, clip_range=c.clip_range,
-                   ent_coef=c.ent_coef, vf_coef=c.vf_coef, max_grad_norm=c.max_grad_norm, device="cpu", seed=0)
+                   ent_coef=c.ent_coef, vf_coef=c.vf_coef, max_grad_norm=c.max_grad_norm, device="cpu", seed=seed,
+                   policy_kwargs={"net_arch": list(c.hidden)})
 
 
 def sb3_steps_per_second(row: DeepRow, steps: int) -> float:
@@ -114,3 +115,70 @@ def deep_table(sb3_steps: int = 4_000, our_steps: int = 200_000) -> BenchTable:
     return BenchTable(f"Deep engine on {ENV}, environment steps per second (CPU: {jax.devices()[0]})",
                       ("method", "compile s", "ours, 1 seed", f"ours, {SEEDS} seeds", "SB3, 1 seed",
                        f"ours {SEEDS} seeds / SB3"), table, notes)
+
+
+SCORE_ENV, SCORE = "CartPole-v1", 475.0
+SCORE_ROUNDS = 20
+"""Greedy evaluations over the training, in both: the resolution of the time to the score."""
+
+
+def score_rows() -> list[DeepRow]:
+    return [DeepRow("PPO, zoo settings", ppo, ppo.PRESETS["default"][SCORE_ENV], "ppo"),
+            DeepRow("DQN, zoo settings on 2 x 64", dqn, dqn.PRESETS["default"][SCORE_ENV], "dqn")]
+
+
+def ours_seconds_to_score(row: DeepRow, seeds: int) -> np.ndarray:
+    """Wall seconds (compiling apart) until each seed's greedy evaluation first reached the score (NaN: never),
+    the seeds trained side by side; a seed reached round ``k`` at ``k / rounds`` of the wall time."""
+    train = jax.jit(jax.vmap(row.module.make_train(row.config, DEEP_ENVS[SCORE_ENV], SCORE_ROUNDS, 10)))
+    keys = jax.numpy.stack([jax.random.key(seed) for seed in range(seeds)])
+    compiled = train.lower(keys).compile()
+    started = time.perf_counter()
+    returns = np.asarray(jax.block_until_ready(compiled(keys)).eval_returns).mean(axis=-1)  # (seeds, rounds)
+    wall = time.perf_counter() - started
+    reached = returns >= SCORE
+    return np.where(reached.any(axis=1), (reached.argmax(axis=1) + 1) * wall / SCORE_ROUNDS, np.nan)
+
+
+def sb3_seconds_to_score(row: DeepRow, seed: int) -> float:
+    """Wall seconds until Stable-Baselines3's greedy evaluation (10 episodes, every 1/20 of the training, its
+    time counted) first reached the score; NaN if it never did within the preset's steps."""
+    import gymnasium as gym
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    model = sb3_model(row, SCORE_ENV, seed)
+    every = row.config.total_steps // SCORE_ROUNDS
+    evaluation_env = gym.make(SCORE_ENV)
+
+    class StopAtScore(BaseCallback):
+        reached: bool = False
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps % every >= getattr(self.training_env, "num_envs", 1):
+                return True
+            mean, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=10, deterministic=True)
+            self.reached = mean >= SCORE
+            return not self.reached
+
+    callback = StopAtScore()
+    started = time.perf_counter()
+    model.learn(total_timesteps=row.config.total_steps, callback=callback)
+    return time.perf_counter() - started if callback.reached else float("nan")
+
+
+def score_table(seeds: int = 3) -> BenchTable:
+    """Median wall seconds to the score on CartPole, ours (seeds side by side) beside Stable-Baselines3's (one
+    seed after another, as it trains)."""
+    table = []
+    for row in score_rows():
+        ours = ours_seconds_to_score(row, seeds)
+        theirs = np.array([sb3_seconds_to_score(row, seed) for seed in range(seeds)])
+        table.append((row.label, f"{np.nanmedian(ours):.1f}" if np.isfinite(ours).any() else "never",
+                      f"{int(np.isfinite(ours).sum())}/{seeds}",
+                      f"{np.nanmedian(theirs):.1f}" if np.isfinite(theirs).any() else "never",
+                      f"{int(np.isfinite(theirs).sum())}/{seeds}"))
+    return BenchTable(f"Wall seconds to a greedy return of {SCORE:g} on {SCORE_ENV}, median over seeds",
+                      ("method", "ours", "ours reached", "SB3", "SB3 reached"), table,
+                      ("Ours: every seed in one program, the time to the first evaluation at the score; SB3: one "
+                       "seed at a time, its evaluations' time included.",))
