@@ -129,6 +129,14 @@ def _stop(process: subprocess.Popen) -> None:
 @pytest.fixture
 def cluster():
     """A head node on loopback (one CPU), torn down with everything it started."""
+    with loopback_cluster() as started:
+        yield started
+
+
+@contextlib.contextmanager
+def loopback_cluster():
+    """A head node on loopback (one CPU): ``(address, env, Ray's directory, nodes)``; nodes added to ``nodes`` are
+    stopped with it."""
     temp = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))  # Ray's socket paths must stay short
     env = {**os.environ, **TEST_CLUSTER}
     address = f"{LOOPBACK}:{_free_port()}"

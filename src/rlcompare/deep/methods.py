@@ -43,7 +43,7 @@ DEEP_METHODS = {m.name: m for m in (
 
 
 def deep_method(name: str) -> DeepMethod:
-    if name not in DEEP_METHODS:
+    if not isinstance(name, str) or name not in DEEP_METHODS:
         raise ConfigError("algorithm", name, ", ".join(DEEP_METHODS))
     return DEEP_METHODS[name]
 
@@ -57,7 +57,7 @@ def hyperparameters(name: str, env: str, preset: str, overrides: dict[str, Any])
     """The method's validated config: the preset for ``env``, the method's fixed settings, then ``overrides``."""
     chosen = deep_method(name)
     table = chosen.module.PRESETS
-    if preset not in table:
+    if not isinstance(preset, str) or preset not in table:
         raise ConfigError("preset", preset, ", ".join(table))
     if env not in table[preset]:
         raise ConfigError("env", env, ", ".join(table[preset]))

@@ -57,7 +57,7 @@ class DeepConfig:
 
     def __post_init__(self) -> None:
         deep_method(self.algorithm)
-        if self.env not in DEEP_ENVS:
+        if not isinstance(self.env, str) or self.env not in DEEP_ENVS:
             raise ConfigError("env", self.env, ", ".join(DEEP_ENVS))
         if not self.seeds or len(set(self.seeds)) != len(self.seeds) or any(
                 not isinstance(s, int) or s < 0 for s in self.seeds):
@@ -200,6 +200,23 @@ class DeepResults:
         return cls(config, episodes[columns].reset_index(drop=True),
                    evaluations[["seed", "round", "after_step", "return", "length", "terminated"]].reset_index(
                        drop=True), params, meta)
+
+
+def merge_seeds(parts: list[DeepResults]) -> DeepResults:
+    """One :class:`DeepResults` from runs of one configuration on other seeds (a sweep's one-seed trials), the
+    seeds in the order of ``parts``; wall-clock and compile seconds are summed."""
+    first = parts[0]
+    seeds = tuple(seed for part in parts for seed in part.seeds)
+    timings = dict(first.meta["timings"])
+    for key in ("wall_seconds", "compile_seconds"):
+        timings[key] = sum(part.meta["timings"][key] for part in parts)
+    wall = timings["wall_seconds"]
+    timings["steps_per_second"] = timings["training_steps"] * len(seeds) / wall if wall > 0 else None
+    return DeepResults(dataclasses.replace(first.config, seeds=seeds),
+                       pd.concat([part.episodes for part in parts], ignore_index=True),
+                       pd.concat([part.evaluations for part in parts], ignore_index=True),
+                       {name: np.concatenate([part.params[name] for part in parts]) for name in first.params},
+                       {**first.meta, "seeds": list(seeds), "timings": timings})
 
 
 def load_if_complete(run_dir: Path, config: DeepConfig) -> DeepResults | None:

@@ -28,10 +28,11 @@ from dataclasses import dataclass
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run
-from rlcompare.experiment.sweep import Trial
+from rlcompare.experiment.sweep import Trial, config_dict
 
 BACKENDS = ("local", "ray")
 OnDone = Callable[[Trial, Results], None]
+"""Called with a trial and its results (a deep sweep's: :class:`~rlcompare.deep.run.DeepResults`)."""
 
 
 class BackendError(RuntimeError):
@@ -39,7 +40,13 @@ class BackendError(RuntimeError):
 
 
 def run_trial(config: dict) -> Results:
-    """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker)."""
+    """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker); a deep one
+    (``"engine": "deep"``) on the deep engine, imported only then."""
+    if config.get("engine") == "deep":
+        from rlcompare.deep.run import DeepConfig
+        from rlcompare.deep.run import run as deep_run
+
+        return deep_run(DeepConfig.from_dict(config))
     return run(ExperimentConfig.from_dict(config))
 
 
@@ -80,7 +87,7 @@ class LocalBackend:
 
 
 def _run_and_save(trial: Trial, on_done: OnDone) -> None:
-    on_done(trial, run_trial(trial.config.to_dict()))
+    on_done(trial, run_trial(config_dict(trial.config)))
 
 
 @dataclass(frozen=True)
@@ -115,7 +122,7 @@ class RayBackend:
         self.connect()
         ray = _import_ray()
         remote = ray.remote(num_cpus=1, max_retries=self.max_retries)(run_trial)
-        running = {remote.remote(trial.config.to_dict()): trial for trial in trials}
+        running = {remote.remote(config_dict(trial.config)): trial for trial in trials}
         try:
             while running:
                 finished, _ = ray.wait(list(running), num_returns=1)

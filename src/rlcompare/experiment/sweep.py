@@ -19,6 +19,11 @@ env = "Acrobot-v1"
 algorithm = "sarsa"
 ```
 
+With ``engine = "deep"`` in [sweep] the configurations are :class:`~rlcompare.deep.run.DeepConfig`'s: the keys
+are its fields but ``seeds`` and ``vmap_width`` (a trial trains one seed), and the method's hyperparameters as
+``hyperparameters.NAME`` (a dotted key: ``hyperparameters.lam = [0.0, 0.9]`` in [grid]). The deep engine, and
+so JAX, is imported only then.
+
 A trial is one configuration with one seed, the unit the backends run and the store keeps. The seeds are
 ``np.random.SeedSequence(root_seed).spawn(seeds)``, each child's first 63 bits: they depend on the root seed
 and the seed's index alone, not on the order in which trials happen to run, and every configuration gets the
@@ -38,10 +43,10 @@ import json
 import math
 import re
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -53,12 +58,20 @@ else:  # pragma: no cover - Python 3.10
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.store import cut, quote
 
+if TYPE_CHECKING:
+    from rlcompare.deep.run import DeepConfig
+
 SECTIONS = ("sweep", "fixed", "grid", "include")
-SWEEP_KEYS = ("name", "root_seed", "seeds")
+SWEEP_KEYS = ("name", "root_seed", "seeds", "engine")
+ENGINES = ("tabular", "deep")
 MAX_TRIALS = 100_000
 NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,99}")
 """A sweep's name: one directory name (the default store is runs/sweeps/NAME), never a path."""
 CONFIG_KEYS = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name != "seeds")
+DEEP_KEYS = ("algorithm", "env", "preset", "eval_rounds", "eval_episodes")
+"""The fields of DeepConfig a deep sweep sets, besides ``hyperparameters.NAME``: not ``seeds`` (set in [sweep]) and
+not ``vmap_width``, 1 for a trial's one seed."""
+HYPERPARAMETERS = "hyperparameters."
 
 
 class SweepError(ValueError):
@@ -74,7 +87,7 @@ class SweepError(ValueError):
 class Trial:
     """One configuration with one seed."""
 
-    config: ExperimentConfig
+    config: ExperimentConfig | DeepConfig
     """The configuration, with ``seeds`` the one seed of this trial."""
     config_hash: str
     """Identifies the configuration apart from its seeds."""
@@ -93,7 +106,7 @@ class Trial:
 class _Built:
     """A valid configuration of the file, with where it came from."""
 
-    config: ExperimentConfig
+    config: ExperimentConfig | DeepConfig
     where: str
     """``grid`` or ``include[k]``."""
     values: dict
@@ -108,10 +121,12 @@ class Sweep:
     name: str
     root_seed: int
     seeds: tuple[int, ...]
-    configs: tuple[ExperimentConfig, ...]
+    configs: tuple[ExperimentConfig | DeepConfig, ...]
     """Each with ``seeds`` set to the sweep's seeds, in the order of the file: [grid] then [[include]]."""
     swept: tuple[str, ...]
-    """The keys whose value differs between configurations."""
+    """The keys whose value differs between configurations (:func:`swept_value`)."""
+    engine: str = "tabular"
+    """``tabular`` (configurations are ExperimentConfigs) or ``deep`` (DeepConfigs, ``vmap_width`` 1)."""
 
     def trials(self) -> list[Trial]:
         """Every configuration with every seed, seed by seed, so that the first finished trials already
@@ -121,10 +136,24 @@ class Sweep:
                 for k, seed in enumerate(self.seeds) for c, h in zip(self.configs, hashes, strict=True)]
 
 
-def config_hash(config: ExperimentConfig) -> str:
-    """A short hash of every field of the configuration but its seeds."""
+def config_hash(config: ExperimentConfig | DeepConfig) -> str:
+    """A short hash of every field of the configuration but its seeds (a deep one's ``engine`` and resolved
+    hyperparameters included)."""
     fields = {k: v for k, v in config.to_dict().items() if k != "seeds"}
     return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def config_dict(config: ExperimentConfig | DeepConfig) -> dict:
+    """The configuration as its trial's ``config.json`` holds it (JSON's lists for tuples)."""
+    return json.loads(json.dumps(config.to_dict()))
+
+
+def swept_value(config: ExperimentConfig | DeepConfig, key: str) -> Any:
+    """A configuration's value of a sweep key: its field, or for ``hyperparameters.NAME`` the value the deep method
+    runs with (the preset's where the sweep does not set it; None where the method has no such field)."""
+    if key.startswith(HYPERPARAMETERS):
+        return getattr(config.method_config(), key.removeprefix(HYPERPARAMETERS), None)
+    return getattr(config, key)
 
 
 def derive_seeds(root_seed: int, count: int) -> tuple[int, ...]:
@@ -155,15 +184,19 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
             problems.append(f"{cut(section, 80)}: unknown section; allowed: {', '.join(SECTIONS)}")
     if not data.get("grid") and not data.get("include"):
         problems.append("grid: empty; allowed: at least one [grid] list or one [[include]] table")
-    name, root_seed, count = _header(_table(data, "sweep", problems), problems)
-    fixed = _known("fixed", _table(data, "fixed", problems), problems)
-    grid = _known("grid", _table(data, "grid", problems), problems)
-    includes = [_known(f"include[{k}]", include, problems) for k, include in enumerate(_includes(data, problems))]
+    name, root_seed, count, engine_name = _header(_table(data, "sweep", problems), problems)
+    engine = _engine(engine_name, problems)
+    if engine is None:  # the keys of an unknown or unavailable engine cannot be checked
+        raise SweepError(source, problems)
+    fixed = _known("fixed", _table(data, "fixed", problems), engine, problems)
+    grid = _known("grid", _table(data, "grid", problems), engine, problems)
+    includes = [_known(f"include[{k}]", include, engine, problems)
+                for k, include in enumerate(_includes(data, problems))]
     for key in list(grid):
         if not isinstance(grid[key], list) or not grid[key]:
-            problems.append(f"grid.{key}: got {quote(grid.pop(key))}; allowed: a non-empty list of values")
+            problems.append(f"grid.{cut(key, 80)}: got {quote(grid.pop(key))}; allowed: a non-empty list of values")
         elif key in fixed:
-            problems.append(f"grid.{key}: also in [fixed]; allowed: one place for each key")
+            problems.append(f"grid.{cut(key, 80)}: also in [fixed]; allowed: one place for each key")
             del grid[key]
     n_configs = (math.prod(len(values) for values in grid.values()) if grid or not includes else 0) + len(includes)
     if n_configs * count > MAX_TRIALS:
@@ -176,25 +209,88 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
     sources.append([(f"include[{k}]", {**fixed, **include},
                      {**at_fixed, **{key: f"include[{k}].{key}" for key in include}})
                     for k, include in enumerate(includes)])
-    built = _configs(itertools.chain.from_iterable(sources), seeds, problems)
+    built = _configs(itertools.chain.from_iterable(sources), seeds, engine.build, problems)
     problems.extend(_duplicates(built))
     configs = [b.config for b in built]
     if problems:
         raise SweepError(source, list(dict.fromkeys(problems)))
-    given = {*grid, *(key for include in includes for key in include)}
-    swept = tuple(key for key in CONFIG_KEYS
-                  if key in given and len({json.dumps(getattr(c, key)) for c in configs}) > 1)
-    return Sweep(name, root_seed, seeds, tuple(configs), swept)
+    given = dict.fromkeys([*grid, *(key for include in includes for key in include)])
+    order = [*engine.keys, *(key for key in given if key not in engine.keys)]  # then hyperparameters.NAME
+    swept = tuple(key for key in order
+                  if key in given and len({json.dumps(swept_value(c, key)) for c in configs}) > 1)
+    return Sweep(name, root_seed, seeds, tuple(configs), swept, engine.name)
 
 
-def _known(section: str, table: dict, problems: list[str]) -> dict:
-    """The table without the keys that are not configuration fields, each of those reported."""
-    for key in table:
+@dataclass(frozen=True)
+class _Engine:
+    """What a sweep's configurations are: the keys its sections may set, and how one is built from them."""
+
+    name: str
+    keys: tuple[str, ...]
+    build: Callable[[dict, tuple[int, ...]], Any]
+    """From the values given (``hyperparameters.NAME`` flat) and the seeds; a :class:`ConfigError` names the key."""
+
+
+def _engine(name: str | None, problems: list[str]) -> _Engine | None:
+    """The engine named in [sweep]; None, with the problem reported, where it is unknown or not installed."""
+    if name == "tabular":
+        return _Engine(name, CONFIG_KEYS, lambda values, seeds: ExperimentConfig(**values, seeds=seeds))
+    if name == "deep":
+        try:
+            return _deep_engine()
+        except ImportError as error:  # rlcompare.deep.DeepUnavailable: JAX, flax or optax is missing
+            problems.append(f"sweep.engine: {error}")
+    return None
+
+
+def _deep_engine() -> _Engine:
+    """DeepConfigs of one seed at a time; hyperparameters the preset already has are dropped, so that a
+    configuration has one hash however it is written."""
+    from rlcompare.deep.methods import hyperparameters
+    from rlcompare.deep.run import DeepConfig
+
+    fields = {f.name for f in dataclasses.fields(DeepConfig)}
+
+    def build(values: dict, seeds: tuple[int, ...]) -> DeepConfig:
+        overrides = {key.removeprefix(HYPERPARAMETERS): value for key, value in values.items()
+                     if key.startswith(HYPERPARAMETERS)}
+        given = {key: value for key, value in values.items() if not key.startswith(HYPERPARAMETERS)}
+        try:
+            config = DeepConfig(**given, hyperparameters=overrides, seeds=seeds, vmap_width=1)
+        except ConfigError as error:  # a method's own checks name its field alone: lam, total_steps
+            if error.field_name in fields or error.field_name.startswith(HYPERPARAMETERS):
+                raise
+            name = error.field_name
+            raise ConfigError(HYPERPARAMETERS + name, overrides.get(name, error.value), error.allowed) from None
+        resolved, preset = config.method_config(), hyperparameters(config.algorithm, config.env, config.preset, {})
+        kept = {key: getattr(resolved, key) for key in overrides if getattr(resolved, key) != getattr(preset, key)}
+        return dataclasses.replace(config, hyperparameters=kept)
+
+    return _Engine("deep", DEEP_KEYS, build)
+
+
+def _known(section: str, table: dict, engine: _Engine, problems: list[str]) -> dict:
+    """The table's configuration keys (a deep sweep's ``hyperparameters`` table flattened to
+    ``hyperparameters.NAME``); every other key reported."""
+    deep = engine.name == "deep"
+    known = {}
+    for key, value in table.items():
         if key == "seeds":
             problems.append(f"{section}.seeds: the seeds are set once, in [sweep] (seeds = N)")
-        elif key not in CONFIG_KEYS:
-            problems.append(f"{section}.{cut(key, 80)}: unknown key; allowed: {', '.join(CONFIG_KEYS)}")
-    return {key: value for key, value in table.items() if key in CONFIG_KEYS}
+        elif deep and key == "vmap_width":
+            problems.append(f"{section}.vmap_width: fixed at 1 in a sweep (each trial trains one seed)")
+        elif deep and key == "hyperparameters":
+            if isinstance(value, dict):
+                known.update({f"{HYPERPARAMETERS}{name}": item for name, item in value.items()})
+            else:
+                problems.append(f"{section}.hyperparameters: got {quote(value)}; allowed: a table of the method's "
+                                "hyperparameters (hyperparameters.NAME = ...)")
+        elif key in engine.keys:
+            known[key] = value
+        else:
+            allowed = ", ".join([*engine.keys, *(["hyperparameters.NAME"] if deep else [])])
+            problems.append(f"{section}.{cut(key, 80)}: unknown key; allowed: {allowed}")
+    return known
 
 
 def _table(data: dict, section: str, problems: list[str]) -> dict:
@@ -213,8 +309,9 @@ def _includes(data: dict, problems: list[str]) -> list[dict]:
     return value
 
 
-def _header(header: dict, problems: list[str]) -> tuple[str, int, int]:
-    """Name, root seed and seeds per configuration; a bad value is reported and replaced by its default."""
+def _header(header: dict, problems: list[str]) -> tuple[str, int, int, str | None]:
+    """Name, root seed, seeds per configuration and engine; a bad value is reported and replaced by its default
+    (an unknown engine by None)."""
     for key in header:
         if key not in SWEEP_KEYS:
             problems.append(f"sweep.{cut(key, 80)}: unknown key; allowed: {', '.join(SWEEP_KEYS)}")
@@ -232,7 +329,11 @@ def _header(header: dict, problems: list[str]) -> tuple[str, int, int]:
         problems.append(f"sweep.seeds: got {quote(count)}; allowed: an integer in [1, {MAX_TRIALS:,}] (seeds per "
                         "configuration)")
         count = 1
-    return name, root_seed, count
+    engine = header.get("engine", "tabular")
+    if engine not in ENGINES:
+        problems.append(f"sweep.engine: got {quote(engine)}; allowed: {', '.join(ENGINES)}")
+        engine = None
+    return name, root_seed, count, engine
 
 
 def is_sweep_name(name: Any) -> bool:
@@ -257,8 +358,8 @@ def _combinations(fixed: dict, grid: dict) -> list[tuple[str, dict, dict[str, st
     return out
 
 
-def _configs(sources: Iterable[tuple[str, dict, dict[str, str]]], seeds: tuple[int, ...], problems: list[str]
-             ) -> list[_Built]:
+def _configs(sources: Iterable[tuple[str, dict, dict[str, str]]], seeds: tuple[int, ...],
+             build: Callable[[dict, tuple[int, ...]], Any], problems: list[str]) -> list[_Built]:
     """The valid configurations; every problem of the others, each reported once.
 
     A configuration stops at its first bad value, so each bad value is set back to its default and the rest
@@ -272,14 +373,14 @@ def _configs(sources: Iterable[tuple[str, dict, dict[str, str]]], seeds: tuple[i
         values = dict(given)
         for _ in range(len(values) + 1):
             try:
-                config = ExperimentConfig(**values, seeds=seeds)
+                config = build(values, seeds)
                 if values == given:
                     built.append(_Built(config, where_from, given, origin))
                 break
             except ConfigError as error:
                 where = origin.get(error.field_name, f"{error.field_name} (default)")
-                message = f"{where}: got {quote(error.value)}; allowed: {error.allowed}"
-                context = ", ".join(f"{k} = {quote(values[k])}" for k, path in origin.items()
+                message = f"{cut(where, 200)}: got {quote(error.value)}; allowed: {error.allowed}"
+                context = ", ".join(f"{cut(k, 80)} = {quote(values[k])}" for k, path in origin.items()
                                     if k != error.field_name and not path.startswith("fixed.") and k in values)
                 failures.setdefault(message, (where, []))[1].append(context)
                 if error.field_name not in values:

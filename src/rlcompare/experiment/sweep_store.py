@@ -3,7 +3,8 @@
 - ``sweep.toml``: the sweep file the store was last run with;
 - ``manifest.json``: every trial of that sweep (id, config hash, seed index, seed, status, swept values);
 - ``trials/config=<hash>/trial=<seed>/``: one run directory per trial (``config.json``,
-  ``episodes.parquet``, ``evaluations.parquet``, ``qtables.npz``, ``meta.json``).
+  ``episodes.parquet``, ``evaluations.parquet``, ``qtables.npz``, ``meta.json``; a deep sweep's trials hold
+  ``params.npz`` in place of ``qtables.npz``).
 
 ``trials/*/*/episodes.parquet`` (and ``evaluations.parquet``) form a Hive-partitioned dataset:
 :func:`read_table` reads one whole, with ``config`` (the hash) as a column beside the trial's own ``seed``
@@ -31,7 +32,7 @@ import pyarrow.dataset as ds
 from rlcompare.engine.state import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
-from rlcompare.experiment.sweep import Sweep, Trial, config_hash
+from rlcompare.experiment.sweep import Sweep, Trial, config_dict, config_hash, swept_value
 
 MANIFEST_FILE = "manifest.json"
 SWEEP_FILE = "sweep.toml"
@@ -58,7 +59,7 @@ class SweepStore:
 
     def is_done(self, trial: Trial) -> bool:
         """Whether the trial's run directory is finished, its files belong together and hold this trial."""
-        return is_finished(self.trial_dir(trial), trial.config.to_dict())
+        return is_finished(self.trial_dir(trial), config_dict(trial.config), self._sweep.engine)
 
     def open(self, sweep: Sweep, sweep_text: str) -> list[Trial]:
         """Prepare the directory for ``sweep`` (claimed and locked by the caller); the trials still to run,
@@ -73,7 +74,7 @@ class SweepStore:
         self._write_manifest()
         return [t for t in self._trials if self._status[t.trial_id] == PENDING]
 
-    def save(self, trial: Trial, results: Results) -> None:
+    def save(self, trial: Trial, results) -> None:
         """Write a finished trial's run directory; mark it done in the manifest."""
         results.save(self.trial_dir(trial))  # over an earlier attempt that did not finish, if any
         with self._lock:
@@ -90,10 +91,11 @@ class SweepStore:
         self._written = time.monotonic()
         sweep = self._sweep
         store.write_json_atomic(self.root / MANIFEST_FILE, {
-            "name": sweep.name, "root_seed": sweep.root_seed, "seeds": list(sweep.seeds), "swept": list(sweep.swept),
+            "name": sweep.name, "engine": sweep.engine, "root_seed": sweep.root_seed, "seeds": list(sweep.seeds),
+            "swept": list(sweep.swept),
             "trials": [{"id": t.trial_id, "config_hash": t.config_hash, "seed_index": t.seed_index, "seed": t.seed,
                         "status": self._status[t.trial_id],
-                        "swept": {key: _plain(getattr(t.config, key)) for key in sweep.swept}}
+                        "swept": {key: _plain(swept_value(t.config, key)) for key in sweep.swept}}
                        for t in self._trials],
         })
 
@@ -106,13 +108,19 @@ def trial_path(root: Path, config_hash: str, seed: int) -> Path:
     return Path(root) / TRIALS_DIR / f"config={config_hash}" / f"trial={seed}"
 
 
-def is_finished(trial_dir: Path, config: dict | None = None) -> bool:
-    """Whether a trial's run directory is finished and its files belong together (and hold ``config``)."""
+def is_finished(trial_dir: Path, config: dict | None = None, engine: str = "tabular") -> bool:
+    """Whether a trial's run directory is finished and its files belong together (and hold ``config``);
+    ``engine``: the sweep's, which says what files a trial has."""
     try:
-        store.verify_run(trial_dir, config)
+        store.verify_run(trial_dir, config, store.DEEP_CONTENT_FILES if engine == "deep" else store.CONTENT_FILES)
     except store.StoreError:
         return False
     return True
+
+
+def engine_of(manifest: dict) -> str:
+    """The engine of a sweep's trials (stores written before deep sweeps say none: tabular)."""
+    return manifest.get("engine", "tabular")
 
 
 def read_table(root: Path, name: str = store.EPISODES_FILE) -> pd.DataFrame:
@@ -121,7 +129,7 @@ def read_table(root: Path, name: str = store.EPISODES_FILE) -> pd.DataFrame:
     left out."""
     manifest = read_manifest(root)
     files = [str(trial_path(root, e["config_hash"], e["seed"]) / name) for e in manifest["trials"]
-             if is_finished(trial_path(root, e["config_hash"], e["seed"]))]
+             if is_finished(trial_path(root, e["config_hash"], e["seed"]), engine=engine_of(manifest))]
     if not files:
         return pd.DataFrame()
     partitioning = ds.partitioning(pa.schema([("config", pa.string()), ("trial", pa.int64())]), flavor="hive")
@@ -144,16 +152,23 @@ def read_manifest(root: Path) -> dict:
 
 def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
     """The finished trials of each configuration of a sweep, merged into one :class:`Results` per
-    configuration (its seeds in the sweep's order), by config hash; and a line for each trial whose files do
-    not belong together and each configuration that has no finished trial."""
+    configuration (a deep sweep's: one :class:`~rlcompare.deep.run.DeepResults`), its seeds in the sweep's
+    order, by config hash; and a line for each trial whose files do not belong together and each configuration
+    that has no finished trial."""
     manifest = read_manifest(root)
-    by_config: dict[str, list[Results]] = {}
+    if engine_of(manifest) == "deep":
+        from rlcompare.deep.run import DeepResults as load_as  # the deep engine, imported only for a deep sweep
+
+        files = store.DEEP_RUN_FILES
+    else:
+        load_as, files = Results, store.RUN_FILES
+    by_config: dict[str, list] = {}
     problems = []
     for entry in manifest["trials"]:
         run_dir = trial_path(root, entry["config_hash"], entry["seed"])
-        if store.is_complete(run_dir):
+        if store.is_complete(run_dir, files):
             try:
-                trial = Results.load(run_dir)
+                trial = load_as.load(run_dir)
             except store.StoreError as error:
                 problems.append(f"trial {entry['id']} left out: {error}; run the sweep again to redo it")
                 continue
@@ -169,9 +184,14 @@ def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
     return {h: merge(trials) for h, trials in by_config.items()}, problems
 
 
-def merge(trials: list[Results]) -> Results:
-    """One :class:`Results` from the one-seed trials of a configuration."""
+def merge(trials: list) -> Results:
+    """One :class:`Results` (or a deep sweep's :class:`~rlcompare.deep.run.DeepResults`) from the one-seed trials
+    of a configuration."""
     first = trials[0]
+    if not isinstance(first, Results):
+        from rlcompare.deep.run import merge_seeds
+
+        return merge_seeds(trials)
     records = Records(*(np.concatenate([getattr(t.records, name) for t in trials])
                         if name != "snapshot_episodes" else first.records.snapshot_episodes
                         for name in Records._fields))
@@ -193,7 +213,7 @@ def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Calla
         sweep_store = SweepStore(out)
         todo = sweep_store.open(sweep, sweep_text)
 
-        def on_done(trial: Trial, results: Results) -> None:
+        def on_done(trial: Trial, results) -> None:
             sweep_store.save(trial, results)
             if progress is not None:
                 progress(trial)
