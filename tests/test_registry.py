@@ -64,7 +64,7 @@ def test_every_study_listed_is_one_the_command_can_run():
     from rlcompare.studies.book import STUDIES
     from rlcompare.studies.paper import ENV_STUDIES
 
-    assert set(TITLES) == {"paper", "why", "sensitivity", *ENV_STUDIES, *STUDIES}
+    assert set(TITLES) == {"paper", "why", "sensitivity", "deep", *ENV_STUDIES, *STUDIES}
     assert all(STUDIES[name].title == TITLES[name] for name in STUDIES)
     listed = CliRunner(env={"COLUMNS": "400"}).invoke(app, ["reproduce", "--list"]).output.splitlines()
     assert [line.split()[0] for line in listed] == list(TITLES)

@@ -250,14 +250,17 @@ def reproduce(
         help=f"Which study: {', '.join(TITLES)} (see --list).")]
     = "paper",
     seeds: Annotated[int | None, typer.Option(
+        "--seeds", "--runs",
         help="Number of seeds (runs); seeds are first-seed, first-seed + 1, ... Default: 30 for paper, why, "
-             "cartpole and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50 for "
+             "cartpole and acrobot; the book's runs for the others (100 for book-10.2 and book-12.10, 50,000 for "
+             "book-6.3, whose asymptotic phase runs the first 1 in 5,000 of them, at least 2; 50 for "
              "cliff); 10 for deep; 20 for sensitivity, whose seeds come from its sweep (SeedSequence(0).spawn(N)).",
         show_default=False)] = None,
     first_seed: FirstSeed = 0,
     episodes: Annotated[int | None, typer.Option(
         help="Training episodes per seed (paper, why, cartpole, acrobot, sensitivity, and deep's tabular pair; the "
-             "paper gives none). Default: 5000; 1500 for sensitivity.", show_default=False)] = None,
+             "paper gives none; book-6.3: its asymptotic phase). Default: 5000; 1500 for sensitivity; 100,000 for "
+             "book-6.3.", show_default=False)] = None,
     algorithms: Annotated[str, typer.Option(
         help="Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every "
              "one. Each adds rows to Tables I and II.")] = "q_learning,sarsa",
@@ -314,6 +317,13 @@ def reproduce(
         count = _DEFAULT_SEEDS if seeds is None else seeds
         _reproduce_paper(study, _seeds(count, first_seed), 5000 if episodes is None else episodes,
                          _algorithms(algorithms), out_dir, videos, force)
+    elif study == "book-6.3":
+        from rlcompare.studies.book import fig_6_3_study
+
+        if episodes is not None and episodes < 1:
+            raise typer.BadParameter(f"got {episodes}; allowed: an integer >= 1", param_hint="'--episodes'")
+        count = STUDIES[study].runs if seeds is None else seeds
+        _reproduce_book(fig_6_3_study(episodes), _seeds(count, first_seed), out_dir, force)
     else:
         count = STUDIES[study].runs if seeds is None else seeds
         _reproduce_book(STUDIES[study], _seeds(count, first_seed), out_dir, force)
@@ -537,7 +547,8 @@ def _print_done(progress: Progress, name: str, results, reused: bool) -> None:
 @app.command()
 @one_line_errors
 def sweep(
-    sweep_file: Annotated[Path, typer.Argument(help="A sweep file (TOML); see examples/sweep.toml.")],
+    sweep_file: Annotated[Path, typer.Argument(help="A sweep file (TOML); see examples/sweep.toml, or "
+                                                    "examples/sweep-deep.toml for deep configurations.")],
     out: Annotated[str | None, typer.Option(
         help="The sweep's store (new, empty, or a sweep store rlcompare wrote). Default: runs/sweeps/NAME.",
         show_default=False)] = None,
@@ -647,6 +658,8 @@ def bench(
                                                      "instance with 2 CPUs).")] = None,
     deep: Annotated[bool, typer.Option(help="Only measure the deep engine, beside Stable-Baselines3 where the "
                                             "'bench' extra is installed.")] = False,
+    to_score: Annotated[bool, typer.Option(help="With --deep: also the wall time to a greedy return of 475 on "
+                                                "CartPole, ours beside Stable-Baselines3 (several minutes).")] = False,
 ) -> None:
     """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
     from rlcompare.experiment import benchmark
@@ -654,11 +667,13 @@ def bench(
 
     if deep:
         try:
-            from rlcompare.deep.bench import deep_table
+            from rlcompare.deep.bench import deep_table, score_table
         except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
             _fail(str(error))
         with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):
             _print_table(deep_table())
+            if to_score:
+                _print_table(score_table())
         return
     if sweeps:
         try:

@@ -109,6 +109,23 @@ def interval(
     return Estimate(value, low, high)
 
 
+def mean_interval(per_seed: np.ndarray, confidence: float = 0.95) -> Estimate:
+    """The mean over seeds with its Student t interval, for thousands of seeds: there the mean's sampling
+    distribution is normal to any precision a table shows, while the bootstrap would resample an array of
+    seeds x resamples (and BCa's jackknife one of seeds x seeds: 20 GB for 50,000 seeds). Degenerate inputs
+    follow the module conventions."""
+    values = _per_seed(per_seed)
+    if not np.all(np.isfinite(values)):
+        return _NAN
+    mean = float(values.mean())
+    if values.size < 2:
+        return Estimate(mean, np.nan, np.nan)
+    if np.all(values == values[0]):
+        return Estimate(mean, mean, mean)
+    half = float(stats.t.ppf(0.5 + confidence / 2, values.size - 1) * values.std(ddof=1) / np.sqrt(values.size))
+    return Estimate(mean, mean - half, mean + half)
+
+
 def _bootstrap(data: tuple[np.ndarray, ...], function, method: str, confidence: float, n_resamples: int,
                seed: int) -> tuple[float, float]:
     """``scipy.stats.bootstrap`` bounds; BCa that cannot be computed falls back to the percentile interval.

@@ -10,6 +10,7 @@ same seed, on every environment: common random numbers for paired comparisons.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -59,15 +60,25 @@ def initial_state(seeds: list[int], n_features: int, n_actions: int) -> RunState
     ``SeedSequence(s)``."""
     rng = np.empty((len(seeds), STREAMS, 4), dtype=np.uint64)
     for run, seed in enumerate(seeds):
-        agent, eval_env, eval_agent, transition, eval_transition = np.random.SeedSequence(seed).spawn(5)
-        rng[run, ENV_STREAM] = stream_state(seed)
-        rng[run, AGENT_STREAM] = stream_state(agent)
-        rng[run, EVAL_ENV_STREAM] = stream_state(eval_env)
-        rng[run, EVAL_AGENT_STREAM] = stream_state(eval_agent)
-        rng[run, TRANSITION_STREAM] = stream_state(transition)
-        rng[run, EVAL_TRANSITION_STREAM] = stream_state(eval_transition)
+        rng[run] = seed_streams(int(seed))
     shape = (len(seeds), n_features, n_actions)
     return RunState(w=np.zeros(shape), w2=np.zeros(shape), rng=rng)
+
+
+@functools.lru_cache(maxsize=2**17)
+def seed_streams(seed: int) -> np.ndarray:
+    """The starting states of the six streams of seed ``seed``, ``(6, 4)``, read-only. Cached: deriving them
+    takes about 0.2 ms a seed, and a study of 50,000 runs asks for the same seeds in every configuration."""
+    rng = np.empty((STREAMS, 4), dtype=np.uint64)
+    agent, eval_env, eval_agent, transition, eval_transition = np.random.SeedSequence(seed).spawn(5)
+    rng[ENV_STREAM] = stream_state(seed)
+    rng[AGENT_STREAM] = stream_state(agent)
+    rng[EVAL_ENV_STREAM] = stream_state(eval_env)
+    rng[EVAL_AGENT_STREAM] = stream_state(eval_agent)
+    rng[TRANSITION_STREAM] = stream_state(transition)
+    rng[EVAL_TRANSITION_STREAM] = stream_state(eval_transition)
+    rng.flags.writeable = False
+    return rng
 
 
 def allocate_records(

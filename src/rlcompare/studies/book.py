@@ -13,13 +13,18 @@ which only the worst step sizes of Figure 12.10 reach.
   SARSA with ε = 0.1, α = 0.5, γ = 1, 500 episodes, 50 runs. The book's contrast with the paper: on the
   cliff Q-Learning learns the optimal edge path (return -13) but falls off while exploring, so SARSA,
   which learns the safe path, collects more reward online.
+- ``book-6.3``: Figure 6.3 on the same table: SARSA, Expected SARSA and Q-Learning against α, interim (100
+  episodes x 50,000 runs) and asymptotic (100,000 episodes x 10 runs); :mod:`rlcompare.studies.book_6_3`.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -36,7 +41,7 @@ from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
-from rlcompare.studies import TITLES
+from rlcompare.studies import TITLES, book_6_3
 from rlcompare.studies.contrast import contrast_table, sibling_studies
 
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
@@ -57,6 +62,11 @@ class Study:
     report: Callable[[Path, dict[str, Results]], Path]
     runs: int
     """Seeds by default: as many runs as the book averages over."""
+    train: Callable[..., Any] | None = None
+    """Trains a configuration into its run directory, in place of :func:`~rlcompare.experiment.runner.run`
+    (``run_or_load``'s ``train``), with ``load_finished`` and ``load`` that read what it writes."""
+    load_finished: Callable[[Path, ExperimentConfig], Any] | None = None
+    load: Callable[[Path], Any] | None = None
 
 
 def fig_10_2_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
@@ -73,7 +83,8 @@ def fig_12_10_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
 def run_study(study: Study, out: Path, seeds: tuple[int, ...], progress: Callable[[int], None] | None = None,
               *, force: bool = False) -> Iterator[tuple[str, Results, bool]]:
     """Each configuration into ``out / name``, or loaded when already complete there."""
-    yield from run_or_load(Path(out), study.configs(seeds), study=study.name, progress=progress, force=force)
+    yield from run_or_load(Path(out), study.configs(seeds), study=study.name, progress=progress, force=force,
+                           train=study.train, load_finished=study.load_finished)
 
 
 def write_study_report(study: Study, out: Path, runs: dict[str, Results] | None = None) -> Path:
@@ -81,7 +92,7 @@ def write_study_report(study: Study, out: Path, runs: dict[str, Results] | None 
     out = Path(out)
     with store.rewriting(out, "study"):
         if runs is None:
-            runs = {name: Results.load(out / name) for name in study.configs((0,))}
+            runs = {name: (study.load or Results.load)(out / name) for name in study.configs((0,))}
         return study.report(out, runs)
 
 
@@ -260,3 +271,14 @@ STUDIES = {name: Study(name, TITLES[name], configs, report, runs) for name, conf
     ("book-12.10", fig_12_10_configs, report_12_10, 100),
     ("cliff", cliff_configs, report_cliff, 50),
 )}
+STUDIES["book-6.3"] = Study("book-6.3", TITLES["book-6.3"], book_6_3.configs, book_6_3.report_6_3,
+                            book_6_3.INTERIM_RUNS, book_6_3.train, book_6_3.load_if_complete, book_6_3.PhaseRuns.load)
+
+
+def fig_6_3_study(asymptotic_episodes: int | None = None) -> Study:
+    """``book-6.3`` with ``asymptotic_episodes`` in the asymptotic phase in place of the book's 100,000."""
+    study = STUDIES["book-6.3"]
+    if asymptotic_episodes is None:
+        return study
+    return dataclasses.replace(study, configs=functools.partial(book_6_3.configs,
+                                                                asymptotic_episodes=asymptotic_episodes))
