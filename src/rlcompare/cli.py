@@ -273,7 +273,8 @@ def reproduce(
              "truncation_as_terminal; repeat the option. Default: alpha=0.01,0.05,0.1,0.2,0.5 gamma=0.9,0.99,1 "
              "epsilon_end=0,0.01,0.05 truncation_as_terminal=false,true.", show_default=False)] = None,
     workers: Annotated[int | None, typer.Option(
-        help="Sensitivity on this machine: trials at once. Default: every core.", show_default=False)] = None,
+        help="Sensitivity on this machine: trials at once. Default: every core. Deep: configurations trained at "
+             "once. Default: one per core, at most 4.", show_default=False)] = None,
     address: Annotated[str | None, typer.Option(
         help="Sensitivity: run the trials on the Ray cluster at this address ('auto': the one 'ray start' began "
              "here; or HOST:PORT) instead of this machine's cores.", show_default=False)] = None,
@@ -305,7 +306,7 @@ def reproduce(
     out_dir = _out_path(out, Path("runs") / study)
     _check_out(out_dir, store.Owner("study", study), force)
     if study == "deep":
-        _reproduce_deep(seeds, first_seed, steps, episodes, methods, envs, out_dir, force)
+        _reproduce_deep(seeds, first_seed, steps, episodes, methods, envs, workers, out_dir, force)
         return
     _announce_compiling()
     if study == "sensitivity":
@@ -405,15 +406,16 @@ def _listed(spec: str | None, allowed: tuple[str, ...], option: str) -> tuple[st
 
 
 def _reproduce_deep(seeds: int | None, first_seed: int, steps: int | None, episodes: int | None,
-                    methods: str | None, envs: str | None, out: Path, force: bool) -> None:
+                    methods: str | None, envs: str | None, workers: int | None, out: Path, force: bool) -> None:
     deep = _deep_study()
-    for value, option in ((steps, "--steps"), (episodes, "--episodes")):
+    for value, option in ((steps, "--steps"), (episodes, "--episodes"), (workers, "--workers")):
         if value is not None and value < 1:
             raise typer.BadParameter(f"got {value}; allowed: an integer >= 1", param_hint=f"'{option}'")
     plan = deep.Plan(seeds=_seeds(deep.DEFAULT_SEEDS if seeds is None else seeds, first_seed),
                      methods=_listed(methods, tuple(deep.DEEP_METHODS), "--methods"),
                      envs=_listed(envs, deep.ENVS, "--envs"), steps=steps,
-                     tabular_episodes=deep.TABULAR_EPISODES if episodes is None else episodes)
+                     tabular_episodes=deep.TABULAR_EPISODES if episodes is None else episodes,
+                     workers=deep.DEFAULT_WORKERS if workers is None else workers)
     try:
         configs = plan.deep_configs()
     except ConfigError as error:

@@ -8,6 +8,7 @@ import platform
 import sys
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
@@ -161,26 +162,40 @@ def _version(package: str) -> str | None:
 def run_or_load(
     out: Path, configs: dict[str, ExperimentConfig], *, study: str, progress: Callable[[int], None] | None = None,
     force: bool = False, train: Callable[..., Results] | None = None,
-    load_finished: Callable[[Path, ExperimentConfig], Results | None] | None = None,
+    load_finished: Callable[[Path, ExperimentConfig], Results | None] | None = None, workers: int = 1,
 ) -> Iterator[tuple[str, Results, bool]]:
     """Run each configuration into ``out / name``, or load it if that run already finished and its files belong
     together. ``train`` and ``load_finished`` stand for :func:`run` and :func:`load_if_complete` where another
-    engine trains (the deep one, :mod:`rlcompare.deep.run`).
+    engine trains (the deep one, :mod:`rlcompare.deep.run`), which may train ``workers`` configurations at once
+    (each run's results depend on its configuration alone).
 
     ``out`` is claimed as the study's directory (``force``: even beside files rlcompare did not write) and
     locked while this runs. Yields ``(name, results, reused)`` as each configuration completes, so an
     interrupted study resumes where it stopped and loses nothing finished.
     """
+
+    def one(name: str, config: ExperimentConfig) -> tuple[str, Results, bool]:
+        run_dir = Path(out) / name
+        stored = (load_finished or load_if_complete)(run_dir, config)
+        if stored is not None:
+            if progress is not None:
+                progress(config.progress_total)
+            return name, stored, True
+        return name, (train or run)(config, out=run_dir, study=study, progress=progress), False
+
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
-        for name, config in configs.items():
-            run_dir = Path(out) / name
-            stored = (load_finished or load_if_complete)(run_dir, config)
-            if stored is not None:
-                if progress is not None:
-                    progress(config.progress_total)
-                yield name, stored, True
-            else:
-                yield name, (train or run)(config, out=run_dir, study=study, progress=progress), False
+        if workers <= 1:
+            for name, config in configs.items():
+                yield one(name, config)
+            return
+        with ThreadPoolExecutor(workers) as pool:
+            pending = [pool.submit(one, name, config) for name, config in configs.items()]
+            try:
+                for future in as_completed(pending):
+                    yield future.result()
+            finally:
+                for future in pending:
+                    future.cancel()
 
 
 def load(run_dir: Path) -> Results:
