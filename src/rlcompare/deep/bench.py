@@ -152,10 +152,11 @@ def sb3_seconds_to_score(row: DeepRow, seed: int) -> float:
     import gymnasium as gym
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.monitor import Monitor
 
     model = sb3_model(row, SCORE_ENV, seed)
     every = row.config.total_steps // SCORE_ROUNDS
-    evaluation_env = gym.make(SCORE_ENV)
+    evaluation_env = Monitor(gym.make(SCORE_ENV))
 
     class StopAtScore(BaseCallback):
         reached: bool = False
