@@ -25,12 +25,12 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.deep.envs import DEEP_ENVS, DeepEnv
-from rlcompare.deep.methods import DEEP_METHODS, deep_method, hyperparameters
+from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ConfigError
 from rlcompare.experiment.results import _parquet_bytes, _with_labels
-from rlcompare.experiment.runner import _version, versions
+from rlcompare.experiment.runner import package_version, versions
 
 
 @dataclass(frozen=True)
@@ -341,12 +341,9 @@ def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | Non
         "timings": {"compile_seconds": compile_seconds, "wall_seconds": wall, "training_steps": steps,
                     "steps_per_second": steps * len(config.seeds) / wall if wall > 0 else None,
                     "device": str(jax.devices()[0])},
-        "versions": {**versions(), **{pkg: _version(pkg) for pkg in ("jax", "flax", "optax")}},
+        "versions": {**versions(), **{pkg: package_version(pkg) for pkg in ("jax", "flax", "optax")}},
     }
     params = {jax.tree_util.keystr(path): np.asarray(leaf)
               for path, leaf in jax.tree_util.tree_flatten_with_path(output.params)[0]}
     return DeepResults(config, episodes_frame(config.seeds, output),
                        evaluations_frame(config.seeds, output, steps_per_round), params, meta)
-
-
-__all__ = ["DEEP_METHODS", "DeepConfig", "DeepResults", "run"]

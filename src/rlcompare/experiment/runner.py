@@ -149,10 +149,10 @@ def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_st
 def versions() -> dict[str, str | None]:
     """Python, the platform and the packages a result depends on (read once: reading them costs milliseconds)."""
     return {"python": platform.python_version(), "platform": platform.platform(),
-            **{pkg: _version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}}
+            **{pkg: package_version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}}
 
 
-def _version(package: str) -> str | None:
+def package_version(package: str) -> str | None:
     try:
         return metadata.version(package)
     except metadata.PackageNotFoundError:
