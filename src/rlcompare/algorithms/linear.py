@@ -27,7 +27,10 @@ def action_value(w: np.ndarray, actives: np.ndarray, row: int, action: int) -> f
 
 @njit(inline="always")
 def action_values(w: np.ndarray, actives: np.ndarray, row: int, out: np.ndarray) -> np.ndarray:
-    """``q(s, a)`` for every action, into ``out``."""
+    """``q(s, a)`` for every action: a table's row itself (read it before ``w`` changes), else summed into
+    ``out``."""
+    if actives.shape[1] == 1:
+        return w[actives[row, 0]]
     for a in range(w.shape[1]):
         out[a] = action_value(w, actives, row, a)
     return out

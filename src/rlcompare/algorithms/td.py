@@ -133,8 +133,8 @@ def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray
     if rule.draw_before or terminal:
         taken_value = action_value(w, actives, 1 - now, next_action)
     else:
-        action_values(w, actives, 1 - now, q_next)
-        taken_value = q_next[epsilon_greedy_action(q_next, epsilon, rng)]
+        values = action_values(w, actives, 1 - now, q_next)
+        taken_value = values[epsilon_greedy_action(values, epsilon, rng)]
     _step_toward(w, actives, now, action, sarsa_target(reward, taken_value, gamma, terminal), alpha)
 
 
@@ -175,10 +175,9 @@ def _double_q_step(learner: np.ndarray, other: np.ndarray, actives: np.ndarray, 
 def double_q_values(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: int,
                     out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
     """What Double Q-Learning's behaviour is ε-greedy in, and its greedy policy greedy in: ``Q1 + Q2``."""
-    action_values(w, actives, row, out)
-    action_values(w2, actives, row, scratch)
+    first, second = action_values(w, actives, row, out), action_values(w2, actives, row, scratch)
     for a in range(out.size):
-        out[a] += scratch[a]
+        out[a] = first[a] + second[a]
     return out
 
 

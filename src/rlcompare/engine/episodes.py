@@ -207,15 +207,16 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
         delta = reward - action_value(w, actives, now, action)
         n_touched = traces.mark(z, touched, listed, n_touched, actives, now, action, rule.replacing)
         activate(features, observe(env, state), actives, then)
-        next_action = 0
+        next_action, exploratory = 0, False
         if not terminal:
-            action_values(w, actives, then, q_next)
-            next_action = epsilon_greedy_action(q_next, epsilon, agent_rng)
-            delta += gamma * (q_next.max() if watkins else q_next[next_action])
+            values = action_values(w, actives, then, q_next)
+            next_action = epsilon_greedy_action(values, epsilon, agent_rng)
+            exploratory = values[next_action] < values.max()
+            delta += gamma * (values.max() if watkins else values[next_action])
         traces.apply(w, z, touched, n_touched, alpha * delta)
         if terminated or truncated:
             break
-        if watkins and q_next[next_action] < q_next.max():
+        if watkins and exploratory:
             n_touched = traces.clear(z, touched, listed, n_touched)
         else:
             traces.decay(z, touched, n_touched, gamma * rule.lam)
