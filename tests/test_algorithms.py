@@ -96,6 +96,7 @@ def test_q_learning_target_uses_the_max(impl, row, expected):
 
 
 @pytest.mark.parametrize("impl", IMPLS)
+@pytest.mark.parametrize("before", [True, False])
 @pytest.mark.parametrize(
     ("next_action", "expected_target", "expected_q"),
     [
@@ -104,31 +105,17 @@ def test_q_learning_target_uses_the_max(impl, row, expected):
         (2, -2.0, 1.0),  # Q(1,2)=-2: target -1+0.5*(-2) = -2; 2+0.25*(-2-2) = 1.0
     ],
 )
-def test_sarsa_update_uses_the_action_taken(q, impl, next_action, expected_target, expected_q):
-    """SARSA values s' by the action actually taken next, which need not be the greedy one (drawn before the
-    update, as its box does: the update itself draws nothing)."""
+def test_sarsa_update_uses_the_action_taken(q, impl, before, next_action, expected_target, expected_q):
+    """SARSA values s' by the action actually taken next, which need not be the greedy one. The loop draws it
+    before the update in either order (``tests/test_next_action.py`` works both through): the update itself
+    draws nothing."""
     target = _impl(impl, sarsa_target)(-1.0, q[1, next_action], 0.5, False)
     assert target == expected_target
-    rng = _update(impl, sarsa_update, Sarsa(True), q, next_action=next_action)
+    rng = _update(impl, sarsa_update, Sarsa(before), q, next_action=next_action)
     assert q[0, 0] == expected_q
     np.testing.assert_array_equal(rng, stream_state(0))
     q_learning = _impl(impl, q_learning_target)(-1.0, q[1], 0.5, False)
     assert (target == q_learning) == (next_action == int(np.argmax(q[1])))
-
-
-@pytest.mark.parametrize("impl", IMPLS)
-@pytest.mark.parametrize(("epsilon", "expected_q"), [(0.0, 1.625), (1.0, 1.375)])
-def test_sarsa_drawing_after_its_update_draws_the_target_action(q, impl, epsilon, expected_q):
-    """Drawing A' after the update, SARSA draws its target's A' itself, ε-greedy in Q(1) = [1, 3, -2], from the
-    agent stream: seed 0 draws 0.637 (explore iff < ε), then 0.270 (the uniform action int(3 * 0.270) = 0).
-    ε = 0: greedy, Q-Learning's 1.625 (one draw); ε = 1: action 0, -1 + 0.5*1 = -0.5, 2+0.25*(-2.5) = 1.375."""
-    draws = np.random.Generator(np.random.PCG64(0)).random(2)
-    assert int(3 * draws[1]) == 0
-    rng = _update(impl, sarsa_update, Sarsa(False), q, next_action=2, epsilon=epsilon)  # next_action is ignored
-    assert q[0, 0] == expected_q
-    expected = np.random.PCG64(0)
-    np.random.Generator(expected).random(1 if epsilon == 0.0 else 2)
-    assert (int(rng[0]) << 64 | int(rng[1])) == expected.state["state"]["state"]
 
 
 @pytest.mark.parametrize("impl", IMPLS)

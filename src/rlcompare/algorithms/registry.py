@@ -39,6 +39,9 @@ class Method:
     """Configuration fields it reads beyond the common ones (α, γ, ε and its schedule, the environment)."""
     next_action: str | None = None
     """One-step learners: when their box draws A', before or after updating Q(S, A)."""
+    target_takes_next_action: bool = False
+    """One-step learners whose target values the A' the behaviour takes (SARSA): A' is drawn before the update
+    whatever the order, and, drawing after it, the behaviour's A' is drawn again once Q(S, A) has changed."""
     discount_gradient: bool = True
     """REINFORCE: whether its step carries γ^t."""
     baseline: bool = False
@@ -57,7 +60,7 @@ METHODS = {m.name: m for m in (
     Method("q_learning", "Q-Learning", "one-step", "the paper's Algorithm 1, Sutton and Barto 6.5", td.QLearning,
            td.q_learning_update, next_action=AFTER_UPDATE, color="#e07b00"),
     Method("sarsa", "SARSA", "one-step", "the paper's Algorithm 2, Sutton and Barto 6.4", td.Sarsa, td.sarsa_update,
-           next_action=BEFORE_UPDATE, color="#2a9d8f"),
+           next_action=BEFORE_UPDATE, target_takes_next_action=True, color="#2a9d8f"),
     Method("expected_sarsa", "Expected SARSA", "one-step", "Sutton and Barto 6.6", td.ExpectedSarsa,
            td.expected_sarsa_update, reads=("target_epsilon",), next_action=AFTER_UPDATE),
     Method("double_q_learning", "Double Q-Learning", "one-step", "Sutton and Barto 6.7", td.DoubleQLearning,

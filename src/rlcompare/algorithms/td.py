@@ -29,7 +29,6 @@ import numpy as np
 from numba import njit
 
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action
-from rlcompare.algorithms.policies import epsilon_greedy_action
 from rlcompare.rng import next_double
 
 
@@ -128,13 +127,9 @@ def q_learning_update(rule: QLearning, w: np.ndarray, w2: np.ndarray, actives: n
 def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int, action: int,
                  next_action: int, reward: float, terminal: bool, alpha: float, gamma: float, epsilon: float,
                  rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
-    """Algorithm 2, line 6: toward ``R + gamma * q(S', A')``. Drawing after the update, SARSA still needs an A'
-    for its target: it draws one here, from the values before the update."""
-    if rule.draw_before or terminal:
-        taken_value = action_value(w, actives, 1 - now, next_action)
-    else:
-        values = action_values(w, actives, 1 - now, q_next)
-        taken_value = values[epsilon_greedy_action(values, epsilon, rng)]
+    """Algorithm 2, line 6: toward ``R + gamma * q(S', A')``, ``A'`` drawn before the update whatever the order
+    (the method's entry says so: :attr:`~rlcompare.algorithms.registry.Method.target_takes_next_action`)."""
+    taken_value = action_value(w, actives, 1 - now, next_action)
     _step_toward(w, actives, now, action, sarsa_target(reward, taken_value, gamma, terminal), alpha)
 
 

@@ -59,8 +59,10 @@ def values_of_w(rule, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: i
     return action_values(w, actives, row, out)
 
 
-def one_step_loop(update: Callable, values: Callable = values_of_w) -> Callable:
-    """The one-step loop (6.4-6.7) of a method with this update of ``q(S, A)`` and these behaviour values."""
+def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes_next_action: bool = False,
+                  ) -> Callable:
+    """The one-step loop (6.4-6.7) of a method with this update of ``q(S, A)`` and these behaviour values;
+    ``target_takes_next_action``: its update reads the A' drawn before it (SARSA)."""
 
     @njit
     def one_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
@@ -85,7 +87,7 @@ def one_step_loop(update: Callable, values: Callable = values_of_w) -> Callable:
             truncated, terminal = _outcome(settings, steps, terminated)
             activate(features, observe(env, state), actives, then)
             next_action = 0
-            if rule.draw_before and not terminal:
+            if (rule.draw_before or target_takes_next_action) and not terminal:
                 next_action = epsilon_greedy_action(values(rule, w, w2, actives, then, q, scratch), epsilon,
                                                     agent_rng)
             update(rule, w, w2, actives, now, action, next_action, reward, terminal, settings.alpha,
@@ -323,7 +325,8 @@ def _loops(method: Method) -> tuple[Callable, Callable]:
     policy for REINFORCE, uniform for the baseline."""
     values = method.values or values_of_w
     if method.family == "one-step":
-        return one_step_loop(method.update, values), evaluation_loop(greedy(values))
+        return (one_step_loop(method.update, values, method.target_takes_next_action),
+                evaluation_loop(greedy(values)))
     train, act = {"baseline": (random_episode, uniform), "n-step": (n_step_episode, greedy()),
                   "traces": (lambda_episode, greedy()), "policy gradient": (reinforce_episode, softmax_policy),
                   }[method.family]
