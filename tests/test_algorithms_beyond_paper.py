@@ -122,7 +122,7 @@ def _advanced(seed: int, count: int) -> np.ndarray:
 EPISODE_IMPLS = ["compiled", "train_run"]
 def _no_traces() -> loops.Traces:
     """The stub the loops of methods without traces are given."""
-    return loops.Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
+    return loops.Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
 class Episode:
@@ -142,7 +142,7 @@ class Episode:
         self.env_rng, self.agent_rng = stream_state(ENV_SEED), stream_state(seed)
         self.visits = np.zeros(table_env.n_states, dtype=np.int64)
         has_traces = isinstance(rule, traces.SarsaLambda | traces.QLambda)
-        self.work = loops.Traces(np.zeros(self.w.shape), np.empty(self.w.size, np.int64),
+        self.work = loops.Traces(np.zeros(self.w.size), np.empty(self.w.size, np.int64),
                                  np.zeros(self.w.size, np.bool_)) if has_traces else _no_traces()
         if impl == "train_run":
             out = self._train_run(rule, settings, table_env, features, epsilon)

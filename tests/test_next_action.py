@@ -50,7 +50,7 @@ def _rule(algorithm: str, before: bool, target_epsilon: float = -1.0) -> tuple:
 
 
 def _no_traces() -> episodes.Traces:
-    return episodes.Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
+    return episodes.Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
 SETTINGS = Settings(alpha=0.5, gamma=0.5, max_steps=100, truncation_is_terminal=False, eval_every=0)

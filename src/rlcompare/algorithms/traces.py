@@ -1,9 +1,10 @@
 """Eligibility traces for SARSA(λ) (Sutton and Barto, 12.7) and Watkins's Q(λ) (12.10) with binary features.
 
-``z`` holds a trace per weight. Only the pairs listed in ``touched`` (flagged in ``listed``) can be non-zero, so
+``z`` holds a trace per weight, flat: the trace of ``w[i, a]`` is ``z[i * actions + a]``, and the loops pass ``w``
+flat too, once an episode. Only the pairs listed in ``touched`` (flagged in ``listed``) can be non-zero, so
 decaying, applying or cutting the traces costs the number of pairs visited in the episode, not the size of
 ``w``. A pair enters the list the first time its trace is marked and leaves it when the traces are cleared. Pairs
-are listed by their flat index ``i * actions + a`` into ``w`` and ``z``, which are C-contiguous.
+are listed by that flat index.
 """
 
 from __future__ import annotations
@@ -32,40 +33,36 @@ class QLambda(NamedTuple):
 
 @njit(inline="always")
 def mark(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int, actives: np.ndarray, row: int,
-         action: int, replacing: bool) -> int:
+         action: int, n_actions: int, replacing: bool) -> int:
     """Raise the traces of ``(i, action)`` for the active features ``i``; the new length of the list."""
-    n_actions = z.shape[1]
     for k in range(actives.shape[1]):
-        i = actives[row, k]
-        if not listed[i * n_actions + action]:
-            listed[i * n_actions + action] = True
-            touched[n_touched] = i * n_actions + action
+        pair = actives[row, k] * n_actions + action
+        if not listed[pair]:
+            listed[pair] = True
+            touched[n_touched] = pair
             n_touched += 1
-        z[i, action] = 1.0 if replacing else z[i, action] + 1.0
+        z[pair] = 1.0 if replacing else z[pair] + 1.0
     return n_touched
 
 
 @njit(inline="always")
-def apply(w: np.ndarray, z: np.ndarray, touched: np.ndarray, n_touched: int, step_size: float) -> None:
+def apply(w_flat: np.ndarray, z: np.ndarray, touched: np.ndarray, n_touched: int, step_size: float) -> None:
     """``w += step_size * z`` over the listed pairs (``step_size`` is α δ)."""
-    w_flat, z_flat = w.reshape(w.size), z.reshape(z.size)
     for k in range(n_touched):
-        w_flat[touched[k]] += step_size * z_flat[touched[k]]
+        w_flat[touched[k]] += step_size * z[touched[k]]
 
 
 @njit(inline="always")
 def decay(z: np.ndarray, touched: np.ndarray, n_touched: int, factor: float) -> None:
     """``z *= factor`` (γ λ) over the listed pairs."""
-    z_flat = z.reshape(z.size)
     for k in range(n_touched):
-        z_flat[touched[k]] *= factor
+        z[touched[k]] *= factor
 
 
 @njit(inline="always")
 def clear(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int) -> int:
     """Every trace to 0 and the list emptied; returns its new length, 0."""
-    z_flat = z.reshape(z.size)
     for k in range(n_touched):
-        z_flat[touched[k]] = 0.0
+        z[touched[k]] = 0.0
         listed[touched[k]] = False
     return 0

@@ -37,9 +37,9 @@ class Traces(NamedTuple):
     """The eligibility traces of a run and the list of the pairs they are non-zero on
     (:mod:`rlcompare.algorithms.traces`); a stub for the other families."""
 
-    z: np.ndarray
-    touched: np.ndarray
-    listed: np.ndarray
+    z: np.ndarray  # (features * actions,) float64: the trace of w[i, a] at i * actions + a
+    touched: np.ndarray  # (features * actions,) int64: the listed pairs first
+    listed: np.ndarray  # (features * actions,) bool
 
 
 @njit(inline="always")
@@ -192,8 +192,9 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     alpha, gamma = settings.alpha, settings.gamma
     watkins = isinstance_q_lambda(rule)
     z, touched, listed = work
+    w_flat, n_actions = w.reshape(w.size), w.shape[1]
     actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
-    q_next = np.empty(w.shape[1])
+    q_next = np.empty(n_actions)
     n_touched, now = 0, 0
     state = reset(env, env_rng)
     activate(features, observe(env, state), actives, now)
@@ -207,7 +208,7 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
         steps += 1
         truncated, terminal = _outcome(settings, steps, terminated)
         delta = reward - action_value(w, actives, now, action)
-        n_touched = traces.mark(z, touched, listed, n_touched, actives, now, action, rule.replacing)
+        n_touched = traces.mark(z, touched, listed, n_touched, actives, now, action, n_actions, rule.replacing)
         activate(features, observe(env, state), actives, then)
         next_action, exploratory = 0, False
         if not terminal:
@@ -215,7 +216,7 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
             next_action = epsilon_greedy_action(values, epsilon, agent_rng)
             exploratory = values[next_action] < values.max()
             delta += gamma * (values.max() if watkins else values[next_action])
-        traces.apply(w, z, touched, n_touched, alpha * delta)
+        traces.apply(w_flat, z, touched, n_touched, alpha * delta)
         if terminated or truncated:
             break
         if watkins and exploratory:

@@ -33,12 +33,12 @@ from rlcompare.engine.steps import by_type, for_instance, snapshot
 
 @njit(inline="always")
 def _no_traces(rule, w):
-    return Traces(np.zeros((1, 1)), np.empty(1, np.int64), np.zeros(1, np.bool_))
+    return Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
 @njit(inline="always")
 def _traces(rule, w):
-    return Traces(np.zeros(w.shape), np.empty(w.size, np.int64), np.zeros(w.size, np.bool_))
+    return Traces(np.zeros(w.size), np.empty(w.size, np.int64), np.zeros(w.size, np.bool_))
 
 
 @by_type({SarsaLambda: _traces, QLambda: _traces}, default=_no_traces)
