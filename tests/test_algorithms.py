@@ -39,8 +39,6 @@ def _assert_uniform(counts: np.ndarray) -> None:
 
 # A tiny table: two states, three actions. The transition updated is s=0, a=0 -> s'=1, R=-1.
 Q_TABLE = np.array([[2.0, 0.0, 0.0], [1.0, 3.0, -2.0]])
-ACTIVES = np.array([[0], [1]])
-"""One active feature per state, the table's row: row 0 of ``actives`` is S = 0, row 1 is S' = 1."""
 
 
 @pytest.fixture
@@ -51,10 +49,10 @@ def q() -> np.ndarray:
 def _update(impl: str, update, rule: tuple, q: np.ndarray, *, reward: float = -1.0, gamma: float = 0.5,
             alpha: float = 0.25, terminal: bool = False, next_action: int = 0, now: int = 0, action: int = 0,
             epsilon: float = 0.0, rng: np.ndarray | None = None) -> np.ndarray:
-    """One update of ``q(S, A)`` on the table ``q``, S in row ``now`` of :data:`ACTIVES` and S' in the other;
-    returns the agent stream it was given (a fresh ``stream_state(0)`` unless one is passed)."""
+    """One update of ``q(S, A)`` on the table ``q``, S = ``now`` and S' = ``1 - now`` (a table's state is its one
+    active feature); returns the agent stream it was given (a fresh ``stream_state(0)`` unless one is passed)."""
     rng = stream_state(0) if rng is None else rng
-    _impl(impl, update)(rule, q, np.zeros_like(q), ACTIVES, now, action, next_action, reward, terminal, alpha, gamma,
+    _impl(impl, update)(rule, q, np.zeros_like(q), now, 1 - now, action, next_action, reward, terminal, alpha, gamma,
                         epsilon, rng, np.empty(q.shape[1]), np.empty(q.shape[1]))
     return rng
 
@@ -136,7 +134,7 @@ def test_terminal_transitions_do_not_bootstrap(q, impl):
 
 @pytest.mark.parametrize("impl", IMPLS)
 def test_update_alpha_one_and_zero(q, impl):
-    """α=1 replaces the value by the target; α=0 leaves it. S = 1 (row 1 of the actives), terminal, R = 7.5:
+    """α=1 replaces the value by the target; α=0 leaves it. S = 1, terminal, R = 7.5:
     the target is 7.5."""
     _update(impl, q_learning_update, QLearning(False), q, now=1, action=2, reward=7.5, terminal=True, alpha=1.0)
     assert q[1, 2] == 7.5

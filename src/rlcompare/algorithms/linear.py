@@ -1,56 +1,84 @@
 """Action values linear in binary features (Sutton and Barto, 9.5 and 10.1).
 
 ``q(s, a)`` is the sum of ``w[i, a]`` over the features ``i`` active in ``s``, and its gradient with respect to
-``w[i, a]`` is 1 on each of them. With the grid (or a finite environment's states) one feature is active and
-``w`` is the paper's Q-table; with tile coding one feature per tiling is. The active features of the states of
-an episode live as rows of one array and are addressed by row: taking a view of a row on every step costs as
-much as the rest of a tabular step.
+``w[i, a]`` is 1 on each of them. A state ``s`` is given by its active features: one integer where one feature
+is active (the grid's cell, a finite environment's state), where ``w`` is the paper's Q-table and ``q(s, .)`` is
+its row; an array of indices where several are (one tile per tiling). Compiled code keeps a table's cell in a
+register, as a plain tabular loop would; the functions below are written once for both.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
+
+
+def n_features_on(s: int | np.ndarray) -> int:
+    """How many features are active in ``s``."""
+    return 1 if isinstance(s, int | np.integer) else len(s)
+
+
+def feature_on(s: int | np.ndarray, k: int) -> int:
+    """The ``k``-th feature active in ``s``."""
+    return int(s) if isinstance(s, int | np.integer) else int(s[k])
+
+
+def action_values(w: np.ndarray, s: int | np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``q(s, a)`` for every action: a table's row itself (read it before ``w`` changes), else summed into
+    ``out``."""
+    if isinstance(s, int | np.integer):
+        return w[s]
+    for a in range(w.shape[1]):
+        out[a] = action_value(w, s, a)
+    return out
+
+
+@overload(n_features_on)
+def _n_features_on(s):
+    if isinstance(s, types.Integer):
+        return lambda s: 1
+    return lambda s: s.size
+
+
+@overload(feature_on)
+def _feature_on(s, k):
+    if isinstance(s, types.Integer):
+        return lambda s, k: s
+    return lambda s, k: s[k]
+
+
+@overload(action_values)
+def _action_values(w, s, out):
+    if isinstance(s, types.Integer):
+        return lambda w, s, out: w[s]
+
+    def summed(w, s, out):
+        for a in range(w.shape[1]):
+            out[a] = action_value(w, s, a)
+        return out
+
+    return summed
 
 
 @njit(inline="always")
-def action_value(w: np.ndarray, actives: np.ndarray, row: int, action: int) -> float:
-    """``q(s, action)`` for the state whose active features are ``actives[row]``."""
-    if actives.shape[1] == 1:  # the grid, a table: one feature, no loop
-        total = w[actives[row, 0], action]
-    else:
-        total = 0.0
-        for k in range(actives.shape[1]):
-            total += w[actives[row, k], action]
+def action_value(w: np.ndarray, s: int | np.ndarray, action: int) -> float:
+    """``q(s, action)``."""
+    total = w[feature_on(s, 0), action]
+    for k in range(1, n_features_on(s)):
+        total += w[feature_on(s, k), action]
     return total
 
 
 @njit(inline="always")
-def action_values(w: np.ndarray, actives: np.ndarray, row: int, out: np.ndarray) -> np.ndarray:
-    """``q(s, a)`` for every action: a table's row itself (read it before ``w`` changes), else summed into
-    ``out``."""
-    if actives.shape[1] == 1:
-        return w[actives[row, 0]]
-    for a in range(w.shape[1]):
-        out[a] = action_value(w, actives, row, a)
-    return out
-
-
-@njit(inline="always")
-def add_to_action(w: np.ndarray, actives: np.ndarray, row: int, action: int, amount: float) -> None:
+def add_to_action(w: np.ndarray, s: int | np.ndarray, action: int, amount: float) -> None:
     """A semi-gradient step of ``amount`` on ``q(s, action)`` (9.5)."""
-    if actives.shape[1] == 1:
-        w[actives[row, 0], action] += amount
-    else:
-        for k in range(actives.shape[1]):
-            w[actives[row, k], action] += amount
+    for k in range(n_features_on(s)):
+        w[feature_on(s, k), action] += amount
 
 
 @njit(inline="always")
-def count_visit(visits: np.ndarray, actives: np.ndarray, row: int) -> None:
+def count_visit(visits: np.ndarray, s: int | np.ndarray) -> None:
     """One more step taken with each of the state's features active."""
-    if actives.shape[1] == 1:
-        visits[actives[row, 0]] += 1
-    else:
-        for k in range(actives.shape[1]):
-            visits[actives[row, k]] += 1
+    for k in range(n_features_on(s)):
+        visits[feature_on(s, k)] += 1

@@ -28,10 +28,10 @@ class Method:
     rule: type
     """A named tuple of what the method reads beyond α, γ and ε; its type picks the compiled code."""
     update: Callable | None = None
-    """One-step methods: ``update(rule, w, w2, actives, now, action, next_action, reward, terminal, alpha,
-    gamma, epsilon, rng, q_next, scratch)`` of ``q(S, A)``."""
+    """One-step methods: ``update(rule, w, w2, s, s_next, action, next_action, reward, terminal, alpha, gamma,
+    epsilon, rng, q_next, scratch)`` of ``q(S, A)``, the states given by their active features."""
     values: Callable | None = None
-    """``values(rule, w, w2, actives, row, out, scratch)``: what the behaviour is ε-greedy in and the greedy
+    """``values(rule, w, w2, s, out, scratch)``: what the behaviour is ε-greedy in and the greedy
     policy greedy in, when it is not ``q`` (Double Q-Learning's ``Q1 + Q2``)."""
     snapshot: Callable | None = None
     """``snapshot(rule, w, w2, out)``: write the weights a snapshot keeps into ``out``, when they are not ``w``."""

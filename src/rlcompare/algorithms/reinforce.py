@@ -39,20 +39,20 @@ def returns_to_go(rewards: np.ndarray, steps: int, gamma: float) -> np.ndarray:
 
 
 @njit(inline="always")
-def episode_update(rule: Reinforce, theta: np.ndarray, baseline: np.ndarray, actives: np.ndarray,
+def episode_update(rule: Reinforce, theta: np.ndarray, baseline: np.ndarray, states: np.ndarray,
                    actions: np.ndarray, rewards: np.ndarray, steps: int, alpha: float, gamma: float,
                    h: np.ndarray, pi: np.ndarray) -> None:
-    """The updates of one finished episode, t = 0 .. T-1 in order (row t of ``actives`` is ``S_t``)."""
+    """The updates of one finished episode, t = 0 .. T-1 in order (``states[t]`` is ``S_t``)."""
     returns = returns_to_go(rewards, steps, gamma)
     discount = 1.0
     for t in range(steps):
-        delta = returns[t]
+        s, delta = states[t], returns[t]
         if rule.baseline_alpha > 0.0:
-            delta -= action_value(baseline, actives, t, 0)
-            add_to_action(baseline, actives, t, 0, rule.baseline_alpha * delta)
-        softmax(action_values(theta, actives, t, h), pi)
+            delta -= action_value(baseline, s, 0)
+            add_to_action(baseline, s, 0, rule.baseline_alpha * delta)
+        softmax(action_values(theta, s, h), pi)
         scale = alpha * (discount if rule.discount_gradient else 1.0) * delta
         for a in range(theta.shape[1]):
             gradient = (1.0 if a == actions[t] else 0.0) - pi[a]
-            add_to_action(theta, actives, t, a, scale * gradient)
+            add_to_action(theta, s, a, scale * gradient)
         discount *= gamma

@@ -108,69 +108,68 @@ def double_q_target(reward: float, q_next: np.ndarray, q_next_other: np.ndarray,
 
 
 @njit(inline="always")
-def _step_toward(w: np.ndarray, actives: np.ndarray, row: int, action: int, target: float, alpha: float) -> None:
+def _step_toward(w: np.ndarray, s: int | np.ndarray, action: int, target: float, alpha: float) -> None:
     """``q(S, A) <- q(S, A) + alpha * (target - q(S, A))``, the semi-gradient form (9.5)."""
-    add_to_action(w, actives, row, action, alpha * (target - action_value(w, actives, row, action)))
+    add_to_action(w, s, action, alpha * (target - action_value(w, s, action)))
 
 
 @njit(inline="always")
-def q_learning_update(rule: QLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int,
-                      action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
-                      epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
-    """Algorithm 1, line 7: toward ``R + gamma * max_a q(S', a)``. ``S`` is row ``now`` of ``actives``,
-    ``S'`` the other."""
-    target = q_learning_target(reward, action_values(w, actives, 1 - now, q_next), gamma, terminal)
-    _step_toward(w, actives, now, action, target, alpha)
+def q_learning_update(rule: QLearning, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
+                      s_next: int | np.ndarray, action: int, next_action: int, reward: float, terminal: bool,
+                      alpha: float, gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
+                      scratch: np.ndarray) -> None:
+    """Algorithm 1, line 7: ``q(S, A)`` toward ``R + gamma * max_a q(S', a)``."""
+    target = q_learning_target(reward, action_values(w, s_next, q_next), gamma, terminal)
+    _step_toward(w, s, action, target, alpha)
 
 
 @njit(inline="always")
-def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int, action: int,
-                 next_action: int, reward: float, terminal: bool, alpha: float, gamma: float, epsilon: float,
-                 rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
+def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, s_next: int | np.ndarray,
+                 action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
+                 epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """Algorithm 2, line 6: toward ``R + gamma * q(S', A')``, ``A'`` drawn before the update whatever the order
     (the method's entry says so: :attr:`~rlcompare.algorithms.registry.Method.target_takes_next_action`)."""
-    taken_value = action_value(w, actives, 1 - now, next_action)
-    _step_toward(w, actives, now, action, sarsa_target(reward, taken_value, gamma, terminal), alpha)
+    taken_value = action_value(w, s_next, next_action)
+    _step_toward(w, s, action, sarsa_target(reward, taken_value, gamma, terminal), alpha)
 
 
 @njit(inline="always")
-def expected_sarsa_update(rule: ExpectedSarsa, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int,
-                          action: int, next_action: int, reward: float, terminal: bool, alpha: float,
-                          gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
+def expected_sarsa_update(rule: ExpectedSarsa, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
+                          s_next: int | np.ndarray, action: int, next_action: int, reward: float, terminal: bool,
+                          alpha: float, gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
                           scratch: np.ndarray) -> None:
     """6.6: toward ``R + gamma * E_pi[q(S', A)]`` for the ε-greedy target policy."""
     target_epsilon = epsilon if rule.target_epsilon < 0 else rule.target_epsilon
-    target = expected_sarsa_target(reward, action_values(w, actives, 1 - now, q_next), target_epsilon, gamma,
-                                   terminal)
-    _step_toward(w, actives, now, action, target, alpha)
+    target = expected_sarsa_target(reward, action_values(w, s_next, q_next), target_epsilon, gamma, terminal)
+    _step_toward(w, s, action, target, alpha)
 
 
 @njit(inline="always")
-def double_q_update(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, now: int,
-                    action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
-                    epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
+def double_q_update(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
+                    s_next: int | np.ndarray, action: int, next_action: int, reward: float, terminal: bool,
+                    alpha: float, gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
+                    scratch: np.ndarray) -> None:
     """6.7: a fair coin picks which estimate learns; it picks the next action, the other values it."""
     if next_double(rng) < 0.5:
-        _double_q_step(w, w2, actives, now, action, reward, terminal, alpha, gamma, q_next, scratch)
+        _double_q_step(w, w2, s, s_next, action, reward, terminal, alpha, gamma, q_next, scratch)
     else:
-        _double_q_step(w2, w, actives, now, action, reward, terminal, alpha, gamma, q_next, scratch)
+        _double_q_step(w2, w, s, s_next, action, reward, terminal, alpha, gamma, q_next, scratch)
 
 
 @njit(inline="always")
-def _double_q_step(learner: np.ndarray, other: np.ndarray, actives: np.ndarray, now: int, action: int,
-                   reward: float, terminal: bool, alpha: float, gamma: float, q_next: np.ndarray,
+def _double_q_step(learner: np.ndarray, other: np.ndarray, s: int | np.ndarray, s_next: int | np.ndarray,
+                   action: int, reward: float, terminal: bool, alpha: float, gamma: float, q_next: np.ndarray,
                    scratch: np.ndarray) -> None:
-    then = 1 - now
-    target = double_q_target(reward, action_values(learner, actives, then, q_next),
-                             action_values(other, actives, then, scratch), gamma, terminal)
-    _step_toward(learner, actives, now, action, target, alpha)
+    target = double_q_target(reward, action_values(learner, s_next, q_next), action_values(other, s_next, scratch),
+                             gamma, terminal)
+    _step_toward(learner, s, action, target, alpha)
 
 
 @njit(inline="always")
-def double_q_values(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: int,
-                    out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
+def double_q_values(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, out: np.ndarray,
+                    scratch: np.ndarray) -> np.ndarray:
     """What Double Q-Learning's behaviour is ε-greedy in, and its greedy policy greedy in: ``Q1 + Q2``."""
-    first, second = action_values(w, actives, row, out), action_values(w2, actives, row, scratch)
+    first, second = action_values(w, s, out), action_values(w2, s, scratch)
     for a in range(out.size):
         out[a] = first[a] + second[a]
     return out

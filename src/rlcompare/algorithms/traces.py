@@ -14,6 +14,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from rlcompare.algorithms.linear import feature_on, n_features_on
+
 
 class SarsaLambda(NamedTuple):
     """SARSA(λ) (12.7): the TD error bootstraps on the action taken next."""
@@ -32,11 +34,11 @@ class QLambda(NamedTuple):
 
 
 @njit(inline="always")
-def mark(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int, actives: np.ndarray, row: int,
+def mark(z: np.ndarray, touched: np.ndarray, listed: np.ndarray, n_touched: int, s: int | np.ndarray,
          action: int, n_actions: int, replacing: bool) -> int:
-    """Raise the traces of ``(i, action)`` for the active features ``i``; the new length of the list."""
-    for k in range(actives.shape[1]):
-        pair = actives[row, k] * n_actions + action
+    """Raise the traces of ``(i, action)`` for the features ``i`` active in ``s``; the new length of the list."""
+    for k in range(n_features_on(s)):
+        pair = feature_on(s, k) * n_actions + action
         if not listed[pair]:
             listed[pair] = True
             touched[n_touched] = pair

@@ -30,7 +30,7 @@ from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
 from rlcompare.engine.state import Settings
-from rlcompare.engine.steps import activate, by_type, n_active, observe, reset, step
+from rlcompare.engine.steps import by_type, features_of, observe, reset, states_buffer, step
 
 
 class Traces(NamedTuple):
@@ -53,10 +53,9 @@ def _outcome(settings: Settings, steps: int, terminated: bool) -> tuple[bool, bo
 
 
 @njit(inline="always")
-def values_of_w(rule, w: np.ndarray, w2: np.ndarray, actives: np.ndarray, row: int, out: np.ndarray,
-                scratch: np.ndarray) -> np.ndarray:
+def values_of_w(rule, w: np.ndarray, w2: np.ndarray, s, out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
     """``q(s, .)``: what a method acts on unless its entry says otherwise (Double Q-Learning's ``Q1 + Q2``)."""
-    return action_values(w, actives, row, out)
+    return action_values(w, s, out)
 
 
 def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes_next_action: bool = False,
@@ -71,34 +70,31 @@ def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes
         """One episode. The next action A' is drawn before the update of ``q(S, A)`` (SARSA's box) or after it,
         at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
         n_actions = w.shape[1]
-        actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
+        buffer = states_buffer(features, 2)  # S and S' in turn
         q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
         now = 0
         state = reset(env, env_rng)
-        activate(features, observe(env, state), actives, now)
-        action = epsilon_greedy_action(values(rule, w, w2, actives, now, q, scratch), epsilon, agent_rng)
+        s = features_of(features, observe(env, state), buffer, now)
+        action = epsilon_greedy_action(values(rule, w, w2, s, q, scratch), epsilon, agent_rng)
         episode_return, steps = 0.0, 0
         while True:
-            then = 1 - now
-            count_visit(visits, actives, now)
+            count_visit(visits, s)
             state, reward, terminated = step(env, state, action, transitions)
             episode_return += reward
             steps += 1
             truncated, terminal = _outcome(settings, steps, terminated)
-            activate(features, observe(env, state), actives, then)
+            now = 1 - now
+            s_next = features_of(features, observe(env, state), buffer, now)
             next_action = 0
             if (rule.draw_before or target_takes_next_action) and not terminal:
-                next_action = epsilon_greedy_action(values(rule, w, w2, actives, then, q, scratch), epsilon,
-                                                    agent_rng)
-            update(rule, w, w2, actives, now, action, next_action, reward, terminal, settings.alpha,
-                   settings.gamma, epsilon, agent_rng, q_next, scratch)
+                next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng)
+            update(rule, w, w2, s, s_next, action, next_action, reward, terminal, settings.alpha, settings.gamma,
+                   epsilon, agent_rng, q_next, scratch)
             if terminated or truncated:
                 break
             if not rule.draw_before:  # after the update, which may have changed q(S', .)
-                next_action = epsilon_greedy_action(values(rule, w, w2, actives, then, q, scratch), epsilon,
-                                                    agent_rng)
-            action = next_action
-            now = then
+                next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng)
+            s, action = s_next, next_action
         return episode_return, steps, terminated
 
     return one_step_episode
@@ -112,13 +108,12 @@ def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
                    epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
     """One episode of uniformly random actions; nothing is learned, the visits are counted."""
-    actives = np.empty((1, n_active(features)), np.int64)
+    buffer = states_buffer(features, 1)
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     action = uniform_action(rule.n_actions, agent_rng)
     while True:
-        activate(features, observe(env, state), actives, 0)
-        count_visit(visits, actives, 0)
+        count_visit(visits, features_of(features, observe(env, state), buffer, 0))
         state, reward, terminated = step(env, state, action, transitions)
         episode_return += reward
         steps += 1
@@ -140,40 +135,40 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     behaviour policy, unless it is treated as terminal."""
     n, alpha, gamma = rule.n, settings.alpha, settings.gamma
     size = n + 1
-    actives = np.empty((size, n_active(features)), np.int64)
+    states = states_buffer(features, size)
     actions = np.zeros(size, np.int64)
     rewards = np.zeros(size)
     q = np.empty(w.shape[1])
     discounts = nstep.powers(gamma, n)
     state = reset(env, env_rng)
-    activate(features, observe(env, state), actives, 0)
-    actions[0] = epsilon_greedy_action(action_values(w, actives, 0, q), epsilon, agent_rng)
+    actions[0] = epsilon_greedy_action(action_values(w, features_of(features, observe(env, state), states, 0), q),
+                                       epsilon, agent_rng)
     horizon = np.iinfo(np.int64).max  # T
     bootstrap_end = False  # whether the return at T is completed by q(S_T, A_T) (a time-limit cut)
     episode_return, t, terminated = 0.0, 0, False
     while True:
         if t < horizon:
             now, later = t % size, (t + 1) % size
-            count_visit(visits, actives, now)
+            count_visit(visits, states[now])
             state, reward, terminated = step(env, state, actions[now], transitions)
             episode_return += reward
             rewards[later] = reward
-            activate(features, observe(env, state), actives, later)
+            s_later = features_of(features, observe(env, state), states, later)
             truncated, terminal = _outcome(settings, t + 1, terminated)
             if terminated or truncated:
                 horizon = t + 1
                 bootstrap_end = not terminal
             if not terminal:
-                actions[later] = epsilon_greedy_action(action_values(w, actives, later, q), epsilon, agent_rng)
+                actions[later] = epsilon_greedy_action(action_values(w, s_later, q), epsilon, agent_rng)
         tau = t - n + 1
         if tau >= 0:
             ret = nstep.n_step_rewards(rewards, tau, n, horizon, discounts)
             end = min(tau + n, horizon)
             if tau + n < horizon or bootstrap_end:
-                ret += discounts[end - tau] * action_value(w, actives, end % size, actions[end % size])
+                ret += discounts[end - tau] * action_value(w, states[end % size], actions[end % size])
             start = tau % size
-            add_to_action(w, actives, start, actions[start],
-                          alpha * (ret - action_value(w, actives, start, actions[start])))
+            s_tau, a_tau = states[start], actions[start]
+            add_to_action(w, s_tau, a_tau, alpha * (ret - action_value(w, s_tau, a_tau)))
         if tau == horizon - 1:
             break
         t += 1
@@ -193,26 +188,26 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     watkins = isinstance_q_lambda(rule)
     z, touched, listed = work
     w_flat, n_actions = w.reshape(w.size), w.shape[1]
-    actives = np.empty((2, n_active(features)), np.int64)  # rows ``now`` and ``1 - now``: S and S'
+    buffer = states_buffer(features, 2)  # S and S' in turn
     q_next = np.empty(n_actions)
     n_touched, now = 0, 0
     state = reset(env, env_rng)
-    activate(features, observe(env, state), actives, now)
-    action = epsilon_greedy_action(action_values(w, actives, now, q_next), epsilon, agent_rng)
+    s = features_of(features, observe(env, state), buffer, now)
+    action = epsilon_greedy_action(action_values(w, s, q_next), epsilon, agent_rng)
     episode_return, steps = 0.0, 0
     while True:
-        then = 1 - now
-        count_visit(visits, actives, now)
+        count_visit(visits, s)
         state, reward, terminated = step(env, state, action, transitions)
         episode_return += reward
         steps += 1
         truncated, terminal = _outcome(settings, steps, terminated)
-        delta = reward - action_value(w, actives, now, action)
-        n_touched = traces.mark(z, touched, listed, n_touched, actives, now, action, n_actions, rule.replacing)
-        activate(features, observe(env, state), actives, then)
+        delta = reward - action_value(w, s, action)
+        n_touched = traces.mark(z, touched, listed, n_touched, s, action, n_actions, rule.replacing)
+        now = 1 - now
+        s_next = features_of(features, observe(env, state), buffer, now)
         next_action, exploratory = 0, False
         if not terminal:
-            values = action_values(w, actives, then, q_next)
+            values = action_values(w, s_next, q_next)
             next_action = epsilon_greedy_action(values, epsilon, agent_rng)
             exploratory = values[next_action] < values.max()
             delta += gamma * (values.max() if watkins else values[next_action])
@@ -223,7 +218,7 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
             n_touched = traces.clear(z, touched, listed, n_touched)
         else:
             traces.decay(z, touched, n_touched, gamma * rule.lam)
-        now, action = then, next_action
+        s, action = s_next, next_action
     traces.clear(z, touched, listed, n_touched)  # fresh traces for the next episode
     return episode_return, steps, terminated
 
@@ -254,22 +249,22 @@ def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2
     :func:`~rlcompare.algorithms.reinforce.episode_update` learns from it (the baseline's weights in
     ``w2[:, 0]``)."""
     n_actions, limit = w.shape[1], settings.max_steps
-    actives = np.empty((limit, n_active(features)), np.int64)
+    states = states_buffer(features, limit)
     actions = np.empty(limit, np.int64)
     rewards = np.empty(limit)
     h, pi = np.empty(n_actions), np.empty(n_actions)
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < limit:
-        activate(features, observe(env, state), actives, steps)
-        count_visit(visits, actives, steps)
-        action = sample_softmax(action_values(w, actives, steps, h), pi, agent_rng)
+        s = features_of(features, observe(env, state), states, steps)
+        count_visit(visits, s)
+        action = sample_softmax(action_values(w, s, h), pi, agent_rng)
         actions[steps] = action
         state, reward, terminated = step(env, state, action, transitions)
         rewards[steps] = reward
         episode_return += reward
         steps += 1
-    episode_update(rule, w, w2, actives, actions, rewards, steps, settings.alpha, settings.gamma, h, pi)
+    episode_update(rule, w, w2, states, actions, rewards, steps, settings.alpha, settings.gamma, h, pi)
     return episode_return, steps, terminated
 
 
@@ -280,20 +275,20 @@ def greedy(values: Callable = values_of_w) -> Callable:
     """The first action of highest value (``np.argmax``) in these values, as a loaded agent acts."""
 
     @njit(inline="always")
-    def greedy_in(rule, w, w2, actives, row, q, scratch, rng):
-        return greedy_action(values(rule, w, w2, actives, row, q, scratch))
+    def greedy_in(rule, w, w2, s, q, scratch, rng):
+        return greedy_action(values(rule, w, w2, s, q, scratch))
 
     return greedy_in
 
 
 @njit(inline="always")
-def softmax_policy(rule, w, w2, actives, row, q, scratch, rng):
+def softmax_policy(rule, w, w2, s, q, scratch, rng):
     """REINFORCE's target policy is its behaviour: the softmax over its preferences."""
-    return sample_softmax(action_values(w, actives, row, q), scratch, rng)
+    return sample_softmax(action_values(w, s, q), scratch, rng)
 
 
 @njit(inline="always")
-def uniform(rule, w, w2, actives, row, q, scratch, rng):
+def uniform(rule, w, w2, s, q, scratch, rng):
     return uniform_action(w.shape[1], rng)
 
 
@@ -306,13 +301,13 @@ def evaluation_loop(target_action: Callable) -> Callable:
                            transitions: np.ndarray) -> tuple[float, int, bool]:
         """One episode of the target policy, drawing from the evaluation's own streams."""
         n_actions = w.shape[1]
-        actives = np.empty((1, n_active(features)), np.int64)
+        buffer = states_buffer(features, 1)
         q, scratch = np.empty(n_actions), np.empty(n_actions)
         state = reset(env, env_rng)
         episode_return, steps, terminated = 0.0, 0, False
         while not terminated and steps < settings.max_steps:
-            activate(features, observe(env, state), actives, 0)
-            action = target_action(rule, w, w2, actives, 0, q, scratch, agent_rng)
+            s = features_of(features, observe(env, state), buffer, 0)
+            action = target_action(rule, w, w2, s, q, scratch, agent_rng)
             state, reward, terminated = step(env, state, action, transitions)
             episode_return += reward
             steps += 1

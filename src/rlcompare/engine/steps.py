@@ -84,14 +84,14 @@ def for_instance(env, instance):
 # --- features -------------------------------------------------------------------------------------------
 
 
-@by_type(_of_modules(FEATURES, "n_active"))
-def n_active(features):
-    """How many features are active in every state."""
+@by_type(_of_modules(FEATURES, "states_buffer"))
+def states_buffer(features, size):
+    """Room for the active features of ``size`` states; ``buffer[at]`` gives back the state kept at ``at``."""
 
 
-@by_type(_of_modules(FEATURES, "activate"))
-def activate(features, observation, actives, row):
-    """Write the indices of the features active in ``observation`` into ``actives[row]``."""
+@by_type(_of_modules(FEATURES, "features_of"))
+def features_of(features, observation, buffer, at):
+    """The features active in ``observation`` (:mod:`rlcompare.algorithms.linear`), also kept in ``buffer[at]``."""
 
 
 # --- methods --------------------------------------------------------------------------------------------

@@ -86,15 +86,17 @@ def cell_of(grid: UniformGrid, observation: np.ndarray | tuple) -> int:
 
 
 @njit(inline="always")
-def n_active(features: UniformGrid) -> int:
-    """One cell is active at a time."""
-    return 1
+def states_buffer(features: UniformGrid, size: int) -> np.ndarray:
+    """Room for the cells of ``size`` states."""
+    return np.empty(size, np.int64)
 
 
 @njit(inline="always")
-def activate(features: UniformGrid, observation: np.ndarray | tuple, actives: np.ndarray, row: int) -> None:
-    """Write the observation's cell into ``actives[row, 0]``."""
-    actives[row, 0] = cell_of(features, observation)
+def features_of(features: UniformGrid, observation: np.ndarray | tuple, buffer: np.ndarray, at: int) -> int:
+    """The observation's cell, also kept in ``buffer[at]``."""
+    cell = cell_of(features, observation)
+    buffer[at] = cell
+    return cell
 
 
 @njit(cache=True)

@@ -1,7 +1,7 @@
 """The features of a configuration's states: the grid (:mod:`~rlcompare.envs.discretize`), the tile coder
 (:mod:`~rlcompare.envs.tiles`), or, for a finite environment, one feature per state (Sutton and Barto, 9.5: a table
-is the linear case with one-hot features), defined here. All three give compiled code ``n_active`` and
-``activate``."""
+is the linear case with one-hot features), defined here. All three give compiled code ``states_buffer`` and
+``features_of`` (:mod:`rlcompare.algorithms.linear` says what a state's features are)."""
 
 from __future__ import annotations
 
@@ -25,14 +25,17 @@ class OneHot(NamedTuple):
 
 
 @njit(inline="always")
-def n_active(features: OneHot) -> int:
-    return 1
+def states_buffer(features: OneHot, size: int) -> np.ndarray:
+    """Room for ``size`` states."""
+    return np.empty(size, np.int64)
 
 
 @njit(inline="always")
-def activate(features: OneHot, observation: np.ndarray | tuple, actives: np.ndarray, row: int) -> None:
-    """The state's index is its feature."""
-    actives[row, 0] = int(observation[0])
+def features_of(features: OneHot, observation: np.ndarray | tuple, buffer: np.ndarray, at: int) -> int:
+    """The state's index is its feature; also kept in ``buffer[at]``."""
+    state = int(observation[0])
+    buffer[at] = state
+    return state
 
 
 def grid_bounds(env: Environment, bounds: tuple[tuple[float, float], ...] | None) -> tuple[np.ndarray, np.ndarray]:

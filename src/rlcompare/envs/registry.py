@@ -21,8 +21,8 @@ every default and why. ``bounds`` in the configuration replaces them.
 Compiled code is given the entry's ``dynamics`` and picks the module that steps it by its type
 (:data:`DYNAMICS`); every dynamics module has ``reset(env, rng) -> state``, ``step(env, state, action, rng) ->
 (state, reward, terminated)`` and ``observe(env, state) -> observation``. Features likewise (:data:`FEATURES`):
-``n_active(features)`` and ``activate(features, observation, actives, row)``. Adding a port is its dynamics file,
-its line in :data:`DYNAMICS` and its entry in ``_PORTED``.
+``states_buffer(features, size)`` and ``features_of(features, observation, buffer, at)``. Adding a port is its
+dynamics file, its line in :data:`DYNAMICS` and its entry in ``_PORTED``.
 """
 
 from __future__ import annotations

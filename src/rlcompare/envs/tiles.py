@@ -215,15 +215,16 @@ def active_tiles_at(coding: TileCoding, x: np.ndarray, out: np.ndarray, row: int
 
 
 @njit(inline="always")
-def n_active(features: TileCoding) -> int:
-    """One tile per tiling is active at a time."""
-    return features.offsets.shape[0]
+def states_buffer(features: TileCoding, size: int) -> np.ndarray:
+    """Room for the active tiles of ``size`` states, one row each."""
+    return np.empty((size, features.offsets.shape[0]), np.int64)
 
 
 @njit(inline="always")
-def activate(features: TileCoding, observation: np.ndarray | tuple, actives: np.ndarray, row: int) -> None:
-    """Write the observation's active tiles into ``actives[row]``."""
-    active_tiles_at(features, observation, actives, row)
+def features_of(features: TileCoding, observation: np.ndarray | tuple, buffer: np.ndarray, at: int) -> np.ndarray:
+    """The observation's active tiles, written into and returned as ``buffer[at]``."""
+    active_tiles_at(features, observation, buffer, at)
+    return buffer[at]
 
 
 @njit(cache=True)
