@@ -48,17 +48,18 @@ def _feature_on(s, k):
     return lambda s, k: s[k]
 
 
-@overload(action_values)
+@overload(action_values, inline="always")  # a table's row read in place, as a plain tabular loop reads it
 def _action_values(w, s, out):
     if isinstance(s, types.Integer):
         return lambda w, s, out: w[s]
+    return lambda w, s, out: _summed_values(w, s, out)
 
-    def summed(w, s, out):
-        for a in range(w.shape[1]):
-            out[a] = action_value(w, s, a)
-        return out
 
-    return summed
+@njit
+def _summed_values(w: np.ndarray, s: np.ndarray, out: np.ndarray) -> np.ndarray:
+    for a in range(w.shape[1]):
+        out[a] = action_value(w, s, a)
+    return out
 
 
 @njit(inline="always")
