@@ -7,16 +7,19 @@ import math
 import numpy as np
 from numba import njit
 
+from rlcompare.algorithms.policies import largest
 from rlcompare.rng import next_double
 
 
 @njit(inline="always")
 def softmax(preferences: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """``pi(a) = exp(h(a)) / sum_b exp(h(b))``, shifted by the largest preference so nothing overflows."""
-    top = preferences.max()
+    """``pi(a) = exp(h(a)) / sum_b exp(h(b))``, shifted by the largest preference so nothing overflows (the
+    largest then weighs ``exp(0) = 1`` exactly, without calling ``exp``)."""
+    top = largest(preferences)
     total = 0.0
     for a in range(preferences.size):
-        out[a] = math.exp(preferences[a] - top)
+        shifted = preferences[a] - top
+        out[a] = 1.0 if shifted == 0.0 else math.exp(shifted)
         total += out[a]
     for a in range(preferences.size):
         out[a] /= total

@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action
+from rlcompare.algorithms.policies import largest
 from rlcompare.rng import next_double
 
 
@@ -62,10 +63,7 @@ def q_learning_target(reward: float, q_next: np.ndarray, gamma: float, terminal:
     """``R + gamma * max_a Q(s', a)``; ``R`` when ``s'`` is terminal (Algorithm 1, line 7)."""
     if terminal:
         return reward
-    best = q_next[0]
-    for value in q_next[1:]:
-        best = max(best, value)
-    return reward + gamma * best
+    return reward + gamma * largest(q_next)
 
 
 @njit(inline="always")
@@ -82,7 +80,8 @@ def expected_sarsa_target(reward: float, q_next: np.ndarray, epsilon: float, gam
     if terminal:
         return reward
     best, ties = q_next[0], 1
-    for value in q_next[1:]:
+    for action in range(1, q_next.size):
+        value = q_next[action]
         if value > best:
             best, ties = value, 1
         elif value == best:

@@ -25,7 +25,7 @@ from numba import njit
 
 from rlcompare.algorithms import nstep, traces
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action, count_visit
-from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, uniform_action
+from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, largest, uniform_action
 from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
@@ -209,8 +209,9 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
         if not terminal:
             values = action_values(w, s_next, q_next)
             next_action = epsilon_greedy_action(values, epsilon, agent_rng)
-            exploratory = values[next_action] < values.max()
-            delta += gamma * (values.max() if watkins else values[next_action])
+            best = largest(values)
+            exploratory = values[next_action] < best
+            delta += gamma * (best if watkins else values[next_action])
         traces.apply(w_flat, z, touched, n_touched, alpha * delta)
         if terminated or truncated:
             break
