@@ -87,9 +87,11 @@ def expected_sarsa_target(reward: float, q_next: np.ndarray, epsilon: float, gam
         elif value == best:
             ties += 1
     explore = epsilon / q_next.size
+    greedy = explore + (1.0 - epsilon) / ties
     expected = 0.0
-    for value in q_next:
-        expected += (explore + (1.0 - epsilon) / ties if value == best else explore) * value
+    for action in range(q_next.size):
+        value = q_next[action]
+        expected += (greedy if value == best else explore) * value
     return reward + gamma * expected
 
 
