@@ -64,10 +64,8 @@ class ExperimentConfig:
     """One configuration, run once per seed. Frozen and validated on creation."""
 
     algorithm: str = "q_learning"
-    """Learning rule: ``q_learning`` (Algorithm 1), ``sarsa`` (Algorithm 2), ``random`` (the baseline),
-    ``expected_sarsa``, ``double_q_learning``, ``n_step_sarsa``, ``sarsa_lambda``, ``q_lambda`` (Watkins),
-    ``reinforce`` (the paper's Algorithm 3, no γ^t), ``reinforce_book`` (13.3, with γ^t) or
-    ``reinforce_baseline`` (13.4)."""
+    """Learning rule: a method of :data:`rlcompare.algorithms.registry.METHODS`, for example ``q_learning``
+    (Algorithm 1), ``sarsa`` (Algorithm 2) or ``random`` (the baseline); ``rlcompare run --help`` lists them all."""
     schedule: str = "decay"
     """Exploration: ``constant`` (ε fixed) or ``decay`` (linear from ``epsilon_start`` to ``epsilon_end``)."""
     env: str = "MountainCar-v0"
@@ -99,8 +97,8 @@ class ExperimentConfig:
     next_action: str | None = None
     """When a one-step learner draws its next action A': ``before_update`` (from the values its target
     bootstraps on, before ``Q(S, A)`` moves: SARSA's box, Algorithm 2) or ``after_update`` (from the updated
-    values: Q-Learning's box, Algorithm 1). None: the method's own box (:attr:`drawn_next`). Only
-    ``q_learning``, ``sarsa``, ``expected_sarsa`` and ``double_q_learning`` have it (``docs/why.md``)."""
+    values: Q-Learning's box, Algorithm 1). None: the method's own box (:attr:`drawn_next`). Only the
+    one-step learners have it (:attr:`rlcompare.algorithms.registry.Method.one_step`; ``docs/why.md``)."""
     baseline_alpha: float = 0.01
     """Step size of REINFORCE's state-value baseline (``reinforce_baseline``), in (0, 1]."""
     alpha: float = 0.05
