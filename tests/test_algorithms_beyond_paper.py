@@ -165,7 +165,7 @@ class Episode:
         self.env_rng, self.agent_rng, self.transitions = (state.rng[0, ENV_STREAM], state.rng[0, AGENT_STREAM],
                                                           state.rng[0, TRANSITION_STREAM])
         self.visits = records.visits[0]
-        snapshot = (self.w + self.w2) / 2 if isinstance(rule, td.DoubleQLearning) else self.w
+        snapshot = (self.w + self.w2) / 2 if isinstance(rule, td.DoubleQLearning | td.DoubleExpectedSarsa) else self.w
         np.testing.assert_array_equal(records.snapshots[0, 0], snapshot)
         return records.returns[0, 0], records.lengths[0, 0], records.terminated[0, 0]
 
@@ -313,6 +313,21 @@ def test_double_q_episode_by_hand(impl):
                       seed=DOUBLE_Q_SEED)
     episode.check(steps=2, visits=[1, 1], w=[[0.0, 0.25], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]], draws=4,
                   seed=DOUBLE_Q_SEED)
+
+
+@pytest.mark.parametrize("impl", EPISODE_IMPLS)
+def test_double_expected_sarsa_episode_by_hand(impl):
+    """Exercise 6.13 on the Double Q-Learning episode above, target ε = 0.5 (behaviour ε = 0).
+    Step 1, S=0, A=1 -> S'=1, coin 0.29: Q1 learns. Its target policy, ε-greedy in Q1[1] = [0.5, 0.25], is
+    [0.75, 0.25]; Q2[1] = [0, 0.75] values it: E = 0.1875; target 0.5*0.1875 = 0.09375;
+    Q1[0,1] = 0.5 + 0.5*(0.09375-0.5) = 0.296875. Next from [0.5, 1.0]: right.
+    Step 2, S=1, A=1 -> goal, coin 0.78: Q2[1,1] = 0.75 + 0.5*(1-0.75) = 0.875.
+    With a greedy target policy (target ε = 0) the episode is Double Q-Learning's: Q1[0,1] = 0.25."""
+    for target_epsilon, learned in ((0.5, 0.296875), (0.0, 0.25)):
+        episode = Episode(impl, _rule("double_expected_sarsa", target_epsilon=target_epsilon),
+                          [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]], seed=DOUBLE_Q_SEED)
+        episode.check(steps=2, visits=[1, 1], w=[[0.0, learned], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]],
+                      draws=4, seed=DOUBLE_Q_SEED)
 
 
 @pytest.mark.parametrize("impl", EPISODE_IMPLS)
@@ -469,12 +484,12 @@ def test_chain_greedy_policy_moves_right(chain_results, algorithm):
 
 @pytest.mark.parametrize("algorithm", VALUE_METHODS)
 def test_chain_values_converge_to_q_star(chain_results, algorithm):
-    """q(s, right) = 0.9^(3 - s) once the policy is greedy (Double Q: the mean of its two estimates, as kept in
-    the snapshot). 300 greedy episodes at α = 0.2 shrink the error far below the tolerance."""
+    """q(s, right) = 0.9^(3 - s) once the policy is greedy (the Double methods: the mean of their two estimates, as
+    kept in the snapshot). 300 greedy episodes at α = 0.2 shrink the error far below the tolerance."""
     state, records = chain_results[algorithm]
     final = records.snapshots[:, -1]
     np.testing.assert_allclose(final[:, :, 1], np.broadcast_to(Q_STAR_RIGHT, (len(CHAIN_SEEDS), 4)), atol=1e-6)
-    if algorithm == "double_q_learning":
+    if METHODS[algorithm].snapshot is not None:  # the Double methods keep the mean of their two estimates
         np.testing.assert_array_equal(final, (state.w + state.w2) / 2)
     else:
         np.testing.assert_array_equal(final, state.w)

@@ -82,6 +82,7 @@ def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entr
 
 
 def test_the_help_names_the_options_each_method_reads():
-    text = " ".join(CliRunner(env={"COLUMNS": "400"}).invoke(app, ["run", "--help"]).output.split())
+    output = CliRunner(env={"COLUMNS": "400"}).invoke(app, ["run", "--help"]).output
+    text = " ".join(output.replace("│", " ").split())  # the help's lines joined, without the panel's borders
     assert "n_step_sarsa (Sutton and Barto 7.2; reads --n)" in text
     assert "reinforce_baseline (Sutton and Barto 13.4; reads --baseline-alpha)" in text

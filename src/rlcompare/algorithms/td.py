@@ -58,6 +58,14 @@ class DoubleQLearning(NamedTuple):
     draw_before: bool
 
 
+class DoubleExpectedSarsa(NamedTuple):
+    """Double Expected SARSA (Exercise 6.13), with its second estimate in ``w2``; ``target_epsilon`` as Expected
+    SARSA's."""
+
+    draw_before: bool
+    target_epsilon: float
+
+
 @njit(inline="always")
 def q_learning_target(reward: float, q_next: np.ndarray, gamma: float, terminal: bool) -> float:
     """``R + gamma * max_a Q(s', a)``; ``R`` when ``s'`` is terminal (Algorithm 1, line 7)."""
@@ -79,20 +87,25 @@ def expected_sarsa_target(reward: float, q_next: np.ndarray, epsilon: float, gam
     """``R + gamma * E_pi[Q(s', A)]`` for ε-greedy ``pi`` whose greedy share is split among tied maxima."""
     if terminal:
         return reward
-    best, ties = q_next[0], 1
-    for action in range(1, q_next.size):
-        value = q_next[action]
+    return reward + gamma * expected_value(q_next, q_next, epsilon)
+
+
+@njit(inline="always")
+def expected_value(picks: np.ndarray, values: np.ndarray, epsilon: float) -> float:
+    """``sum_a pi(a) values[a]`` for the policy ε-greedy in ``picks``, its greedy share split among tied maxima."""
+    best, ties = picks[0], 1
+    for action in range(1, picks.size):
+        value = picks[action]
         if value > best:
             best, ties = value, 1
         elif value == best:
             ties += 1
-    explore = epsilon / q_next.size
+    explore = epsilon / picks.size
     greedy = explore + (1.0 - epsilon) / ties
     expected = 0.0
-    for action in range(q_next.size):
-        value = q_next[action]
-        expected += (greedy if value == best else explore) * value
-    return reward + gamma * expected
+    for action in range(picks.size):
+        expected += (greedy if picks[action] == best else explore) * values[action]
+    return expected
 
 
 @njit(inline="always")
@@ -163,6 +176,33 @@ def _double_q_step(learner: np.ndarray, other: np.ndarray, s: int | np.ndarray, 
                    scratch: np.ndarray) -> None:
     target = double_q_target(reward, action_values(learner, s_next, q_next), action_values(other, s_next, scratch),
                              gamma, terminal)
+    _step_toward(learner, s, action, target, alpha)
+
+
+@njit(inline="always")
+def double_expected_sarsa_update(rule: DoubleExpectedSarsa, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
+                                 s_next: int | np.ndarray, action: int, next_action: int, reward: float,
+                                 terminal: bool, alpha: float, gamma: float, epsilon: float, rng: np.ndarray,
+                                 q_next: np.ndarray, scratch: np.ndarray) -> None:
+    """Exercise 6.13: a fair coin picks the estimate that learns; the target policy is ε-greedy in it, the other
+    values it: ``R + gamma * sum_a pi_1(a | S') Q2(S', a)``."""
+    target_epsilon = epsilon if rule.target_epsilon < 0 else rule.target_epsilon
+    if next_double(rng) < 0.5:
+        _double_expected_step(w, w2, s, s_next, action, reward, terminal, alpha, gamma, target_epsilon, q_next,
+                              scratch)
+    else:
+        _double_expected_step(w2, w, s, s_next, action, reward, terminal, alpha, gamma, target_epsilon, q_next,
+                              scratch)
+
+
+@njit(inline="always")
+def _double_expected_step(learner: np.ndarray, other: np.ndarray, s: int | np.ndarray, s_next: int | np.ndarray,
+                          action: int, reward: float, terminal: bool, alpha: float, gamma: float, epsilon: float,
+                          q_next: np.ndarray, scratch: np.ndarray) -> None:
+    target = reward
+    if not terminal:
+        picks, values = action_values(learner, s_next, q_next), action_values(other, s_next, scratch)
+        target += gamma * expected_value(picks, values, epsilon)
     _step_toward(learner, s, action, target, alpha)
 
 

@@ -93,7 +93,8 @@ class ExperimentConfig:
     trace: str = "replacing"
     """Eligibility traces: ``replacing`` or ``accumulating``."""
     target_epsilon: float | None = None
-    """ε of Expected SARSA's target policy: None for the behaviour's ε (on-policy), 0 for greedy (off-policy)."""
+    """ε of the target policy of Expected SARSA and Double Expected SARSA: None for the behaviour's ε (on-policy),
+    0 for greedy (off-policy)."""
     next_action: str | None = None
     """When a one-step learner draws its next action A': ``before_update`` (from the values its target
     bootstraps on, before ``Q(S, A)`` moves: SARSA's box, Algorithm 2) or ``after_update`` (from the updated
