@@ -55,10 +55,14 @@ def _action_values(w, s, out):
     return lambda w, s, out: _summed_values(w, s, out)
 
 
-@njit
+@njit(inline="always")
 def _summed_values(w: np.ndarray, s: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Each feature's row of ``w`` read once, summed in the order of :func:`action_value`."""
     for a in range(w.shape[1]):
-        out[a] = action_value(w, s, a)
+        out[a] = w[s[0], a]
+    for k in range(1, s.size):
+        for a in range(w.shape[1]):
+            out[a] += w[s[k], a]
     return out
 
 

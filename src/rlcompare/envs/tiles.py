@@ -198,20 +198,16 @@ def _hash_step(state: int, coordinate: int) -> int:
 
 @njit(inline="always")
 def active_tiles_at(coding: TileCoding, x: np.ndarray, out: np.ndarray, row: int) -> None:
-    """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``) into ``out[row]``.
+    """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``, or a tuple) into ``out[row]``.
 
-    Dimension by dimension, each tiling's flat index (or hash state) accumulating in ``out[row]``: ``x`` may be a
-    tuple, which is read once per dimension rather than once per tiling and dimension."""
-    tilings = coding.offsets.shape[0]
-    for t in range(tilings):
-        out[row, t] = _hash_start(t) if coding.hashed else 0
-    for d in range(len(x)):
-        scaled = (x[d] - coding.low[d]) * coding.scale[d]
-        for t in range(tilings):
-            c = _coordinate(scaled + coding.offsets[t, d], coding.tiles[d])
-            out[row, t] = _hash_step(out[row, t], c) if coding.hashed else out[row, t] + c * coding.strides[d]
-    for t in range(tilings):
-        out[row, t] = out[row, t] % coding.n_features if coding.hashed else t * coding.per_tiling + out[row, t]
+    Tiling by tiling, its flat index (or hash state) accumulated in a register over the dimensions and written
+    once."""
+    for t in range(coding.offsets.shape[0]):
+        index = _hash_start(t) if coding.hashed else 0
+        for d in range(len(x)):
+            c = _coordinate((x[d] - coding.low[d]) * coding.scale[d] + coding.offsets[t, d], coding.tiles[d])
+            index = _hash_step(index, c) if coding.hashed else index + c * coding.strides[d]
+        out[row, t] = index % coding.n_features if coding.hashed else t * coding.per_tiling + index
 
 
 @njit(inline="always")
