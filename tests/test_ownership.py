@@ -126,6 +126,26 @@ def test_a_directory_with_a_users_files_is_refused_and_left_as_it_was(command: s
     assert_untouched(target, files)
 
 
+def test_a_marker_whose_first_write_was_killed_is_written_again(tmp_path: Path) -> None:
+    """A process killed while it wrote a directory's first marker leaves the marker's temporary file; the next
+    claim removes it and writes the marker, and a user's file beside it is still refused and left alone."""
+    owner = store.Owner("run", "x")
+    interrupted = tmp_path / "interrupted"
+    interrupted.mkdir()
+    (interrupted / f".{store.MARKER_FILE}.k1ll3d.tmp").write_text('{"written_by": "rl')
+    assert not store.claim(interrupted, owner)
+    assert sorted(p.name for p in interrupted.iterdir()) == [store.MARKER_FILE]
+    assert store.owner_of(interrupted) == owner
+
+    beside = tmp_path / "beside"
+    beside.mkdir()
+    (beside / f".{store.MARKER_FILE}.k1ll3d.tmp").write_text("")
+    (beside / "notes.txt").write_text("keep")
+    with pytest.raises(store.StoreError, match=r"notes\.txt"):
+        store.claim(beside, owner)
+    assert sorted(p.name for p in beside.iterdir()) == [f".{store.MARKER_FILE}.k1ll3d.tmp", "notes.txt"]
+
+
 def test_force_writes_beside_a_users_files_but_never_over_them(tmp_path: Path) -> None:
     target = tmp_path / "mine"
     target.mkdir()

@@ -27,11 +27,7 @@ def feature_on(s: int | np.ndarray, k: int) -> int:
 def action_values(w: np.ndarray, s: int | np.ndarray, out: np.ndarray) -> np.ndarray:
     """``q(s, a)`` for every action: a table's row itself (read it before ``w`` changes), else summed into
     ``out``."""
-    if isinstance(s, int | np.integer):
-        return w[s]
-    for a in range(w.shape[1]):
-        out[a] = action_value(w, s, a)
-    return out
+    return w[s] if isinstance(s, int | np.integer) else _summed_values(w, s, out)
 
 
 @overload(n_features_on)

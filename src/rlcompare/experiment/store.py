@@ -150,7 +150,13 @@ def _write_marker(directory: Path, owner: Owner, outputs: list[str]) -> None:
 
 
 def _foreign_entries(directory: Path) -> list[str]:
-    return sorted(p.name for p in Path(directory).iterdir() if p.name not in OWN_FILES)
+    interrupted = {p.name for p in _marker_temporaries(directory)}
+    return sorted(p.name for p in Path(directory).iterdir() if p.name not in OWN_FILES and p.name not in interrupted)
+
+
+def _marker_temporaries(directory: Path) -> list[Path]:
+    """What a first write of the marker killed halfway left: the temporary names rlcompare gives it."""
+    return list(Path(directory).glob(f".{glob.escape(MARKER_FILE)}.*.tmp*"))
 
 
 def refusal(directory: Path, owner: Owner, *, force: bool = False) -> str | None:
@@ -193,6 +199,8 @@ def claim(directory: Path, owner: Owner, *, force: bool = False, outputs: tuple[
     try:
         directory.mkdir(parents=True, exist_ok=True)
         if not (directory / MARKER_FILE).is_file():
+            for stale in _marker_temporaries(directory):
+                stale.unlink(missing_ok=True)
             _write_marker(directory, owner, [name for name in outputs if not (directory / name).exists()])
     except StoreError:
         raise
