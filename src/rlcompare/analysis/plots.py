@@ -94,7 +94,7 @@ def plot_visits(ax: Axes, visits: np.ndarray, bins: int, frame: MapFrame) -> Axe
     total[total == 0] = np.nan
     image = ax.imshow(_cell_grid(total, bins), origin="lower", extent=frame.extent, aspect="auto", cmap="magma",
                       norm=LogNorm(), interpolation="nearest")
-    ax.figure.colorbar(image, ax=ax, label="steps from cell (all seeds)")
+    ax.figure.colorbar(image, ax=ax, label="steps from cell (all seeds)").minorticks_off()  # a tick a decade
     _label_axes(ax, frame)
     return ax
 

@@ -1,4 +1,4 @@
-"""Videos of the greedy agents at the stages of learning, drawn by Gymnasium's own renderer.
+"""Videos of the greedy agents at the stages of learning, in the pictures Gymnasium's own renderer draws.
 
 The paper shows "three videos showing how the agents solve the problem in three stages of learning".
 For one run directory (one configuration) and one training seed, :func:`render_stage_videos` loads the
@@ -26,13 +26,16 @@ this process, one after the other), and the files are the same byte for byte wha
 workers. Workers start with ``spawn``, so a script that renders with more than one worker needs the usual
 ``if __name__ == "__main__":`` guard.
 
-Cost, measured on 2 cores: Gymnasium's step and render take about 2 to 4 ms a frame and the whole Python
-side (with the caption and the GIF frame) about 4 to 6 ms; ffmpeg 9 encodes the MP4 in its own process meanwhile
-(about 4.8 ms of CPU a frame, 1.3 ms of it turning RGB into YUV), so one video already keeps about 1.7
-cores busy. A 1000-step video (MP4 and GIF) takes about 6 s alone. So by default one worker renders per
-two cores (:func:`default_workers`): on 2 cores two workers took 5 to 15 % more CPU time than one and were
-no faster. Each worker spends about 1.5 s of a core starting (imports, the compiled grid lookup), once for
-all its videos.
+Frames travel as packed pixels (:mod:`rlcompare.analysis.frames`). Where the environment's registry entry has
+a painter (Mountain Car's draws Gymnasium's picture pixel for pixel in 0.15 ms, where ``env.render()`` takes
+1.9 ms), it draws them; else ``env.render()`` does. The YUV planes ffmpeg encodes are computed here (0.2 ms a
+frame; ffmpeg's own conversion from RGB took 1.1 ms of its time).
+
+Cost, measured on 2 cores: the whole Python side (step, picture, caption, YUV, the GIF's frame) takes about
+1.2 ms a frame and ffmpeg about 1.4 ms in its own process meanwhile, so one video keeps about 1.9 cores busy;
+the paper's 13 videos (3,022 frames) take 4.9 s. So by default one worker renders per two cores
+(:func:`default_workers`). Each worker spends about 1.5 s of a core starting (imports, the compiled grid
+lookup), once for all its videos.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ import os
 import re
 import secrets
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -58,6 +61,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from rlcompare.algorithms.registry import label as method_label
+from rlcompare.analysis import frames
 from rlcompare.envs.registry import environment
 from rlcompare.experiment import store
 from rlcompare.experiment.agent import load_agent
@@ -71,11 +75,14 @@ FPS = 30
 """Frames per second of the MP4: Gymnasium's ``render_fps`` for MountainCar."""
 CAPTION_HEIGHT = 48
 """Height in pixels of the caption strip above the frame (even, so H.264 frame sizes stay even)."""
-MP4_OPTIONS = ("-preset", "veryfast", "-crf", "23", "-threads", "1", "-movflags", "+faststart")
+MP4_OPTIONS = ("-preset", "veryfast", "-x264-params", "me=dia:subme=1", "-crf", "23", "-threads", "1",
+               "-movflags", "+faststart")
 """x264 settings: fast to encode and small files (the picture is mostly flat white). CRF 23 rather than 28:
 at 28 the digits of the caption smear into those of the frame before; 23 costs no time and keeps a
-1000-step video near 300 kB. One thread per encoder, so the bytes do not depend on the number of cores
-(the encoder runs beside the renderer anyway); ``+faststart`` lets a browser play it while it loads."""
+1000-step video near 340 kB. The diamond motion search and the quickest subpixel refinement (``me=dia:subme=1``)
+take a fifth less time than ``veryfast``'s own for 7% more bytes. One thread per encoder, so the bytes do not
+depend on the number of cores (the encoder runs beside the renderer anyway); ``+faststart`` lets a browser play
+it while it loads."""
 GIF_COLORS = 64
 GIF_SCALE = 0.5
 GIF_EVERY = 2
@@ -113,7 +120,8 @@ class Episode:
 
 
 class _Frame(NamedTuple):
-    image: np.ndarray
+    picture: np.ndarray
+    """The environment's picture, packed (:mod:`rlcompare.analysis.frames`), in a buffer the next frame reuses."""
     step: int
     return_so_far: float
     terminated: bool
@@ -139,15 +147,31 @@ def _play(agent: Agent, episode_seed: int, max_steps: int, env_id: str) -> Itera
     env = gym.make(env_id, render_mode="rgb_array", max_episode_steps=max_steps)
     try:
         observation, _ = env.reset(seed=episode_seed)
+        picture = _painter(env, env_id)
         total, step, terminated, truncated = 0.0, 0, False, False
-        yield _Frame(env.render(), step, total, terminated, truncated)
+        yield _Frame(picture(), step, total, terminated, truncated)
         while not (terminated or truncated):
             observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
             total += float(reward)
             step += 1
-            yield _Frame(env.render(), step, total, bool(terminated), bool(truncated))
+            yield _Frame(picture(), step, total, bool(terminated), bool(truncated))
     finally:
         env.close()
+
+
+def _painter(env, env_id: str) -> Callable[[], np.ndarray]:
+    """What draws ``env``'s current picture, packed: the registry's painter, equal to ``env.render()`` and
+    quicker, where the environment has one; else ``env.render()`` itself."""
+    painter = environment(env_id).painter
+    if painter is None:
+        return lambda: frames.pack(env.render())
+    drawn = painter(env.unwrapped)
+    buffer = np.empty(drawn.size[::-1], dtype=np.uint32)
+
+    def picture() -> np.ndarray:
+        drawn.paint(buffer)
+        return buffer
+    return picture
 
 
 # --- captions -------------------------------------------------------------------------------------
@@ -233,20 +257,19 @@ def _strip(width: int, height: int, title: Sequence[str], detail: Sequence[str])
     return strip
 
 
-def add_caption(frame: np.ndarray, title: str, detail: str = "", *, out: np.ndarray | None = None) -> np.ndarray:
-    """``frame`` under a caption strip: ``(H + CAPTION_HEIGHT, W, 3)``, the frame's pixels unchanged.
-
-    ``out`` (of that shape) is filled and returned instead of a new array.
-    """
-    return _stack(frame, (title,), (detail,) if detail else (), out)
+def add_caption(frame: np.ndarray, title: str, detail: str = "") -> np.ndarray:
+    """``frame`` ((H, W, 3) uint8) under a caption strip: ``(H + CAPTION_HEIGHT, W, 3)``, the frame's pixels
+    unchanged."""
+    return frames.unpack(_stack(frames.pack(frame), (title,), (detail,) if detail else (), None))
 
 
-def _stack(frame: np.ndarray, title: Sequence[str], detail: Sequence[str], out: np.ndarray | None) -> np.ndarray:
-    height, width = frame.shape[:2]
+def _stack(picture: np.ndarray, title: Sequence[str], detail: Sequence[str], out: np.ndarray | None) -> np.ndarray:
+    """A packed picture under its caption strip, in ``out`` (a new frame if None)."""
+    height, width = picture.shape
     if out is None:
-        out = np.empty((height + CAPTION_HEIGHT, width, 3), dtype=np.uint8)
-    out[:CAPTION_HEIGHT] = _strip(width, CAPTION_HEIGHT, title, detail)
-    out[CAPTION_HEIGHT:] = frame
+        out = np.empty((height + CAPTION_HEIGHT, width), dtype=np.uint32)
+    out[:CAPTION_HEIGHT] = frames.pack(_strip(width, CAPTION_HEIGHT, title, detail))
+    out[CAPTION_HEIGHT:] = picture
     return out
 
 
@@ -266,14 +289,14 @@ def _caption_pieces(title: str, frame: _Frame, *, seed: int | None, episode_seed
     return (f"{title} · ", *_DIGITS.findall(ret)), tuple(detail)
 
 
-def _captioned(frames: Iterable[_Frame], title: str, *, seed: int | None, episode_seed: int,
+def _captioned(played: Iterable[_Frame], title: str, *, seed: int | None, episode_seed: int,
                max_steps: int, env_id: str) -> Iterator[tuple[np.ndarray, _Frame]]:
-    """Each frame under its caption, in one reused buffer (copy it to keep it)."""
+    """Each frame under its caption, packed, in one reused buffer (copy it to keep it)."""
     buffer = None
-    for frame in frames:
+    for frame in played:
         line, detail = _caption_pieces(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
                                        env_id=env_id)
-        buffer = _stack(frame.image, line, detail, buffer)
+        buffer = _stack(frame.picture, line, detail, buffer)
         yield buffer, frame
 
 
@@ -298,18 +321,18 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
     and the return so far (``seed``, the training seed, goes on the caption's second line). For long
     episodes the frames take memory (about 0.8 MB each); :func:`render_stage_videos` streams instead.
     """
-    frames: Iterable[_Frame] = _play(agent, episode_seed, max_steps, env_id)
+    played: Iterable[_Frame] = _play(agent, episode_seed, max_steps, env_id)
     images, returns = [], []
     last: _Frame | None = None
     if title is None:
-        for frame in frames:
-            images.append(np.ascontiguousarray(frame.image))
+        for frame in played:
+            images.append(frames.unpack(frame.picture))
             returns.append(frame.return_so_far)
             last = frame
     else:
-        for image, frame in _captioned(frames, title, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
+        for image, frame in _captioned(played, title, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
                                        env_id=env_id):
-            images.append(image.copy())
+            images.append(frames.unpack(image))
             returns.append(frame.return_so_far)
             last = frame
     assert last is not None
@@ -320,12 +343,12 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
 # --- writing --------------------------------------------------------------------------------------
 
 
-def _even(frame: np.ndarray) -> np.ndarray:
+def _even(packed: np.ndarray) -> np.ndarray:
     """Pad an odd height or width by repeating the last row or column (H.264 4:2:0 needs even sizes)."""
-    height, width = frame.shape[:2]
+    height, width = packed.shape
     if height % 2 or width % 2:
-        return np.pad(frame, ((0, height % 2), (0, width % 2), (0, 0)), mode="edge")
-    return frame
+        return np.pad(packed, ((0, height % 2), (0, width % 2)), mode="edge")
+    return packed
 
 
 def _rgb(frame: np.ndarray) -> np.ndarray:
@@ -335,17 +358,42 @@ def _rgb(frame: np.ndarray) -> np.ndarray:
     return frame
 
 
-@contextlib.contextmanager
-def _mp4_writer(path: Path, fps: float) -> Iterator:
-    """An imageio FFMPEG writer to a temporary file beside ``path``, renamed onto it when all went well."""
-    import imageio.v2 as imageio
+class _Mp4Encoder:
+    """ffmpeg encoding packed frames to ``path``: each frame turned into its YUV planes here (ffmpeg's own
+    conversion from RGB took as long as the encoding) and piped to ffmpeg, which starts at the first frame."""
 
+    def __init__(self, path: Path, fps: float) -> None:
+        self.path, self.fps = path, fps
+        self._ffmpeg: Iterator | None = None
+        self._planes = np.empty(0, dtype=np.uint8)
+
+    def append(self, packed: np.ndarray) -> None:
+        packed = _even(packed)
+        if self._ffmpeg is None:
+            import imageio_ffmpeg
+
+            height, width = packed.shape
+            self._ffmpeg = imageio_ffmpeg.write_frames(
+                str(self.path), (width, height), pix_fmt_in="yuv420p", pix_fmt_out="yuv420p", fps=self.fps,
+                codec="libx264", quality=None, macro_block_size=1, output_params=list(MP4_OPTIONS))
+            self._ffmpeg.send(None)
+            self._planes = np.empty(height * width * 3 // 2, dtype=np.uint8)
+        frames.yuv420(packed, self._planes)
+        self._ffmpeg.send(self._planes)
+
+    def close(self) -> None:
+        if self._ffmpeg is not None:
+            self._ffmpeg.close()
+
+
+@contextlib.contextmanager
+def _mp4_writer(path: Path, fps: float) -> Iterator[_Mp4Encoder]:
+    """An encoder to a temporary file beside ``path``, renamed onto it when all went well."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     store.enter_outputs(path)
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp.mp4")
-    writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", pixelformat="yuv420p",
-                                quality=None, macro_block_size=2, output_params=list(MP4_OPTIONS))
+    writer = _Mp4Encoder(tmp, fps)
     try:
         yield writer
         writer.close()
@@ -360,16 +408,16 @@ def _mp4_writer(path: Path, fps: float) -> Iterator:
         raise
 
 
-def write_mp4(frames: Iterable[np.ndarray], path: Path, fps: float = FPS) -> Path:
-    """Encode ``frames`` ((H, W, 3) uint8, any iterable) as an H.264 MP4 that browsers play.
+def write_mp4(rgb_frames: Iterable[np.ndarray], path: Path, fps: float = FPS) -> Path:
+    """Encode ``rgb_frames`` ((H, W, 3) uint8, any iterable) as an H.264 MP4 that browsers play.
 
     libx264, yuv420p, ``+faststart``; odd sizes are padded to even ones. Written atomically.
     """
     path = Path(path)
     count = 0
     with _mp4_writer(path, fps) as writer:
-        for frame in frames:
-            writer.append_data(_even(_rgb(frame)))
+        for frame in rgb_frames:
+            writer.append(frames.pack(_rgb(frame)))
             count += 1
         if count == 0:
             raise ValueError("write_mp4: no frames")
@@ -377,7 +425,7 @@ def write_mp4(frames: Iterable[np.ndarray], path: Path, fps: float = FPS) -> Pat
 
 
 class _GifFrames:
-    """Every ``every``-th frame (and the last), scaled by ``scale`` and mapped to one shared palette."""
+    """Every ``every``-th packed frame (and the last), scaled by ``scale`` and mapped to one shared palette."""
 
     def __init__(self, scale: float, every: int) -> None:
         if not 0 < scale <= 1:
@@ -392,24 +440,25 @@ class _GifFrames:
         self.count = 0
         self._pending: np.ndarray | None = None
 
-    def _reduce(self, frame: np.ndarray) -> Image.Image:
-        image = Image.fromarray(np.ascontiguousarray(frame))
-        if self.scale < 1:
+    def _reduce(self, packed: np.ndarray) -> Image.Image:
+        if self.scale == 0.5 and not (packed.shape[0] % 2 or packed.shape[1] % 2):
+            image = frames.image(frames.halved(packed))  # Pillow's 2x2 box mean, pixel for pixel, 9x as fast
+        else:
+            image = frames.image(packed)
             size = (max(1, round(image.width * self.scale)), max(1, round(image.height * self.scale)))
-            image = image.resize(size, Image.Resampling.BOX, reducing_gap=1.0)  # 0.5: a fast 2x2 mean
+            image = image.resize(size, Image.Resampling.BOX, reducing_gap=1.0) if self.scale < 1 else image
         if self.palette is None:
             self.palette = image.quantize(colors=GIF_COLORS, method=Image.Quantize.MEDIANCUT,
                                           dither=Image.Dither.NONE)
         return image.quantize(palette=self.palette, dither=Image.Dither.NONE)
 
-    def add(self, frame: np.ndarray) -> None:
-        frame = _rgb(frame)
+    def add(self, packed: np.ndarray) -> None:
         if self.count % self.every == 0:
-            self.images.append(self._reduce(frame))
+            self.images.append(self._reduce(packed))
             self.indices.append(self.count)
             self._pending = None
         else:
-            self._pending = frame.copy()  # kept in case it is the last frame
+            self._pending = packed.copy()  # kept in case it is the last frame
         self.count += 1
 
     def finish(self) -> list[Image.Image]:
@@ -438,17 +487,17 @@ class _GifFrames:
         return Path(path)
 
 
-def write_gif(frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale: float = GIF_SCALE,
+def write_gif(rgb_frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale: float = GIF_SCALE,
               every: int = GIF_EVERY) -> Path:
-    """A small looping GIF of ``frames``: every ``every``-th frame (and the last), scaled by ``scale``.
+    """A small looping GIF of ``rgb_frames``: every ``every``-th frame (and the last), scaled by ``scale``.
 
     It shows each frame as long as ``every`` frames last at ``fps`` (to the centisecond GIF delays
     allow), so it keeps the real-time speed of an MP4 at ``fps``, and holds the last frame one second
     longer before it loops. Written atomically.
     """
     gif = _GifFrames(scale, every)
-    for frame in frames:
-        gif.add(frame)
+    for frame in rgb_frames:
+        gif.add(frames.pack(_rgb(frame)))
     return gif.save(path, fps)
 
 
@@ -459,14 +508,14 @@ def _render_video(agent: Agent, title: str, mp4: Path, gif: Path | None, *, seed
                   max_steps: int, fps: float, env_id: str) -> list[Path]:
     """Play, caption and encode one video in a single pass: ffmpeg encodes in its own process while
     Python renders the next frames, and no more than one frame is held in memory (plus the GIF's)."""
-    frames = _captioned(_play(agent, episode_seed, max_steps, env_id), title, seed=seed, episode_seed=episode_seed,
-                        max_steps=max_steps, env_id=env_id)
+    captioned = _captioned(_play(agent, episode_seed, max_steps, env_id), title, seed=seed,
+                           episode_seed=episode_seed, max_steps=max_steps, env_id=env_id)
     small = _GifFrames(GIF_SCALE, GIF_EVERY) if gif is not None else None
     with _mp4_writer(mp4, fps) as writer:
-        for image, _ in frames:
-            writer.append_data(image)
+        for packed, _ in captioned:
+            writer.append(packed)
             if small is not None:
-                small.add(image)
+                small.add(packed)
     if small is None or gif is None:
         return [mp4]
     return [mp4, small.save(gif, fps)]
@@ -554,13 +603,13 @@ def default_workers() -> int:
 class VideoRenders:
     """Videos being rendered, from :func:`start_videos`; :meth:`wait` for their paths.
 
-    With more than one worker and more than one job they render in a pool of worker processes, started
-    at once, so the caller can do other work meanwhile; otherwise they render in this process when
-    :meth:`wait` is called. Use it as a context manager: leaving the block cancels what has not started
+    In the ``background``, or with more than one worker and more than one job, they render in a pool of worker
+    processes, started at once, so the caller can do other work meanwhile; otherwise they render in this
+    process when :meth:`wait` is called. Use it as a context manager: leaving the block cancels what has not started
     and waits for what has (a render is never cut off halfway; each file is written atomically anyway).
     """
 
-    def __init__(self, jobs: Sequence[VideoJob], workers: int | None = None) -> None:
+    def __init__(self, jobs: Sequence[VideoJob], workers: int | None = None, *, background: bool = False) -> None:
         workers = default_workers() if workers is None else int(workers)
         if workers < 1:
             raise ValueError(f"workers must be >= 1; got {workers}")
@@ -570,7 +619,7 @@ class VideoRenders:
         self._futures: list[Future[list[Path]]] = []
         self.started: float | None = None
         """``time.perf_counter()`` when rendering began: here with a pool, else when :meth:`wait` was called."""
-        if self.workers > 1:
+        if self.workers > 1 or (background and self.workers):
             self.started = time.perf_counter()
             # Workers enter nothing in a directory's list of outputs (each process would rewrite the list
             # from what it read): every file is entered here, once, before any is rendered.
@@ -625,18 +674,19 @@ def _by_directory(paths: Iterable[Path]) -> list[list[Path]]:
 
 
 def start_videos(jobs: Sequence[VideoJob], *, workers: int | None = None) -> VideoRenders:
-    """Start rendering ``jobs`` on ``workers`` processes (default: :func:`default_workers`; 1: in this
-    process, when waited for). Use the result as a context manager and call its ``wait()`` for the paths."""
-    return VideoRenders(jobs, workers)
+    """Start rendering ``jobs`` on ``workers`` other processes (default: :func:`default_workers`), so this one
+    can do other work meanwhile. Use the result as a context manager and call its ``wait()`` for the paths."""
+    return VideoRenders(jobs, workers, background=True)
 
 
 def render_videos(jobs: Sequence[VideoJob], *, workers: int | None = None) -> list[Path]:
-    """Render ``jobs`` on ``workers`` processes (see :func:`start_videos`); the files, in the jobs' order.
+    """Render ``jobs`` on ``workers`` processes (default: :func:`default_workers`; 1: in this process); the
+    files, in the jobs' order.
 
     The files are the same, byte for byte, whatever the number of workers: each video is rendered by one
     process, from the same agent and start state, and x264 runs on one thread.
     """
-    with start_videos(jobs, workers=workers) as renders:
+    with VideoRenders(jobs, workers) as renders:
         return renders.wait()
 
 

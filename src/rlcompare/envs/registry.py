@@ -29,11 +29,13 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from rlcompare.envs import acrobot, cartpole, discretize, features, gymnasium_env, mountain_car, table, tiles
+from rlcompare.envs.mountain_car_picture import MountainCarPainter
 from rlcompare.envs.table import TableEnv, from_gymnasium
 
 DYNAMICS = {
@@ -76,6 +78,10 @@ class Environment:
     """The names of the two observation dimensions the report draws maps over; None: no maps."""
     endings: tuple[str, str] = ("terminated", "out of time")
     """How a video's last frame says the episode ended: terminated, truncated."""
+    painter: Callable | None = None
+    """What draws a video's frames where ``env.render()`` is slow: built from the unwrapped Gymnasium
+    environment, its ``paint(out)`` writes the picture ``env.render()`` would return, as packed pixels
+    (:mod:`rlcompare.analysis.frames`); None: ``env.render()``."""
     bench_episodes: int = 0
     """Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps (``rlcompare bench``);
     0: not benchmarked."""
@@ -96,7 +102,7 @@ def _mountain_car(name: str, right: float, bench_episodes: int = 0) -> Environme
     return Environment(name, mountain_car.MountainCar(right), mountain_car.N_ACTIONS, 0, low, high, 1000, 20,
                        "terminated", action_names=("push left", "no push", "push right"),
                        map_axes=("position", "velocity"), endings=("reached the flag", "out of time"),
-                       bench_episodes=bench_episodes)
+                       painter=MountainCarPainter, bench_episodes=bench_episodes)
 
 
 def _cartpole() -> Environment:

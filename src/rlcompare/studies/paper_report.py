@@ -88,9 +88,8 @@ def _scaled(claim: Claim, episodes: int) -> Claim:
 class ReportOutcome:
     """Where the report went, what could not be built, and how long each part took.
 
-    With more than one video worker the videos render in other processes from the start, beside the
-    tables and figures, so their ``seconds`` (from their start until the last is written) overlap the
-    others'."""
+    The videos render in other processes from the start, beside the tables and figures, so their
+    ``seconds`` (from their start until the last is written) overlap the others'."""
 
     path: Path
     findings: list[str] = field(default_factory=list)
@@ -181,9 +180,9 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
                  video_workers: int | None = None) -> ReportOutcome:
     """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``.
 
-    The videos render on ``video_workers`` processes (default: see
-    :func:`~rlcompare.analysis.video.default_workers`; 1: in this process, after the figures) while this
-    process builds the tables and figures; the files are the same whatever the number.
+    The videos render on ``video_workers`` other processes (default: see
+    :func:`~rlcompare.analysis.video.default_workers`) while this process builds the tables and figures; the
+    files are the same whatever the number.
     """
     with store.rewriting(Path(study_dir), "study"):
         return _build_report(Path(study_dir), videos, video_seed, video_workers)
