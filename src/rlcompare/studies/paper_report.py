@@ -123,8 +123,9 @@ def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
 
 def curve_figure(runs: list[Results], title: str) -> Figure:
     """Behaviour return (smoothed) beside greedy-evaluation return, mean over seeds with 95% bands."""
-    figure = Figure(figsize=(12, 4.2), layout="constrained")
+    figure = Figure(figsize=(12, 4.2))
     behaviour_ax, greedy_ax = figure.subplots(1, 2, sharey=True)
+    plots.fixed_layout(figure, 1, 2, left=0.85, right=0.1, bottom=0.55, top=0.65, column_gap=0.45)
     colors = {label(r): METHODS[r.config.algorithm].color for r in runs}
     episodes = np.arange(1, runs[0].config.episodes + 1)
     plots.plot_return_curves(behaviour_ax, episodes, {label(r): r.records.returns for r in runs},
@@ -144,12 +145,14 @@ def stages_figure(results: Results) -> Figure:
     """Greedy action and state value over position x velocity at each named stage."""
     stage_names = [name for name, _ in results.config.stages]
     episodes = results.config.stage_episodes()
-    figure = Figure(figsize=(4.6 * len(stage_names), 7.5), layout="constrained")
+    figure = Figure(figsize=(4.6 * len(stage_names), 7.5))
     axes = figure.subplots(2, len(stage_names), squeeze=False)
+    plots.map_layout(figure, 2, len(stage_names))
     floor, frame = float(results.records.snapshots.min()), map_frame(results.config)
     for column, stage in enumerate(stage_names):
         tables = results.records.snapshots[:, column]
         plots.plot_policy_map(axes[0, column], tables, results.config.bins, frame)
+        plots.colorbar_beside(axes[0, column], None)  # the maps above keep the width of those below
         axes[0, column].set_title(f"{stage} (episode {episodes[stage]}): greedy action")
         plots.plot_value_map(axes[1, column], tables, results.config.bins, frame, vmin=floor)
         axes[1, column].set_title(f"{stage}: state value")
@@ -158,8 +161,10 @@ def stages_figure(results: Results) -> Figure:
 
 
 def visits_figure(runs: list[Results]) -> Figure:
-    figure = Figure(figsize=(4.6 * len(runs), 3.8), layout="constrained")
-    for ax, results in zip(figure.subplots(1, len(runs), squeeze=False)[0], runs, strict=True):
+    figure = Figure(figsize=(4.6 * len(runs), 3.8))
+    axes = figure.subplots(1, len(runs), squeeze=False)[0]
+    plots.map_layout(figure, 1, len(runs))
+    for ax, results in zip(axes, runs, strict=True):
         plots.plot_visits(ax, results.records.visits, results.config.bins, map_frame(results.config))
         ax.set_title(label(results))
     figure.suptitle("Where training spends its steps: state visits over all episodes and seeds")
