@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import gc
+import math
 import os
 import subprocess
 import sys
@@ -131,13 +132,14 @@ def test_mp4_is_h264_with_every_frame(tmp_path: Path, pump_episode: video.Episod
 
 def test_gif_is_smaller_and_loops(tmp_path: Path, pump_episode: video.Episode) -> None:
     path = video.write_gif(pump_episode.frames, tmp_path / "pump.gif")
-    n = len(pump_episode.frames)
+    n, every = len(pump_episode.frames), video.GIF_EVERY
     with Image.open(path) as gif:
         assert gif.size == (300, 224)
-        assert gif.n_frames == len(range(0, n, 2)) + (n - 1) % 2  # every other frame, and the last
+        assert gif.n_frames == len(range(0, n, every)) + ((n - 1) % every > 0)  # every few frames, and the last
         assert gif.info["loop"] == 0
         durations = [frame.info["duration"] for frame in ImageSequence.Iterator(gif)]
-    assert set(durations[:-1]) <= {60, 70}  # 2 frames at 30 fps, in the centiseconds GIF delays allow
+    shown = 100 * every / video.FPS  # centiseconds, the unit of GIF delays
+    assert set(durations[:-1]) <= {10 * math.floor(shown), 10 * math.ceil(shown)}
     assert sum(durations) == round(1000 * n / video.FPS, -1) + video.GIF_HOLD_MS  # real time, then a pause
     assert 0 < path.stat().st_size < 2_000_000
 
