@@ -120,6 +120,8 @@ def _advanced(seed: int, count: int) -> np.ndarray:
 
 
 EPISODE_IMPLS = ["compiled", "train_run"]
+"""For the trace methods, whose episode loop must also leave its trace arrays fresh (``compiled`` checks them);
+the others' episodes run through ``train_run`` alone, the entry point production calls."""
 def _no_traces() -> loops.Traces:
     """The stub the loops of methods without traces are given."""
     return loops.Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
@@ -256,50 +258,45 @@ def test_sample_softmax_follows_its_probabilities(impl):
 # --- 2. single episodes by hand on chain(2) ------------------------------------------------------------
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_q_learning_episode_by_hand(impl):
+def test_q_learning_episode_by_hand():
     """S=0, A=0 (0.25 > 0.2) -> S'=0: target 0.5*max(0.25, 0.2) = 0.125; w[0,0] = 0.25 + 0.5*(0.125-0.25) = 0.1875.
     The next action is drawn after the update, from [0.1875, 0.2]: right.
     S=0, A=1 -> S'=1: target 0.5*max(0.1, 0.6) = 0.3; w[0,1] = 0.2 + 0.5*(0.3-0.2) = 0.25. Next: right (0.6 > 0.1).
     S=1, A=1 -> goal, R=1: target 1; w[1,1] = 0.6 + 0.5*(1-0.6) = 0.8. Three steps, three draws (one per choice)."""
-    episode = Episode(impl, _rule("q_learning"), W0)
+    episode = Episode("train_run", _rule("q_learning"), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.1875, 0.25], [0.1, 0.8]], draws=3)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_sarsa_episode_by_hand(impl):
+def test_sarsa_episode_by_hand():
     """SARSA draws A' before its update (Algorithm 2), so in the self-loop it stays once more than Q-Learning.
     S=0, A=0 -> S'=0: A' from [0.25, 0.2] = stay; target 0.5*0.25 = 0.125; w[0,0] = 0.1875.
     S=0, A=0 -> S'=0: A' from [0.1875, 0.2] = right; target 0.5*0.2 = 0.1; w[0,0] = 0.1875 + 0.5*(0.1-0.1875) = 0.14375.
     S=0, A=1 -> S'=1: A' = right; target 0.5*0.6 = 0.3; w[0,1] = 0.2 + 0.5*(0.3-0.2) = 0.25.
     S=1, A=1 -> goal: w[1,1] = 0.8. Four steps; four draws (no draw after the terminal step)."""
-    episode = Episode(impl, _rule("sarsa"), W0)
+    episode = Episode("train_run", _rule("sarsa"), W0)
     episode.check(steps=4, visits=[3, 1], w=[[0.14375, 0.25], [0.1, 0.8]], draws=4)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_expected_sarsa_episode_by_hand(impl):
+def test_expected_sarsa_episode_by_hand():
     """Behaviour ε = 0, target ε = 0.5 (off-policy): 0.25 per action plus 0.5 on the greedy one.
     S=0, A=0 -> S'=0: E = 0.75*0.25 + 0.25*0.2 = 0.2375; target 0.11875; w[0,0] = 0.25 + 0.5*(0.11875-0.25) = 0.184375.
     Next from [0.184375, 0.2]: right.
     S=0, A=1 -> S'=1: E = 0.25*0.1 + 0.75*0.6 = 0.475; target 0.2375; w[0,1] = 0.2 + 0.5*(0.2375-0.2) = 0.21875.
     S=1, A=1 -> goal: w[1,1] = 0.8."""
-    episode = Episode(impl, _rule("expected_sarsa", target_epsilon=0.5), W0)
+    episode = Episode("train_run", _rule("expected_sarsa", target_epsilon=0.5), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.184375, 0.21875], [0.1, 0.8]], draws=3)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_on_policy_expected_sarsa_with_greedy_behaviour_is_q_learning(impl):
+def test_on_policy_expected_sarsa_with_greedy_behaviour_is_q_learning():
     """target_epsilon < 0 takes the behaviour's ε = 0: the Q-Learning episode above, weights and all."""
-    episode = Episode(impl, _rule("expected_sarsa", target_epsilon=-1.0), W0)
+    episode = Episode("train_run", _rule("expected_sarsa", target_epsilon=-1.0), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.1875, 0.25], [0.1, 0.8]], draws=3)
 
 
 DOUBLE_Q_SEED = 9  # agent draws 0.87 (first action), 0.29 (coin: update Q1), 0.60 (action), 0.78 (coin: Q2)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_double_q_episode_by_hand(impl):
+def test_double_q_episode_by_hand():
     """Q1 = [[0, 0.5], [0.5, 0.25]], Q2 = [[0, 0.25], [0, 0.75]]; behaviour greedy in Q1 + Q2, which says
     right in both states ([0, 0.75] and [0.5, 1.0]).
     Step 1, S=0, A=1 -> S'=1, coin 0.29 < 0.5: Q1 learns. Q1 picks argmax [0.5, 0.25] = stay, Q2 values it: 0;
@@ -309,14 +306,13 @@ def test_double_q_episode_by_hand(impl):
     Draws: action, coin, action, coin = 4."""
     d = _draws(DOUBLE_Q_SEED, 4)
     assert d[1] < 0.5 <= d[3]  # the coins the comments above rely on
-    episode = Episode(impl, _rule("double_q_learning"), [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]],
+    episode = Episode("train_run", _rule("double_q_learning"), [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]],
                       seed=DOUBLE_Q_SEED)
     episode.check(steps=2, visits=[1, 1], w=[[0.0, 0.25], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]], draws=4,
                   seed=DOUBLE_Q_SEED)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_double_expected_sarsa_episode_by_hand(impl):
+def test_double_expected_sarsa_episode_by_hand():
     """Exercise 6.13 on the Double Q-Learning episode above, target ε = 0.5 (behaviour ε = 0).
     Step 1, S=0, A=1 -> S'=1, coin 0.29: Q1 learns. Its target policy, ε-greedy in Q1[1] = [0.5, 0.25], is
     [0.75, 0.25]; Q2[1] = [0, 0.75] values it: E = 0.1875; target 0.5*0.1875 = 0.09375;
@@ -324,14 +320,13 @@ def test_double_expected_sarsa_episode_by_hand(impl):
     Step 2, S=1, A=1 -> goal, coin 0.78: Q2[1,1] = 0.75 + 0.5*(1-0.75) = 0.875.
     With a greedy target policy (target ε = 0) the episode is Double Q-Learning's: Q1[0,1] = 0.25."""
     for target_epsilon, learned in ((0.5, 0.296875), (0.0, 0.25)):
-        episode = Episode(impl, _rule("double_expected_sarsa", target_epsilon=target_epsilon),
+        episode = Episode("train_run", _rule("double_expected_sarsa", target_epsilon=target_epsilon),
                           [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]], seed=DOUBLE_Q_SEED)
         episode.check(steps=2, visits=[1, 1], w=[[0.0, learned], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]],
                       draws=4, seed=DOUBLE_Q_SEED)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
-def test_n_step_sarsa_episode_by_hand(impl):
+def test_n_step_sarsa_episode_by_hand():
     """n = 2. Each A_{t+1} is drawn when S_{t+1} is seen, before the update of τ = t - 1.
     t=0: S0=0, A0=stay -> S1=0, R1=0; A1 from [0.25, 0.2] = stay.
     t=1: -> S2=0, R2=0; A2 = stay. τ=0: G = 0 + 0.5*0 + 0.25*q(0,stay) = 0.0625;
@@ -342,7 +337,7 @@ def test_n_step_sarsa_episode_by_hand(impl):
          w[0,0] = 0.103125 + 0.5*(0.15-0.103125) = 0.1265625.
     t=4: -> goal, R5=1, T=5. τ=3: G = R4 + 0.5*R5 = 0.5 (no bootstrap past T); w[0,1] = 0.2 + 0.5*(0.5-0.2) = 0.35.
     τ=4: G = R5 = 1; w[1,1] = 0.6 + 0.5*(1-0.6) = 0.8. Five steps, five draws."""
-    episode = Episode(impl, _rule("n_step_sarsa", n=2), W0)
+    episode = Episode("train_run", _rule("n_step_sarsa", n=2), W0)
     episode.check(steps=5, visits=[4, 1], w=[[0.1265625, 0.35], [0.1, 0.8]], draws=5)
 
 
@@ -409,9 +404,8 @@ def test_exploratory_action_cuts_watkins_traces(impl, algorithm, w01):
 REINFORCE_SEED = 61  # agent draws 0.37 (< 0.5: stay), 0.77 (right), 0.67 (right)
 
 
-@pytest.mark.parametrize("impl", EPISODE_IMPLS)
 @pytest.mark.parametrize("baseline", [False, True], ids=["plain", "baseline"])
-def test_reinforce_episode_by_hand(impl, baseline):
+def test_reinforce_episode_by_hand(baseline):
     """θ = 0, so π = [0.5, 0.5] while acting: the draws give stay, right, right. α = 0.5, γ = 0.5.
     Returns: G2 = 1, G1 = 0.5*G2 = 0.5, G0 = 0.5*G1 = 0.25. θ is updated step by step (13.3's loop), so the
     gradient at t = 1 uses the θ after t = 0. ∇ ln π(A|s) w.r.t. h(s, a) is 1[a = A] - π(a).
@@ -429,7 +423,7 @@ def test_reinforce_episode_by_hand(impl, baseline):
     theta = [[0.0625 - step1 * sigma, -0.0625 + step1 * sigma], [-0.0625, 0.0625]]
     b = [[0.3125, 0.0], [0.5, 0.0]] if baseline else [[0.0, 0.0], [0.0, 0.0]]
     rule = Reinforce(discount_gradient=True, baseline_alpha=0.5 if baseline else 0.0)
-    episode = Episode(impl, rule, np.zeros((2, 2)), seed=REINFORCE_SEED)
+    episode = Episode("train_run", rule, np.zeros((2, 2)), seed=REINFORCE_SEED)
     episode.check(steps=3, visits=[2, 1], w=theta, w2=b, draws=3, seed=REINFORCE_SEED)
 
 

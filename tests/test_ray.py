@@ -115,10 +115,12 @@ def _wait_for_nodes(address: str, count: int, env: dict[str, str], log: Path, ti
 
 
 def _stop(process: subprocess.Popen) -> None:
+    """Stop a node's whole process group: SIGTERM, then SIGKILL. ``ray start --block`` was still running 30 s
+    after a SIGTERM to its group, so the grace is short."""
     if process.poll() is None:
         os.killpg(process.pid, signal.SIGTERM)
         try:
-            process.wait(timeout=15)
+            process.wait(timeout=2)
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
