@@ -10,7 +10,7 @@ import imageio_ffmpeg
 import numpy as np
 from PIL import Image
 
-from rlcompare.analysis import frames
+from rlcompare.analysis import frames, video
 from rlcompare.envs.registry import environment
 
 
@@ -84,3 +84,22 @@ def test_halved_is_pillows_box_reduction() -> None:
     rgb = np.random.default_rng(2).integers(0, 256, (40, 60, 3), dtype=np.uint8)
     pillow = Image.fromarray(rgb).resize((30, 20), Image.Resampling.BOX, reducing_gap=1.0)
     np.testing.assert_array_equal(frames.unpack(frames.halved(frames.pack(rgb))), np.asarray(pillow))
+
+
+def test_an_environment_without_a_painter_shows_its_own_render() -> None:
+    class Left:
+        def act(self, observation: np.ndarray) -> int:
+            return 0
+
+    assert environment("CartPole-v1").painter is None
+    episode = video.record_episode(Left(), episode_seed=4, max_steps=6, env_id="CartPole-v1")
+    env = gym.make("CartPole-v1", render_mode="rgb_array", max_episode_steps=6)
+    env.reset(seed=4)
+    expected = [env.render()]
+    for _ in range(episode.length):
+        env.step(0)
+        expected.append(env.render())
+    env.close()
+    assert len(episode.frames) == len(expected) > 1
+    for ours, theirs in zip(episode.frames, expected, strict=True):
+        np.testing.assert_array_equal(ours, theirs)

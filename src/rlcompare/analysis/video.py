@@ -22,9 +22,10 @@ pygame's banner) with ``os.environ.setdefault``, so a value set by the user wins
 changes nothing.
 
 Videos render in parallel, one per worker process (:func:`render_videos`; ``workers=1`` renders them in
-this process, one after the other), and the files are the same byte for byte whatever the number of
-workers. Workers start with ``spawn``, so a script that renders with more than one worker needs the usual
-``if __name__ == "__main__":`` guard.
+this process, one after the other), or in the background while the caller does other work
+(:func:`start_videos`, which the report uses: its own process takes the videos no worker has started once its
+figures are done), and the files are the same byte for byte whatever the number of workers. Workers start with
+``spawn``, so a script that renders in other processes needs the usual ``if __name__ == "__main__":`` guard.
 
 Frames travel as packed pixels (:mod:`rlcompare.analysis.frames`). Where the environment's registry entry has
 a painter (Mountain Car's draws Gymnasium's picture pixel for pixel in 0.15 ms, where ``env.render()`` takes
@@ -600,8 +601,8 @@ open renderers); each imports what it needs, about 1.5 s of one core, once for a
 
 
 def default_workers() -> int:
-    """Processes that render at once by default: one per two cores, since each render keeps about 1.7
-    cores busy (Python steps and draws, ffmpeg encodes beside it); so 1, in this process, on 2 cores."""
+    """Processes that render at once by default: one per two cores, since each render keeps about 1.9
+    cores busy (Python steps and draws, ffmpeg encodes beside it); so 1 on 2 cores."""
     return max(1, (os.cpu_count() or 1) // 2)
 
 
