@@ -17,7 +17,7 @@ import jax.numpy as jnp
 from rlcompare.cli import app
 from rlcompare.deep.agent import load_agent
 from rlcompare.deep.envs import DEEP_ENVS
-from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.deep.run import DeepConfig, DeepResults, compiled_program
 from rlcompare.deep.run import run as deep_run
 from rlcompare.experiment.config import ConfigError
 
@@ -94,7 +94,9 @@ def test_a_seed_gives_the_same_results_whatever_seeds_train_beside_it(study):
     config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=(0, 1),
                         hyperparameters={"total_steps": 41000}, vmap_width=2)
     stored = DeepResults.load(study[0] / "pqn_q_lambda-CartPole-v1")
+    shared = compiled_program.cache_info().hits
     alone = deep_run(DeepConfig(**{**config.__dict__, "seeds": (1,)}))  # padded with a copy of itself
+    assert compiled_program.cache_info().hits == shared + 1  # the study's program, not traced again
     pd.testing.assert_frame_equal(alone.episodes, stored.episodes[stored.episodes["seed"] == 1].reset_index(drop=True))
     for name, values in alone.params.items():
         np.testing.assert_array_equal(values[0], stored.params[name][1])

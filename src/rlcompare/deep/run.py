@@ -10,6 +10,7 @@ updates) but not on which seeds train beside it or how many a user asks for.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import json
 import sys
@@ -251,12 +252,20 @@ def groups(seeds: tuple[int, ...], width: int) -> Iterator[tuple[tuple[int, ...]
         yield group, group + (group[0],) * (width - len(group))
 
 
-def compiled_training(config: DeepConfig) -> tuple[Callable[[jax.Array], TrainOutput], Any]:
-    """The jitted, vmapped training of ``vmap_width`` seeds, and the method's config."""
-    method_config = config.method_config()
-    train = deep_method(config.algorithm).module.make_train(method_config, config.environment, config.eval_rounds,
-                                                            config.eval_episodes)
-    return jax.jit(jax.vmap(train)), method_config
+def compiled_training(config: DeepConfig) -> Callable[[jax.Array], TrainOutput]:
+    """The training of ``vmap_width`` seeds, compiled: once a process for each configuration, whatever its
+    seeds, so the trials of a sweep that differ only in their seeds share it."""
+    return compiled_program(config.algorithm, config.env, config.method_config(), config.eval_rounds,
+                            config.eval_episodes, config.vmap_width)
+
+
+@functools.lru_cache(maxsize=32)
+def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: int, eval_episodes: int,
+                     width: int) -> Callable[[jax.Array], TrainOutput]:
+    """The jitted, vmapped training of ``width`` seeds, lowered and compiled for ``width`` keys; kept for the
+    process (``cache_info()`` counts the runs that found it)."""
+    train = deep_method(algorithm).module.make_train(method_config, DEEP_ENVS[env], eval_rounds, eval_episodes)
+    return jax.jit(jax.vmap(train)).lower(seed_keys((0,) * width)).compile()
 
 
 def params_template(config: DeepConfig) -> Any:
@@ -318,9 +327,8 @@ def run(config: DeepConfig, *, out: Path | None = None, study: str = "",
 
 
 def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | None) -> DeepResults:
-    train, _ = compiled_training(config)
     started = time.perf_counter()
-    train = train.lower(seed_keys(next(groups(config.seeds, config.vmap_width))[1])).compile()
+    train = compiled_training(config)
     compile_seconds = time.perf_counter() - started
     started = time.perf_counter()
     outputs = []
