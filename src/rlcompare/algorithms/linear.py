@@ -51,35 +51,42 @@ def _action_values(w, s, out):
     return lambda w, s, out: _summed_values(w, s, out)
 
 
-@njit(inline="always")
+@njit  # compiled on its own: numba's own inlining loses track of the sums' scope
 def _summed_values(w: np.ndarray, s: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """Each feature's row of ``w`` read once, summed in the order of :func:`action_value`."""
+    """:func:`action_value` of every action, each summed in a register (a sum kept in ``out`` would be stored
+    and loaded again at every feature)."""
     for a in range(w.shape[1]):
-        out[a] = w[s[0], a]
-    for k in range(1, s.size):
-        for a in range(w.shape[1]):
-            out[a] += w[s[k], a]
+        out[a] = action_value(w, s, a)
     return out
+
+
+@njit(inline="always")
+def _row(s: int | np.ndarray, k: int) -> np.uint64:
+    """The ``k``-th active feature as an unsigned index, whose row numba reads without testing it for a
+    negative (from-the-end) index."""
+    return np.uint64(feature_on(s, k))
 
 
 @njit(inline="always")
 def action_value(w: np.ndarray, s: int | np.ndarray, action: int) -> float:
     """``q(s, action)``."""
-    total = w[feature_on(s, 0), action]
+    column = np.uint64(action)
+    total = w[_row(s, 0), column]
     for k in range(1, n_features_on(s)):
-        total += w[feature_on(s, k), action]
+        total += w[_row(s, k), column]
     return total
 
 
 @njit(inline="always")
 def add_to_action(w: np.ndarray, s: int | np.ndarray, action: int, amount: float) -> None:
     """A semi-gradient step of ``amount`` on ``q(s, action)`` (9.5)."""
+    column = np.uint64(action)
     for k in range(n_features_on(s)):
-        w[feature_on(s, k), action] += amount
+        w[_row(s, k), column] += amount
 
 
 @njit(inline="always")
 def count_visit(visits: np.ndarray, s: int | np.ndarray) -> None:
     """One more step taken with each of the state's features active."""
     for k in range(n_features_on(s)):
-        visits[feature_on(s, k)] += 1
+        visits[_row(s, k)] += 1

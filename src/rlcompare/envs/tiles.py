@@ -161,12 +161,10 @@ def make_tile_coding(
 
 @njit(inline="always")
 def _coordinate(position: float, tiles: int) -> int:
-    """``floor(position)`` clipped to ``[0, tiles]``; NaN gives 0."""
-    if position >= tiles:
-        return tiles
-    if position >= 0.0:
-        return int(position)
-    return 0
+    """``floor(position)`` clipped to ``[0, tiles]``; NaN gives 0. Clipped as a float by selects, not branches,
+    so that the compiler can compute the tilings side by side."""
+    clipped = position if position >= 0.0 else 0.0
+    return int(clipped if clipped < tiles else float(tiles))
 
 
 @njit(inline="always")
