@@ -88,10 +88,11 @@ def test_one_tile_per_tiling(layout):
 
 
 def test_bounds_land_in_the_first_and_last_tiles(layout):
-    """On or beyond ``high`` is the last tile (``tiles``), on or below ``low`` the first (0), in every tiling."""
+    """On or beyond ``high`` is the last tile (``tiles``), on or below ``low`` the first (0), in every tiling;
+    NaN is the first."""
     high = _high(layout)
     points = np.vstack([high, high + 1.0, np.full(high.size, np.inf), layout.low, layout.low - 1.0,
-                        np.full(high.size, -np.inf)])
+                        np.full(high.size, -np.inf), np.full(high.size, np.nan)])
     features = _features(layout, points) - np.arange(layout.n_tilings) * layout.per_tiling
     last = np.ravel_multi_index(tuple(layout.tiles), tuple(layout.tiles + 1))
     assert np.all(features[:3] == last)
