@@ -3,7 +3,7 @@
 - single targets worked out by hand: Expected SARSA (6.6), Double Q-Learning (6.7), the softmax policy (13.1);
 - single episodes worked out by hand on a two-state chain, for every episode loop of the engine (one-step, n-step
   SARSA 7.2, SARSA(λ) and Watkins's Q(λ) 12.7 / 12.10, REINFORCE 13.3 / 13.4), called directly (compiled) and
-  through the engine's ``train_run`` (its choice of the loop by the rule's type included);
+  through the engine's ``train_block`` (its choice of the loop by the rule's type included);
 - convergence to the known ``q*`` of a chain and to the better arm of a two-armed bandit, for every algorithm;
 - the engine's one-step and random runs against a plain-Python reference written here, bit for bit, and equalities
   between algorithms that must coincide (n-step SARSA with n = 1 and SARSA; SARSA(λ) with λ = 0 and SARSA);
@@ -34,7 +34,7 @@ from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilo
 from rlcompare.algorithms.softmax import sample_softmax, softmax
 from rlcompare.algorithms.td import double_q_target, expected_sarsa_target, q_learning_target
 from rlcompare.engine import episodes as loops
-from rlcompare.engine.run import train_run, train_runs
+from rlcompare.engine.run import train_block, train_runs
 from rlcompare.engine.state import (
     AGENT_STREAM,
     ENV_STREAM,
@@ -74,9 +74,9 @@ _CACHED: dict = {}
 def _compiled(fn):
     """An episode loop compiled by numba with the same (default) options, but cached on disk.
 
-    The engine's loops are not cached on disk (only ``train_run`` is), and compiling them takes about a minute,
+    The engine's loops are not cached on disk (only ``train_block`` is), and compiling them takes about a minute,
     every session; this compiles the same Python function once, and later sessions load it. The engine's own
-    compiled code runs the same episodes under the ``train_run`` impl (the cached entry point that production
+    compiled code runs the same episodes under the ``train_block`` impl (the cached entry point that production
     calls). A loop's inner calls are numba overloads, so it cannot run as plain Python (``py_func``).
     """
     if fn not in _CACHED:
@@ -119,9 +119,9 @@ def _advanced(seed: int, count: int) -> np.ndarray:
     return state
 
 
-EPISODE_IMPLS = ["compiled", "train_run"]
+EPISODE_IMPLS = ["compiled", "train_block"]
 """For the trace methods, whose episode loop must also leave its trace arrays fresh (``compiled`` checks them);
-the others' episodes run through ``train_run`` alone, the entry point production calls."""
+the others' episodes run through ``train_block`` alone, the entry point production calls."""
 def _no_traces() -> loops.Traces:
     """The stub the loops of methods without traces are given."""
     return loops.Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
@@ -130,7 +130,7 @@ def _no_traces() -> loops.Traces:
 class Episode:
     """One episode of the engine on ``chain(2)``; what it returned and left behind.
 
-    ``compiled`` calls the rule's episode loop directly; ``train_run`` runs one episode of one run through the
+    ``compiled`` calls the rule's episode loop directly; ``train_block`` runs one episode of one run through the
     engine's cached entry point (its choice of the loop, trace allocation and snapshot included).
     """
 
@@ -146,14 +146,14 @@ class Episode:
         has_traces = isinstance(rule, traces.SarsaLambda | traces.QLambda)
         self.work = loops.Traces(np.zeros(self.w.size), np.empty(self.w.size, np.int64),
                                  np.zeros(self.w.size, np.bool_)) if has_traces else _no_traces()
-        if impl == "train_run":
-            out = self._train_run(rule, settings, table_env, features, epsilon)
+        if impl == "train_block":
+            out = self._train_block(rule, settings, table_env, features, epsilon)
         else:
             out = _compiled(loops.LOOPS[type(rule)][0])(rule, settings, table_env, features, self.w, self.w2, self.work,
                                                epsilon, self.env_rng, self.agent_rng, self.transitions, self.visits)
         self.ret, self.steps, self.terminated = float(out[0]), int(out[1]), bool(out[2])
 
-    def _train_run(self, rule, settings, table_env, features, epsilon):
+    def _train_block(self, rule, settings, table_env, features, epsilon):
         rng = np.empty((1, STREAMS, 4), np.uint64)
         rng[0, ENV_STREAM], rng[0, AGENT_STREAM], rng[0, TRANSITION_STREAM] = (self.env_rng, self.agent_rng,
                                                                                 self.transitions)
@@ -162,7 +162,7 @@ class Episode:
             rng[0, stream] = stream_state(seed)
         state = RunState(w=self.w[None].copy(), w2=self.w2[None].copy(), rng=rng)
         records = allocate_records(1, 1, 0, 1, np.array([1], np.int64), self.w.shape)
-        train_run(0, rule, settings, table_env, features, state, np.array([epsilon]), 0, 1, records)
+        train_block(0, 1, rule, settings, table_env, features, state, np.array([epsilon]), 0, 1, records)
         self.w, self.w2 = state.w[0], state.w2[0]
         self.env_rng, self.agent_rng, self.transitions = (state.rng[0, ENV_STREAM], state.rng[0, AGENT_STREAM],
                                                           state.rng[0, TRANSITION_STREAM])
@@ -263,7 +263,7 @@ def test_q_learning_episode_by_hand():
     The next action is drawn after the update, from [0.1875, 0.2]: right.
     S=0, A=1 -> S'=1: target 0.5*max(0.1, 0.6) = 0.3; w[0,1] = 0.2 + 0.5*(0.3-0.2) = 0.25. Next: right (0.6 > 0.1).
     S=1, A=1 -> goal, R=1: target 1; w[1,1] = 0.6 + 0.5*(1-0.6) = 0.8. Three steps, three draws (one per choice)."""
-    episode = Episode("train_run", _rule("q_learning"), W0)
+    episode = Episode("train_block", _rule("q_learning"), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.1875, 0.25], [0.1, 0.8]], draws=3)
 
 
@@ -273,7 +273,7 @@ def test_sarsa_episode_by_hand():
     S=0, A=0 -> S'=0: A' from [0.1875, 0.2] = right; target 0.5*0.2 = 0.1; w[0,0] = 0.1875 + 0.5*(0.1-0.1875) = 0.14375.
     S=0, A=1 -> S'=1: A' = right; target 0.5*0.6 = 0.3; w[0,1] = 0.2 + 0.5*(0.3-0.2) = 0.25.
     S=1, A=1 -> goal: w[1,1] = 0.8. Four steps; four draws (no draw after the terminal step)."""
-    episode = Episode("train_run", _rule("sarsa"), W0)
+    episode = Episode("train_block", _rule("sarsa"), W0)
     episode.check(steps=4, visits=[3, 1], w=[[0.14375, 0.25], [0.1, 0.8]], draws=4)
 
 
@@ -283,13 +283,13 @@ def test_expected_sarsa_episode_by_hand():
     Next from [0.184375, 0.2]: right.
     S=0, A=1 -> S'=1: E = 0.25*0.1 + 0.75*0.6 = 0.475; target 0.2375; w[0,1] = 0.2 + 0.5*(0.2375-0.2) = 0.21875.
     S=1, A=1 -> goal: w[1,1] = 0.8."""
-    episode = Episode("train_run", _rule("expected_sarsa", target_epsilon=0.5), W0)
+    episode = Episode("train_block", _rule("expected_sarsa", target_epsilon=0.5), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.184375, 0.21875], [0.1, 0.8]], draws=3)
 
 
 def test_on_policy_expected_sarsa_with_greedy_behaviour_is_q_learning():
     """target_epsilon < 0 takes the behaviour's ε = 0: the Q-Learning episode above, weights and all."""
-    episode = Episode("train_run", _rule("expected_sarsa", target_epsilon=-1.0), W0)
+    episode = Episode("train_block", _rule("expected_sarsa", target_epsilon=-1.0), W0)
     episode.check(steps=3, visits=[2, 1], w=[[0.1875, 0.25], [0.1, 0.8]], draws=3)
 
 
@@ -306,8 +306,8 @@ def test_double_q_episode_by_hand():
     Draws: action, coin, action, coin = 4."""
     d = _draws(DOUBLE_Q_SEED, 4)
     assert d[1] < 0.5 <= d[3]  # the coins the comments above rely on
-    episode = Episode("train_run", _rule("double_q_learning"), [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]],
-                      seed=DOUBLE_Q_SEED)
+    episode = Episode("train_block", _rule("double_q_learning"), [[0.0, 0.5], [0.5, 0.25]],
+                      w2=[[0.0, 0.25], [0.0, 0.75]], seed=DOUBLE_Q_SEED)
     episode.check(steps=2, visits=[1, 1], w=[[0.0, 0.25], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]], draws=4,
                   seed=DOUBLE_Q_SEED)
 
@@ -320,7 +320,7 @@ def test_double_expected_sarsa_episode_by_hand():
     Step 2, S=1, A=1 -> goal, coin 0.78: Q2[1,1] = 0.75 + 0.5*(1-0.75) = 0.875.
     With a greedy target policy (target ε = 0) the episode is Double Q-Learning's: Q1[0,1] = 0.25."""
     for target_epsilon, learned in ((0.5, 0.296875), (0.0, 0.25)):
-        episode = Episode("train_run", _rule("double_expected_sarsa", target_epsilon=target_epsilon),
+        episode = Episode("train_block", _rule("double_expected_sarsa", target_epsilon=target_epsilon),
                           [[0.0, 0.5], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.75]], seed=DOUBLE_Q_SEED)
         episode.check(steps=2, visits=[1, 1], w=[[0.0, learned], [0.5, 0.25]], w2=[[0.0, 0.25], [0.0, 0.875]],
                       draws=4, seed=DOUBLE_Q_SEED)
@@ -337,7 +337,7 @@ def test_n_step_sarsa_episode_by_hand():
          w[0,0] = 0.103125 + 0.5*(0.15-0.103125) = 0.1265625.
     t=4: -> goal, R5=1, T=5. τ=3: G = R4 + 0.5*R5 = 0.5 (no bootstrap past T); w[0,1] = 0.2 + 0.5*(0.5-0.2) = 0.35.
     τ=4: G = R5 = 1; w[1,1] = 0.6 + 0.5*(1-0.6) = 0.8. Five steps, five draws."""
-    episode = Episode("train_run", _rule("n_step_sarsa", n=2), W0)
+    episode = Episode("train_block", _rule("n_step_sarsa", n=2), W0)
     episode.check(steps=5, visits=[4, 1], w=[[0.1265625, 0.35], [0.1, 0.8]], draws=5)
 
 
@@ -423,7 +423,7 @@ def test_reinforce_episode_by_hand(baseline):
     theta = [[0.0625 - step1 * sigma, -0.0625 + step1 * sigma], [-0.0625, 0.0625]]
     b = [[0.3125, 0.0], [0.5, 0.0]] if baseline else [[0.0, 0.0], [0.0, 0.0]]
     rule = Reinforce(discount_gradient=True, baseline_alpha=0.5 if baseline else 0.0)
-    episode = Episode("train_run", rule, np.zeros((2, 2)), seed=REINFORCE_SEED)
+    episode = Episode("train_block", rule, np.zeros((2, 2)), seed=REINFORCE_SEED)
     episode.check(steps=3, visits=[2, 1], w=theta, w2=b, draws=3, seed=REINFORCE_SEED)
 
 

@@ -11,7 +11,7 @@ import pytest
 from rlcompare.algorithms.policies import RandomActions, epsilon_greedy_action, uniform_action
 from rlcompare.algorithms.schedules import linear_decay_epsilon
 from rlcompare.algorithms.td import QLearning, Sarsa
-from rlcompare.engine.run import train_run, train_runs
+from rlcompare.engine.run import train_block, train_runs
 from rlcompare.engine.state import (
     AGENT_STREAM,
     ENV_STREAM,
@@ -250,7 +250,7 @@ def test_start_states_are_shared_across_algorithms(seed):
         starts = []
         for episode in range(episodes):
             starts.append(mountain_car.reset(ENV, state.rng[0, ENV_STREAM].copy()))
-            train_run(0, RULES[algorithm], settings, ENV, GRID, state, EPSILONS, episode, episode + 1, records)
+            train_block(0, 1, RULES[algorithm], settings, ENV, GRID, state, EPSILONS, episode, episode + 1, records)
         assert starts == expected, algorithm
 
 
@@ -443,7 +443,7 @@ def test_engine_equals_python_episodes(algorithm, max_steps, truncation_is_termi
 
     settings = make_settings(max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=0)
     records = allocate_records(1, episodes, 0, 0, np.zeros(0, dtype=np.int64), q.shape)
-    train_run(0, RULES[algorithm], settings, ENV, GRID, state, np.full(episodes, epsilon), 0, episodes, records)
+    train_block(0, 1, RULES[algorithm], settings, ENV, GRID, state, np.full(episodes, epsilon), 0, episodes, records)
 
     np.testing.assert_array_equal(state.w[0], q)
     np.testing.assert_array_equal(records.visits[0], visits)

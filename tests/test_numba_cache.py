@@ -51,7 +51,7 @@ def test_an_empty_cache_says_the_next_run_compiles(tmp_path, monkeypatch):
     monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
     assert holds_nothing_yet()
     (tmp_path / "engine").mkdir()
-    (tmp_path / "engine" / "run.train_run-1.py310.nbi").write_bytes(b"")
+    (tmp_path / "engine" / "run.train_block-1.py310.nbi").write_bytes(b"")
     assert not holds_nothing_yet()
 
 

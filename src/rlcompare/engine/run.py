@@ -1,9 +1,9 @@
 """The run loop, one for every method: episodes of a run with its evaluation rounds and snapshots, and runs
 spread over threads.
 
-``train_run`` compiles once per combination of (rule, environment, features) types, and numba caches it on
-disk; the compiled runs release the GIL, so :func:`train_runs` puts blocks of runs (:func:`train_block`) on
-each of ``numba.get_num_threads()`` threads.
+:func:`train_block` compiles once per combination of (rule, environment, features) types, and numba caches it
+on disk; the compiled runs release the GIL, so :func:`train_runs` puts blocks of runs on each of
+``numba.get_num_threads()`` threads.
 """
 
 from __future__ import annotations
@@ -46,37 +46,6 @@ def workspace(rule, w):
     """The traces a run of ``rule`` keeps between steps (a stub for methods without)."""
 
 
-@njit(cache=True, nogil=True)
-def train_run(
-    run: int, rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray, first_episode: int,
-    stop_episode: int, records: Records,
-) -> None:
-    """Episodes ``[first_episode, stop_episode)`` of one run, with its evaluations and snapshots."""
-    w, w2, rng = state.w[run], state.w2[run], state.rng[run]
-    training, evaluation = for_instance(env, 2 * run), for_instance(env, 2 * run + 1)
-    work = workspace(rule, w)
-    eval_episodes = records.eval_returns.shape[2]
-    for episode in range(first_episode, stop_episode):
-        ret, length, terminated = train_episode(
-            rule, settings, training, features, w, w2, work, epsilons[episode], rng[ENV_STREAM], rng[AGENT_STREAM],
-            rng[TRANSITION_STREAM], records.visits[run],
-        )
-        record_episode(records.returns, records.lengths, records.terminated, (run, episode), ret, length, terminated)
-        completed = episode + 1
-        round_ = evaluation_round(settings, completed)
-        if round_ >= 0:
-            for k in range(eval_episodes):
-                ret, length, terminated = evaluation_episode(
-                    rule, settings, evaluation, features, w, w2, rng[EVAL_ENV_STREAM], rng[EVAL_AGENT_STREAM],
-                    rng[EVAL_TRANSITION_STREAM],
-                )
-                record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated, (run, round_, k),
-                               ret, length, terminated)
-        for stage in range(records.snapshot_episodes.size):
-            if records.snapshot_episodes[stage] == completed:
-                snapshot(rule, w, w2, records.snapshots[run, stage])
-
-
 @njit(inline="always")
 def record_episode(returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, at: tuple, ret: float,
                    length: int, ended: bool) -> None:
@@ -97,11 +66,34 @@ def train_block(
     first_run: int, stop_run: int, rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray,
     first_episode: int, stop_episode: int, records: Records,
 ) -> None:
-    """:func:`train_run` for runs ``[first_run, stop_run)``, in one call from Python: calling compiled code
-    costs tens of microseconds a call (its arguments' types are read), which a study of 50,000 short runs
-    would pay 50,000 times a chunk."""
+    """Episodes ``[first_episode, stop_episode)`` of runs ``[first_run, stop_run)``, with their evaluations and
+    snapshots, in one call from Python: calling compiled code costs tens of microseconds a call (its arguments'
+    types are read), which a study of 50,000 short runs would pay 50,000 times a chunk."""
+    eval_episodes = records.eval_returns.shape[2]
     for run in range(first_run, stop_run):
-        train_run(run, rule, settings, env, features, state, epsilons, first_episode, stop_episode, records)
+        w, w2, rng = state.w[run], state.w2[run], state.rng[run]
+        training, evaluation = for_instance(env, 2 * run), for_instance(env, 2 * run + 1)
+        work = workspace(rule, w)
+        for episode in range(first_episode, stop_episode):
+            ret, length, terminated = train_episode(
+                rule, settings, training, features, w, w2, work, epsilons[episode], rng[ENV_STREAM],
+                rng[AGENT_STREAM], rng[TRANSITION_STREAM], records.visits[run],
+            )
+            record_episode(records.returns, records.lengths, records.terminated, (run, episode), ret, length,
+                           terminated)
+            completed = episode + 1
+            round_ = evaluation_round(settings, completed)
+            if round_ >= 0:
+                for k in range(eval_episodes):
+                    ret, length, terminated = evaluation_episode(
+                        rule, settings, evaluation, features, w, w2, rng[EVAL_ENV_STREAM], rng[EVAL_AGENT_STREAM],
+                        rng[EVAL_TRANSITION_STREAM],
+                    )
+                    record_episode(records.eval_returns, records.eval_lengths, records.eval_terminated,
+                                   (run, round_, k), ret, length, terminated)
+            for stage in range(records.snapshot_episodes.size):
+                if records.snapshot_episodes[stage] == completed:
+                    snapshot(rule, w, w2, records.snapshots[run, stage])
 
 
 BLOCKS_PER_THREAD = 8
