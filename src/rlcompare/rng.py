@@ -8,8 +8,9 @@ The generator is NumPy's ``PCG64`` (128-bit LCG with the XSL-RR output), ported 
 from ``np.random.SeedSequence(seed)`` yields exactly what ``np.random.PCG64(seed)`` yields. Gymnasium seeds
 its environments that way, so ``env.reset(seed=seed)`` and our reset draw the same start states.
 
-The draws are plain compiled functions, which LLVM inlines into the loops that call them; inlined at numba's
-level (``inline="always"``) they were typed again at each of their calls, a quarter of a loop's compile time.
+The draws are compiled functions that LLVM always inlines into the loops that call them (``forceinline``).
+Inlined at numba's level instead (``inline="always"``), a draw costs about 3 ns less (the random baseline, which
+does little else, runs 10% faster), but is typed again at each of its calls: a quarter of a loop's compile time.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ def stream_state(seed: int | np.random.SeedSequence) -> np.ndarray:
     return np.array([s >> 64, s & _MASK64, inc >> 64, inc & _MASK64], dtype=np.uint64)
 
 
-@njit
+@njit(forceinline=True)
 def _multiply_high(a: np.uint64, b: np.uint64) -> np.uint64:
     """High 64 bits of the 128-bit product ``a * b``."""
     a_low, a_high = a & _MASK32, a >> _SHIFT32
@@ -48,7 +49,7 @@ def _multiply_high(a: np.uint64, b: np.uint64) -> np.uint64:
     return (high_low >> _SHIFT32) + (cross >> _SHIFT32) + a_high * b_high
 
 
-@njit
+@njit(forceinline=True)
 def next_uint64(state: np.ndarray) -> np.uint64:
     """Advance the stream one step and return 64 random bits (``PCG64.random_raw``)."""
     high, low = state[0], state[1]
@@ -63,13 +64,13 @@ def next_uint64(state: np.ndarray) -> np.uint64:
     return (mixed >> rotation) | (mixed << ((_SIXTY_THREE + _ONE - rotation) & _SIXTY_THREE))
 
 
-@njit
+@njit(forceinline=True)
 def next_double(state: np.ndarray) -> float:
     """A uniform double in [0, 1) with 53 random bits (``Generator.random``)."""
     return np.float64(next_uint64(state) >> _DOUBLE_SHIFT) * _TWO_TO_MINUS_53
 
 
-@njit
+@njit(forceinline=True)
 def next_below(state: np.ndarray, n: int) -> int:
     """A uniform integer in ``[0, n)``; the bias of scaling 53 bits is below 2**-50 for small ``n``."""
     return int(next_double(state) * n)
