@@ -51,7 +51,7 @@ def _action_values(w, s, out):
     return lambda w, s, out: _summed_values(w, s, out)
 
 
-@njit  # compiled on its own: numba's own inlining loses track of the sums' scope
+@njit  # not inlined at numba's level, whose inliner loses the scope of the sums (NumbaIRAssumptionWarning)
 def _summed_values(w: np.ndarray, s: np.ndarray, out: np.ndarray) -> np.ndarray:
     """:func:`action_value` of every action, each summed in a register (a sum kept in ``out`` would be stored
     and loaded again at every feature)."""
