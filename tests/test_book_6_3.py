@@ -19,7 +19,7 @@ from rlcompare.analysis.stats import mean_interval
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig, records_bytes
 from rlcompare.studies import book_6_3
-from rlcompare.studies.book import STUDIES, fig_6_3_study
+from rlcompare.studies.registry import STUDIES
 
 runner = CliRunner(env={"COLUMNS": "200"})
 
@@ -29,7 +29,7 @@ def invoke(*args: str):
 
 
 def test_the_default_study_is_the_books_grid_at_the_books_run_counts() -> None:
-    configs = STUDIES["book-6.3"].configs(tuple(range(STUDIES["book-6.3"].runs)))
+    configs = book_6_3.configs(STUDIES["book-6.3"].options().seed_range)
     assert len(configs) == 2 * 3 * 10
     interim = [c for name, c in configs.items() if name.startswith("interim-")]
     asymptotic = [c for name, c in configs.items() if name.startswith("asymptotic-")]
@@ -42,7 +42,7 @@ def test_the_default_study_is_the_books_grid_at_the_books_run_counts() -> None:
         assert c.seeds == tuple(range(len(c.seeds)))  # the same seeds for every method and α: paired
     assert configs["interim-expected_sarsa-alpha-0.3"].algorithm == "expected_sarsa"
     assert [book_6_3.asymptotic_runs(n) for n in (1, 2, 4, 5_000, 25_000, 50_000)] == [1, 2, 2, 2, 5, 10]
-    assert fig_6_3_study(300).configs((0, 1, 2))["asymptotic-sarsa-alpha-1"].episodes == 300
+    assert book_6_3.configs((0, 1, 2), episodes=300)["asymptotic-sarsa-alpha-1"].episodes == 300
 
 
 def test_the_study_at_a_tiny_size_through_the_command_line(tmp_path: Path) -> None:

@@ -3,6 +3,8 @@ read it."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from typer.testing import CliRunner
 
@@ -60,14 +62,18 @@ def test_the_command_line_lists_every_method_with_its_source():
 
 
 def test_every_study_listed_is_one_the_command_can_run():
-    from rlcompare.studies import TITLES
-    from rlcompare.studies.book import STUDIES
-    from rlcompare.studies.paper import ENV_STUDIES
+    import typer.main
 
-    assert set(TITLES) == {"paper", "why", "sensitivity", "deep", *ENV_STUDIES, *STUDIES}
-    assert all(STUDIES[name].title == TITLES[name] for name in STUDIES)
+    from rlcompare.studies.registry import STUDIES
+
     listed = CliRunner(env={"COLUMNS": "400"}).invoke(app, ["reproduce", "--list"]).output.splitlines()
-    assert [line.split()[0] for line in listed] == list(TITLES)
+    assert [line.split()[0] for line in listed] == list(STUDIES)
+    commands = typer.main.get_command(app).commands["reproduce"].commands
+    assert list(commands) == list(STUDIES)
+    for name, study in STUDIES.items():
+        runner = study.load_runner()
+        assert callable(runner.run), name
+        assert callable(runner.report), name
 
 
 def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entrys():
@@ -86,3 +92,11 @@ def test_the_help_names_the_options_each_method_reads():
     text = " ".join(output.replace("│", " ").split())  # the help's lines joined, without the panel's borders
     assert "n_step_sarsa (Sutton and Barto 7.2; reads --n)" in text
     assert "reinforce_baseline (Sutton and Barto 13.4; reads --baseline-alpha)" in text
+
+
+def test_the_readme_lists_every_study_in_the_registrys_order():
+    from rlcompare.studies.registry import STUDIES
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    line = next(line for line in readme.splitlines() if line.startswith("rlcompare reproduce --list"))
+    assert line.split("#")[1].split() == list(STUDIES)

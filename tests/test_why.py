@@ -10,7 +10,9 @@ import pandas as pd
 import pytest
 
 from rlcompare.studies import why
-from rlcompare.studies.why import TERMS, decomposition, per_seed_returns, run_why, term_per_seed, why_configs
+from rlcompare.studies.interface import UI
+from rlcompare.studies.registry import WhyOptions
+from rlcompare.studies.why import TERMS, decomposition, per_seed_returns, term_per_seed, why_configs
 
 SEEDS, EPISODES = (0, 1, 2, 3), 120
 
@@ -18,7 +20,7 @@ SEEDS, EPISODES = (0, 1, 2, 3), 120
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("why") / "why"
-    runs = {name: results for name, results, _ in run_why(out, SEEDS, EPISODES)}
+    runs = why.run(out, WhyOptions(seeds=len(SEEDS), episodes=EPISODES), UI())
     return out, runs
 
 
@@ -78,7 +80,7 @@ def test_windows_split_training_and_greedy_returns_read_the_rounds_inside():
 
 def test_report_opens_with_findings_and_names_every_term(study):
     out, runs = study
-    path, _ = why.build_why_report(out, runs)
+    path = why.report(out, runs=runs).path
     page = path.read_text()
     assert page.index("Findings") < page.index("Decomposition")
     for term in TERMS:
@@ -103,10 +105,10 @@ def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findi
     for _ in reproduce(paper_dir, configs):
         pass
     outcome = build_report(paper_dir, videos=False)
-    assert all("SARSA - Q-Learning =" in sentence for sentence in outcome.findings[:3])  # three direction claims
-    assert outcome.findings[3].startswith("Of the paper's 9 claims tested here:")
+    assert all("SARSA - Q-Learning =" in sentence for sentence in outcome.lines[:3])  # three direction claims
+    assert outcome.lines[3].startswith("Of the paper's 9 claims tested here:")
     # the same cells, run by either study, give the same decomposition
-    assert outcome.findings[4:] == why.findings(decomposition(runs))[:len(outcome.findings) - 4]
+    assert outcome.lines[4:] == why.findings(decomposition(runs))[:len(outcome.lines) - 4]
     page = outcome.path.read_text()
     assert page.index("<h2>Findings</h2>") < page.index("<h2>Setting</h2>")
 
@@ -172,7 +174,7 @@ def test_a_missing_or_damaged_cell_is_named_and_the_rest_still_decomposed(study,
     copy = Path(shutil.copytree(out, tmp_path / "why"))
     shutil.rmtree(copy / "expected_sarsa-constant-before_update")
     (copy / "sarsa-decay-after_update" / "qtables.npz").write_bytes(b"damaged")
-    path, _ = why.build_why_report(copy)
+    path = why.report(copy).path
     page = path.read_text()
     assert "Incomplete" in page
     assert "expected_sarsa-constant-before_update" in page

@@ -219,17 +219,20 @@ class ExperimentConfig:
 
 
 @functools.cache
-def field_docs() -> dict[str, str]:
-    """Each field of :class:`ExperimentConfig` and its docstring (the string under it in the class), as plain
-    text on one line: what the command line's help and the documentation say of it."""
-    tree = ast.parse(textwrap.dedent(inspect.getsource(ExperimentConfig)))
-    body = tree.body[0].body
-    docs = {}
-    for statement, following in itertools.pairwise(body):
-        if (isinstance(statement, ast.AnnAssign) and isinstance(statement.target, ast.Name)
-                and isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
-                and isinstance(following.value.value, str)):
-            docs[statement.target.id] = _plain(following.value.value)
+def field_docs(cls: type | None = None) -> dict[str, str]:
+    """Each field of a dataclass (default :class:`ExperimentConfig`) and its docstring (the string under it in
+    the class, or in the nearest base class that has one), as plain text on one line: what the command line's
+    help and the documentation say of it."""
+    docs: dict[str, str] = {}
+    for klass in reversed((cls or ExperimentConfig).__mro__):
+        if not dataclasses.is_dataclass(klass):
+            continue
+        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0].body
+        for statement, following in itertools.pairwise(body):
+            if (isinstance(statement, ast.AnnAssign) and isinstance(statement.target, ast.Name)
+                    and isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
+                    and isinstance(following.value.value, str)):
+                docs[statement.target.id] = _plain(following.value.value)
     return docs
 
 

@@ -20,8 +20,7 @@ which only the worst step sizes of Figure 12.10 reach.
 from __future__ import annotations
 
 import dataclasses
-import functools
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,8 +40,9 @@ from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
-from rlcompare.studies import TITLES, book_6_3
+from rlcompare.studies import book_6_3
 from rlcompare.studies.contrast import contrast_table, sibling_studies
+from rlcompare.studies.interface import UI, Report, Seeded
 
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
         "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0, "stages": (("final", 1.0),)}
@@ -53,20 +53,43 @@ FIG_12_10_EPISODES = 50
 
 
 @dataclass(frozen=True)
-class Study:
-    """A named set of configurations, each run into its own directory, and how to report them."""
+class BookStudy:
+    """A set of the book's configurations, each run into its own directory, and how to report them."""
 
-    name: str
-    title: str
-    configs: Callable[[tuple[int, ...]], dict[str, ExperimentConfig]]
-    report: Callable[[Path, dict[str, Results]], Path]
-    runs: int
-    """Seeds by default: as many runs as the book averages over."""
+    configs: Callable[..., dict[str, ExperimentConfig]]
+    """``configs(seeds, **options)``: every configuration by run directory; ``options`` are the study's beyond its
+    seeds (:mod:`rlcompare.studies.registry`)."""
+    draw: Callable[[Path, dict[str, Any]], Path]
+    """Writes the report of the runs into the study's directory."""
     train: Callable[..., Any] | None = None
     """Trains a configuration into its run directory, in place of :func:`~rlcompare.experiment.runner.run`
     (``run_or_load``'s ``train``), with ``load_finished`` and ``load`` that read what it writes."""
     load_finished: Callable[[Path, ExperimentConfig], Any] | None = None
     load: Callable[[Path], Any] | None = None
+
+    def run(self, out: Path, options: Seeded, ui: UI, *, study: str, force: bool = False) -> dict[str, Any]:
+        """Each configuration into ``out / name``, or loaded when already complete there."""
+        extra = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)
+                 if f.name not in ("seeds", "first_seed")}
+        configs = self.configs(options.seed_range, **extra)
+        runs = {}
+        with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
+            for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
+                                                     progress=lambda n: advance(study, n), train=self.train,
+                                                     load_finished=self.load_finished):
+                runs[name] = results
+                ui.done(name, results, reused)
+        return runs
+
+    def report(self, out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True
+               ) -> Report:
+        """The study's report in ``out``, from ``runs`` or, without them, from its run directories (it draws no
+        videos)."""
+        out = Path(out)
+        with store.rewriting(out, "study"):
+            if runs is None:
+                runs = {name: (self.load or Results.load)(out / name) for name in self.configs((0,))}
+            return Report(self.draw(out, runs))
 
 
 def fig_10_2_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
@@ -78,22 +101,6 @@ def fig_12_10_configs(seeds: tuple[int, ...]) -> dict[str, ExperimentConfig]:
     return {f"lambda-{lam:g}-alpha-{a:g}of8": ExperimentConfig(
         algorithm="sarsa_lambda", lam=lam, trace="replacing", alpha=a / 8, episodes=FIG_12_10_EPISODES,
         seeds=seeds, **BOOK) for lam in FIG_12_10_LAMBDAS for a in FIG_12_10_ALPHAS}
-
-
-def run_study(study: Study, out: Path, seeds: tuple[int, ...], progress: Callable[[int], None] | None = None,
-              *, force: bool = False) -> Iterator[tuple[str, Results, bool]]:
-    """Each configuration into ``out / name``, or loaded when already complete there."""
-    yield from run_or_load(Path(out), study.configs(seeds), study=study.name, progress=progress, force=force,
-                           train=study.train, load_finished=study.load_finished)
-
-
-def write_study_report(study: Study, out: Path, runs: dict[str, Results] | None = None) -> Path:
-    """The study's report in ``out``, from ``runs`` or, without them, from its run directories."""
-    out = Path(out)
-    with store.rewriting(out, "study"):
-        if runs is None:
-            runs = {name: (study.load or Results.load)(out / name) for name in study.configs((0,))}
-        return study.report(out, runs)
 
 
 def report_10_2(out: Path, runs: dict[str, Results]) -> Path:
@@ -266,19 +273,8 @@ def _cliff_mask() -> np.ndarray:
     return mask
 
 
-STUDIES = {name: Study(name, TITLES[name], configs, report, runs) for name, configs, report, runs in (
-    ("book-10.2", fig_10_2_configs, report_10_2, 100),
-    ("book-12.10", fig_12_10_configs, report_12_10, 100),
-    ("cliff", cliff_configs, report_cliff, 50),
-)}
-STUDIES["book-6.3"] = Study("book-6.3", TITLES["book-6.3"], book_6_3.configs, book_6_3.report_6_3,
-                            book_6_3.INTERIM_RUNS, book_6_3.train, book_6_3.load_if_complete, book_6_3.PhaseRuns.load)
-
-
-def fig_6_3_study(asymptotic_episodes: int | None = None) -> Study:
-    """``book-6.3`` with ``asymptotic_episodes`` in the asymptotic phase in place of the book's 100,000."""
-    study = STUDIES["book-6.3"]
-    if asymptotic_episodes is None:
-        return study
-    return dataclasses.replace(study, configs=functools.partial(book_6_3.configs,
-                                                                asymptotic_episodes=asymptotic_episodes))
+FIG_10_2 = BookStudy(fig_10_2_configs, report_10_2)
+FIG_12_10 = BookStudy(fig_12_10_configs, report_12_10)
+CLIFF_STUDY = BookStudy(cliff_configs, report_cliff)
+FIG_6_3 = BookStudy(book_6_3.configs, book_6_3.report_6_3, book_6_3.train, book_6_3.load_if_complete,
+                    book_6_3.PhaseRuns.load)

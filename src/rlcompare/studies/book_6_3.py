@@ -90,10 +90,11 @@ def asymptotic_runs(runs: int) -> int:
     return max(min(runs, 2), round(runs * ASYMPTOTIC_RUNS / INTERIM_RUNS))
 
 
-def configs(seeds: tuple[int, ...], asymptotic_episodes: int = ASYMPTOTIC_EPISODES) -> dict[str, ExperimentConfig]:
-    """Every (phase, method, α): the interim phase runs ``seeds``, the asymptotic phase the first of them."""
+def configs(seeds: tuple[int, ...], episodes: int = ASYMPTOTIC_EPISODES) -> dict[str, ExperimentConfig]:
+    """Every (phase, method, α): the interim phase runs ``seeds``, the asymptotic phase the first of them for
+    ``episodes``."""
     phases = {"interim": (tuple(seeds), INTERIM_EPISODES),
-              "asymptotic": (tuple(seeds)[:asymptotic_runs(len(seeds))], asymptotic_episodes)}
+              "asymptotic": (tuple(seeds)[:asymptotic_runs(len(seeds))], episodes)}
     return {run_name(phase, method, alpha): ExperimentConfig(
         algorithm=method, alpha=alpha, episodes=episodes, seeds=phase_seeds, stages=STAGES[phase], **SETTINGS)
         for phase, (phase_seeds, episodes) in phases.items() for method in METHODS for alpha in ALPHAS}

@@ -14,10 +14,7 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-
-import matplotlib
-
-matplotlib.use("Agg")
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -32,13 +29,15 @@ from rlcompare.deep.agent import gymnasium_returns
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.registry import DeepOptions
 
 STUDY = "deep"
 ENVS = ("CartPole-v1", "Acrobot-v1", "MountainCar-v0")
-DEFAULT_SEEDS = 10
+DEFAULT_SEEDS = DeepOptions.seeds
 SCORE = {"CartPole-v1": 475.0, "Acrobot-v1": -100.0, "MountainCar-v0": -130.0}
 """The score whose first reaching, in environment steps and seconds, the report times."""
 GOAL = {"CartPole-v1": 490.0, "Acrobot-v1": -85.0, "MountainCar-v0": -115.0}
@@ -48,7 +47,7 @@ GYMNASIUM_EPISODES = 10
 MARGIN = {"CartPole-v1": 25.0, "Acrobot-v1": 25.0, "MountainCar-v0": 10.0}
 """Differences of mean return smaller than this count as no difference (5% of each environment's return range),
 declared here before any run."""
-TABULAR_EPISODES = 5000
+TABULAR_EPISODES = DeepOptions.episodes
 DEFAULT_WORKERS = max(1, min(4, os.cpu_count() or 1))
 PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
 """The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
@@ -109,6 +108,20 @@ class Plan:
                 for env in self.envs for algorithm in TABULAR_PAIR}
 
 
+def plan_of(options: DeepOptions) -> Plan:
+    """The study's plan from its options; an unknown method or environment, or steps no method can train in, is a
+    :class:`ConfigError` naming the option."""
+    plan = Plan(seeds=options.seed_range, methods=listed("methods", options.methods, tuple(DEEP_METHODS)),
+                envs=listed("envs", options.envs, ENVS), steps=options.steps, tabular_episodes=options.episodes,
+                workers=options.workers or DEFAULT_WORKERS)
+    try:
+        plan.deep_configs()
+    except ConfigError as error:
+        raise ConfigError("steps" if error.field_name == "total_steps" else error.field_name, error.value,
+                          error.allowed) from None
+    return plan
+
+
 def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | None = None, force: bool = False
               ) -> Iterator[tuple[str, DeepResults | Results, bool]]:
     """Train (or load, where finished) the tabular pair, then every deep configuration, into ``out``."""
@@ -118,6 +131,22 @@ def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | N
     yield from run_or_load(Path(out), plan.tabular_configs(), study=STUDY, progress=advance("tabular"), force=force)
     yield from run_or_load(Path(out), plan.deep_configs(), study=STUDY, progress=advance("deep"), force=force,
                            train=deep_run.run, load_finished=deep_run.load_if_complete, workers=plan.workers)
+
+
+def run(out: Path, options: DeepOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
+    """:func:`reproduce` with the study's options, telling ``ui`` of each configuration."""
+    plan = plan_of(options)
+    deep = plan.deep_configs()
+    ui.say(f"Training {len(deep)} deep configurations x {len(plan.seeds)} seeds; each compiles its program first "
+           "(10-40 s, once per machine).")
+    totals = {"tabular": sum(c.progress_total for c in plan.tabular_configs().values()),
+              "deep": sum(c.progress_total for c in deep.values())}
+    runs = {}
+    with ui.tasks(totals) as advance:
+        for name, results, reused in reproduce(out, plan, force=force, progress=advance):
+            runs[name] = results
+            ui.done(name, results, reused)
+    return runs
 
 
 # --- what the report computes from the run directories ----------------------------------------------------
@@ -276,13 +305,14 @@ def curves_figure(deep: dict[str, DeepResults], env: str, against: str) -> Figur
     return figure
 
 
-def build_report(out: Path) -> tuple[Path, list[str], list[str]]:
-    """Tables, verdicts, figures and ``report.html`` of a deep study directory: ``(path, verdict lines, problems)``."""
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
+    """Tables, verdicts, figures and ``report.html`` of a deep study directory, from its run directories (it draws
+    no videos)."""
     with store.rewriting(Path(out), "study"):
         return _build_report(Path(out))
 
 
-def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
+def _build_report(out: Path) -> Report:
     deep, tabular, problems = load_runs(out)
     tables, figures = out / "tables", out / "figures"
     gymnasium = {name: gymnasium_returns(results, GYMNASIUM_EPISODES) for name, results in deep.items()}
@@ -315,4 +345,4 @@ def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
         Section("Learning curves", figures=curve_figures),
     ]
     path = write_report(out / "report.html", "On- vs off-policy with neural networks", sections, problems)
-    return path, lines, problems
+    return Report(path, lines, problems)

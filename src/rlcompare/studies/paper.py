@@ -7,13 +7,17 @@ One run directory per configuration under the study's output directory.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from dataclasses import replace
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+import pandas as pd
 
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies.interface import UI, Report
+from rlcompare.studies.registry import PaperOptions
 
 STUDY = "paper"
 DEFAULT_EPISODES = 5000
@@ -31,9 +35,6 @@ ORDER_ABLATION = (("q_learning", "before_update"), ("sarsa", "after_update"))
 """Q-Learning drawing A' before its update and SARSA drawing it after: with the paper's two boxes, the four
 cells of target x order that split SARSA minus Q-Learning into order, target and interaction
 (:mod:`rlcompare.studies.why`)."""
-ENV_STUDIES = {"cartpole": "CartPole-v1", "acrobot": "Acrobot-v1"}
-"""Studies that ask the paper's question on another environment: the same configurations and settings, with
-the environment's own grid and step limit (``docs/environments.md``)."""
 
 
 def paper_configs(
@@ -68,3 +69,46 @@ def reproduce(
     for _, results, reused in run_or_load(Path(out), {c.name: c for c in configs}, study=study, progress=progress,
                                           force=force):
         yield results, reused
+
+
+def summary(results: Iterable[Results], *, paper: bool) -> tuple[pd.DataFrame, str, str]:
+    """Each configuration's mean behaviour and greedy return over seeds with 95% intervals (beside the paper's
+    Table II where ``paper``): the table, its title and its caption."""
+    from rlcompare.analysis.tables import per_seed_metrics, table_ii
+
+    frame = table_ii({r.config.name: per_seed_metrics(r) for r in results}, PAPER_TABLE_II if paper else {})
+    columns = ["configuration", "behaviour mean", "greedy mean", "greedy success"]
+    return (frame[[*columns, "paper (Table II)"] if paper else columns],
+            "Mean cumulative reward over seeds [95% bootstrap interval]",
+            "behaviour: ε-greedy return averaged over all training episodes; greedy: return of the final greedy "
+            "policy; success: its episodes that reached the goal")
+
+
+@dataclass(frozen=True)
+class PaperStudy:
+    """The paper's configurations on ``env`` (its own grid and step limit, ``docs/environments.md``), and their
+    report: the ``paper``, ``cartpole`` and ``acrobot`` studies."""
+
+    env: str
+
+    def run(self, out: Path, options: PaperOptions, ui: UI, *, study: str, force: bool = False
+            ) -> dict[str, Results]:
+        configs = paper_configs(options.seed_range, options.episodes, options.learners, env=self.env)
+        runs = {}
+        with ui.tasks({self.env: sum(c.episodes for c in configs)}) as advance:
+            for results, reused in reproduce(out, configs, progress=lambda n: advance(self.env, n), study=study,
+                                             force=force):
+                runs[results.config.name] = results
+                ui.done(results.config.name, results, reused)
+        ui.table(*summary(runs.values(), paper=self.env == "MountainCar-v0"))
+        return runs
+
+    def report(self, out: Path, ui: UI, *, runs: dict[str, Results] | None = None, videos: bool = True) -> Report:
+        """Tables, verdicts, figures, videos and ``report.html`` (:mod:`rlcompare.studies.paper_report`)."""
+        from rlcompare.studies.paper_report import build_report
+
+        with ui.working("Building the report"):
+            return build_report(out, videos=videos)
+
+
+MOUNTAIN_CAR, CARTPOLE, ACROBOT = PaperStudy("MountainCar-v0"), PaperStudy("CartPole-v1"), PaperStudy("Acrobot-v1")

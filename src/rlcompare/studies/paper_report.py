@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +39,7 @@ from rlcompare.analysis.tables import (
 from rlcompare.analysis.video import VideoJob, VideoRenders, gymnasium_id, plan_stage_videos, start_videos
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
+from rlcompare.studies.interface import Report
 from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
 from rlcompare.studies.why import decomposition, decomposition_figure, formatted
 from rlcompare.studies.why import findings as why_findings
@@ -82,19 +82,6 @@ def _scaled(claim: Claim, episodes: int) -> Claim:
     if claim.kind == "same" and claim.metric == "convergence_episode":
         return dataclasses.replace(claim, value=claim.value * episodes)
     return claim
-
-
-@dataclass
-class ReportOutcome:
-    """Where the report went, what could not be built, and how long each part took.
-
-    The videos render in other processes from the start, beside the tables and figures, so their
-    ``seconds`` (from their start until the last is written) overlap the others'."""
-
-    path: Path
-    findings: list[str] = field(default_factory=list)
-    problems: list[str] = field(default_factory=list)
-    seconds: dict[str, float] = field(default_factory=dict)
 
 
 def label(results: Results) -> str:
@@ -182,7 +169,7 @@ def first_actions_figure(runs: list[Results]) -> Figure:
 
 
 def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None,
-                 video_workers: int | None = None) -> ReportOutcome:
+                 video_workers: int | None = None) -> Report:
     """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``.
 
     The videos render on ``video_workers`` other processes (default: see
@@ -204,7 +191,7 @@ def _video_plan(study_dir: Path, runs: dict[str, Results], video_seed: int | Non
     return plan
 
 
-def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> ReportOutcome:
+def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> Report:
     started = time.perf_counter()
     runs, problems = load_study(study_dir)
     if not runs:
@@ -217,7 +204,7 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_w
 
 def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: list[str],
                          plan: list[tuple[str, VideoJob]], renders: VideoRenders,
-                         started: float) -> ReportOutcome:
+                         started: float) -> Report:
     """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page."""
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
@@ -284,7 +271,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
     seconds["total"] = time.perf_counter() - started
-    return ReportOutcome(path=path, findings=findings, problems=problems, seconds=seconds)
+    return Report(path=path, lines=findings, problems=problems, seconds=seconds)
 
 
 def _grid_text(config) -> str:

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
@@ -46,16 +47,18 @@ from matplotlib.figure import Figure
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, holm, paired_difference, rank_test
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.sweep import Sweep, SweepError, Trial, parse_sweep
 from rlcompare.experiment.sweep_store import read_manifest, read_table, run_sweep, trial_path
+from rlcompare.studies.interface import UI, Report, run_trials
+from rlcompare.studies.registry import SensitivityOptions
 
 STUDY = "sensitivity"
 SWEEP_DIR = "sweep"
 """The sweep's store, inside the study directory."""
 ROOT_SEED = 0
-DEFAULT_SEEDS = 20
-DEFAULT_EPISODES = 1500
+DEFAULT_SEEDS = SensitivityOptions.seeds
+DEFAULT_EPISODES = SensitivityOptions.episodes
 ALGORITHMS = ("q_learning", "sarsa")
 FIXED = {"schedule": "decay"}
 """ε decays linearly from ``epsilon_start`` (1, the default) to ``epsilon_end``; the rest are the defaults
@@ -146,6 +149,28 @@ def run_sensitivity(out: Path, sweep: Sweep, text: str, backend, progress: Calla
     Returns (trials already finished, trials run now)."""
     with store.output_directory(Path(out), store.Owner("study", STUDY), force=force):
         return run_sweep(sweep, text, Path(out) / SWEEP_DIR, backend, progress)
+
+
+def plan_of(options: SensitivityOptions) -> tuple[Sweep, str]:
+    """The study's sweep and its file from its options; a bad grid is a :class:`ConfigError` naming ``grid``."""
+    try:
+        return plan(parse_grid(options.grid), options.seeds, options.episodes)
+    except SweepError as error:
+        raise ConfigError("grid", options.grid, "; ".join(error.problems)) from None
+    except ValueError as error:
+        raise ConfigError("grid", options.grid, str(error)) from None
+
+
+def run(out: Path, options: SensitivityOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> None:
+    """The study's trials that ``out`` lacks, on this machine's cores or on Ray at ``options.address``."""
+    sweep, text = plan_of(options)
+    started = time.perf_counter()
+    where = f"Ray at {options.address}" if options.address else "this machine"
+    finished, ran = run_trials(
+        sweep, "local" if options.address is None else "ray", options.workers, options.address,
+        f"of {options.episodes} episodes on {where}; study {out}", ui,
+        lambda executor, progress: run_sensitivity(out, sweep, text, executor, progress, force=force))
+    ui.say(f"{ran} trials run, {finished} already finished: {time.perf_counter() - started:.1f} s")
 
 
 # --- cells, differences and marks ---------------------------------------------------------------------------
@@ -399,16 +424,16 @@ def _heatmap_panel(ax, panel: pd.DataFrame, metric: str, alphas: list, ends: lis
 
 # --- the report ---------------------------------------------------------------------------------------------
 
-def build_report(out: Path) -> tuple[Path, list[str], list[str]]:
-    """Tables, heatmaps and ``report.html`` of the study in ``out``, from its sweep's store alone: the page,
-    what is missing, and the summary it opens with."""
+def report(out: Path, ui: UI | None = None, *, runs: None = None, videos: bool = True) -> Report:
+    """Tables, heatmaps and ``report.html`` of the study in ``out``, from its sweep's store alone: the page, the
+    summary it opens with, and what is missing (it draws no videos)."""
     with store.rewriting(Path(out), "study") as owner:
         if owner.name != STUDY:
             raise store.StoreError(f"{out}: holds {owner}; allowed: the {STUDY} study's directory")
         return _build_report(Path(out))
 
 
-def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
+def _build_report(out: Path) -> Report:
     root = out / SWEEP_DIR
     manifest = read_manifest(root)
     seeds = seed_returns(root)
@@ -429,7 +454,7 @@ def _build_report(out: Path) -> tuple[Path, list[str], list[str]]:
         ]
     path = write_report(out / "report.html", "Sensitivity: SARSA against Q-Learning across settings", sections,
                         problems)
-    return path, problems, lines
+    return Report(path, lines, problems)
 
 
 def method_paragraphs(config: dict, cells: pd.DataFrame, finished: int, manifest: dict) -> list[str]:

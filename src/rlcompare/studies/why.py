@@ -23,7 +23,6 @@ which holds exactly for every seed, so for the means too; each term has a 95% BC
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -39,7 +38,9 @@ from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies.interface import UI, Report
 from rlcompare.studies.paper import DEFAULT_EPISODES
+from rlcompare.studies.registry import WhyOptions
 
 STUDY = "why"
 TARGETS = {"max": "q_learning", "taken": "sarsa", "expectation": "expected_sarsa"}
@@ -77,11 +78,17 @@ def why_configs(seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES) -> dic
     return {cell_name(c): c for c in configs}
 
 
-def run_why(out: Path, seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES,
-            progress: Callable[[int], None] | None = None, *, force: bool = False
-            ) -> Iterator[tuple[str, Results, bool]]:
+def run(out: Path, options: WhyOptions, ui: UI, *, study: str = STUDY, force: bool = False
+        ) -> dict[str, Results]:
     """Each cell into ``out / name``, or loaded when already complete there."""
-    yield from run_or_load(Path(out), why_configs(seeds, episodes), study=STUDY, progress=progress, force=force)
+    configs = why_configs(options.seed_range, options.episodes)
+    runs = {}
+    with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
+        for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
+                                                 progress=lambda n: advance(study, n)):
+            runs[name] = results
+            ui.done(name, results, reused)
+    return runs
 
 
 def windows(episodes: int) -> dict[str, tuple[int, int]]:
@@ -241,9 +248,10 @@ def load_why(out: Path) -> tuple[dict[str, Results], list[str]]:
     return runs, problems
 
 
-def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple[Path, list[str]]:
-    """Tables, the figure and ``report.html`` of the factorial in ``out``, from its run directories; the
-    report's path and its findings."""
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None = None, videos: bool = True
+           ) -> Report:
+    """Tables, the figure and ``report.html`` of the factorial in ``out``, from ``runs`` or its run directories
+    (it draws no videos)."""
     out = Path(out)
     with store.rewriting(out, "study"):
         runs, problems = load_why(out) if runs is None else (runs, [])
@@ -256,7 +264,7 @@ def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple
         write_table(cells_table(runs), out / "tables", "cells")
         image = save_figure(decomposition_figure(frame), out / "figures" / "decomposition.png")
         first, sentences = next(iter(runs.values())), findings(frame)
-        return write_report(out / "report.html", "Why does SARSA win on Mountain Car? Target against order", [
+        path = write_report(out / "report.html", "Why does SARSA win on Mountain Car? Target against order", [
             Section("Findings", sentences),
             Section("Decomposition", [
                 "Per seed, on the same start states: SARSA - Q-Learning = order + target + interaction, where "
@@ -270,4 +278,5 @@ def build_why_report(out: Path, runs: dict[str, Results] | None = None) -> tuple
                 tables=[("SARSA minus Q-Learning, decomposed", table.astype(str)),
                         ("Every cell", cells_table(runs))],
                 figures=[(image, "The total and its three parts, per schedule and return")]),
-        ], problems), sentences
+        ], problems)
+        return Report(path, sentences, problems)

@@ -1,0 +1,184 @@
+"""What the command line shows: progress bars, tables, one-line errors, and the study interface's UI on a console."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pandas as pd
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+from rich.text import Text
+
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.store import StoreError
+from rlcompare.studies.interface import UI, Advance, Report
+
+if TYPE_CHECKING:
+    from rlcompare.experiment.benchmark import BenchTable
+
+console = Console(width=None if Console().is_terminal else 120)
+
+
+def print_error(message: str, details: tuple[str, ...] = ()) -> None:
+    """``Error: message`` on standard error, unwrapped and never read as markup, and a line per detail."""
+    errors = Console(stderr=True, soft_wrap=True, highlight=False)
+    errors.print(Text("Error: ", style="red") + Text(store.cut(message, 2000)))
+    for detail in details:
+        errors.print(Text(f"  {store.cut(detail, 2000)}"))
+
+
+def fail(message: str) -> None:
+    """One line, exit code 2."""
+    print_error(message)
+    raise typer.Exit(2)
+
+
+def one_line_errors(command: Callable) -> Callable:
+    """A command whose errors of the store or of the operating system (a full disk, a read-only directory), or
+    of a backend that cannot run, end it with one clear line and exit code 2; what was finished before them
+    stays on disk."""
+    from rlcompare.experiment.backends import BackendError
+
+    @functools.wraps(command)
+    def wrapped(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except BackendError as error:
+            fail(str(error))
+        except OSError as error:  # StoreError included
+            message = str(error) if isinstance(error, StoreError) or not error.strerror else (
+                f"{error.filename}: {error.strerror}" if error.filename else error.strerror)
+            fail(message)
+
+    return wrapped
+
+
+def option_flag(field_name: str) -> str:
+    """The option that gives a field: ``--hash-size`` for ``hash_size``, ``--stage`` for ``stages``."""
+    return "--stage" if field_name == "stages" else "--" + field_name.replace("_", "-")
+
+
+def bad_option(error: ConfigError) -> typer.BadParameter:
+    """A refused value as a usage error that names its option (exit code 2)."""
+    return typer.BadParameter(f"got {store.quote(error.value)}; allowed: {error.allowed}",
+                              param_hint=f"'{option_flag(error.field_name)}'")
+
+
+def out_path(text: str | None, default: Path) -> Path:
+    """The ``--out`` directory: the default where none is given; never the empty path."""
+    if text is None:
+        return default
+    try:
+        return store.check_path(text)
+    except StoreError as error:
+        raise typer.BadParameter(str(error).removeprefix("--out: "), param_hint="'--out'") from None
+
+
+def check_out(out: Path, owner: store.Owner, force: bool) -> None:
+    """Refuse an output directory before any training, so a bad path costs nothing computed."""
+    problem = store.refusal(out, owner, force=force)
+    if problem:
+        raise typer.BadParameter(problem, param_hint="'--out'")
+
+
+def progress_bars(eta: bool = False) -> Progress:
+    """A progress bar on a terminal; nothing but the per-configuration lines in a log."""
+    columns = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()]
+    if eta:
+        columns += [TextColumn("ETA"), TimeRemainingColumn()]
+    return Progress(*columns, console=console, disable=not console.is_terminal)
+
+
+def announce_compiling() -> None:
+    """Say so before a run that will compile the kernels, which takes a while on a fresh machine."""
+    from rlcompare._numba_cache import holds_nothing_yet
+
+    if holds_nothing_yet():
+        console.print("Compiling: the first run of each method on each environment and features compiles its "
+                      "training loop (10-20 s on two cores); later runs load it.")
+
+
+def done_line(name: str, results: Any, reused: bool) -> str:
+    """What a finished configuration took: its seeds (and episodes), and its time or that it was loaded."""
+    episodes = getattr(results.config, "episodes", None)
+    size = f"{len(results.seeds)} seeds" + (f" x {episodes} episodes" if episodes else "")
+    if reused:
+        return f"{name:<24} {size}: loaded (already complete)"
+    timings = results.meta.get("timings", {})
+    compiled = timings.get("compile_seconds", 0)
+    note = f" (and {compiled:.0f} s compiling or loading its loop)" if compiled >= 1 else ""
+    return f"{name:<24} {size}: {timings.get('wall_seconds', 0):.1f} s{note}"
+
+
+def print_frame(frame: pd.DataFrame, title: str, caption: str = "") -> None:
+    table = Table(title=title, caption=caption or None)
+    for column in frame.columns:
+        table.add_column(str(column), justify="left" if column == frame.columns[0] else "right", no_wrap=True)
+    for row in frame.itertuples(index=False):
+        table.add_row(*(str(value) for value in row))
+    console.print(table)
+
+
+def print_bench(table: BenchTable) -> None:
+    """A benchmark's table: its label column left, its numbers right; then its notes."""
+    shown = Table(title=table.title)
+    for index, column in enumerate(table.columns):
+        shown.add_column(column, justify="right" if index else "left")
+    for row in table.rows:
+        shown.add_row(*row)
+    console.print(shown)
+    for note in table.notes:
+        console.print(Text(note, style="yellow"))
+
+
+def print_report(report: Report) -> None:
+    """A report's sentences, what it could not build, and where it is; exit code 1 when something is missing."""
+    for line in report.lines:
+        console.print(Text(f"  {line}"), highlight=False)
+    for problem in report.problems:
+        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
+    timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in report.seconds.items())
+    console.print(f"Report: {report.path}" + (f"  ({timings})" if timings else ""))
+    if report.problems:
+        raise typer.Exit(1)
+
+
+class ConsoleUI(UI):
+    """The study interface's UI on the console: progress bars on a terminal, a line per configuration."""
+
+    def __init__(self) -> None:
+        self._progress: Progress | None = None
+
+    @contextlib.contextmanager
+    def tasks(self, totals: dict[str, int], *, eta: bool = False) -> Iterator[Advance]:
+        with progress_bars(eta) as progress:
+            ids = {name: progress.add_task(name, total=total) for name, total in totals.items()}
+            self._progress = progress
+            try:
+                yield lambda task, n: progress.advance(ids[task], n)
+            finally:
+                self._progress = None
+
+    def _console(self) -> Console:
+        return self._progress.console if self._progress is not None else console
+
+    def done(self, name: str, results: Any, reused: bool) -> None:
+        self._console().print(done_line(name, results, reused), highlight=False)
+
+    def say(self, text: str) -> None:
+        self._console().print(Text(text), highlight=False)
+
+    def table(self, frame: pd.DataFrame, title: str, caption: str = "") -> None:
+        print_frame(frame, title, caption)
+
+    @contextlib.contextmanager
+    def working(self, text: str) -> Iterator[None]:
+        with console.status(text):
+            yield

@@ -1,0 +1,160 @@
+"""``rlcompare reproduce STUDY``: one subcommand per record of :mod:`rlcompare.studies.registry`, each taking exactly
+the fields of its study's options (their docstrings as help) besides ``--out`` and ``--force``; ``reproduce``
+alone runs the paper, whose options it takes."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, get_type_hints
+
+import typer
+from typer.core import TyperGroup
+
+from rlcompare.cli.console import (
+    ConsoleUI,
+    announce_compiling,
+    bad_option,
+    check_out,
+    console,
+    fail,
+    one_line_errors,
+    option_flag,
+    out_path,
+    print_report,
+)
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ConfigError, field_docs
+from rlcompare.studies.interface import Options
+from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
+
+FORCE_HELP = ("Write into OUT even though it holds files rlcompare did not write; they are left as they are "
+              "(rlcompare never replaces or deletes a file it did not write).")
+COMMON = ("out", "force")
+"""Options of every study, beside its own."""
+
+
+def _common_parameters(study: str) -> list[inspect.Parameter]:
+    out = Annotated[str | None, typer.Option(
+        help=f"Study directory (new, empty, or this study's, written by rlcompare); one run directory per "
+             f"configuration. Default: runs/{study}.", show_default=False)]
+    force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
+    return [inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, default=None, annotation=out),
+            inspect.Parameter("force", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=force)]
+
+
+def option_parameters(options: type[Options]) -> list[inspect.Parameter]:
+    """An option per field of ``options``, named after it (and its other spellings), with its default and its
+    docstring as help; a tuple of strings is given by repeating the option, a boolean as ``--x/--no-x``."""
+    docs, types = field_docs(options), get_type_hints(options)
+    parameters = []
+    for field in dataclasses.fields(options):
+        kind, default = types[field.name], field.default
+        if kind == tuple[str, ...]:
+            kind, default = list[str] | None, None
+        flags = (option_flag(field.name), *field.metadata.get("spellings", ()))
+        if kind is bool:
+            flags = (f"{flags[0]}/--no-{flags[0][2:]}",)
+        parameters.append(inspect.Parameter(
+            field.name, inspect.Parameter.KEYWORD_ONLY, default=default,
+            annotation=Annotated[kind, typer.Option(*flags, help=docs.get(field.name, ""),
+                                                    show_default=default is not None)]))
+    return parameters
+
+
+def study_options(study: Study, values: dict[str, Any]) -> Options:
+    """The study's options from the command line's values; a refused value is a usage error naming its option."""
+    given = {name: tuple(value) if isinstance(value, list) else value for name, value in values.items()}
+    try:
+        return study.options(**{name: value for name, value in given.items() if value is not None})
+    except ConfigError as error:
+        raise bad_option(error) from None
+
+
+def load_runner(study: Study) -> Any:
+    """The study's runner; a missing optional extra ends the command with one line saying how to install it."""
+    try:
+        return study.load_runner()
+    except ImportError as error:
+        if not study.extra:
+            raise
+        fail(str(error))
+
+
+def reproduce_study(study: Study, values: dict[str, Any]) -> None:
+    """Check the options and the output directory, train what the study's directory lacks, then its report."""
+    out, force = out_path(values.pop("out"), Path("runs") / study.name), values.pop("force")
+    options = study_options(study, values)
+    check_out(out, store.Owner("study", study.name), force)
+    runner = load_runner(study)
+    announce_compiling()
+    try:
+        runs = runner.run(out, options, ConsoleUI(), study=study.name, force=force)
+    except ConfigError as error:
+        raise bad_option(error) from None
+    print_report(runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True)))
+
+
+def study_command(study: Study) -> Callable[..., None]:
+    """``rlcompare reproduce NAME`` for one study."""
+
+    @one_line_errors
+    def command(**values: Any) -> None:
+        reproduce_study(study, values)
+
+    command.__signature__ = inspect.Signature([*option_parameters(study.options), *_common_parameters(study.name)])
+    command.__doc__ = f"{study.summary[0].upper()}{study.summary[1:]}."
+    return command
+
+
+def list_studies() -> None:
+    for name, study in STUDIES.items():
+        console.print(f"{name:<12} {study.summary}", highlight=False)
+
+
+def default_study(ctx: typer.Context, **values: Any) -> None:
+    """Without a study's name, the paper's; options before a study's name are refused, since they are the
+    paper's."""
+    if values.pop("list_studies"):
+        list_studies()
+        raise typer.Exit(0)
+    if ctx.invoked_subcommand is not None:
+        given = [name for name in values if getattr(ctx.get_parameter_source(name), "name", "") == "COMMANDLINE"]
+        if given:
+            fail(f"{option_flag(given[0])} before the study's name is the paper's option; put it after the name: "
+                 f"rlcompare reproduce {ctx.invoked_subcommand} {option_flag(given[0])} ...")
+        return
+    one_line_errors(reproduce_study)(STUDIES[DEFAULT_STUDY], values)
+
+
+class StudyGroup(TyperGroup):
+    """The ``reproduce`` group: a name that is not a study's is a usage error listing the studies."""
+
+    def resolve_command(self, ctx: typer.Context, args: list[str]) -> Any:
+        if args and not args[0].startswith("-") and args[0] not in self.commands:
+            raise typer.BadParameter(f"got {args[0]!r}; allowed: {', '.join(self.commands)}", ctx,
+                                     param_hint="'STUDY'")
+        return super().resolve_command(ctx, args)
+
+
+def reproduce_app() -> typer.Typer:
+    """The ``reproduce`` group: the paper's options on the group itself, then a subcommand per study."""
+    app = typer.Typer(help="Reproduce a study: train what its directory lacks (configurations already complete "
+                           "in OUT are loaded, not trained again), then build its report. Without a study's name, "
+                           "the paper, whose options are below.", rich_markup_mode="rich", cls=StudyGroup)
+    list_option = Annotated[bool, typer.Option("--list", help="List the studies and exit.")]
+
+    def callback(ctx: typer.Context, **values: Any) -> None:
+        default_study(ctx, **values)
+
+    callback.__signature__ = inspect.Signature([
+        inspect.Parameter("ctx", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=typer.Context),
+        *option_parameters(STUDIES[DEFAULT_STUDY].options), *_common_parameters(DEFAULT_STUDY),
+        inspect.Parameter("list_studies", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=list_option)])
+    app.callback(invoke_without_command=True)(callback)
+    for name, study in STUDIES.items():
+        command = study_command(study)
+        app.command(name, help=command.__doc__)(command)
+    return app

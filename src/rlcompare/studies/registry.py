@@ -1,0 +1,154 @@
+"""Every study, one record each: its name, what it asks, its options and where its runner lives.
+
+``rlcompare reproduce STUDY`` is generated from these records: a subcommand per study taking exactly the fields
+of its options class (docstrings as help), so an option a study does not read is an error. ``reproduce --list``,
+``rlcompare report`` and the README's list read them too; nothing else lists the studies. A runner is imported
+only when its study runs (the deep study's needs the ``deep`` extra).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Any
+
+from rlcompare.studies.interface import Options, Seeded, listed, option
+
+PAPER_LEARNERS = ("q_learning", "sarsa")
+
+
+@dataclass(frozen=True)
+class PaperOptions(Seeded):
+    """The paper's grid of configurations on one environment."""
+
+    episodes: int = option(5000, minimum=1)
+    """Training episodes per seed (the paper gives none)."""
+    algorithms: str = ",".join(PAPER_LEARNERS)
+    """Comma-separated algorithms run on the paper's grid besides the random baseline; 'all' for every one. Each
+    adds rows to Tables I and II."""
+    videos: bool = True
+    """Render videos of the greedy agents into the report."""
+
+    def check(self) -> None:
+        self.learners  # noqa: B018 - refuses an unknown algorithm on creation
+
+    @property
+    def learners(self) -> tuple[str, ...]:
+        from rlcompare.algorithms.registry import METHODS
+
+        return listed("algorithms", self.algorithms, tuple(a for a in METHODS if a != "random"), every="all")
+
+
+@dataclass(frozen=True)
+class WhyOptions(Seeded):
+    episodes: int = option(5000, minimum=1)
+    """Training episodes per seed."""
+
+
+@dataclass(frozen=True)
+class Book100Options(Seeded):
+    seeds: int = option(100, minimum=1, spellings=("--runs",))
+    """Number of runs, as many as the book averages over; the seeds are first-seed, first-seed + 1, ..."""
+
+
+@dataclass(frozen=True)
+class CliffOptions(Seeded):
+    seeds: int = option(50, minimum=1, spellings=("--runs",))
+    """Number of runs, as many as the book averages over; the seeds are first-seed, first-seed + 1, ..."""
+
+
+@dataclass(frozen=True)
+class Fig63Options(Seeded):
+    seeds: int = option(50_000, minimum=1, spellings=("--runs",))
+    """Runs of the interim phase, as the book's; the asymptotic phase runs the first 1 in 5,000 of them, at
+    least 2."""
+    episodes: int = option(100_000, minimum=1)
+    """Episodes of the asymptotic phase (the book's 100,000)."""
+
+
+@dataclass(frozen=True)
+class DeepOptions(Seeded):
+    seeds: int = option(10, minimum=1, spellings=("--runs",))
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ..."""
+    steps: int | None = option(None, minimum=1)
+    """Environment steps of every deep training, in place of each preset's (for a quick look)."""
+    episodes: int = option(5000, minimum=1)
+    """Training episodes per seed of the tabular pair."""
+    methods: str | None = None
+    """Comma-separated deep methods. Default: every one."""
+    envs: str | None = None
+    """Comma-separated environments (CartPole-v1, Acrobot-v1, MountainCar-v0). Default: all three."""
+    workers: int | None = option(None, minimum=1)
+    """Deep configurations trained at once. Default: one per core, at most 4."""
+
+
+@dataclass(frozen=True)
+class SensitivityOptions(Options):
+    seeds: int = option(20, minimum=1, spellings=("--runs",))
+    """Number of seeds, from the study's sweep: SeedSequence(0).spawn(N)."""
+    episodes: int = option(1500, minimum=1)
+    """Training episodes per seed."""
+    grid: tuple[str, ...] = ()
+    """The values of one axis of the grid, KEY=V1,V2,... with KEY alpha, gamma, epsilon_end or
+    truncation_as_terminal; repeat the option. Default: alpha=0.01,0.05,0.1,0.2,0.5 gamma=0.9,0.99,1
+    epsilon_end=0,0.01,0.05 truncation_as_terminal=false,true."""
+    workers: int | None = option(None, minimum=1)
+    """Trials at once on this machine. Default: every core."""
+    address: str | None = None
+    """Run the trials on the Ray cluster at this address ('auto': the one 'ray start' began here; or HOST:PORT)
+    instead of this machine's cores."""
+
+
+@dataclass(frozen=True)
+class Study:
+    """One study: ``rlcompare reproduce NAME``."""
+
+    name: str
+    summary: str
+    """One line: what the study asks."""
+    options: type[Options]
+    runner: str
+    """``module`` or ``module:attribute``: the object whose ``run`` and ``report`` carry the study out
+    (:mod:`rlcompare.studies.interface`)."""
+    extra: str = ""
+    """The optional extra its runner needs, if any."""
+
+    def load_runner(self) -> Any:
+        """The runner, imported now; an :class:`ImportError` saying how to install a missing extra."""
+        module, _, attribute = self.runner.partition(":")
+        loaded = importlib.import_module(module)
+        return getattr(loaded, attribute) if attribute else loaded
+
+
+STUDIES = {study.name: study for study in (
+    Study("paper", "the paper: Q-Learning vs SARSA on MountainCar-v0, ε constant and decaying, and the order ablation",
+          PaperOptions, "rlcompare.studies.paper:MOUNTAIN_CAR"),
+    Study("why", "why SARSA wins there: target (max, taken, expectation) x order of choosing A' and updating",
+          WhyOptions, "rlcompare.studies.why"),
+    Study("cartpole", "the paper's grid of configurations on CartPole-v1", PaperOptions,
+          "rlcompare.studies.paper:CARTPOLE"),
+    Study("acrobot", "the paper's grid of configurations on Acrobot-v1", PaperOptions,
+          "rlcompare.studies.paper:ACROBOT"),
+    Study("book-10.2", "Semi-gradient SARSA with tile coding (Figure 10.2)", Book100Options,
+          "rlcompare.studies.book:FIG_10_2"),
+    Study("book-12.10", "SARSA(λ) with replacing traces (Figure 12.10)", Book100Options,
+          "rlcompare.studies.book:FIG_12_10"),
+    Study("cliff", "Cliff Walking: SARSA, Q-Learning and Expected SARSA (Example 6.6)", CliffOptions,
+          "rlcompare.studies.book:CLIFF_STUDY"),
+    Study("book-6.3", "Cliff Walking against α, 100 episodes x 50,000 runs and 100,000 x 10 (Figure 6.3; about "
+          "5 min on 2 cores)", Fig63Options, "rlcompare.studies.book:FIG_6_3"),
+    Study("deep", "the question with networks: Q(λ), SARSA(λ), DQN, PPO on three environments (the 'deep' extra)",
+          DeepOptions, "rlcompare.studies.deep", extra="deep"),
+    Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, ε_end and the time limit? (a sweep; Ray: "
+          "--address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
+)}
+"""Every study, in the order ``reproduce --list`` shows them; ``paper`` is what ``reproduce`` alone runs."""
+DEFAULT_STUDY = "paper"
+
+
+def study(name: str) -> Study:
+    """The study called ``name``; a :class:`KeyError` naming the studies there are."""
+    try:
+        return STUDIES[name]
+    except KeyError:
+        raise KeyError(f"unknown study {name!r}; studies: {', '.join(STUDIES)}") from None
