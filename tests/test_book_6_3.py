@@ -18,6 +18,7 @@ from rlcompare import cli
 from rlcompare.analysis.stats import mean_interval
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig, records_bytes
+from rlcompare.experiment.engines import load_if_complete
 from rlcompare.studies import book_6_3
 from rlcompare.studies.registry import STUDIES
 
@@ -196,7 +197,7 @@ def test_mean_interval_is_students_t_with_the_modules_conventions() -> None:
 def test_a_damaged_run_directory_is_trained_again(tmp_path: Path) -> None:
     config = ExperimentConfig(algorithm="sarsa", alpha=0.5, episodes=20, seeds=(0, 1), **book_6_3.SETTINGS)
     first = book_6_3.train(config, out=tmp_path / "run")
-    assert book_6_3.load_if_complete(tmp_path / "run", config).runs.equals(first.runs)
-    assert book_6_3.load_if_complete(tmp_path / "run", dataclasses.replace(config, alpha=0.6)) is None
+    assert load_if_complete(tmp_path / "run", config, book_6_3.PhaseRuns.load).runs.equals(first.runs)
+    assert load_if_complete(tmp_path / "run", dataclasses.replace(config, alpha=0.6), book_6_3.PhaseRuns.load) is None
     (tmp_path / "run" / book_6_3.RUNS_FILE).write_bytes(b"damaged")
-    assert book_6_3.load_if_complete(tmp_path / "run", config) is None
+    assert load_if_complete(tmp_path / "run", config, book_6_3.PhaseRuns.load) is None

@@ -14,8 +14,8 @@ import gymnasium as gym
 import jax
 import jax.numpy as jnp
 
+from rlcompare import load_agent
 from rlcompare.cli import app
-from rlcompare.deep.agent import load_agent
 from rlcompare.deep.envs import DEEP_ENVS
 from rlcompare.deep.run import DeepConfig, DeepResults, compiled_program
 from rlcompare.deep.run import run as deep_run

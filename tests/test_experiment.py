@@ -14,7 +14,7 @@ from gymnasium_play import gymnasium_returns
 from rlcompare import ExperimentConfig, Results, load_agent, run
 from rlcompare.experiment import results as results_module
 from rlcompare.experiment import store
-from rlcompare.experiment.runner import load_if_complete
+from rlcompare.experiment.engines import load_if_complete
 from rlcompare.studies.paper import paper_configs, reproduce
 
 

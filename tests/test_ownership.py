@@ -28,7 +28,7 @@ from typer.testing import CliRunner
 from rlcompare import ExperimentConfig, Results, cli, load_agent, run
 from rlcompare.experiment import store
 from rlcompare.experiment.backends import LocalBackend
-from rlcompare.experiment.runner import load_if_complete
+from rlcompare.experiment.engines import load_if_complete
 from rlcompare.experiment.sweep import parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, run_sweep, trial_path
 from rlcompare.studies.paper import paper_configs, reproduce

@@ -24,7 +24,7 @@ from rlcompare import cli, run
 from rlcompare.engine.state import Records
 from rlcompare.experiment import store
 from rlcompare.experiment.backends import LocalBackend
-from rlcompare.experiment.sweep import CONFIG_KEYS, SweepError, derive_seeds, load_sweep, parse_sweep
+from rlcompare.experiment.sweep import SweepError, derive_seeds, load_sweep, parse_sweep
 from rlcompare.experiment.sweep_store import (
     MANIFEST_FILE,
     SweepStore,
@@ -34,6 +34,7 @@ from rlcompare.experiment.sweep_store import (
     run_sweep,
     trial_path,
 )
+from rlcompare.experiment.tabular import SWEEP_KEYS as CONFIG_KEYS
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "sweep.toml"
 SMALL = """

@@ -20,9 +20,10 @@ pytest.importorskip("jax")
 
 from rlcompare import cli
 from rlcompare.deep import INSTALL_HINT
+from rlcompare.deep.engine import SWEEP_KEYS as DEEP_KEYS
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.experiment import store
-from rlcompare.experiment.sweep import DEEP_KEYS, SweepError, config_dict, config_hash, parse_sweep
+from rlcompare.experiment.sweep import SweepError, config_dict, config_hash, parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, read_table, trial_path
 from rlcompare.studies.sweep_report import PANELS, across_figure, deep_configuration_rows, deep_metrics
 

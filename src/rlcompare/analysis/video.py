@@ -65,8 +65,8 @@ from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis import frames
 from rlcompare.envs.registry import environment
 from rlcompare.experiment import store
-from rlcompare.experiment.agent import load_agent
 from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.engines import load_agent
 from rlcompare.experiment.results import Results
 
 DEFAULT_EPISODE_SEED = 10_000

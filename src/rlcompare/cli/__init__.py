@@ -83,8 +83,7 @@ def sweep(
         help="The sweep's store (new, empty, or a sweep store rlcompare wrote). Default: runs/sweeps/NAME.",
         show_default=False)] = None,
     backend: Annotated[str, typer.Option(help="local (this machine's cores) or ray (a Ray cluster).")] = "local",
-    workers: Annotated[int | None, typer.Option(min=1, help="Local backend: trials at once. Default: every "
-                                                           "core.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Local backend: trials at once. Default: every core.")] = None,
     address: Annotated[str, typer.Option(help="Ray backend: 'auto' (the cluster 'ray start' began here) or "
                                               "HOST:PORT.")] = "auto",
     group_by: Annotated[list[str] | None, typer.Option(
@@ -105,6 +104,8 @@ def sweep(
         raise typer.Exit(2) from None
     if backend not in BACKENDS:
         raise typer.BadParameter(f"got {backend!r}; allowed: {', '.join(BACKENDS)}", param_hint="'--backend'")
+    if workers is not None and workers < 1:
+        raise typer.BadParameter(f"got {workers}; allowed: an integer >= 1", param_hint="'--workers'")
     unknown = [key for key in group_by or [] if key not in plan.swept]
     if unknown:
         raise typer.BadParameter(f"got {unknown[0]!r}; allowed: a swept key ({', '.join(plan.swept) or 'none'})",

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import jax
@@ -29,10 +28,11 @@ class DeepAgent:
         return int(self._act(self.params, checked[None])[0])
 
 
-def load_agent(run_dir: Path, seed: int | None = None) -> DeepAgent:
-    """The agent of ``seed`` (default: the run's first) from a finished deep run directory, checked on load."""
-    results = DeepResults.load(Path(run_dir))
-    return DeepAgent(results, results.seeds[0] if seed is None else seed)
+def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent:
+    """The greedy agent of ``seed``'s final network (a deep run keeps no earlier stage)."""
+    if stage != "final":
+        raise KeyError(f"stage {stage!r} is not in this run; stages: ['final'] (a deep run keeps its final network)")
+    return DeepAgent(results, seed)
 
 
 def gymnasium_returns(results: DeepResults, episodes: int = 10, first_episode_seed: int = 1_000_000) -> np.ndarray:

@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import numpy as np
@@ -37,6 +37,9 @@ from rlcompare.experiment.runner import package_version, versions
 @dataclass(frozen=True)
 class DeepConfig:
     """One deep configuration, run once per seed. Frozen and validated on creation."""
+
+    engine: ClassVar[str] = "deep"
+    """The engine that trains it (:mod:`rlcompare.experiment.engines`)."""
 
     algorithm: str = "pqn_q_lambda"
     """A deep method: ``pqn_q_lambda``, ``pqn_sarsa_lambda``, ``pqn_expected_sarsa_lambda``, ``dqn``,
@@ -93,7 +96,7 @@ class DeepConfig:
     def to_dict(self) -> dict[str, Any]:
         """What ``config.json`` holds: the fields, and every hyperparameter the run used."""
         data = dataclasses.asdict(self)
-        data["engine"] = "deep"
+        data["engine"] = self.engine
         data["seeds"] = list(self.seeds)
         data["resolved"] = _jsonable(dataclasses.asdict(self.method_config()))
         return data
@@ -115,6 +118,9 @@ def _jsonable(value: Any) -> Any:
 @dataclass
 class DeepResults:
     """Every seed of one deep configuration: its episodes, evaluations, final parameters and how the run went."""
+
+    content_files: ClassVar[tuple[str, ...]] = store.DEEP_CONTENT_FILES
+    """The files of its run directory beside ``meta.json``."""
 
     config: DeepConfig
     episodes: pd.DataFrame
@@ -150,34 +156,22 @@ class DeepResults:
         return jax.tree.map(lambda leaf: leaf[index], self.stacked_params(template))
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory: the files under temporary names first, ``meta.json`` last."""
-        run_dir = Path(run_dir)
-        store.claim(run_dir, store.RUN, outputs=store.DEEP_RUN_FILES)
+        """Write the run directory (:func:`~rlcompare.experiment.store.write_run`)."""
         labels = {"study": self.meta.get("study", ""), "env": self.config.env, "algorithm": self.config.algorithm,
                   "schedule": self.config.preset}
-        contents = {
-            store.CONFIG_FILE: (json.dumps(self.config.to_dict(), indent=2, sort_keys=True) + "\n").encode(),
+        return store.write_run(run_dir, self.config.to_dict(), {
             store.EPISODES_FILE: _parquet_bytes(_table(self.episodes, labels)),
             store.EVALUATIONS_FILE: _parquet_bytes(_table(self.evaluations, labels)),
             store.PARAMS_FILE: _npz_bytes({**self.params, "seeds": np.asarray(self.seeds)}),
-        }
-        store.enter_outputs(*(run_dir / name for name in store.DEEP_RUN_FILES))
-        (run_dir / store.META_FILE).unlink(missing_ok=True)
-        for name, data in contents.items():
-            store.write_bytes_atomic(run_dir / name, data)
-        files = {name: store.file_record(data) for name, data in contents.items()}
-        record = {"seeds": list(self.seeds), "files": files}
-        store.write_json_atomic(run_dir / store.META_FILE, {**self.meta, "contents": record})
-        return run_dir
+        }, self.meta, {"seeds": list(self.seeds)})
 
     @classmethod
     def load(cls, run_dir: Path, expected: DeepConfig | None = None) -> DeepResults:
         """Read a finished deep run directory after checking that its files belong together (and hold
         ``expected`` where given); anything else is a :class:`~rlcompare.experiment.store.StoreError`."""
         run_dir = Path(run_dir)
-        meta = store.verify_run(run_dir, None if expected is None else _json_round_trip(expected.to_dict()),
-                                store.DEEP_CONTENT_FILES)
-        stored = store.read_json(run_dir / store.CONFIG_FILE)
+        meta, stored = store.read_run(run_dir, cls.content_files,
+                                      None if expected is None else _json_round_trip(expected.to_dict()))
         try:
             config = DeepConfig.from_dict(stored)
         except (ValueError, TypeError) as error:
@@ -218,17 +212,6 @@ def merge_seeds(parts: list[DeepResults]) -> DeepResults:
                        pd.concat([part.evaluations for part in parts], ignore_index=True),
                        {name: np.concatenate([part.params[name] for part in parts]) for name in first.params},
                        {**first.meta, "seeds": list(seeds), "timings": timings})
-
-
-def load_if_complete(run_dir: Path, config: DeepConfig) -> DeepResults | None:
-    """The stored results of ``config`` in ``run_dir`` if that run finished and its files belong together, else
-    None (so it is run again)."""
-    if not store.is_complete(run_dir, store.DEEP_RUN_FILES):
-        return None
-    try:
-        return DeepResults.load(run_dir, expected=config)
-    except store.StoreError:
-        return None
 
 
 def _json_round_trip(data: dict) -> dict:

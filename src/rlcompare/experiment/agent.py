@@ -10,7 +10,6 @@ Gymnasium's ``DiscretizeObservation``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -130,10 +129,9 @@ class RandomAgent:
         return int(self.rng.integers(self.n_actions))
 
 
-def load_agent(run_dir: Path, *, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent:
-    """The agent of ``seed`` at ``stage`` in a run directory, ready for ``gymnasium.make(config.env)``
+def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent:
+    """The agent of ``seed`` at ``stage`` of a tabular run, ready for ``gymnasium.make(config.env)``
     (``MountainCar-v0`` for the book's variant too, whose trajectories are the same)."""
-    results = Results.load(Path(run_dir))
     weights = results.q_table(seed, stage)
     c = results.config
     env = c.environment

@@ -24,30 +24,24 @@ import socket
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
+from typing import Any
 
-from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.results import Results
-from rlcompare.experiment.runner import run
+from rlcompare.experiment import engines
 from rlcompare.experiment.sweep import Trial, config_dict
 
 BACKENDS = ("local", "ray")
-OnDone = Callable[[Trial, Results], None]
-"""Called with a trial and its results (a deep sweep's: :class:`~rlcompare.deep.run.DeepResults`)."""
+OnDone = Callable[[Trial, Any], None]
+"""Called with a trial and its results (its engine's: a deep sweep's :class:`~rlcompare.deep.run.DeepResults`)."""
 
 
 class BackendError(RuntimeError):
     """A backend that cannot start: Ray missing, or no cluster at the address."""
 
 
-def run_trial(config: dict) -> Results:
-    """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker); a deep one
-    (``"engine": "deep"``) on the deep engine, imported only then."""
-    if config.get("engine") == "deep":
-        from rlcompare.deep.run import DeepConfig
-        from rlcompare.deep.run import run as deep_run
-
-        return deep_run(DeepConfig.from_dict(config))
-    return run(ExperimentConfig.from_dict(config))
+def run_trial(config: dict) -> Any:
+    """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker) on the engine it
+    names (:mod:`rlcompare.experiment.engines`), imported only then."""
+    return engines.train(engines.config_from_dict(config))
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import os
 import re
 import textwrap
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.schedules import SCHEDULES
@@ -62,6 +62,9 @@ class ConfigError(ValueError):
 @dataclass(frozen=True)
 class ExperimentConfig:
     """One configuration, run once per seed. Frozen and validated on creation."""
+
+    engine: ClassVar[str] = "tabular"
+    """The engine that trains it (:mod:`rlcompare.experiment.engines`)."""
 
     algorithm: str = "q_learning"
     """Learning rule: a method of :data:`rlcompare.algorithms.registry.METHODS`, for example ``q_learning``

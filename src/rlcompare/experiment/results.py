@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import io
-import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -21,6 +20,9 @@ from rlcompare.experiment.config import ExperimentConfig
 @dataclass
 class Results:
     """Records of every seed of one configuration, with the configuration and how the run went."""
+
+    content_files: ClassVar[tuple[str, ...]] = store.CONTENT_FILES
+    """The files of its run directory beside ``meta.json``."""
 
     config: ExperimentConfig
     epsilons: np.ndarray
@@ -80,28 +82,16 @@ class Results:
         return self.records.snapshots[self.seeds.index(seed), stages.index(stage)]
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory (an output directory of rlcompare's, :mod:`~rlcompare.experiment.store`):
-        every file under a temporary name first, ``meta.json`` last, with the size and checksum of the others."""
-        run_dir = Path(run_dir)
-        store.claim(run_dir, store.RUN, outputs=store.RUN_FILES)
-        contents = {
-            store.CONFIG_FILE: (json.dumps(self.config.to_dict(), indent=2, sort_keys=True) + "\n").encode(),
+        """Write the run directory (:func:`~rlcompare.experiment.store.write_run`)."""
+        return store.write_run(run_dir, self.config.to_dict(), {
             store.EPISODES_FILE: _parquet_bytes(self._episodes_table()),
             store.EVALUATIONS_FILE: _parquet_bytes(self._evaluations_table()),
             store.QTABLES_FILE: self._arrays_bytes(),
-        }
-        store.enter_outputs(*(run_dir / name for name in store.RUN_FILES))
-        (run_dir / store.META_FILE).unlink(missing_ok=True)  # the run is complete again only when rewritten
-        for name, data in contents.items():
-            store.write_bytes_atomic(run_dir / name, data)
-        record = {
+        }, self.meta, {
             "seeds": list(self.seeds),
             "rows": {"episodes": int(self.records.returns.size), "evaluations": int(self.records.eval_returns.size)},
             "arrays": {name: list(getattr(self.records, name).shape) for name in ("snapshots", "visits")},
-            "files": {name: store.file_record(data) for name, data in contents.items()},
-        }
-        store.write_json_atomic(run_dir / store.META_FILE, {**self.meta, "contents": record})
-        return run_dir
+        })
 
     def _arrays_bytes(self) -> bytes:
         buffer = io.BytesIO()
@@ -117,9 +107,9 @@ class Results:
         (and hold ``expected`` where given): anything else is a :class:`~rlcompare.experiment.store.StoreError`
         that names the file."""
         run_dir = Path(run_dir)
-        meta = store.verify_run(run_dir, None if expected is None else expected.to_dict())
+        meta, stored = store.read_run(run_dir, cls.content_files, None if expected is None else expected.to_dict())
         try:
-            config = ExperimentConfig.from_dict(_tuples(store.read_json(run_dir / store.CONFIG_FILE)))
+            config = ExperimentConfig.from_dict(_tuples(stored))
         except ValueError as error:
             raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: {error}") from None
         try:

@@ -12,6 +12,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import numba
 import numpy as np
@@ -160,28 +161,29 @@ def package_version(package: str) -> str | None:
 
 
 def run_or_load(
-    out: Path, configs: dict[str, ExperimentConfig], *, study: str, progress: Callable[[int], None] | None = None,
-    force: bool = False, train: Callable[..., Results] | None = None,
-    load_finished: Callable[[Path, ExperimentConfig], Results | None] | None = None, workers: int = 1,
-) -> Iterator[tuple[str, Results, bool]]:
-    """Run each configuration into ``out / name``, or load it if that run already finished and its files belong
-    together. ``train`` and ``load_finished`` stand for :func:`run` and :func:`load_if_complete` where another
-    engine trains (the deep one, :mod:`rlcompare.deep.run`), which may train ``workers`` configurations at once
-    (each run's results depend on its configuration alone).
+    out: Path, configs: dict[str, Any], *, study: str, progress: Callable[[int], None] | None = None,
+    force: bool = False, train: Callable[..., Any] | None = None, load: Callable[..., Any] | None = None,
+    workers: int = 1,
+) -> Iterator[tuple[str, Any, bool]]:
+    """Run each configuration into ``out / name`` on its engine (:mod:`rlcompare.experiment.engines`), or load
+    it if that run already finished and its files belong together. A study that keeps a summary of its runs
+    instead gives its own ``train`` and ``load`` (``Results.load``'s signature). ``workers`` configurations train
+    at once (each run's results depend on its configuration alone).
 
     ``out`` is claimed as the study's directory (``force``: even beside files rlcompare did not write) and
     locked while this runs. Yields ``(name, results, reused)`` as each configuration completes, so an
     interrupted study resumes where it stopped and loses nothing finished.
     """
+    from rlcompare.experiment import engines
 
-    def one(name: str, config: ExperimentConfig) -> tuple[str, Results, bool]:
+    def one(name: str, config: Any) -> tuple[str, Any, bool]:
         run_dir = Path(out) / name
-        stored = (load_finished or load_if_complete)(run_dir, config)
+        stored = engines.load_if_complete(run_dir, config, load)
         if stored is not None:
             if progress is not None:
                 progress(config.progress_total)
             return name, stored, True
-        return name, (train or run)(config, out=run_dir, study=study, progress=progress), False
+        return name, (train or engines.train)(config, out=run_dir, study=study, progress=progress), False
 
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
         if workers <= 1:
@@ -196,19 +198,3 @@ def run_or_load(
             finally:
                 for future in pending:
                     future.cancel()
-
-
-def load(run_dir: Path) -> Results:
-    """Read a finished run directory."""
-    return Results.load(run_dir)
-
-
-def load_if_complete(run_dir: Path, config: ExperimentConfig) -> Results | None:
-    """The stored results of ``config`` in ``run_dir`` if that run finished and its files belong together,
-    else None (so it is run again)."""
-    if not store.is_complete(run_dir):
-        return None
-    try:
-        return Results.load(run_dir, expected=config)
-    except store.StoreError:
-        return None

@@ -397,7 +397,7 @@ def remove_stale_temporaries(directory: Path) -> None:
 
 def is_complete(run_dir: Path, files: tuple[str, ...] = RUN_FILES) -> bool:
     """Whether every file of a finished run is present (``meta.json`` is written last); whether they belong
-    together is :func:`verify_run`'s question. ``files``: a deep run's, :data:`DEEP_RUN_FILES`."""
+    together is :func:`verify_run`'s question. ``files``: the engine's, with ``meta.json``."""
     return all((Path(run_dir) / name).is_file() for name in files)
 
 
@@ -409,6 +409,36 @@ PARAMS_FILE = "params.npz"
 DEEP_CONTENT_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, PARAMS_FILE)
 """A deep run's: the network's parameters stand where a tabular run keeps its Q-tables."""
 DEEP_RUN_FILES = (*DEEP_CONTENT_FILES, META_FILE)
+
+
+def write_run(run_dir: Path, config: dict, contents: dict[str, bytes], meta: dict, record: dict | None = None
+              ) -> Path:
+    """Write a run directory, the one way every engine and study does: ``config.json`` and ``contents``
+    (file name -> bytes) each under a temporary name renamed into place, then ``meta.json`` last, with
+    ``record`` (what the run holds: seeds, rows, shapes) and the size and checksum of every other file. A
+    reader (:func:`verify_run`) takes the run as finished only once ``meta.json`` is there and agrees."""
+    run_dir = Path(run_dir)
+    contents = {CONFIG_FILE: (json.dumps(config, indent=2, sort_keys=True) + "\n").encode(), **contents}
+    names = (*contents, META_FILE)
+    claim(run_dir, RUN, outputs=names)
+    enter_outputs(*(run_dir / name for name in names))
+    (run_dir / META_FILE).unlink(missing_ok=True)  # the run is complete again only when rewritten
+    for name, data in contents.items():
+        write_bytes_atomic(run_dir / name, data)
+    files = {name: file_record(data) for name, data in contents.items()}
+    write_json_atomic(run_dir / META_FILE, {**meta, "contents": {**(record or {}), "files": files}})
+    return run_dir
+
+
+def read_run(run_dir: Path, content_files: tuple[str, ...], expected_config: dict | None = None
+             ) -> tuple[dict, dict]:
+    """``(meta, config)`` of a finished run directory whose files belong together (:func:`verify_run`);
+    anything else is a :class:`StoreError` naming the file."""
+    meta = verify_run(run_dir, expected_config, content_files)
+    config = read_json(Path(run_dir) / CONFIG_FILE)
+    if not isinstance(config, dict):
+        raise StoreError(f"{Path(run_dir) / CONFIG_FILE}: not a configuration rlcompare wrote")
+    return meta, config
 
 
 def file_record(data: bytes) -> dict[str, Any]:

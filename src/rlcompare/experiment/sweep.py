@@ -46,7 +46,8 @@ import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -55,22 +56,15 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from rlcompare.experiment.config import ConfigError, ExperimentConfig
+from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.engines import ENGINES
 from rlcompare.experiment.store import cut, quote
-
-if TYPE_CHECKING:
-    from rlcompare.deep.run import DeepConfig
 
 SECTIONS = ("sweep", "fixed", "grid", "include")
 SWEEP_KEYS = ("name", "root_seed", "seeds", "engine")
-ENGINES = ("tabular", "deep")
 MAX_TRIALS = 100_000
 NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,99}")
 """A sweep's name: one directory name (the default store is runs/sweeps/NAME), never a path."""
-CONFIG_KEYS = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name != "seeds")
-DEEP_KEYS = ("algorithm", "env", "preset", "eval_rounds", "eval_episodes")
-"""The fields of DeepConfig a deep sweep sets, besides ``hyperparameters.NAME``: not ``seeds`` (set in [sweep]) and
-not ``vmap_width``, 1 for a trial's one seed."""
 HYPERPARAMETERS = "hyperparameters."
 
 
@@ -87,7 +81,7 @@ class SweepError(ValueError):
 class Trial:
     """One configuration with one seed."""
 
-    config: ExperimentConfig | DeepConfig
+    config: Any
     """The configuration, with ``seeds`` the one seed of this trial."""
     config_hash: str
     """Identifies the configuration apart from its seeds."""
@@ -106,7 +100,7 @@ class Trial:
 class _Built:
     """A valid configuration of the file, with where it came from."""
 
-    config: ExperimentConfig | DeepConfig
+    config: Any
     where: str
     """``grid`` or ``include[k]``."""
     values: dict
@@ -121,7 +115,7 @@ class Sweep:
     name: str
     root_seed: int
     seeds: tuple[int, ...]
-    configs: tuple[ExperimentConfig | DeepConfig, ...]
+    configs: tuple[Any, ...]
     """Each with ``seeds`` set to the sweep's seeds, in the order of the file: [grid] then [[include]]."""
     swept: tuple[str, ...]
     """The keys whose value differs between configurations (:func:`swept_value`)."""
@@ -136,19 +130,19 @@ class Sweep:
                 for k, seed in enumerate(self.seeds) for c, h in zip(self.configs, hashes, strict=True)]
 
 
-def config_hash(config: ExperimentConfig | DeepConfig) -> str:
+def config_hash(config: Any) -> str:
     """A short hash of every field of the configuration but its seeds (a deep one's ``engine`` and resolved
     hyperparameters included)."""
     fields = {k: v for k, v in config.to_dict().items() if k != "seeds"}
     return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def config_dict(config: ExperimentConfig | DeepConfig) -> dict:
+def config_dict(config: Any) -> dict:
     """The configuration as its trial's ``config.json`` holds it (JSON's lists for tuples)."""
     return json.loads(json.dumps(config.to_dict()))
 
 
-def swept_value(config: ExperimentConfig | DeepConfig, key: str) -> Any:
+def swept_value(config: Any, key: str) -> Any:
     """A configuration's value of a sweep key: its field, or for ``hyperparameters.NAME`` the value the deep method
     runs with (the preset's where the sweep does not set it; None where the method has no such field)."""
     if key.startswith(HYPERPARAMETERS):
@@ -209,86 +203,50 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
     sources.append([(f"include[{k}]", {**fixed, **include},
                      {**at_fixed, **{key: f"include[{k}].{key}" for key in include}})
                     for k, include in enumerate(includes)])
-    built = _configs(itertools.chain.from_iterable(sources), seeds, engine.build, problems)
+    built = _configs(itertools.chain.from_iterable(sources), seeds, engine.sweep_config, problems)
     problems.extend(_duplicates(built))
     configs = [b.config for b in built]
     if problems:
         raise SweepError(source, list(dict.fromkeys(problems)))
     given = dict.fromkeys([*grid, *(key for include in includes for key in include)])
-    order = [*engine.keys, *(key for key in given if key not in engine.keys)]  # then hyperparameters.NAME
+    order = [*engine.SWEEP_KEYS, *(key for key in given if key not in engine.SWEEP_KEYS)]  # then nested keys
     swept = tuple(key for key in order
                   if key in given and len({json.dumps(swept_value(c, key)) for c in configs}) > 1)
-    return Sweep(name, root_seed, seeds, tuple(configs), swept, engine.name)
+    return Sweep(name, root_seed, seeds, tuple(configs), swept, engine_name)
 
 
-@dataclass(frozen=True)
-class _Engine:
-    """What a sweep's configurations are: the keys its sections may set, and how one is built from them."""
-
-    name: str
-    keys: tuple[str, ...]
-    build: Callable[[dict, tuple[int, ...]], Any]
-    """From the values given (``hyperparameters.NAME`` flat) and the seeds; a :class:`ConfigError` names the key."""
-
-
-def _engine(name: str | None, problems: list[str]) -> _Engine | None:
-    """The engine named in [sweep]; None, with the problem reported, where it is unknown or not installed."""
-    if name == "tabular":
-        return _Engine(name, CONFIG_KEYS, lambda values, seeds: ExperimentConfig(**values, seeds=seeds))
-    if name == "deep":
-        try:
-            return _deep_engine()
-        except ImportError as error:  # rlcompare.deep.DeepUnavailable: JAX, flax or optax is missing
-            problems.append(f"sweep.engine: {error}")
+def _engine(name: str | None, problems: list[str]) -> ModuleType | None:
+    """The front of the engine named in [sweep] (:mod:`rlcompare.experiment.engines`); None, with the problem
+    reported, where it is unknown or not installed."""
+    if name not in ENGINES:
+        return None
+    try:
+        return ENGINES[name].front()
+    except ImportError as error:  # rlcompare.deep.DeepUnavailable: JAX, flax or optax is missing
+        problems.append(f"sweep.engine: {error}")
     return None
 
 
-def _deep_engine() -> _Engine:
-    """DeepConfigs of one seed at a time; hyperparameters the preset already has are dropped, so that a
-    configuration has one hash however it is written."""
-    from rlcompare.deep.methods import hyperparameters
-    from rlcompare.deep.run import DeepConfig
-
-    fields = {f.name for f in dataclasses.fields(DeepConfig)}
-
-    def build(values: dict, seeds: tuple[int, ...]) -> DeepConfig:
-        overrides = {key.removeprefix(HYPERPARAMETERS): value for key, value in values.items()
-                     if key.startswith(HYPERPARAMETERS)}
-        given = {key: value for key, value in values.items() if not key.startswith(HYPERPARAMETERS)}
-        try:
-            config = DeepConfig(**given, hyperparameters=overrides, seeds=seeds, vmap_width=1)
-        except ConfigError as error:  # a method's own checks name its field alone: lam, total_steps
-            if error.field_name in fields or error.field_name.startswith(HYPERPARAMETERS):
-                raise
-            name = error.field_name
-            raise ConfigError(HYPERPARAMETERS + name, overrides.get(name, error.value), error.allowed) from None
-        resolved, preset = config.method_config(), hyperparameters(config.algorithm, config.env, config.preset, {})
-        kept = {key: getattr(resolved, key) for key in overrides if getattr(resolved, key) != getattr(preset, key)}
-        return dataclasses.replace(config, hyperparameters=kept)
-
-    return _Engine("deep", DEEP_KEYS, build)
-
-
-def _known(section: str, table: dict, engine: _Engine, problems: list[str]) -> dict:
-    """The table's configuration keys (a deep sweep's ``hyperparameters`` table flattened to
-    ``hyperparameters.NAME``); every other key reported."""
-    deep = engine.name == "deep"
+def _known(section: str, table: dict, engine: ModuleType, problems: list[str]) -> dict:
+    """The table's configuration keys (the engine's nested table, a deep sweep's ``hyperparameters``, flattened
+    to ``hyperparameters.NAME``); every other key reported."""
+    nested = engine.NESTED
     known = {}
     for key, value in table.items():
         if key == "seeds":
             problems.append(f"{section}.seeds: the seeds are set once, in [sweep] (seeds = N)")
-        elif deep and key == "vmap_width":
-            problems.append(f"{section}.vmap_width: fixed at 1 in a sweep (each trial trains one seed)")
-        elif deep and key == "hyperparameters":
+        elif key in engine.FIXED_IN_SWEEP:
+            problems.append(f"{section}.{key}: {engine.FIXED_IN_SWEEP[key]}")
+        elif nested and key == nested:
             if isinstance(value, dict):
-                known.update({f"{HYPERPARAMETERS}{name}": item for name, item in value.items()})
+                known.update({f"{nested}.{name}": item for name, item in value.items()})
             else:
-                problems.append(f"{section}.hyperparameters: got {quote(value)}; allowed: a table of the method's "
-                                "hyperparameters (hyperparameters.NAME = ...)")
-        elif key in engine.keys:
+                problems.append(f"{section}.{nested}: got {quote(value)}; allowed: a table of the method's "
+                                f"{nested} ({nested}.NAME = ...)")
+        elif key in engine.SWEEP_KEYS:
             known[key] = value
         else:
-            allowed = ", ".join([*engine.keys, *(["hyperparameters.NAME"] if deep else [])])
+            allowed = ", ".join([*engine.SWEEP_KEYS, *([f"{nested}.NAME"] if nested else [])])
             problems.append(f"{section}.{cut(key, 80)}: unknown key; allowed: {allowed}")
     return known
 

@@ -21,16 +21,13 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
 
-from rlcompare.engine.state import Records
-from rlcompare.experiment import store
+from rlcompare.experiment import engines, store
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.sweep import Sweep, Trial, config_dict, config_hash, swept_value
 
@@ -108,11 +105,11 @@ def trial_path(root: Path, config_hash: str, seed: int) -> Path:
     return Path(root) / TRIALS_DIR / f"config={config_hash}" / f"trial={seed}"
 
 
-def is_finished(trial_dir: Path, config: dict | None = None, engine: str = "tabular") -> bool:
+def is_finished(trial_dir: Path, config: dict | None = None, engine: str = engines.DEFAULT) -> bool:
     """Whether a trial's run directory is finished and its files belong together (and hold ``config``);
-    ``engine``: the sweep's, which says what files a trial has."""
+    ``engine``: the sweep's, whose results say what files a trial has."""
     try:
-        store.verify_run(trial_dir, config, store.DEEP_CONTENT_FILES if engine == "deep" else store.CONTENT_FILES)
+        store.verify_run(trial_dir, config, engines.engine(engine).front().Results.content_files)
     except store.StoreError:
         return False
     return True
@@ -120,7 +117,7 @@ def is_finished(trial_dir: Path, config: dict | None = None, engine: str = "tabu
 
 def engine_of(manifest: dict) -> str:
     """The engine of a sweep's trials (stores written before deep sweeps say none: tabular)."""
-    return manifest.get("engine", "tabular")
+    return manifest.get("engine", engines.DEFAULT)
 
 
 def read_table(root: Path, name: str = store.EPISODES_FILE) -> pd.DataFrame:
@@ -156,12 +153,8 @@ def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
     order, by config hash; and a line for each trial whose files do not belong together and each configuration
     that has no finished trial."""
     manifest = read_manifest(root)
-    if engine_of(manifest) == "deep":
-        from rlcompare.deep.run import DeepResults as load_as  # the deep engine, imported only for a deep sweep
-
-        files = store.DEEP_RUN_FILES
-    else:
-        load_as, files = Results, store.RUN_FILES
+    front = engines.engine(engine_of(manifest)).front()  # the deep engine is imported only for a deep sweep
+    load_as, files = front.Results, (*front.Results.content_files, store.META_FILE)
     by_config: dict[str, list] = {}
     problems = []
     for entry in manifest["trials"]:
@@ -181,26 +174,7 @@ def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
     for hash_ in hashes:
         if hash_ not in by_config:
             problems.append(f"config {hash_}: no finished trial")
-    return {h: merge(trials) for h, trials in by_config.items()}, problems
-
-
-def merge(trials: list) -> Results:
-    """One :class:`Results` (or a deep sweep's :class:`~rlcompare.deep.run.DeepResults`) from the one-seed trials
-    of a configuration."""
-    first = trials[0]
-    if not isinstance(first, Results):
-        from rlcompare.deep.run import merge_seeds
-
-        return merge_seeds(trials)
-    records = Records(*(np.concatenate([getattr(t.records, name) for t in trials])
-                        if name != "snapshot_episodes" else first.records.snapshot_episodes
-                        for name in Records._fields))
-    seeds = tuple(seed for t in trials for seed in t.seeds)
-    timings = {key: sum(t.meta["timings"][key] for t in trials)
-               for key in ("wall_seconds", "training_steps", "evaluation_steps")}
-    timings["threads"] = 1
-    meta = {**first.meta, "seeds": list(seeds), "timings": timings}
-    return Results(config=replace(first.config, seeds=seeds), epsilons=first.epsilons, records=records, meta=meta)
+    return {h: front.merge(trials) for h, trials in by_config.items()}, problems
 
 
 def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Callable[[Trial], None] | None = None,

@@ -62,10 +62,9 @@ class BookStudy:
     draw: Callable[[Path, dict[str, Any]], Path]
     """Writes the report of the runs into the study's directory."""
     train: Callable[..., Any] | None = None
-    """Trains a configuration into its run directory, in place of :func:`~rlcompare.experiment.runner.run`
-    (``run_or_load``'s ``train``), with ``load_finished`` and ``load`` that read what it writes."""
-    load_finished: Callable[[Path, ExperimentConfig], Any] | None = None
-    load: Callable[[Path], Any] | None = None
+    """Trains a configuration into its run directory in place of its engine (``run_or_load``'s ``train``), with
+    ``load`` (``load(run_dir, expected=None)``) that reads what it writes."""
+    load: Callable[..., Any] | None = None
 
     def run(self, out: Path, options: Seeded, ui: UI, *, study: str, force: bool = False) -> dict[str, Any]:
         """Each configuration into ``out / name``, or loaded when already complete there."""
@@ -76,7 +75,7 @@ class BookStudy:
         with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
             for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
                                                      progress=lambda n: advance(study, n), train=self.train,
-                                                     load_finished=self.load_finished):
+                                                     load=self.load):
                 runs[name] = results
                 ui.done(name, results, reused)
         return runs
@@ -276,5 +275,4 @@ def _cliff_mask() -> np.ndarray:
 FIG_10_2 = BookStudy(fig_10_2_configs, report_10_2)
 FIG_12_10 = BookStudy(fig_12_10_configs, report_12_10)
 CLIFF_STUDY = BookStudy(cliff_configs, report_cliff)
-FIG_6_3 = BookStudy(book_6_3.configs, book_6_3.report_6_3, book_6_3.train, book_6_3.load_if_complete,
-                    book_6_3.PhaseRuns.load)
+FIG_6_3 = BookStudy(book_6_3.configs, book_6_3.report_6_3, book_6_3.train, book_6_3.PhaseRuns.load)

@@ -20,11 +20,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import io
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -111,6 +110,9 @@ def phase_of(config: ExperimentConfig) -> str:
 class PhaseRuns:
     """One configuration's runs, each summarised: its mean return per episode, steps and episodes cut."""
 
+    content_files: ClassVar[tuple[str, ...]] = CONTENT_FILES
+    """The files of its run directory beside ``meta.json``."""
+
     config: ExperimentConfig
     runs: pd.DataFrame
     """One row per seed: ``seed``, ``return`` (mean per episode), ``steps``, ``cut`` (episodes cut by the limit)."""
@@ -127,39 +129,25 @@ class PhaseRuns:
         return self.runs["return"].to_numpy()
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory: every file under a temporary name first, ``meta.json`` last, with the size
-        and checksum of the others (as :meth:`~rlcompare.experiment.results.Results.save`)."""
-        run_dir = Path(run_dir)
-        store.claim(run_dir, store.RUN, outputs=RUN_FILES)
+        """Write the run directory (:func:`~rlcompare.experiment.store.write_run`)."""
         arrays = io.BytesIO()
         np.savez_compressed(arrays, snapshots=self.q_tables, seeds=np.asarray(self.seeds))
         table = io.BytesIO()
         self.runs.to_parquet(table, index=False)
-        contents = {
-            store.CONFIG_FILE: (json.dumps(self.config.to_dict(), indent=2, sort_keys=True) + "\n").encode(),
-            RUNS_FILE: table.getvalue(),
-            store.QTABLES_FILE: arrays.getvalue(),
-        }
-        store.enter_outputs(*(run_dir / name for name in RUN_FILES))
-        (run_dir / store.META_FILE).unlink(missing_ok=True)
-        for name, data in contents.items():
-            store.write_bytes_atomic(run_dir / name, data)
-        record = {"seeds": list(self.seeds), "rows": {"runs": len(self.runs)},
-                  "files": {name: store.file_record(data) for name, data in contents.items()}}
         timings = self.meta["timings"]
         timings["finished"] = time.time()
         timings["summary_seconds"] = timings["finished"] - timings.get("trained", timings["finished"])
-        store.write_json_atomic(run_dir / store.META_FILE, {**self.meta, "contents": record})
-        return run_dir
+        return store.write_run(run_dir, self.config.to_dict(), {RUNS_FILE: table.getvalue(),
+                                                                store.QTABLES_FILE: arrays.getvalue()},
+                               self.meta, {"seeds": list(self.seeds), "rows": {"runs": len(self.runs)}})
 
     @classmethod
     def load(cls, run_dir: Path, expected: ExperimentConfig | None = None) -> PhaseRuns:
         """Read a finished run directory back, after checking that its files belong together (and hold
         ``expected`` where given); anything else is a :class:`~rlcompare.experiment.store.StoreError`."""
         run_dir = Path(run_dir)
-        meta = store.verify_run(run_dir, None if expected is None else expected.to_dict(), CONTENT_FILES)
+        meta, data = store.read_run(run_dir, cls.content_files, None if expected is None else expected.to_dict())
         try:
-            data = store.read_json(run_dir / store.CONFIG_FILE)
             data["seeds"], data["stages"] = tuple(data["seeds"]), tuple(tuple(s) for s in data["stages"])
             config = ExperimentConfig.from_dict(data)
             runs = pd.read_parquet(run_dir / RUNS_FILE)
@@ -227,16 +215,6 @@ def train(config: ExperimentConfig, *, out: Path | None = None, study: str = "",
         runs = summarise(config, study, progress)
         runs.save(out)
     return runs
-
-
-def load_if_complete(run_dir: Path, config: ExperimentConfig) -> PhaseRuns | None:
-    """The stored runs of ``config`` in ``run_dir`` if that run finished and its files belong together."""
-    if not store.is_complete(run_dir, RUN_FILES):
-        return None
-    try:
-        return PhaseRuns.load(run_dir, expected=config)
-    except store.StoreError:
-        return None
 
 
 # --- the book's claims, as verdicts on paired runs ---------------------------------------------------------

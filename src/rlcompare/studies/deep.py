@@ -24,12 +24,12 @@ from rlcompare.analysis import stats
 from rlcompare.analysis.plots import plot_return_curves
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.tables import per_seed_metrics
-from rlcompare.deep import run as deep_run
 from rlcompare.deep.agent import gymnasium_returns
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
+from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.studies.interface import UI, Report, listed
@@ -130,7 +130,7 @@ def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | N
 
     yield from run_or_load(Path(out), plan.tabular_configs(), study=STUDY, progress=advance("tabular"), force=force)
     yield from run_or_load(Path(out), plan.deep_configs(), study=STUDY, progress=advance("deep"), force=force,
-                           train=deep_run.run, load_finished=deep_run.load_if_complete, workers=plan.workers)
+                           workers=plan.workers)
 
 
 def run(out: Path, options: DeepOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
@@ -156,10 +156,8 @@ def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], li
     deep, tabular, problems = {}, {}, []
     for run_dir in sorted(p for p in Path(out).iterdir() if p.is_dir() and store.owner_of(p) == store.RUN):
         try:
-            if run_dir.name.startswith("tabular-"):
-                tabular[run_dir.name] = Results.load(run_dir)
-            else:
-                deep[run_dir.name] = DeepResults.load(run_dir)
+            results = load_run(run_dir)
+            (tabular if isinstance(results, Results) else deep)[run_dir.name] = results
         except (store.StoreError, ValueError) as error:
             problems.append(str(error))
     return deep, tabular, problems
