@@ -84,6 +84,11 @@ def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entr
     assert all(PORT_EPISODES[name] == environment(name).bench_episodes for name in PORT_EPISODES)
     assert environment("CartPole-v1").endings == ("the pole fell", "balanced to the end")
     assert environment("MountainCar-book").action_names == environment("MountainCar-v0").action_names
+    assert environment("MountainCar-book").gymnasium_id == "MountainCar-v0"  # the book's trajectories are the same
+    assert environment("MountainCar-v0").gymnasium_id == "MountainCar-v0"
+    assert environment("MountainCar-v0").start_box == ((-0.6, -0.4), (0.0, 0.0))  # Gymnasium's reset range
+    assert environment("CartPole-v1").start_box is None  # no maps, so no start region to draw
+
     assert environment("Taxi-v4").map_axes is None
 
 
@@ -100,3 +105,13 @@ def test_the_readme_lists_every_study_in_the_registrys_order():
     readme = (Path(__file__).parents[1] / "README.md").read_text()
     line = next(line for line in readme.splitlines() if line.startswith("rlcompare reproduce --list"))
     assert line.split("#")[1].split() == list(STUDIES)
+
+
+def test_analysis_names_no_environment():
+    """What figures, tables and videos say of an environment comes from its registry entry."""
+    analysis = Path(__file__).parents[1] / "src" / "rlcompare" / "analysis"
+    for path in analysis.glob("*.py"):
+        code = "\n".join(line for line in path.read_text().splitlines() if not line.lstrip().startswith("#"))
+        for name in ("MountainCar", "CartPole", "Acrobot", "CliffWalking", "mountain_car", "cartpole"):
+            assert f'"{name}' not in code, (path.name, name)
+            assert f"envs import {name}" not in code, (path.name, name)

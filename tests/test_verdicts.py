@@ -211,7 +211,7 @@ def _results(returns: np.ndarray, eval_returns: np.ndarray, snapshots: np.ndarra
 def test_first_action_floor_reads_the_start_cells_of_the_final_tables():
     config = ExperimentConfig()
     grid = make_grid(*grid_bounds(config.environment, config.bounds), config.bins)
-    cells = start_cells(grid)
+    cells = start_cells(grid, config.environment.start_box)
     snapshots = np.zeros((6, 3, int(np.prod(grid.bins)), 3))
     snapshots[:, -1] = -10.0 + np.random.default_rng(7).normal(0.0, 0.01, snapshots[:, -1].shape)
     results = _results(np.full((6, 200), -200.0), np.full((6, 4, 2), -200.0), snapshots)

@@ -40,7 +40,8 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def pump_episode() -> video.Episode:
-    return video.record_episode(Pump(), episode_seed=3, max_steps=MAX_STEPS, title="Pump · test", seed=0)
+    return video.record_episode(Pump(), episode_seed=3, max_steps=MAX_STEPS, title="Pump · test", seed=0,
+                                env_id="MountainCar-v0")
 
 
 def read_mp4(path: Path) -> tuple[dict, np.ndarray]:
@@ -75,7 +76,7 @@ def plain_episode(agent, episode_seed: int, max_steps: int) -> tuple[float, int,
 
 def test_record_episode_keeps_gymnasiums_frames_and_return(run_dir: Path) -> None:
     agent = load_agent(run_dir, seed=0, stage="final")
-    episode = video.record_episode(agent, episode_seed=11, max_steps=MAX_STEPS)
+    episode = video.record_episode(agent, episode_seed=11, max_steps=MAX_STEPS, env_id="MountainCar-v0")
     assert len(episode.frames) == episode.length + 1 == len(episode.returns)
     assert all(frame.shape == (400, 600, 3) and frame.dtype == np.uint8 for frame in episode.frames)
     assert (episode.episode_return, episode.length, episode.terminated) == plain_episode(agent, 11, MAX_STEPS)
@@ -91,7 +92,7 @@ def test_a_terminated_episode_is_recorded_to_the_flag(pump_episode: video.Episod
 
 
 def test_caption_changes_the_strip_only(pump_episode: video.Episode) -> None:
-    raw = video.record_episode(Pump(), episode_seed=3, max_steps=MAX_STEPS)
+    raw = video.record_episode(Pump(), episode_seed=3, max_steps=MAX_STEPS, env_id="MountainCar-v0")
     strip = video.CAPTION_HEIGHT
     for captioned, frame in zip(pump_episode.frames, raw.frames, strict=True):
         assert captioned.shape == (400 + strip, 600, 3)
@@ -222,7 +223,7 @@ def test_rendering_needs_no_display_and_sets_it_up_lazily(tmp_path: Path) -> Non
         "class Idle:\n"
         "    def act(self, observation):\n"
         "        return 1\n"
-        "episode = video.record_episode(Idle(), episode_seed=0, max_steps=3)\n"
+        "episode = video.record_episode(Idle(), episode_seed=0, max_steps=3, env_id='MountainCar-v0')\n"
         "assert os.environ['SDL_VIDEODRIVER'] == 'dummy' and 'pygame' in sys.modules\n"
         "print(len(episode.frames))\n"
     )

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from rlcompare.analysis.plots import MapFrame
-from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
 from rlcompare.envs.features import grid_bounds
 from rlcompare.experiment.config import ExperimentConfig
@@ -22,23 +21,24 @@ def map_frame(config: ExperimentConfig) -> MapFrame | None:
     return MapFrame((float(low[0]), float(high[0]), float(low[1]), float(high[1])), env.map_axes, env.action_names)
 
 
-def on_position_velocity_grid(config: ExperimentConfig) -> bool:
-    """Mountain Car on a grid: the start region, the first actions and the maps over position x velocity apply."""
-    frame = map_frame(config)
-    return frame is not None and frame.axes == ("position", "velocity")
+def has_start_region(config: ExperimentConfig) -> bool:
+    """Whether the report's start region, first actions and maps apply: the environment draws maps over two
+    dimensions, says where its episodes start there, and the features are the grid."""
+    return map_frame(config) is not None and config.environment.start_box is not None
 
 
-def start_cells(grid: UniformGrid, points: int = 2001) -> np.ndarray:
-    """Cells of start states ``(p, 0)`` for ``p`` evenly spread over the reset range [-0.6, -0.4]."""
-    positions = np.linspace(mountain_car.RESET_LOW, mountain_car.RESET_HIGH, points)
-    return cell_indices(grid, np.column_stack([positions, np.zeros(points)]))
+def start_cells(grid: UniformGrid, start_box: tuple[tuple[float, float], ...], points: int = 2001) -> np.ndarray:
+    """Cells of ``points`` start states spread evenly over each range of ``start_box`` together (Mountain Car's:
+    ``(p, 0)`` for ``p`` in its reset range [-0.6, -0.4])."""
+    return cell_indices(grid, np.column_stack([np.linspace(low, high, points) for low, high in start_box]))
 
 
-def first_action_shares(q_tables: np.ndarray, grid: UniformGrid) -> np.ndarray:
+def first_action_shares(q_tables: np.ndarray, grid: UniformGrid, start_box: tuple[tuple[float, float], ...]
+                        ) -> np.ndarray:
     """``(seeds, actions)``: for each seed, the share of start states whose first greedy action is each
     action. The paper says Q-Learning "accelerates forward in the first few frames while SARSA
     accelerates backwards"; this counts it over every start state and every seed."""
-    cells = start_cells(grid)
+    cells = start_cells(grid, start_box)
     first = q_tables[:, cells].argmax(axis=2)  # (seeds, start states)
     return np.stack([(first == a).mean(axis=1) for a in range(q_tables.shape[2])], axis=1)
 
@@ -47,4 +47,4 @@ def final_first_action_shares(results: Results) -> np.ndarray:
     """:func:`first_action_shares` of the final Q-tables, on the grid the run was trained on."""
     c = results.config
     return first_action_shares(results.records.snapshots[:, -1], make_grid(*grid_bounds(c.environment, c.bounds),
-                                                                            c.bins))
+                                                                            c.bins), c.environment.start_box)

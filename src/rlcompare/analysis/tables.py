@@ -28,7 +28,7 @@ from rlcompare.analysis.convergence import (
     convergence_on_rounds,
     episodes_to_seconds,
 )
-from rlcompare.analysis.explain import final_first_action_shares, on_position_velocity_grid, start_cells
+from rlcompare.analysis.explain import final_first_action_shares, has_start_region, start_cells
 from rlcompare.analysis.stats import (
     ALPHA,
     NO_DATA,
@@ -112,26 +112,26 @@ def first_action_floor(results: Results) -> NoiseFloor:
     """The noise floor of the first greedy action: final action values in the cells of the start region,
     each cell weighted by its share of start states (:func:`~rlcompare.analysis.stats.noise_floor`)."""
     c = results.config
-    cells = start_cells(make_grid(*grid_bounds(c.environment, c.bounds), c.bins))
+    cells = start_cells(make_grid(*grid_bounds(c.environment, c.bounds), c.bins), c.environment.start_box)
     return noise_floor(results.records.snapshots[:, -1][:, cells])
 
 
 def noise_floors(runs: dict[str, Results]) -> dict[str, NoiseFloor]:
-    """:func:`first_action_floor` of each learning configuration on Mountain Car's grid, by name."""
+    """:func:`first_action_floor` of each learning configuration with a start region, by name."""
     return {name: first_action_floor(r) for name, r in runs.items()
-            if on_position_velocity_grid(r.config) and r.config.algorithm != "random"}
+            if has_start_region(r.config) and r.config.algorithm != "random"}
 
 
 def per_seed_metrics(results: Results) -> pd.DataFrame:
     """One row per seed: the numbers every table, verdict and figure is built from. The first greedy
-    action from the start states is Mountain Car's (NaN elsewhere)."""
+    action from the start region where the environment has one (NaN elsewhere)."""
     records, config = results.records, results.config
     rule = config.environment.success
     converged = convergence(results, DEFAULT_RULE)
     has_eval = records.eval_returns.shape[1] > 0
     greedy_solved = solved(rule, records.eval_returns[:, -1], records.eval_lengths[:, -1],
                            records.eval_terminated[:, -1], config.max_steps) if has_eval else None
-    first_left = (final_first_action_shares(results)[:, LEFT] if on_position_velocity_grid(config)
+    first_left = (final_first_action_shares(results)[:, LEFT] if has_start_region(config)
                   else np.full(len(results.seeds), np.nan))
     return pd.DataFrame({
         "seed": np.asarray(results.seeds),

@@ -139,11 +139,6 @@ def _headless() -> None:
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 
-def gymnasium_id(config: ExperimentConfig) -> str:
-    """The Gymnasium environment that shows a configuration's agents: the book's Mountain Car is Gymnasium's."""
-    return "MountainCar-v0" if config.env == "MountainCar-book" else config.env
-
-
 def _play(agent: Agent, episode_seed: int, max_steps: int, env_id: str) -> Iterator[_Frame]:
     """Step ``agent`` through one rendered episode, yielding the start frame and one frame per step."""
     _headless()
@@ -320,7 +315,7 @@ def stage_title(config: ExperimentConfig, stage: str | None) -> str:
 
 
 def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, title: str | None = None,
-                   seed: int | None = None, env_id: str = "MountainCar-v0") -> Episode:
+                   seed: int | None = None, env_id: str) -> Episode:
     """Play one episode of ``agent`` from ``env.reset(seed=episode_seed)`` and keep every frame.
 
     Without ``title`` the frames are Gymnasium's own; with it each frame is captioned with the title
@@ -591,7 +586,7 @@ def plan_stage_videos(
         plan = [(name, stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
     return [VideoJob(run_dir=run_dir, seed=int(seed), stage=stage, title=title, mp4=out_dir / f"{stem}.mp4",
                      gif=out_dir / f"{stem}.gif" if gif else None, episode_seed=int(episode_seed), max_steps=limit,
-                     fps=float(fps), env_id=gymnasium_id(config))
+                     fps=float(fps), env_id=config.environment.gymnasium_id)
             for stage, title, stem in plan]
 
 

@@ -76,6 +76,12 @@ class Environment:
     """What each action does, for figures."""
     map_axes: tuple[str, str] | None = None
     """The names of the two observation dimensions the report draws maps over; None: no maps."""
+    start_box: tuple[tuple[float, float], ...] | None = None
+    """Where every episode starts, over the map axes: a (low, high) range per axis (equal where the start is
+    fixed); the report's first actions are taken from there. None: no such region is drawn."""
+    shown_as: str = ""
+    """The Gymnasium environment that shows its agents in videos, where it is not the environment itself (the
+    book's Mountain Car is Gymnasium's, whose trajectories are the same)."""
     endings: tuple[str, str] = ("terminated", "out of time")
     """How a video's last frame says the episode ended: terminated, truncated."""
     painter: Callable | None = None
@@ -91,18 +97,25 @@ class Environment:
         return 1 if self.n_states else self.low.size
 
     @property
+    def gymnasium_id(self) -> str:
+        """The Gymnasium environment that plays and renders its agents."""
+        return self.shown_as or self.name
+
+    @property
     def is_ported(self) -> bool:
         """Stepped by compiled code; otherwise by Gymnasium at Python speed."""
         return self.dynamics is not None
 
 
-def _mountain_car(name: str, right: float, bench_episodes: int = 0) -> Environment:
+def _mountain_car(name: str, right: float, bench_episodes: int = 0, shown_as: str = "") -> Environment:
     low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
     high[0] = np.float32(right)
     return Environment(name, mountain_car.MountainCar(right), mountain_car.N_ACTIONS, 0, low, high, 1000, 20,
                        "terminated", action_names=("push left", "no push", "push right"),
-                       map_axes=("position", "velocity"), endings=("reached the flag", "out of time"),
-                       painter=MountainCarPainter, bench_episodes=bench_episodes)
+                       map_axes=("position", "velocity"),
+                       start_box=((mountain_car.RESET_LOW, mountain_car.RESET_HIGH), (0.0, 0.0)), shown_as=shown_as,
+                       endings=("reached the flag", "out of time"), painter=MountainCarPainter,
+                       bench_episodes=bench_episodes)
 
 
 def _cartpole() -> Environment:
@@ -122,7 +135,8 @@ def _acrobot() -> Environment:
 
 _PORTED = {
     "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300),
-    "MountainCar-book": lambda: _mountain_car("MountainCar-book", mountain_car.BOOK_MAX_POSITION),
+    "MountainCar-book": lambda: _mountain_car("MountainCar-book", mountain_car.BOOK_MAX_POSITION,
+                                              shown_as="MountainCar-v0"),
     "CartPole-v1": _cartpole,
     "Acrobot-v1": _acrobot,
 }

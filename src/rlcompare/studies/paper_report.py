@@ -21,7 +21,7 @@ from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis import plots
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
-from rlcompare.analysis.explain import final_first_action_shares, map_frame, on_position_velocity_grid
+from rlcompare.analysis.explain import final_first_action_shares, has_start_region, map_frame
 from rlcompare.analysis.findings import paper_findings
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA, interval
@@ -36,7 +36,7 @@ from rlcompare.analysis.tables import (
     table_i,
     table_ii,
 )
-from rlcompare.analysis.video import VideoJob, VideoRenders, gymnasium_id, plan_stage_videos, start_videos
+from rlcompare.analysis.video import VideoJob, VideoRenders, plan_stage_videos, start_videos
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
 from rlcompare.studies.interface import Report
@@ -208,7 +208,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page."""
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
-    position_velocity = on_position_velocity_grid(first.config)
+    position_velocity = has_start_region(first.config)
     paper_values = first.config.env == "MountainCar-v0"
     learners = [r for n, r in runs.items() if n != "random" and r.config.next_action is None]  # in their own box
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
@@ -397,6 +397,6 @@ def _sections(first, runs, metrics, tables, curve_figures, explanation_figures, 
         Section("Why: policies, values, visits and first actions", figures=explanation_figures)
         if explanation_figures else Section("Why", ["The maps over position and velocity are Mountain Car's."]),
         Section("Videos of the greedy agents at three stages of learning",
-                [f"Rendered by Gymnasium's own {gymnasium_id(c)} renderer from the same start state."]
+                [f"Rendered by Gymnasium's own {c.environment.gymnasium_id} renderer from the same start state."]
                 if video_cells else ["Videos were not rendered (--no-videos)."], videos=video_cells),
     ]
