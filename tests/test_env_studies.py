@@ -61,8 +61,8 @@ def test_cliff_report_sets_the_cliff_against_mountain_car_in_numbers(studies: Pa
     assert list(table["study"]) == ["cliff", "paper", "paper"]
     assert list(table["exploration"]) == ["ε = 0.1", "ε = 0.5", "ε decaying"]
     cliff = table.iloc[0]
-    assert cliff["online: better"] == "SARSA"  # the book's contrast: safe path online ...
-    assert cliff["greedy: better"] == "Q-Learning"  # ... the edge path greedy
+    assert cliff["online: better"] == "SARSA better"  # the book's contrast: safe path online ...
+    assert cliff["greedy: better"] == "Q-Learning better"  # ... the edge path greedy
     assert cliff["greedy: Q-Learning"] == "-13.0"
     html = (studies / "cliff" / "report.html").read_text()
     assert "Cliff Walking against Mountain Car: the contrast in numbers" in html

@@ -12,6 +12,8 @@ from rlcompare.analysis.stats import (
     SUPPORTED,
     VERDICTS,
     Estimate,
+    compare_paired,
+    comparison_label,
     interval,
     iqm,
     paired_difference,
@@ -259,3 +261,31 @@ def test_verdict_end_to_end_on_paired_seeds():
     p_value = rank_test(sarsa, q_learning)
     assert verdict(difference, p_value, claimed_sign=+1) == SUPPORTED
     assert verdict(difference, p_value, claimed_sign=-1) == CONTRADICTED
+
+
+@pytest.mark.parametrize(("shift", "margin", "label"), [
+    (+5.0, None, "A better"),
+    (-5.0, None, "B better"),
+    (0.0, None, "not resolved"),
+    (0.0, 1.0, "equivalent (within ±1)"),  # no direction, but the margin is declared and shown
+    (0.05, 0.01, "not resolved"),  # too small to show a direction, too spread to sit inside a tiny margin
+])
+def test_one_comparison_says_what_it_found_in_one_vocabulary(shift, margin, label):
+    rng = np.random.default_rng(3)
+    b = rng.normal(0.0, 1.0, 20)
+    a = b + shift + rng.normal(0.0, 0.2, 20)
+    paired = compare_paired(a, b, margin)
+    assert paired.seeds == 20
+    assert paired.difference == paired_difference(a, b)
+    assert paired.p_value == rank_test(a, b)
+    assert comparison_label(paired, paired.p_value, ("A", "B")) == label
+    # the label is the claim "A - B > 0" judged by verdict, the one rule
+    direction = verdict(paired.difference, paired.p_value, +1)
+    assert (direction == "supported") == (label == "A better")
+    assert (direction == "contradicted") == (label == "B better")
+
+
+def test_a_comparison_without_an_estimate_has_no_data():
+    paired = compare_paired(np.array([1.0, np.nan, 2.0]), np.array([0.0, 0.0, 0.0]))
+    assert np.isnan(paired.p_value)
+    assert comparison_label(paired, paired.p_value, ("A", "B")) == "no data"

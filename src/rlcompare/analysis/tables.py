@@ -37,6 +37,7 @@ from rlcompare.analysis.stats import (
     UNDECIDABLE,
     NoiseFloor,
     Verdict,
+    compare_paired,
     equivalence_verdict,
     holm,
     interval,
@@ -304,10 +305,11 @@ def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> _Out
     if no_data or not (np.isfinite(a).all() and np.isfinite(b).all()):
         return _Outcome(row, np.nan, lambda _: (NO_DATA, 0), bias, no_data or "no finite value to test")
     if claim.kind == "direction":
-        difference, p_value = paired_difference(a, b), rank_test(a, b, paired=True)
-        better = probability_of_improvement(a, b) if claim.sign > 0 else probability_of_improvement(b, a)
-        return _Outcome(row | {"estimate": _fmt(difference, 2), "P(claim holds for a random pair)": _fmt(better, 2)},
-                        p_value, partial(_direction, difference, sign=claim.sign), bias)
+        paired = compare_paired(a, b)
+        better = paired.improvement if claim.sign > 0 else probability_of_improvement(b, a)
+        return _Outcome(row | {"estimate": _fmt(paired.difference, 2),
+                               "P(claim holds for a random pair)": _fmt(better, 2)},
+                        paired.p_value, partial(_direction, paired.difference, sign=claim.sign), bias)
     if claim.kind in ("ratio", "same"):
         test = ratio_tost(b, a, claim.value, RATIO_FACTOR) if claim.kind == "ratio" else tost(a - b, -claim.value,
                                                                                             claim.value)

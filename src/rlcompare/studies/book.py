@@ -262,8 +262,8 @@ def _contrast_section(out: Path, runs: dict[str, Results]) -> Section:
 
 def _contrast_sentence(row: dict) -> str:
     return (f"{row['environment']} ({row['exploration']}, {row['seeds']} seeds): online SARSA - Q-Learning = "
-            f"{row['online: SARSA - Q-Learning']} (better: {row['online: better']}); greedy "
-            f"{row['greedy: SARSA - Q-Learning']} (better: {row['greedy: better']}).")
+            f"{row['online: SARSA - Q-Learning']} ({row['online: better']}); greedy "
+            f"{row['greedy: SARSA - Q-Learning']} ({row['greedy: better']}).")
 
 
 def _cliff_mask() -> np.ndarray:

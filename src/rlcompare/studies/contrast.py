@@ -15,10 +15,9 @@ from __future__ import annotations
 import contextlib
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
-from rlcompare.analysis.stats import paired_difference
+from rlcompare.analysis.stats import compare_paired, comparison_label
 from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.experiment import store
 from rlcompare.experiment.results import Results
@@ -51,20 +50,12 @@ def contrast_table(studies: dict[str, dict[str, Results]]) -> pd.DataFrame:
             exploration = f"ε = {config.epsilon:g}" if config.schedule == "constant" else "ε decaying"
             row = {"study": study, "environment": config.env, "exploration": exploration, "seeds": len(sarsa)}
             for metric, label in (("behaviour_return", "online"), ("greedy_return", "greedy")):
-                a, b = sarsa[metric].to_numpy(), q[metric].to_numpy()
-                difference = paired_difference(a, b)
-                row |= {f"{label}: SARSA": f"{np.mean(a):.1f}", f"{label}: Q-Learning": f"{np.mean(b):.1f}",
-                        f"{label}: SARSA - Q-Learning": difference.format(1), f"{label}: better": _better(difference)}
+                paired = compare_paired(sarsa[metric].to_numpy(), q[metric].to_numpy())
+                row |= {f"{label}: SARSA": f"{paired.a_mean:.1f}", f"{label}: Q-Learning": f"{paired.b_mean:.1f}",
+                        f"{label}: SARSA - Q-Learning": paired.difference.format(1),
+                        f"{label}: better": comparison_label(paired, paired.p_value, ("SARSA", "Q-Learning"))}
             rows.append(row)
     return pd.DataFrame(rows)
-
-
-def _better(difference) -> str:
-    if difference.low > 0:
-        return "SARSA"
-    if difference.high < 0:
-        return "Q-Learning"
-    return "neither (interval spans 0)"
 
 
 def sibling_studies(study_dir: Path) -> dict[str, dict[str, Results]]:

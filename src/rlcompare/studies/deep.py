@@ -214,38 +214,16 @@ def summary_table(deep: dict[str, DeepResults], gymnasium: dict[str, np.ndarray]
 
 @dataclass(frozen=True)
 class Comparison:
-    """On-policy against off-policy target on one environment: paired differences of one metric."""
+    """On-policy against off-policy target on one environment: one metric on paired seeds."""
 
     env: str
     engine: str
     metric: str
-    difference: stats.Estimate
-    p_value: float
-    improvement: stats.Estimate
-    equivalence: stats.Equivalence
+    paired: stats.Paired
 
 
 def compare(on_policy: np.ndarray, off_policy: np.ndarray, env: str, engine: str, metric: str) -> Comparison:
-    difference = stats.paired_difference(on_policy, off_policy)
-    margin = MARGIN[env]
-    return Comparison(env, engine, metric, difference, stats.rank_test(on_policy, off_policy),
-                      stats.probability_of_improvement(on_policy, off_policy),
-                      stats.tost(on_policy - off_policy, -margin, margin))
-
-
-def verdict_label(comparison: Comparison, p_adjusted: float, level: float = stats.ALPHA) -> str:
-    """"on-policy better", "off-policy better", "equivalent (within ±margin)", or "not resolved" when the
-    seeds can decide neither a direction nor an equivalence."""
-    direction = stats.verdict(comparison.difference, p_adjusted, +1, level)
-    if direction == stats.SUPPORTED:
-        return "on-policy better"
-    if direction == stats.CONTRADICTED:
-        return "off-policy better"
-    if direction == stats.NO_DATA:
-        return stats.NO_DATA
-    if stats.equivalence_verdict(comparison.equivalence, level=level) == stats.SUPPORTED:
-        return f"equivalent (within ±{MARGIN[comparison.env]:g})"
-    return stats.NOT_RESOLVED
+    return Comparison(env, engine, metric, stats.compare_paired(on_policy, off_policy, MARGIN[env]))
 
 
 def comparisons(deep: dict[str, DeepResults], tabular: dict[str, Results]) -> list[Comparison]:
@@ -266,11 +244,11 @@ def comparisons(deep: dict[str, DeepResults], tabular: dict[str, Results]) -> li
 
 def verdict_table(found: list[Comparison]) -> pd.DataFrame:
     """One row per comparison, p-values Holm-adjusted over all of them (one family of claims)."""
-    adjusted = stats.holm(c.p_value for c in found)
+    adjusted = stats.holm(c.paired.p_value for c in found)
     return pd.DataFrame([{
         "env": c.env, "engine": c.engine, "metric": METRIC_NAMES[c.metric],
-        "on - off (mean, 95% CI)": c.difference.format(1), "P(on > off)": c.improvement.format(2),
-        "p (Holm)": p, "verdict": verdict_label(c, p),
+        "on - off (mean, 95% CI)": c.paired.difference.format(1), "P(on > off)": c.paired.improvement.format(2),
+        "p (Holm)": p, "verdict": stats.comparison_label(c.paired, p, ("on-policy", "off-policy")),
     } for c, p in zip(found, adjusted, strict=True)])
 
 
