@@ -29,6 +29,7 @@ from rlcompare.analysis.convergence import (
     episodes_to_seconds,
 )
 from rlcompare.analysis.explain import final_first_action_shares, has_start_region, start_cells
+from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.stats import (
     ALPHA,
     NO_DATA,
@@ -124,8 +125,9 @@ def noise_floors(runs: dict[str, Results]) -> dict[str, NoiseFloor]:
 
 
 def per_seed_metrics(results: Results) -> pd.DataFrame:
-    """One row per seed: the numbers every table, verdict and figure is built from. The first greedy
-    action from the start region where the environment has one (NaN elsewhere)."""
+    """One row per seed: the numbers every table, verdict and figure is built from: the returns
+    (:func:`~rlcompare.analysis.metrics.returns_per_seed`), the share of greedy episodes solved, when the run
+    converged, and the first greedy action from the start region where the environment has one (NaN elsewhere)."""
     records, config = results.records, results.config
     rule = config.environment.success
     converged = convergence(results, DEFAULT_RULE)
@@ -134,15 +136,12 @@ def per_seed_metrics(results: Results) -> pd.DataFrame:
                            records.eval_terminated[:, -1], config.max_steps) if has_eval else None
     first_left = (final_first_action_shares(results)[:, LEFT] if has_start_region(config)
                   else np.full(len(results.seeds), np.nan))
-    return pd.DataFrame({
-        "seed": np.asarray(results.seeds),
-        "behaviour_return": records.returns.mean(axis=1),
-        "greedy_return": records.eval_returns[:, -1].mean(axis=1) if has_eval else np.nan,
-        "greedy_success": greedy_solved.mean(axis=1) if has_eval else np.nan,
-        "convergence_episode": converged,
-        "convergence_seconds": episodes_to_seconds(converged, records.lengths, seconds_per_step(results)),
-        "first_action_left": first_left,
-    })
+    return returns_per_seed(results.seeds, records.returns, records.eval_returns).assign(
+        greedy_success=greedy_solved.mean(axis=1) if has_eval else np.nan,
+        convergence_episode=converged,
+        convergence_seconds=episodes_to_seconds(converged, records.lengths, seconds_per_step(results)),
+        first_action_left=first_left,
+    )
 
 
 def _fmt(estimate, digits: int = 1) -> str:

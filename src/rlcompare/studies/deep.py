@@ -21,6 +21,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import stats
+from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.plots import plot_return_curves
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.tables import per_seed_metrics
@@ -52,7 +53,7 @@ DEFAULT_WORKERS = max(1, min(4, os.cpu_count() or 1))
 PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
 """The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
 TABULAR_PAIR = ("sarsa", "q_learning")
-METRIC_NAMES = {"final": "final greedy return", "auc": "area under the greedy curve"}
+METRIC_NAMES = {"greedy_return": "final greedy return", "greedy_auc": "area under the greedy curve"}
 
 
 @dataclass(frozen=True)
@@ -172,13 +173,15 @@ def eval_curves(results: DeepResults) -> tuple[np.ndarray, np.ndarray]:
 
 
 def per_seed(results: DeepResults) -> pd.DataFrame:
-    """One row per seed: final greedy return (last round), area under the greedy curve (mean over rounds), and
-    the environment steps and seconds at which the greedy curve first reached the environment's score."""
+    """One row per seed: its returns (:func:`~rlcompare.analysis.metrics.returns_per_seed`: behaviour, final
+    greedy return, area under the greedy curve), and the environment steps and seconds at which the greedy curve
+    first reached the environment's score."""
     steps, curves = eval_curves(results)
     reached = curves >= SCORE[results.config.env]
     first = np.where(reached.any(axis=1), steps[reached.argmax(axis=1)], np.nan)
-    return pd.DataFrame({"seed": list(results.seeds), "final": curves[:, -1], "auc": curves.mean(axis=1),
-                         "steps_to_score": first, "seconds_to_score": first * seconds_per_step(results)})
+    training = results.episodes.groupby("seed", sort=False)["return"]
+    return returns_per_seed(results.seeds, [training.get_group(seed).to_numpy() for seed in results.seeds],
+                            curves).assign(steps_to_score=first, seconds_to_score=first * seconds_per_step(results))
 
 
 def seconds_per_step(results: DeepResults) -> float:
@@ -202,8 +205,8 @@ def summary_table(deep: dict[str, DeepResults], gymnasium: dict[str, np.ndarray]
             "Gymnasium, IQM": stats.interval(in_gymnasium, "iqm").format(1),
             "Gymnasium, mean": stats.interval(in_gymnasium).format(1),
             "seeds at the goal": f"{int((in_gymnasium >= GOAL[results.config.env]).sum())}/{len(in_gymnasium)}",
-            "final, IQM": stats.interval(metrics["final"].to_numpy(), "iqm").format(1),
-            "AUC, mean": stats.interval(metrics["auc"].to_numpy()).format(1),
+            "final, IQM": stats.interval(metrics["greedy_return"].to_numpy(), "iqm").format(1),
+            "AUC, mean": stats.interval(metrics["greedy_auc"].to_numpy()).format(1),
             "reached score": f"{int(reached.sum())}/{len(metrics)}",
             "median steps to score": float(metrics["steps_to_score"].median()) if reached.any() else np.nan,
             "median seconds to score": float(metrics["seconds_to_score"].median()) if reached.any() else np.nan,
@@ -234,11 +237,11 @@ def comparisons(deep: dict[str, DeepResults], tabular: dict[str, Results]) -> li
         on, off = deep.get(f"{PAIR[0]}-{env}"), deep.get(f"{PAIR[1]}-{env}")
         if on is not None and off is not None and on.seeds == off.seeds:
             a, b = per_seed(on), per_seed(off)
-            found += [compare(a[m].to_numpy(), b[m].to_numpy(), env, "network", m) for m in ("final", "auc")]
+            found += [compare(a[m].to_numpy(), b[m].to_numpy(), env, "network", m) for m in METRIC_NAMES]
         on_t, off_t = (tabular.get(f"tabular-{name}-{env}") for name in TABULAR_PAIR)
         if on_t is not None and off_t is not None and on_t.seeds == off_t.seeds:
             a, b = per_seed_metrics(on_t)["greedy_return"], per_seed_metrics(off_t)["greedy_return"]
-            found.append(compare(a.to_numpy(), b.to_numpy(), env, "table", "final"))
+            found.append(compare(a.to_numpy(), b.to_numpy(), env, "table", "greedy_return"))
     return found
 
 

@@ -32,6 +32,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.analysis.findings import SCHEDULE_TEXT
+from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
 from rlcompare.experiment import store
@@ -100,15 +101,13 @@ def windows(episodes: int) -> dict[str, tuple[int, int]]:
 
 def per_seed_returns(results: Results, kind: str, start: int, stop: int) -> np.ndarray:
     """Each seed's mean return over episodes ``[start, stop)``: of the behaviour, or of the greedy policy
-    evaluated after episodes in that range (NaN where no evaluation falls in it)."""
+    evaluated after episodes in that range, the greedy curve's area there (NaN where no evaluation falls in it);
+    :func:`~rlcompare.analysis.metrics.returns_per_seed` on that window."""
     records, config = results.records, results.config
-    if kind == "behaviour":
-        return records.returns[:, start:stop].mean(axis=1)
     after = (np.arange(config.evaluation_rounds) + 1) * config.eval_every
     rounds = (after > start) & (after <= stop)
-    if not rounds.any():
-        return np.full(len(results.seeds), np.nan)
-    return records.eval_returns[:, rounds].mean(axis=(1, 2))
+    window = returns_per_seed(results.seeds, records.returns[:, start:stop], records.eval_returns[:, rounds])
+    return window["behaviour_return" if kind == "behaviour" else "greedy_auc"].to_numpy()
 
 
 def term_per_seed(cells: dict[tuple[str, str], np.ndarray], term: str) -> np.ndarray:
