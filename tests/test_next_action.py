@@ -17,6 +17,7 @@ import pytest
 
 from rlcompare import ConfigError, ExperimentConfig, run
 from rlcompare.algorithms.registry import METHODS
+from rlcompare.algorithms.registry import rule_for as method_rule
 from rlcompare.algorithms.reinforce import Reinforce
 from rlcompare.algorithms.schedules import linear_decay_epsilon
 from rlcompare.engine import episodes
@@ -26,7 +27,6 @@ from rlcompare.envs import mountain_car
 from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import chain
-from rlcompare.experiment.runner import method_rule
 from rlcompare.rng import stream_state
 
 W0 = [[0.25, 0.2], [0.1, 0.6]]

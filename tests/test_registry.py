@@ -10,11 +10,11 @@ from typer.testing import CliRunner
 
 from rlcompare import ConfigError, ExperimentConfig
 from rlcompare.algorithms.registry import BEFORE_UPDATE, FAMILIES, METHODS, label
+from rlcompare.algorithms.registry import rule_for as method_rule
 from rlcompare.cli import app
 from rlcompare.engine.episodes import LOOPS
 from rlcompare.experiment.benchmark import MULTI_STEP, ONE_STEP
 from rlcompare.experiment.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
-from rlcompare.experiment.runner import method_rule
 
 
 def test_the_configuration_accepts_exactly_the_registered_methods():

@@ -5,8 +5,10 @@ the figures read this registry; adding a method is its rule and update function 
 
 from __future__ import annotations
 
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from rlcompare.algorithms import nstep, policies, reinforce, td, traces
 
@@ -46,6 +48,8 @@ class Method:
     """REINFORCE: whether its step carries γ^t."""
     baseline: bool = False
     """REINFORCE: whether it learns a state-value baseline."""
+    cuts_traces: bool = False
+    """Watkins's Q(λ): every trace is cut after an exploratory (non-greedy) action."""
     color: str | None = None
 
     @property
@@ -72,7 +76,7 @@ METHODS = {m.name: m for m in (
     Method("sarsa_lambda", "SARSA(λ)", "traces", "Sutton and Barto 12.7", traces.SarsaLambda,
            reads=("lam", "trace")),
     Method("q_lambda", "Q(λ)", "traces", "Watkins's Q(λ), Sutton and Barto 12.10", traces.QLambda,
-           reads=("lam", "trace")),
+           reads=("lam", "trace"), cuts_traces=True),
     Method("reinforce", "REINFORCE", "policy gradient", "the paper's Algorithm 3, as written (no γ^t)",
            reinforce.Reinforce, discount_gradient=False),
     Method("reinforce_book", "REINFORCE (book)", "policy gradient", "Sutton and Barto 13.3 (with γ^t)",
@@ -85,6 +89,27 @@ METHODS = {m.name: m for m in (
 
 def method(name: str) -> Method:
     return METHODS[name]
+
+
+DERIVED: dict[str, Callable[[Any, Method], Any]] = {
+    "draw_before": lambda config, m: (config.next_action or m.next_action) == BEFORE_UPDATE,
+    "replacing": lambda config, m: config.trace == "replacing",
+    "target_epsilon": lambda config, m: -1.0 if config.target_epsilon is None else float(config.target_epsilon),
+    "discount_gradient": lambda config, m: m.discount_gradient,
+    "baseline_alpha": lambda config, m: float(config.baseline_alpha) if m.baseline else 0.0,
+    "n_actions": lambda config, m: int(config.environment.n_actions),
+}
+"""Rule fields that are not a configuration field of the same name, and how a configuration gives them."""
+
+
+def rule_for(config: Any) -> tuple:
+    """The configured method's rule: each field of its named tuple read from the configuration's field of the
+    same name (as the tuple's type), or derived (:data:`DERIVED`). A new method's rule needs nothing here unless
+    a field of it is neither."""
+    chosen = METHODS[config.algorithm]
+    types = typing.get_type_hints(chosen.rule)
+    return chosen.rule(**{name: DERIVED[name](config, chosen) if name in DERIVED else types[name](
+        getattr(config, name)) for name in chosen.rule._fields})
 
 
 def label(name: str) -> str:

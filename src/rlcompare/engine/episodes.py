@@ -185,7 +185,7 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     """SARSA(λ) (12.7) or Watkins's Q(λ) (12.10) with binary features; Q(λ) cuts every trace after an
     exploratory (non-greedy) action."""
     alpha, gamma = settings.alpha, settings.gamma
-    watkins = isinstance_q_lambda(rule)
+    watkins = cuts_traces(rule)
     z, touched, listed = work
     w_flat, n_actions = w.reshape(w.size), w.shape[1]
     buffer = states_buffer(features, 2)  # S and S' in turn
@@ -234,9 +234,9 @@ def _true(rule):
     return True
 
 
-@by_type({traces.QLambda: _true}, default=_false)
-def isinstance_q_lambda(rule):
-    """Whether the rule is Watkins's Q(λ)."""
+@by_type({m.rule: _true for m in METHODS.values() if m.cuts_traces}, default=_false)
+def cuts_traces(rule):
+    """Whether the rule's method cuts every trace after an exploratory action (Watkins's Q(λ))."""
 
 
 # --- REINFORCE ------------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from rlcompare.algorithms.traces import QLambda, SarsaLambda
+from rlcompare.algorithms.registry import METHODS
 from rlcompare.engine.episodes import Traces, evaluation_episode, train_episode
 from rlcompare.engine.state import (
     AGENT_STREAM,
@@ -41,7 +41,7 @@ def _traces(rule, w):
     return Traces(np.zeros(w.size), np.empty(w.size, np.int64), np.zeros(w.size, np.bool_))
 
 
-@by_type({SarsaLambda: _traces, QLambda: _traces}, default=_no_traces)
+@by_type({m.rule: _traces for m in METHODS.values() if m.family == "traces"}, default=_no_traces)
 def workspace(rule, w):
     """The traces a run of ``rule`` keeps between steps (a stub for methods without)."""
 

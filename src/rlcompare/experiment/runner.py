@@ -17,7 +17,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from rlcompare.algorithms.registry import BEFORE_UPDATE, method
+from rlcompare.algorithms.registry import rule_for
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.engine import run as engine
 from rlcompare.engine.state import (
@@ -77,7 +77,7 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
     records = allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
                                       config.eval_episodes, stage_episodes, state.w.shape[1:])
     with stepped_env(config, state) as env:
-        rule, settings = method_rule(config), kernel_settings(config)
+        rule, settings = rule_for(config), kernel_settings(config)
 
         def train(first: int, stop: int) -> None:
             engine.train_runs(rule, settings, env, features, state, epsilons, first, stop, records)
@@ -115,20 +115,6 @@ def kernel_settings(config: ExperimentConfig) -> Settings:
     """The scalars every method reads, as compiled code reads them."""
     return Settings(alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
                     truncation_is_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every))
-
-
-def method_rule(config: ExperimentConfig) -> tuple:
-    """The configured method's rule: a named tuple of what it reads beyond α, γ and ε, taken from ``config``."""
-    chosen = method(config.algorithm)
-    values = {
-        "draw_before": (config.next_action or chosen.next_action) == BEFORE_UPDATE,
-        "target_epsilon": -1.0 if config.target_epsilon is None else float(config.target_epsilon),
-        "n": int(config.n), "lam": float(config.lam), "replacing": config.trace == "replacing",
-        "discount_gradient": chosen.discount_gradient,
-        "baseline_alpha": float(config.baseline_alpha) if chosen.baseline else 0.0,
-        "n_actions": int(config.environment.n_actions),
-    }
-    return chosen.rule(**{name: values[name] for name in chosen.rule._fields})
 
 
 def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:
