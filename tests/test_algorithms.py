@@ -15,7 +15,9 @@ from rlcompare.algorithms.policies import (
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.algorithms.td import (
     QLearning,
+    Rates,
     Sarsa,
+    Transition,
     q_learning_target,
     q_learning_update,
     sarsa_target,
@@ -52,8 +54,8 @@ def _update(impl: str, update, rule: tuple, q: np.ndarray, *, reward: float = -1
     """One update of ``q(S, A)`` on the table ``q``, S = ``now`` and S' = ``1 - now`` (a table's state is its one
     active feature); returns the agent stream it was given (a fresh ``stream_state(0)`` unless one is passed)."""
     rng = stream_state(0) if rng is None else rng
-    _impl(impl, update)(rule, q, np.zeros_like(q), now, 1 - now, action, next_action, reward, terminal, alpha, gamma,
-                        epsilon, rng, np.empty(q.shape[1]), np.empty(q.shape[1]))
+    _impl(impl, update)(rule, q, np.zeros_like(q), Transition(now, action, reward, 1 - now, next_action, terminal),
+                        Rates(alpha, gamma, epsilon), rng, np.empty(q.shape[1]), np.empty(q.shape[1]))
     return rng
 
 

@@ -30,8 +30,8 @@ class Method:
     rule: type
     """A named tuple of what the method reads beyond α, γ and ε; its type picks the compiled code."""
     update: Callable | None = None
-    """One-step methods: ``update(rule, w, w2, s, s_next, action, next_action, reward, terminal, alpha, gamma,
-    epsilon, rng, q_next, scratch)`` of ``q(S, A)``, the states given by their active features."""
+    """One-step methods: ``update(rule, w, w2, t, rates, rng, q_next, scratch)`` of ``q(S, A)`` for one
+    :class:`~rlcompare.algorithms.td.Transition` ``t`` at :class:`~rlcompare.algorithms.td.Rates` (α, γ, ε)."""
     values: Callable | None = None
     """``values(rule, w, w2, s, out, scratch)``: what the behaviour is ε-greedy in and the greedy
     policy greedy in, when it is not ``q`` (Double Q-Learning's ``Q1 + Q2``)."""

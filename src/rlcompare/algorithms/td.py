@@ -33,6 +33,26 @@ from rlcompare.algorithms.policies import largest
 from rlcompare.rng import next_double
 
 
+class Transition(NamedTuple):
+    """One step of experience, (S, A, R, S', A'), the states given by their active features (a table's cell, or
+    one tile per tiling); ``terminal``: S' ends the episode, so its value is zero."""
+
+    s: int | np.ndarray
+    action: int
+    reward: float
+    s_next: int | np.ndarray
+    next_action: int
+    terminal: bool
+
+
+class Rates(NamedTuple):
+    """The step size α, the discount γ and the behaviour's ε of the episode."""
+
+    alpha: float
+    gamma: float
+    epsilon: float
+
+
 class QLearning(NamedTuple):
     """Algorithm 1 (6.5)."""
 
@@ -128,82 +148,70 @@ def _step_toward(w: np.ndarray, s: int | np.ndarray, action: int, target: float,
 
 
 @njit(inline="always")
-def q_learning_update(rule: QLearning, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
-                      s_next: int | np.ndarray, action: int, next_action: int, reward: float, terminal: bool,
-                      alpha: float, gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
-                      scratch: np.ndarray) -> None:
+def q_learning_update(rule: QLearning, w: np.ndarray, w2: np.ndarray, t: Transition, rates: Rates,
+                      rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """Algorithm 1, line 7: ``q(S, A)`` toward ``R + gamma * max_a q(S', a)``."""
-    target = q_learning_target(reward, action_values(w, s_next, q_next), gamma, terminal)
-    _step_toward(w, s, action, target, alpha)
+    target = q_learning_target(t.reward, action_values(w, t.s_next, q_next), rates.gamma, t.terminal)
+    _step_toward(w, t.s, t.action, target, rates.alpha)
 
 
 @njit(inline="always")
-def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, s_next: int | np.ndarray,
-                 action: int, next_action: int, reward: float, terminal: bool, alpha: float, gamma: float,
-                 epsilon: float, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
+def sarsa_update(rule: Sarsa, w: np.ndarray, w2: np.ndarray, t: Transition, rates: Rates, rng: np.ndarray,
+                 q_next: np.ndarray, scratch: np.ndarray) -> None:
     """Algorithm 2, line 6: toward ``R + gamma * q(S', A')``, ``A'`` drawn before the update whatever the order
     (the method's entry says so: :attr:`~rlcompare.algorithms.registry.Method.target_takes_next_action`)."""
-    taken_value = action_value(w, s_next, next_action)
-    _step_toward(w, s, action, sarsa_target(reward, taken_value, gamma, terminal), alpha)
+    taken_value = action_value(w, t.s_next, t.next_action)
+    _step_toward(w, t.s, t.action, sarsa_target(t.reward, taken_value, rates.gamma, t.terminal), rates.alpha)
 
 
 @njit(inline="always")
-def expected_sarsa_update(rule: ExpectedSarsa, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
-                          s_next: int | np.ndarray, action: int, next_action: int, reward: float, terminal: bool,
-                          alpha: float, gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
-                          scratch: np.ndarray) -> None:
+def expected_sarsa_update(rule: ExpectedSarsa, w: np.ndarray, w2: np.ndarray, t: Transition, rates: Rates,
+                          rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """6.6: toward ``R + gamma * E_pi[q(S', A)]`` for the ε-greedy target policy."""
-    target_epsilon = epsilon if rule.target_epsilon < 0 else rule.target_epsilon
-    target = expected_sarsa_target(reward, action_values(w, s_next, q_next), target_epsilon, gamma, terminal)
-    _step_toward(w, s, action, target, alpha)
+    target_epsilon = rates.epsilon if rule.target_epsilon < 0 else rule.target_epsilon
+    target = expected_sarsa_target(t.reward, action_values(w, t.s_next, q_next), target_epsilon, rates.gamma,
+                                   t.terminal)
+    _step_toward(w, t.s, t.action, target, rates.alpha)
 
 
 @njit(inline="always")
-def double_q_update(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
-                    s_next: int | np.ndarray, action: int, next_action: int, reward: float, terminal: bool,
-                    alpha: float, gamma: float, epsilon: float, rng: np.ndarray, q_next: np.ndarray,
-                    scratch: np.ndarray) -> None:
+def double_q_update(rule: DoubleQLearning, w: np.ndarray, w2: np.ndarray, t: Transition, rates: Rates,
+                    rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """6.7: a fair coin picks which estimate learns; it picks the next action, the other values it."""
     if next_double(rng) < 0.5:
-        _double_q_step(w, w2, s, s_next, action, reward, terminal, alpha, gamma, q_next, scratch)
+        _double_q_step(w, w2, t, rates, q_next, scratch)
     else:
-        _double_q_step(w2, w, s, s_next, action, reward, terminal, alpha, gamma, q_next, scratch)
+        _double_q_step(w2, w, t, rates, q_next, scratch)
 
 
 @njit(inline="always")
-def _double_q_step(learner: np.ndarray, other: np.ndarray, s: int | np.ndarray, s_next: int | np.ndarray,
-                   action: int, reward: float, terminal: bool, alpha: float, gamma: float, q_next: np.ndarray,
+def _double_q_step(learner: np.ndarray, other: np.ndarray, t: Transition, rates: Rates, q_next: np.ndarray,
                    scratch: np.ndarray) -> None:
-    target = double_q_target(reward, action_values(learner, s_next, q_next), action_values(other, s_next, scratch),
-                             gamma, terminal)
-    _step_toward(learner, s, action, target, alpha)
+    target = double_q_target(t.reward, action_values(learner, t.s_next, q_next),
+                             action_values(other, t.s_next, scratch), rates.gamma, t.terminal)
+    _step_toward(learner, t.s, t.action, target, rates.alpha)
 
 
 @njit(inline="always")
-def double_expected_sarsa_update(rule: DoubleExpectedSarsa, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray,
-                                 s_next: int | np.ndarray, action: int, next_action: int, reward: float,
-                                 terminal: bool, alpha: float, gamma: float, epsilon: float, rng: np.ndarray,
-                                 q_next: np.ndarray, scratch: np.ndarray) -> None:
+def double_expected_sarsa_update(rule: DoubleExpectedSarsa, w: np.ndarray, w2: np.ndarray, t: Transition,
+                                 rates: Rates, rng: np.ndarray, q_next: np.ndarray, scratch: np.ndarray) -> None:
     """Exercise 6.13: a fair coin picks the estimate that learns; the target policy is ε-greedy in it, the other
     values it: ``R + gamma * sum_a pi_1(a | S') Q2(S', a)``."""
-    target_epsilon = epsilon if rule.target_epsilon < 0 else rule.target_epsilon
+    target_epsilon = rates.epsilon if rule.target_epsilon < 0 else rule.target_epsilon
     if next_double(rng) < 0.5:
-        _double_expected_step(w, w2, s, s_next, action, reward, terminal, alpha, gamma, target_epsilon, q_next,
-                              scratch)
+        _double_expected_step(w, w2, t, rates, target_epsilon, q_next, scratch)
     else:
-        _double_expected_step(w2, w, s, s_next, action, reward, terminal, alpha, gamma, target_epsilon, q_next,
-                              scratch)
+        _double_expected_step(w2, w, t, rates, target_epsilon, q_next, scratch)
 
 
 @njit(inline="always")
-def _double_expected_step(learner: np.ndarray, other: np.ndarray, s: int | np.ndarray, s_next: int | np.ndarray,
-                          action: int, reward: float, terminal: bool, alpha: float, gamma: float, epsilon: float,
+def _double_expected_step(learner: np.ndarray, other: np.ndarray, t: Transition, rates: Rates, epsilon: float,
                           q_next: np.ndarray, scratch: np.ndarray) -> None:
-    target = reward
-    if not terminal:
-        picks, values = action_values(learner, s_next, q_next), action_values(other, s_next, scratch)
-        target += gamma * expected_value(picks, values, epsilon)
-    _step_toward(learner, s, action, target, alpha)
+    target = t.reward
+    if not t.terminal:
+        picks, values = action_values(learner, t.s_next, q_next), action_values(other, t.s_next, scratch)
+        target += rates.gamma * expected_value(picks, values, epsilon)
+    _step_toward(learner, t.s, t.action, target, rates.alpha)
 
 
 @njit(inline="always")

@@ -29,6 +29,7 @@ from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, 
 from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
+from rlcompare.algorithms.td import Rates, Transition
 from rlcompare.engine.state import Settings
 from rlcompare.engine.steps import by_type, features_of, observe, reset, states_buffer, step
 
@@ -88,8 +89,8 @@ def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes
             next_action = 0
             if (rule.draw_before or target_takes_next_action) and not terminal:
                 next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng)
-            update(rule, w, w2, s, s_next, action, next_action, reward, terminal, settings.alpha, settings.gamma,
-                   epsilon, agent_rng, q_next, scratch)
+            update(rule, w, w2, Transition(s, action, reward, s_next, next_action, terminal),
+                   Rates(settings.alpha, settings.gamma, epsilon), agent_rng, q_next, scratch)
             if terminated or truncated:
                 break
             if not rule.draw_before:  # after the update, which may have changed q(S', .)
