@@ -33,7 +33,7 @@ from rlcompare.engine.state import (
 from rlcompare.envs import gymnasium_env
 from rlcompare.envs.features import make_features
 from rlcompare.envs.registry import make_env
-from rlcompare.experiment import store
+from rlcompare.experiment import engines, store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.results import Results
 
@@ -160,7 +160,6 @@ def run_or_load(
     locked while this runs. Yields ``(name, results, reused)`` as each configuration completes, so an
     interrupted study resumes where it stopped and loses nothing finished.
     """
-    from rlcompare.experiment import engines
 
     def one(name: str, config: Any) -> tuple[str, Any, bool]:
         run_dir = Path(out) / name
