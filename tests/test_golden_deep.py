@@ -21,8 +21,8 @@ import pytest
 
 pytest.importorskip("jax")
 
-from rlcompare.deep.run import DeepConfig, DeepResults  # noqa: E402
-from rlcompare.deep.run import run as deep_run  # noqa: E402
+from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.deep.run import run as deep_run
 
 GOLDEN = Path(__file__).parent / "golden" / "deep.json"
 TINY = {"seeds": (0, 3), "vmap_width": 2, "eval_rounds": 2, "eval_episodes": 2}
