@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -177,19 +178,35 @@ def test_records_bytes_equals_what_the_kernel_allocates(env: str, features: str,
 def test_records_larger_than_memory_are_refused_with_the_figures(monkeypatch: pytest.MonkeyPatch) -> None:
     """3 seeds x 20,000,000 episodes: 1,180,096,024 bytes, 1.1 GiB, on a machine said to have 1 GiB."""
     monkeypatch.setattr(config_module, "physical_memory", lambda: 2**30)
+    config = ExperimentConfig(seeds=(0, 1, 2), episodes=20_000_000, eval_every=0)  # validation reads no machine
     with pytest.raises(ConfigError) as caught:
-        ExperimentConfig(seeds=(0, 1, 2), episodes=20_000_000, eval_every=0)
+        config_module.check_memory(config)
     assert caught.value.field_name == "episodes"
     assert caught.value.allowed == ("a run whose records fit in memory: 3 seeds x 20,000,000 episodes need 1.1 GiB; "
                                     "this machine has 1.0 GiB")
-    assert ExperimentConfig(seeds=(0,), episodes=20_000_000, eval_every=0).episodes == 20_000_000
+    config_module.check_memory(ExperimentConfig(seeds=(0,), episodes=20_000_000, eval_every=0))
+
+
+def test_a_run_too_large_for_this_machine_still_loads_and_is_refused_only_when_it_starts(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A configuration made on a bigger machine round-trips here; training it is refused before anything is
+    allocated or written."""
+    from rlcompare.experiment.runner import run
+
+    monkeypatch.setattr(config_module, "physical_memory", lambda: 2**20)
+    config = ExperimentConfig(seeds=tuple(range(8)), episodes=20_000, eval_every=0)
+    assert ExperimentConfig.from_dict(config.to_dict()) == config
+    with pytest.raises(ConfigError, match="fit in memory"):
+        run(config, out=tmp_path / "run")
+    assert not (tmp_path / "run").exists()
 
 
 def test_evaluations_larger_than_this_machines_memory_are_refused() -> None:
     """2**31 - 1 evaluations of 2**31 - 1 episodes: no machine holds their records."""
     memory = config_module.physical_memory()
     with pytest.raises(ConfigError) as caught:
-        ExperimentConfig(seeds=(0,), episodes=2**31 - 1, eval_every=1, eval_episodes=2**31 - 1)
+        config_module.check_memory(ExperimentConfig(seeds=(0,), episodes=2**31 - 1, eval_every=1,
+                                                    eval_episodes=2**31 - 1))
     assert caught.value.field_name == "eval_episodes"
     assert caught.value.allowed.startswith("a run whose records fit in memory: 1 seeds x 2,147,483,647 evaluations "
                                            "x 2,147,483,647 episodes need ")

@@ -41,9 +41,9 @@ def fail(message: str) -> None:
 
 
 def one_line_errors(command: Callable) -> Callable:
-    """A command whose errors of the store or of the operating system (a full disk, a read-only directory), or
-    of a backend that cannot run, end it with one clear line and exit code 2; what was finished before them
-    stays on disk."""
+    """A command whose errors of the store or of the operating system (a full disk, a read-only directory), of a
+    backend that cannot run, or of a value a run refuses, end it with one clear line and exit code 2; what was
+    finished before them stays on disk."""
     from rlcompare.experiment.backends import BackendError
 
     @functools.wraps(command)
@@ -52,6 +52,8 @@ def one_line_errors(command: Callable) -> Callable:
             return command(*args, **kwargs)
         except BackendError as error:
             fail(str(error))
+        except ConfigError as error:  # a value only a run can refuse: records larger than this machine's memory
+            raise bad_option(error) from None
         except OSError as error:  # StoreError included
             message = str(error) if isinstance(error, StoreError) or not error.strerror else (
                 f"{error.filename}: {error.strerror}" if error.filename else error.strerror)

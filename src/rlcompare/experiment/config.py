@@ -360,8 +360,8 @@ def _check_tiles(c: ExperimentConfig) -> None:
 
 
 def records_parts(c: ExperimentConfig) -> dict[str, int]:
-    """Bytes of the records a run of ``c`` allocates (``kernel.allocate_records``, and the ε schedule), by
-    what they grow with: ``episodes`` (returns float64, lengths int64, terminated bool per seed and episode;
+    """Bytes of the records a run of ``c`` allocates (:func:`rlcompare.engine.state.allocate_records`, and the ε
+    schedule), by what they grow with: ``episodes`` (returns float64, lengths int64, terminated bool per seed and episode;
     ε per episode), ``eval_episodes`` (the same per seed, evaluation round and evaluation episode) and
     ``features`` (snapshots float64 per seed, stage, feature and action; visits int64 per seed and feature;
     the snapshots' episodes)."""
@@ -392,8 +392,10 @@ def _gib(size: int) -> str:
     return f"{size / 2**30:,.1f} GiB" if size < 10 * 2**30 else f"{size / 2**30:,.0f} GiB"
 
 
-def _check_records(c: ExperimentConfig) -> None:
-    """Records that fit in this machine's memory, refused before anything is allocated."""
+def check_memory(c: ExperimentConfig) -> None:
+    """Records that fit in this machine's memory, refused before anything is allocated. Called where a run
+    starts (:func:`rlcompare.experiment.runner.run`), never when a configuration is made or loaded: validation
+    reads nothing of the machine, so a run made on a bigger machine still loads here."""
     parts, memory = records_parts(c), physical_memory()
     needed = sum(parts.values())
     if needed <= memory:
@@ -414,4 +416,4 @@ def _check_records(c: ExperimentConfig) -> None:
                       f"machine has {_gib(memory)}")
 
 
-_CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles, _check_records)
+_CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles)

@@ -34,7 +34,7 @@ from rlcompare.envs import gymnasium_env
 from rlcompare.envs.features import make_features
 from rlcompare.envs.registry import make_env
 from rlcompare.experiment import engines, store
-from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.config import ExperimentConfig, check_memory
 from rlcompare.experiment.results import Results
 
 CHUNK_EPISODES = 250
@@ -58,8 +58,10 @@ def run(
 ) -> Results:
     """Train every seed of ``config``; write the run directory to ``out`` if given.
 
-    ``progress`` is called with the number of episodes (per seed) finished since its last call.
+    ``progress`` is called with the number of episodes (per seed) finished since its last call. Records that
+    would not fit in this machine's memory are refused first (:func:`~rlcompare.experiment.config.check_memory`).
     """
+    check_memory(config)
     if out is None:
         return _train(config, study, progress)
     with store.output_directory(Path(out), store.RUN):  # refused before training, locked while it lasts

@@ -10,6 +10,7 @@ import numpy as np
 from rlcompare.engine.state import Records
 from rlcompare.experiment.agent import agent
 from rlcompare.experiment.config import ExperimentConfig as Config
+from rlcompare.experiment.config import check_memory
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run
 
@@ -24,8 +25,11 @@ FIXED_IN_SWEEP: dict[str, str] = {}
 
 
 def sweep_config(values: dict, seeds: tuple[int, ...]) -> Config:
-    """One configuration of a sweep from the values its sections give and its seeds."""
-    return Config(**values, seeds=seeds)
+    """One configuration of a sweep from the values its sections give and its seeds; records of all its seeds
+    that would not fit in this machine's memory are refused here, where the sweep is about to run."""
+    config = Config(**values, seeds=seeds)
+    check_memory(config)
+    return config
 
 
 def merge(trials: list[Results]) -> Results:
