@@ -361,10 +361,10 @@ def _check_tiles(c: ExperimentConfig) -> None:
 
 def records_parts(c: ExperimentConfig) -> dict[str, int]:
     """Bytes of the records a run of ``c`` allocates (:func:`rlcompare.engine.state.allocate_records`, and the ε
-    schedule), by what they grow with: ``episodes`` (returns float64, lengths int64, terminated bool per seed and episode;
-    ε per episode), ``eval_episodes`` (the same per seed, evaluation round and evaluation episode) and
-    ``features`` (snapshots float64 per seed, stage, feature and action; visits int64 per seed and feature;
-    the snapshots' episodes)."""
+    schedule), by what they grow with: ``episodes`` (returns float64, lengths int64, terminated bool per seed and
+    episode; ε per episode), ``eval_episodes`` (the same per seed, evaluation round and evaluation episode) and
+    ``features`` (snapshots float64 per seed, stage, feature and action; visits int64 per seed and feature; the
+    snapshots' episodes)."""
     runs, per_episode = len(c.seeds), 8 + 8 + 1
     stages = len(c.stage_episodes())
     features = feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
