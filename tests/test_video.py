@@ -18,7 +18,7 @@ import pytest
 from PIL import Image, ImageSequence
 
 from rlcompare import ExperimentConfig, load_agent, run
-from rlcompare.analysis import video
+from rlcompare.analysis import captions, encode, video
 
 MAX_STEPS = 200
 
@@ -93,7 +93,7 @@ def test_a_terminated_episode_is_recorded_to_the_flag(pump_episode: video.Episod
 
 def test_caption_changes_the_strip_only(pump_episode: video.Episode) -> None:
     raw = video.record_episode(Pump(), episode_seed=3, max_steps=MAX_STEPS, env_id="MountainCar-v0")
-    strip = video.CAPTION_HEIGHT
+    strip = captions.CAPTION_HEIGHT
     for captioned, frame in zip(pump_episode.frames, raw.frames, strict=True):
         assert captioned.shape == (400 + strip, 600, 3)
         np.testing.assert_array_equal(captioned[strip:], frame)
@@ -102,29 +102,29 @@ def test_caption_changes_the_strip_only(pump_episode: video.Episode) -> None:
     assert not np.array_equal(first[:strip], last[:strip])  # the return and the step move on
 
     frame = raw.frames[0]
-    blank = video.add_caption(frame, "")
-    text = video.add_caption(frame, "SARSA · ε decay · middle (episode 2500) · return -143", "seed 0")
+    blank = captions.add_caption(frame, "")
+    text = captions.add_caption(frame, "SARSA · ε decay · middle (episode 2500) · return -143", "seed 0")
     differs = (blank != text).any(axis=(1, 2))
     assert differs[:strip].any()
     assert not differs[strip:].any()
-    assert video._missing_glyphs(17) == ()  # ε is drawn, not a missing-glyph box
+    assert captions._missing_glyphs(17) == ()  # ε is drawn, not a missing-glyph box
 
 
 def test_stage_titles_name_algorithm_schedule_stage_and_episode() -> None:
-    assert video.stage_title(ExperimentConfig(), "middle") == "Q-Learning · ε decay · middle (episode 2500)"
+    assert captions.stage_title(ExperimentConfig(), "middle") == "Q-Learning · ε decay · middle (episode 2500)"
     sarsa = ExperimentConfig(algorithm="sarsa", schedule="constant", episodes=1000)
-    assert video.stage_title(sarsa, "early") == "SARSA · ε = 0.5 · early (episode 100)"
-    assert video.stage_title(ExperimentConfig(algorithm="random"), None) == "Random · uniform actions"
+    assert captions.stage_title(sarsa, "early") == "SARSA · ε = 0.5 · early (episode 100)"
+    assert captions.stage_title(ExperimentConfig(algorithm="random"), None) == "Random · uniform actions"
 
 
 def test_mp4_is_h264_with_every_frame(tmp_path: Path, pump_episode: video.Episode) -> None:
-    path = video.write_mp4(pump_episode.frames, tmp_path / "pump.mp4")
+    path = encode.write_mp4(pump_episode.frames, tmp_path / "pump.mp4")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pump.mp4"]  # no temporary file left
     meta, frames = read_mp4(path)
     assert meta["codec"] == "h264"
     assert meta["pix_fmt"].startswith("yuv420p")
     assert meta["size"] == (600, 448)
-    assert meta["fps"] == video.FPS
+    assert meta["fps"] == encode.FPS
     assert frames.shape == (len(pump_episode.frames), 448, 600, 3)
     assert np.abs(frames[-1].astype(int) - pump_episode.frames[-1]).mean() < 3  # same picture, RGB order
     data = path.read_bytes()
@@ -132,23 +132,23 @@ def test_mp4_is_h264_with_every_frame(tmp_path: Path, pump_episode: video.Episod
 
 
 def test_gif_is_smaller_and_loops(tmp_path: Path, pump_episode: video.Episode) -> None:
-    path = video.write_gif(pump_episode.frames, tmp_path / "pump.gif")
-    n, every = len(pump_episode.frames), video.GIF_EVERY
+    path = encode.write_gif(pump_episode.frames, tmp_path / "pump.gif")
+    n, every = len(pump_episode.frames), encode.GIF_EVERY
     with Image.open(path) as gif:
         assert gif.size == (300, 224)
         assert gif.n_frames == len(range(0, n, every)) + ((n - 1) % every > 0)  # every few frames, and the last
         assert gif.info["loop"] == 0
         durations = [frame.info["duration"] for frame in ImageSequence.Iterator(gif)]
-    shown = 100 * every / video.FPS  # centiseconds, the unit of GIF delays
+    shown = 100 * every / encode.FPS  # centiseconds, the unit of GIF delays
     assert set(durations[:-1]) <= {10 * math.floor(shown), 10 * math.ceil(shown)}
-    assert sum(durations) == round(1000 * n / video.FPS, -1) + video.GIF_HOLD_MS  # real time, then a pause
+    assert sum(durations) == round(1000 * n / encode.FPS, -1) + encode.GIF_HOLD_MS  # real time, then a pause
     assert 0 < path.stat().st_size < 2_000_000
 
 
 def test_writes_are_atomic_and_sizes_made_even(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     odd = [rng.integers(0, 256, (17, 31, 3), dtype=np.uint8) for _ in range(3)]
-    path = video.write_mp4(odd, tmp_path / "odd.mp4")
+    path = encode.write_mp4(odd, tmp_path / "odd.mp4")
     meta, frames = read_mp4(path)
     assert meta["size"] == (32, 18)
     assert frames.shape == (3, 18, 32, 3)
@@ -157,11 +157,11 @@ def test_writes_are_atomic_and_sizes_made_even(tmp_path: Path) -> None:
         yield odd[0]
         raise RuntimeError("renderer died")
 
-    for write in (video.write_mp4, video.write_gif):
+    for write in (encode.write_mp4, encode.write_gif):
         with pytest.raises(RuntimeError, match="renderer died"):
             write(broken(), tmp_path / "broken.out")
     with pytest.raises(ValueError, match="uint8"):
-        video.write_mp4([np.zeros((4, 4, 3))], tmp_path / "float.mp4")
+        encode.write_mp4([np.zeros((4, 4, 3))], tmp_path / "float.mp4")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["odd.mp4"]
 
 

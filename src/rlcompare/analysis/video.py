@@ -8,29 +8,23 @@ paper and the book's variant, whose trajectories are the same) from the start st
 of ``env.reset(seed=episode_seed)``, and writes an H.264 MP4 (and a small looping GIF) per stage. Every
 stage starts from the same start state, so the videos differ only by what the agent has learned.
 
-A caption strip is added above Gymnasium's 600x400 frame (the picture itself is left untouched): the
-algorithm, the exploration schedule, the stage with the number of training episodes behind it, and the
-return so far (the final return on the last frame); a second, smaller line gives the training seed, the
-start-state seed and the step, and on the last frame whether the car reached the flag or ran out of time.
+Each frame is played by :mod:`rlcompare.analysis.play`, captioned by :mod:`rlcompare.analysis.captions` (the
+algorithm, the schedule, the stage and the return so far, in a strip above Gymnasium's picture, which is left
+untouched) and encoded by :mod:`rlcompare.analysis.encode`; between them frames travel as packed pixels
+(:mod:`rlcompare.analysis.frames`).
 
 The random baseline does not learn, so its stages would all show the same policy: it gets one video,
 ``random-seed{seed}.mp4``, of the uniform random policy (its action stream is seeded by the training seed,
 so the video is reproducible).
 
-Rendering needs no display: the first call that renders sets ``SDL_VIDEODRIVER=dummy`` (and hides
-pygame's banner) with ``os.environ.setdefault``, so a value set by the user wins. Importing this module
-changes nothing.
+Rendering needs no display (:mod:`rlcompare.analysis.play` sets that up on the first render). Importing this
+module changes nothing.
 
 Videos render in parallel, one per worker process (:func:`render_videos`; ``workers=1`` renders them in
 this process, one after the other), or in the background while the caller does other work
 (:func:`start_videos`, which the report uses: its own process takes the videos no worker has started once its
 figures are done), and the files are the same byte for byte whatever the number of workers. Workers start with
 ``spawn``, so a script that renders in other processes needs the usual ``if __name__ == "__main__":`` guard.
-
-Frames travel as packed pixels (:mod:`rlcompare.analysis.frames`). Where the environment's registry entry has
-a painter (Mountain Car's draws Gymnasium's picture pixel for pixel in 0.15 ms, where ``env.render()`` takes
-1.9 ms), it draws them; else ``env.render()`` does. The YUV planes ffmpeg encodes are computed here (0.2 ms a
-frame; ffmpeg's own conversion from RGB took 1.1 ms of its time).
 
 Cost, measured on 2 cores: the whole Python side (step, picture, caption, YUV, the GIF's frame) takes about
 1.2 ms a frame and ffmpeg about 1.4 ms in its own process meanwhile, so one video keeps about 1.9 cores busy;
@@ -42,28 +36,20 @@ lookup), once for all its videos.
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
-import itertools
-import math
 import multiprocessing
 import os
-import re
-import secrets
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
-from typing import NamedTuple, Protocol
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
 
-from rlcompare.algorithms.registry import label as method_label
-from rlcompare.analysis import frames
-from rlcompare.envs.registry import environment
+from rlcompare.analysis import captions, frames
+from rlcompare.analysis.encode import FPS, GIF_EVERY, GIF_SCALE, GifFrames, mp4_writer
+from rlcompare.analysis.play import Agent, Frame, play
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.engines import load_agent
@@ -72,38 +58,6 @@ from rlcompare.experiment.results import Results
 DEFAULT_EPISODE_SEED = 10_000
 """Seed of ``env.reset`` for the recorded episode: one start state shared by every video, apart from the
 start states of training (seed ``s`` trains from ``env.reset(seed=s)`` onwards)."""
-FPS = 30
-"""Frames per second of the MP4: Gymnasium's ``render_fps`` for MountainCar."""
-CAPTION_HEIGHT = 48
-"""Height in pixels of the caption strip above the frame (even, so H.264 frame sizes stay even)."""
-MP4_OPTIONS = ("-preset", "veryfast", "-x264-params", "me=dia:subme=1", "-crf", "23", "-threads", "1",
-               "-movflags", "+faststart")
-"""x264 settings: fast to encode and small files (the picture is mostly flat white). CRF 23 rather than 28:
-at 28 the digits of the caption smear into those of the frame before; 23 costs no time and keeps a
-1000-step video near 340 kB. The diamond motion search and the quickest subpixel refinement (``me=dia:subme=1``)
-take a fifth less time than ``veryfast``'s own for 7% more bytes. One thread per encoder, so the bytes do not
-depend on the number of cores (the encoder runs beside the renderer anyway); ``+faststart`` lets a browser play
-it while it loads."""
-GIF_COLORS = 64
-GIF_SCALE = 0.5
-GIF_EVERY = 3
-"""The GIF is a small preview beside the MP4: every third frame (10 a second) at half size in 64 colours. At every
-second frame it took a third of the Python side's time."""
-GIF_HOLD_MS = 1000
-"""The GIF shows its last frame (with the final return) this much longer before it loops."""
-
-_CAPTION_BACKGROUND = (255, 255, 255)
-_CAPTION_TEXT = (0, 0, 0)
-_CAPTION_DETAIL = (90, 90, 90)
-_CAPTION_RULE = (200, 200, 200)
-"""The caption's colours are greys, and so is every anti-aliased pixel of its text: of two packed grey pixels the
-darker is the smaller word, so the strip is drawn in packed pixels directly."""
-_PAD = 2
-_DIGITS = re.compile(r"\d|\D+")
-
-
-class Agent(Protocol):
-    def act(self, observation: np.ndarray) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -124,193 +78,6 @@ class Episode:
         return float(self.returns[-1])
 
 
-class _Frame(NamedTuple):
-    picture: np.ndarray
-    """The environment's picture, packed (:mod:`rlcompare.analysis.frames`), in a buffer the next frame reuses."""
-    step: int
-    return_so_far: float
-    terminated: bool
-    truncated: bool
-
-
-def _headless() -> None:
-    """Let pygame render without a display and without its banner; a value the user set wins."""
-    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-
-
-def _play(agent: Agent, episode_seed: int, max_steps: int, env_id: str) -> Iterator[_Frame]:
-    """Step ``agent`` through one rendered episode, yielding the start frame and one frame per step."""
-    _headless()
-    import gymnasium as gym  # after _headless: gymnasium imports pygame when it first renders
-
-    env = gym.make(env_id, render_mode="rgb_array", max_episode_steps=max_steps)
-    try:
-        observation, _ = env.reset(seed=episode_seed)
-        picture = _painter(env, env_id)
-        total, step, terminated, truncated = 0.0, 0, False, False
-        yield _Frame(picture(), step, total, terminated, truncated)
-        while not (terminated or truncated):
-            observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
-            total += float(reward)
-            step += 1
-            yield _Frame(picture(), step, total, bool(terminated), bool(truncated))
-    finally:
-        env.close()
-
-
-def _painter(env, env_id: str) -> Callable[[], np.ndarray]:
-    """What draws ``env``'s current picture, packed: the registry's painter, equal to ``env.render()`` and
-    quicker, where the environment has one; else ``env.render()`` itself."""
-    painter = environment(env_id).painter
-    if painter is None:
-        return lambda: frames.pack(env.render())
-    drawn = painter(env.unwrapped)
-    buffer = np.empty(drawn.size[::-1], dtype=np.uint32)
-
-    def picture() -> np.ndarray:
-        drawn.paint(buffer)
-        return buffer
-    return picture
-
-
-# --- captions -------------------------------------------------------------------------------------
-
-
-@lru_cache(maxsize=8)
-def _font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
-    """DejaVu Sans (shipped with matplotlib, a dependency): Pillow's default font has no ε."""
-    try:
-        import matplotlib
-
-        return ImageFont.truetype(str(Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"), size)
-    except (ImportError, OSError):  # pragma: no cover - matplotlib is a dependency
-        return ImageFont.load_default(size=size)
-
-
-_SPECIAL = {"ε": "epsilon", "·": "-"}
-
-
-@lru_cache(maxsize=8)
-def _missing_glyphs(size: int) -> tuple[str, ...]:
-    """The special characters of the captions that the font at ``size`` cannot draw."""
-    font = _font(size)
-    missing = font.getmask("\ufffe").getbbox()
-    return tuple(ch for ch in _SPECIAL if font.getmask(ch).getbbox() == missing)
-
-
-def _drawable(size: int, text: str) -> str:
-    for ch in _missing_glyphs(size):
-        text = text.replace(ch, _SPECIAL[ch])
-    return text
-
-
-@lru_cache(maxsize=4096)
-def _text_image(text: str, size: int, color: tuple[int, int, int]) -> tuple[np.ndarray, float]:
-    """``text`` in ``color`` on the caption background, packed, and how far it advances the pen."""
-    font = _font(size)
-    text = _drawable(size, text)
-    advance = font.getlength(text)
-    image = Image.new("RGB", (math.ceil(advance) + 2 * _PAD, round(size * 1.4)), _CAPTION_BACKGROUND)
-    ImageDraw.Draw(image).text((_PAD, 0), text, font=font, fill=color)
-    pixels = frames.pack(np.asarray(image))
-    pixels.flags.writeable = False
-    return pixels, advance
-
-
-@lru_cache(maxsize=8)
-def _blank_strip(width: int, height: int) -> np.ndarray:
-    strip = np.empty((height, width), dtype=np.uint32)
-    strip[:] = frames.pack(np.array([[_CAPTION_BACKGROUND]], dtype=np.uint8))
-    strip[-1] = frames.pack(np.array([[_CAPTION_RULE]], dtype=np.uint8))
-    strip.flags.writeable = False
-    return strip
-
-
-_Line = tuple[Sequence[str], int, tuple[int, int, int]]
-"""A caption line: its pieces (drawn one after the other), font size and colour."""
-
-
-def _draw(strip: np.ndarray, x: float, y: int, line: _Line) -> None:
-    """Draw a line's pieces on the strip, one after the other.
-
-    Each piece is rasterised once and cached: a caption whose numbers change every frame is split into a
-    fixed head and single digits (DejaVu Sans has tabular digits, no kerning), so it costs a few array
-    copies. Text is darker than the background, so where pieces overlap the darker pixel is kept.
-    """
-    pieces, size, color = line
-    for piece in pieces:
-        pixels, advance = _text_image(piece, size, color)
-        left = round(x) - _PAD
-        h, w = min(pixels.shape[0], strip.shape[0] - 1 - y), min(pixels.shape[1], strip.shape[1] - left)
-        if h > 0 and w > 0:
-            region = strip[y:y + h, left:left + w]
-            np.minimum(region, pixels[:h, :w], out=region)
-        x += advance
-
-
-def _draw_strip(strip: np.ndarray, title: Sequence[str], detail: Sequence[str]) -> None:
-    """The caption's two lines on a packed strip, in place."""
-    height, width = strip.shape
-    strip[:] = _blank_strip(width, height)
-    big, small = max(8, round(height * 0.36)), max(8, round(height * 0.27))
-    _draw(strip, 8, round(height * 0.06), (title, big, _CAPTION_TEXT))
-    _draw(strip, 8, round(height * 0.56), (detail, small, _CAPTION_DETAIL))
-
-
-def add_caption(frame: np.ndarray, title: str, detail: str = "") -> np.ndarray:
-    """``frame`` ((H, W, 3) uint8) under a caption strip: ``(H + CAPTION_HEIGHT, W, 3)``, the frame's pixels
-    unchanged."""
-    return frames.unpack(_stack(frames.pack(frame), (title,), (detail,) if detail else (), None))
-
-
-def _stack(picture: np.ndarray, title: Sequence[str], detail: Sequence[str], out: np.ndarray | None) -> np.ndarray:
-    """A packed picture under its caption strip, in ``out`` (a new frame if None)."""
-    height, width = picture.shape
-    if out is None:
-        out = np.empty((height + CAPTION_HEIGHT, width), dtype=np.uint32)
-    _draw_strip(out[:CAPTION_HEIGHT], title, detail)
-    out[CAPTION_HEIGHT:] = picture
-    return out
-
-
-def _caption_pieces(title: str, frame: _Frame, *, seed: int | None, episode_seed: int,
-                    max_steps: int, env_id: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The two caption lines of a frame, split into a fixed head (cached once drawn) and what changes."""
-    finished = frame.terminated or frame.truncated
-    ret = f"{'final return' if finished else 'return'} {frame.return_so_far:.0f}"
-    head = f"training seed {seed} · " if seed is not None else ""
-    head += f"start state: reset(seed={episode_seed}) · "
-    detail = [head, *_DIGITS.findall(f"step {frame.step}/{max_steps}")]
-    terminated, truncated = environment(env_id).endings
-    if frame.terminated:
-        detail.append(f" · {terminated}")
-    elif frame.truncated:
-        detail.append(f" · {truncated}")
-    return (f"{title} · ", *_DIGITS.findall(ret)), tuple(detail)
-
-
-def _captioned(played: Iterable[_Frame], title: str, *, seed: int | None, episode_seed: int,
-               max_steps: int, env_id: str) -> Iterator[tuple[np.ndarray, _Frame]]:
-    """Each frame under its caption, packed, in one reused buffer (copy it to keep it)."""
-    buffer = None
-    for frame in played:
-        line, detail = _caption_pieces(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
-                                       env_id=env_id)
-        buffer = _stack(frame.picture, line, detail, buffer)
-        yield buffer, frame
-
-
-def stage_title(config: ExperimentConfig, stage: str | None) -> str:
-    """``SARSA · ε decay · middle (episode 2500)``; the random baseline: ``Random · uniform actions``."""
-    name = method_label(config.algorithm)
-    algorithm = name[:1].upper() + name[1:]
-    if config.algorithm == "random" or stage is None:
-        return f"{algorithm} · uniform actions" if config.algorithm == "random" else algorithm
-    schedule = "ε decay" if config.schedule == "decay" else f"ε = {config.epsilon:g}"
-    return f"{algorithm} · {schedule} · {stage} (episode {config.stage_episodes()[stage]})"
-
-
 # --- recording ------------------------------------------------------------------------------------
 
 
@@ -322,184 +89,23 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
     and the return so far (``seed``, the training seed, goes on the caption's second line). For long
     episodes the frames take memory (about 0.8 MB each); :func:`render_stage_videos` streams instead.
     """
-    played: Iterable[_Frame] = _play(agent, episode_seed, max_steps, env_id)
+    played: Iterable[Frame] = play(agent, episode_seed, max_steps, env_id)
     images, returns = [], []
-    last: _Frame | None = None
+    last: Frame | None = None
     if title is None:
         for frame in played:
             images.append(frames.unpack(frame.picture))
             returns.append(frame.return_so_far)
             last = frame
     else:
-        for image, frame in _captioned(played, title, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
-                                       env_id=env_id):
+        for image, frame in captions.captioned(played, title, seed=seed, episode_seed=episode_seed,
+                                               max_steps=max_steps, env_id=env_id):
             images.append(frames.unpack(image))
             returns.append(frame.return_so_far)
             last = frame
     assert last is not None
     return Episode(frames=images, returns=np.asarray(returns, dtype=np.float64), length=last.step,
                    terminated=last.terminated)
-
-
-# --- writing --------------------------------------------------------------------------------------
-
-
-def _even(packed: np.ndarray) -> np.ndarray:
-    """Pad an odd height or width by repeating the last row or column (H.264 4:2:0 needs even sizes)."""
-    height, width = packed.shape
-    if height % 2 or width % 2:
-        return np.pad(packed, ((0, height % 2), (0, width % 2)), mode="edge")
-    return packed
-
-
-def _rgb(frame: np.ndarray) -> np.ndarray:
-    frame = np.asarray(frame)
-    if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
-        raise ValueError(f"frames must be (H, W, 3) uint8; got {frame.shape} {frame.dtype}")
-    return frame
-
-
-class _Mp4Encoder:
-    """ffmpeg encoding packed frames to ``path``: each frame turned into its YUV planes here (ffmpeg's own
-    conversion from RGB took as long as the encoding) and piped to ffmpeg, which starts at the first frame."""
-
-    def __init__(self, path: Path, fps: float) -> None:
-        self.path, self.fps = path, fps
-        self._ffmpeg: Iterator | None = None
-        self._planes = np.empty(0, dtype=np.uint8)
-
-    def append(self, packed: np.ndarray) -> None:
-        packed = _even(packed)
-        if self._ffmpeg is None:
-            import imageio_ffmpeg
-
-            height, width = packed.shape
-            self._ffmpeg = imageio_ffmpeg.write_frames(
-                str(self.path), (width, height), pix_fmt_in="yuv420p", pix_fmt_out="yuv420p", fps=self.fps,
-                codec="libx264", quality=None, macro_block_size=1, output_params=list(MP4_OPTIONS))
-            self._ffmpeg.send(None)
-            self._planes = np.empty(height * width * 3 // 2, dtype=np.uint8)
-        frames.yuv420(packed, self._planes)
-        self._ffmpeg.send(self._planes)
-
-    def close(self) -> None:
-        if self._ffmpeg is not None:
-            self._ffmpeg.close()
-
-
-@contextlib.contextmanager
-def _mp4_writer(path: Path, fps: float) -> Iterator[_Mp4Encoder]:
-    """An encoder to a temporary file beside ``path``, renamed onto it when all went well."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    store.enter_outputs(path)
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp.mp4")
-    writer = _Mp4Encoder(tmp, fps)
-    try:
-        yield writer
-        writer.close()
-        if not tmp.is_file():
-            raise OSError(f"{path}: ffmpeg wrote no file (were there no frames?)")
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(Exception):
-            writer.close()
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def write_mp4(rgb_frames: Iterable[np.ndarray], path: Path, fps: float = FPS) -> Path:
-    """Encode ``rgb_frames`` ((H, W, 3) uint8, any iterable) as an H.264 MP4 that browsers play.
-
-    libx264, yuv420p, ``+faststart``; odd sizes are padded to even ones. Written atomically.
-    """
-    path = Path(path)
-    count = 0
-    with _mp4_writer(path, fps) as writer:
-        for frame in rgb_frames:
-            writer.append(frames.pack(_rgb(frame)))
-            count += 1
-        if count == 0:
-            raise ValueError("write_mp4: no frames")
-    return path
-
-
-class _GifFrames:
-    """Every ``every``-th packed frame (and the last), scaled by ``scale`` and mapped to one shared palette."""
-
-    def __init__(self, scale: float, every: int) -> None:
-        if not 0 < scale <= 1:
-            raise ValueError(f"scale must be in (0, 1]; got {scale}")
-        if every < 1:
-            raise ValueError(f"every must be >= 1; got {every}")
-        self.scale, self.every = scale, every
-        self.images: list[Image.Image] = []
-        self.indices: list[int] = []
-        """Index in the source of each kept frame."""
-        self.palette: Image.Image | None = None
-        self.count = 0
-        self._pending: np.ndarray | None = None
-
-    def _reduce(self, packed: np.ndarray) -> Image.Image:
-        if self.scale == 0.5 and not (packed.shape[0] % 2 or packed.shape[1] % 2):
-            image = frames.image(frames.halved(packed))  # Pillow's 2x2 box mean, pixel for pixel, 9x as fast
-        else:
-            image = frames.image(packed)
-            size = (max(1, round(image.width * self.scale)), max(1, round(image.height * self.scale)))
-            image = image.resize(size, Image.Resampling.BOX, reducing_gap=1.0) if self.scale < 1 else image
-        if self.palette is None:
-            self.palette = image.quantize(colors=GIF_COLORS, method=Image.Quantize.MEDIANCUT,
-                                          dither=Image.Dither.NONE)
-        return image.quantize(palette=self.palette, dither=Image.Dither.NONE)
-
-    def add(self, packed: np.ndarray) -> None:
-        if self.count % self.every == 0:
-            self.images.append(self._reduce(packed))
-            self.indices.append(self.count)
-            self._pending = None
-        else:
-            self._pending = packed.copy()  # kept in case it is the last frame
-        self.count += 1
-
-    def finish(self) -> list[Image.Image]:
-        if self._pending is not None:
-            self.images.append(self._reduce(self._pending))
-            self.indices.append(self.count - 1)
-            self._pending = None
-        return self.images
-
-    def durations(self, fps: float) -> list[int]:
-        """Milliseconds each kept frame is shown, so the GIF keeps real time although GIF delays are whole
-        centiseconds: each frame starts at its source time rounded to 10 ms."""
-        starts = [10 * round(100 * index / fps) for index in [*self.indices, self.count]]
-        durations = [b - a for a, b in itertools.pairwise(starts)]
-        durations[-1] += GIF_HOLD_MS
-        return durations
-
-    def save(self, path: Path, fps: float) -> Path:
-        images = self.finish()
-        if not images:
-            raise ValueError("write_gif: no frames")
-        durations = self.durations(fps)
-        store.write_atomic(Path(path), lambda handle: images[0].save(
-            handle, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0,
-            optimize=False, disposal=1))
-        return Path(path)
-
-
-def write_gif(rgb_frames: Iterable[np.ndarray], path: Path, fps: float = FPS, scale: float = GIF_SCALE,
-              every: int = GIF_EVERY) -> Path:
-    """A small looping GIF of ``rgb_frames``: every ``every``-th frame (and the last), scaled by ``scale``.
-
-    It shows each frame as long as ``every`` frames last at ``fps`` (to the centisecond GIF delays
-    allow), so it keeps the real-time speed of an MP4 at ``fps``, and holds the last frame one second
-    longer before it loops. Written atomically.
-    """
-    gif = _GifFrames(scale, every)
-    for frame in rgb_frames:
-        gif.add(frames.pack(_rgb(frame)))
-    return gif.save(path, fps)
 
 
 # --- stage videos ---------------------------------------------------------------------------------
@@ -509,10 +115,10 @@ def _render_video(agent: Agent, title: str, mp4: Path, gif: Path | None, *, seed
                   max_steps: int, fps: float, env_id: str) -> list[Path]:
     """Play, caption and encode one video in a single pass: ffmpeg encodes in its own process while
     Python renders the next frames, and no more than one frame is held in memory (plus the GIF's)."""
-    captioned = _captioned(_play(agent, episode_seed, max_steps, env_id), title, seed=seed,
-                           episode_seed=episode_seed, max_steps=max_steps, env_id=env_id)
-    small = _GifFrames(GIF_SCALE, GIF_EVERY) if gif is not None else None
-    with _mp4_writer(mp4, fps) as writer:
+    captioned = captions.captioned(play(agent, episode_seed, max_steps, env_id), title, seed=seed,
+                                   episode_seed=episode_seed, max_steps=max_steps, env_id=env_id)
+    small = GifFrames(GIF_SCALE, GIF_EVERY) if gif is not None else None
+    with mp4_writer(mp4, fps) as writer:
         for packed, _ in captioned:
             writer.append(packed)
             if small is not None:
@@ -577,13 +183,13 @@ def plan_stage_videos(
         raise KeyError(f"seed {seed} is not in this run; seeds: {list(config.seeds)}")
     limit = config.max_steps if max_steps is None else int(max_steps)
     if config.algorithm == "random":
-        plan = [(known[-1], stage_title(config, None), f"{config.name}-seed{seed}")]
+        plan = [(known[-1], captions.stage_title(config, None), f"{config.name}-seed{seed}")]
     else:
         chosen = known if stages is None else list(stages)
         unknown = [name for name in chosen if name not in known]
         if unknown:
             raise KeyError(f"stage {unknown[0]!r} is not in this run; stages: {known}")
-        plan = [(name, stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
+        plan = [(name, captions.stage_title(config, name), f"{config.name}-seed{seed}-{name}") for name in chosen]
     return [VideoJob(run_dir=run_dir, seed=int(seed), stage=stage, title=title, mp4=out_dir / f"{stem}.mp4",
                      gif=out_dir / f"{stem}.gif" if gif else None, episode_seed=int(episode_seed), max_steps=limit,
                      fps=float(fps), env_id=config.environment.gymnasium_id)
