@@ -50,3 +50,47 @@ def test_experiment_reaches_an_engine_only_through_the_registry():
     assert ("experiment", "deep") not in edges
     assert ("experiment", "studies") not in edges
     assert ("analysis", "studies") not in edges
+
+
+IMPORT_EVERYTHING = r"""
+import importlib, json, os, pkgutil, time
+from pathlib import Path
+
+stale = Path(os.environ["XDG_CACHE_HOME"]) / "rlcompare" / "numba-0000000000000000"
+stale.mkdir(parents=True)
+month_ago = time.time() - 60 * 86400
+os.utime(stale, (month_ago, month_ago))
+
+import jax
+import matplotlib
+
+backend = matplotlib.rcParams._get_backend_or_none()
+import rlcompare
+
+names = sorted(m.name for m in pkgutil.walk_packages(rlcompare.__path__, "rlcompare.")
+               if not m.name.endswith("__main__"))
+for name in names:
+    importlib.import_module(name)
+print(json.dumps({"modules": len(names), "x64": bool(jax.config.jax_enable_x64),
+                  "backend_before": backend, "backend_after": matplotlib.rcParams._get_backend_or_none(),
+                  "cache_dir": jax.config.jax_compilation_cache_dir, "stale_kept": stale.is_dir()}))
+"""
+
+
+def test_importing_every_module_changes_no_setting_of_jax_or_matplotlib_and_nothing_on_disk(tmp_path):
+    """A user's notebook that imports rlcompare keeps JAX's and matplotlib's defaults, and its caches."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    environment = {key: value for key, value in os.environ.items()
+                   if not key.startswith(("JAX_", "MPLBACKEND", "NUMBA_CACHE_DIR"))}
+    done = subprocess.run([sys.executable, "-c", IMPORT_EVERYTHING], capture_output=True, text=True, check=True,
+                          env={**environment, "XDG_CACHE_HOME": str(tmp_path)})
+    found = json.loads(done.stdout.strip().splitlines()[-1])
+    assert found["modules"] > 60
+    assert found["x64"] is False
+    assert found["backend_after"] == found["backend_before"]
+    assert found["cache_dir"] is None
+    assert found["stale_kept"]  # pruning waits for a run to start (numba itself makes its directory on import)

@@ -278,7 +278,7 @@ def test_one_comparison_says_what_it_found_in_one_vocabulary(shift, margin, labe
     assert paired.seeds == 20
     assert paired.difference == paired_difference(a, b)
     assert paired.p_value == rank_test(a, b)
-    assert comparison_label(paired, paired.p_value, ("A", "B")) == label
+    assert comparison_label(paired.difference, paired.p_value, ("A", "B"), paired.equivalence) == label
     # the label is the claim "A - B > 0" judged by verdict, the one rule
     direction = verdict(paired.difference, paired.p_value, +1)
     assert (direction == "supported") == (label == "A better")
@@ -288,4 +288,4 @@ def test_one_comparison_says_what_it_found_in_one_vocabulary(shift, margin, labe
 def test_a_comparison_without_an_estimate_has_no_data():
     paired = compare_paired(np.array([1.0, np.nan, 2.0]), np.array([0.0, 0.0, 0.0]))
     assert np.isnan(paired.p_value)
-    assert comparison_label(paired, paired.p_value, ("A", "B")) == "no data"
+    assert comparison_label(paired.difference, paired.p_value, ("A", "B")) == "no data"

@@ -85,12 +85,13 @@ def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
     """Resets draw from the environment stream and slips from a stream of their own, so after the same number
     of episodes every method has drawn the same starts, however long its episodes were and however often it
     slipped: the start state of episode k of seed s is the same for every method (common random numbers)."""
+    from rlcompare.algorithms.registry import rule_for as method_rule
     from rlcompare.engine.run import train_runs
     from rlcompare.engine.state import ENV_STREAM, TRANSITION_STREAM, allocate_records, initial_state
     from rlcompare.envs.features import make_features
     from rlcompare.envs.registry import make_env
     from rlcompare.experiment.config import ExperimentConfig
-    from rlcompare.experiment.runner import epsilon_schedule, kernel_settings, method_rule
+    from rlcompare.experiment.runner import epsilon_schedule, kernel_settings
 
     for env_id in ("FrozenLake-v1", "Taxi-v4"):
         table, streams, lengths = from_gymnasium(env_id), {}, {}

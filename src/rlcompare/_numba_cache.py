@@ -4,9 +4,12 @@ Numba keys a cached function by its own file's timestamp only. A kernel inlines 
 (the ports, the tables, the random streams), so after one of those changes alone numba would load the old
 machine code and give old results. Keying the directory by a hash of the sources of compiled code (the
 packages ``algorithms``, ``engine``, ``envs`` and ``rng.py``) makes any change to them compile afresh, and
-leaves the cache alone when only the command line or the analysis changes. Each use touches its directory;
-directories of other versions unused for :data:`KEEP_UNUSED_DAYS` days are deleted. ``NUMBA_CACHE_DIR``, when
-set, wins.
+leaves the cache alone when only the command line or the analysis changes. ``NUMBA_CACHE_DIR``, when set, wins.
+
+Importing rlcompare only points numba at this version's directory (numba reads it when it first compiles, so it
+must be set before any kernel module is imported); nothing on disk changes then. Where a run starts
+(:func:`tend`), the directory is made and touched, and directories of other versions unused for
+:data:`KEEP_UNUSED_DAYS` days are deleted.
 """
 
 from __future__ import annotations
@@ -31,18 +34,31 @@ def source_digest(package: Path) -> str:
     return digest.hexdigest()[:16]
 
 
+def _root() -> Path:
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare"
+
+
 def use_source_keyed_cache() -> None:
+    """Point numba's cache at this version's directory (no file is touched)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
     import numba
 
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare"
-    current = root / f"numba-{source_digest(Path(__file__).parent)}"
-    numba.config.CACHE_DIR = str(current)
+    numba.config.CACHE_DIR = str(_root() / f"numba-{source_digest(Path(__file__).parent)}")
+
+
+def tend() -> None:
+    """Where a run starts: make and touch this version's cache directory, and delete other versions' unused for
+    :data:`KEEP_UNUSED_DAYS` days (nothing where ``NUMBA_CACHE_DIR`` chose the directory)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    import numba
+
+    current = Path(numba.config.CACHE_DIR)
     try:
         current.mkdir(parents=True, exist_ok=True)
         os.utime(current)
-        prune_unused(root, keep=current)
+        prune_unused(current.parent, keep=current)
     except OSError:  # a read-only home: numba falls back to its own cache locations
         pass
 

@@ -258,33 +258,38 @@ class Paired(NamedTuple):
     p_value: float
     """Two-sided Wilcoxon signed-rank p-value (:func:`rank_test`); NaN where a value is not finite."""
     improvement: Estimate
-    """P(a seed of A beats a seed of B) (:func:`probability_of_improvement`)."""
+    """P(a seed of A beats a seed of B) (:func:`probability_of_improvement`); NaN where not asked for."""
     seeds: int
     equivalence: Equivalence | None = None
     """TOST of A - B within the declared ±margin; None where no margin is declared."""
 
 
-def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None) -> Paired:
+def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *, improvement: bool = True
+                   ) -> Paired:
     """A against B on paired seeds: means, the difference with its interval, the rank test, the probability of
-    improvement and, where ``margin`` is given, the test of equivalence within ±margin."""
+    improvement (unless ``improvement`` is False: a bootstrap of its own, which a grid of many cells may skip)
+    and, where ``margin`` is given, the test of equivalence within ±margin."""
     a, b = _per_seed(a), _per_seed(b)
     finite = bool(np.isfinite(a - b).all())
     return Paired(float(np.mean(a)), float(np.mean(b)), paired_difference(a, b),
-                  rank_test(a, b) if finite else np.nan, probability_of_improvement(a, b), int(a.size),
+                  rank_test(a, b) if finite else np.nan,
+                  probability_of_improvement(a, b) if improvement else _NAN, int(a.size),
                   None if margin is None else tost(a - b, -margin, margin))
 
 
-def comparison_label(comparison: Paired, p_adjusted: float, names: tuple[str, str], level: float = ALPHA) -> str:
+def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, str],
+                     equivalence: Equivalence | None = None, level: float = ALPHA) -> str:
     """What A against B found, in the one vocabulary: "A better" / "B better" where :func:`verdict` supports or
-    contradicts "A - B > 0" at ``p_adjusted``; else "equivalent (within ±m)" where a margin was declared and
-    :func:`equivalence_verdict` supports it; "no data" without an estimate; "not resolved" otherwise."""
-    direction = verdict(comparison.difference, p_adjusted, +1, level)
+    contradicts "A - B > 0" (``difference``) at ``p_adjusted``; else "equivalent (within ±m)" where a margin was
+    declared and :func:`equivalence_verdict` supports ``equivalence``; "no data" without an estimate; "not
+    resolved" otherwise."""
+    direction = verdict(difference, p_adjusted, +1, level)
     if direction in (SUPPORTED, CONTRADICTED):
         return f"{names[0] if direction == SUPPORTED else names[1]} better"
     if direction == NO_DATA:
         return NO_DATA
-    if comparison.equivalence is not None and equivalence_verdict(comparison.equivalence, level=level) == SUPPORTED:
-        return f"equivalent (within ±{comparison.equivalence.upper:g})"
+    if equivalence is not None and equivalence_verdict(equivalence, level=level) == SUPPORTED:
+        return f"equivalent (within ±{equivalence.upper:g})"
     return NOT_RESOLVED
 
 

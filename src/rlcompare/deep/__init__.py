@@ -1,16 +1,21 @@
 """The deep engine: neural-network methods in JAX (the optional ``deep`` extra).
 
-Nothing outside this package imports JAX. Importing it turns on JAX's float64, which the environments'
-physics need (networks and their inputs are float32 by explicit dtype), and JAX's persistent compilation cache
-in ``~/.cache/rlcompare/jax`` (``JAX_COMPILATION_CACHE_DIR``, when set, wins), so that a configuration compiles
-once per machine, not once per run. JAX keys the cache by the program itself, so a change to the source cannot
-load stale code.
+Nothing outside this package imports JAX, and importing it changes no setting of JAX's. The environments'
+physics is float64, as Gymnasium's (networks and their inputs are float32 by explicit dtype): every entry point
+that traces, compiles or runs a program does so inside :func:`float64`, JAX's 64-bit mode for that thread alone,
+so a user's own JAX code in the same process keeps JAX's defaults. Where training starts, JAX's persistent
+compilation cache is pointed at ``~/.cache/rlcompare/jax`` unless the user chose one
+(``JAX_COMPILATION_CACHE_DIR`` or ``jax.config``), so that a configuration compiles once per machine, not once per
+run; JAX keys the cache by the program itself, so a change to the source cannot load stale code.
 """
 
 from __future__ import annotations
 
+import functools
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 INSTALL_HINT = "the deep engine needs JAX, flax and optax: pip install -e '.[deep]'"
 
@@ -26,8 +31,24 @@ try:
 except ImportError as error:  # pragma: no cover - exercised where the extra is absent
     raise DeepUnavailable(f"{INSTALL_HINT} ({error})") from error
 
-jax.config.update("jax_enable_x64", True)
-if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
-    _cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare" / "jax"
-    jax.config.update("jax_compilation_cache_dir", str(_cache))
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+Function = TypeVar("Function", bound=Callable[..., Any])
+
+
+def float64(function: Function) -> Function:
+    """``function`` run with JAX's 64-bit types on, in the calling thread only (``jax.enable_x64``)."""
+
+    @functools.wraps(function)
+    def wrapped(*args: Any, **kwargs: Any) -> Any:
+        with jax.enable_x64(True):
+            return function(*args, **kwargs)
+
+    return wrapped  # type: ignore[return-value]
+
+
+def use_compilation_cache() -> None:
+    """Point JAX's persistent compilation cache at rlcompare's, unless the user has chosen one."""
+    if os.environ.get("JAX_COMPILATION_CACHE_DIR") or jax.config.jax_compilation_cache_dir:
+        return
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare" / "jax"
+    jax.config.update("jax_compilation_cache_dir", str(cache))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)

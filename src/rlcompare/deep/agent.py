@@ -7,6 +7,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from rlcompare.deep import float64
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.run import DeepResults, params_template
 from rlcompare.experiment.agent import check_box_observation
@@ -22,6 +23,7 @@ class DeepAgent:
         self._act = jax.jit(deep_method(config.algorithm).module.act(config.method_config(), config.environment))
         self._shape = (config.environment.observation_size,)
 
+    @float64
     def act(self, observation: np.ndarray) -> int:
         """The greedy action for one observation as Gymnasium's ``env.step`` returns it."""
         checked = check_box_observation(observation, self._shape, self.config.env).astype(np.float32)
@@ -35,6 +37,7 @@ def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent:
     return DeepAgent(results, seed)
 
 
+@float64
 def gymnasium_returns(results: DeepResults, episodes: int = 10, first_episode_seed: int = 1_000_000) -> np.ndarray:
     """``(seeds, episodes)`` returns of every seed's greedy policy in Gymnasium's own environment (``gym.make``,
     its registered limit), all seeds stepped in lockstep and acting in one call. Episode ``k`` of every seed

@@ -16,7 +16,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from rlcompare.deep import dqn, ppo, pqn
+from rlcompare.deep import dqn, float64, ppo, pqn
 from rlcompare.deep.envs import DEEP_ENVS
 from rlcompare.experiment.benchmark import BenchTable
 
@@ -49,6 +49,7 @@ def rows() -> list[DeepRow]:
     ]
 
 
+@float64
 def ours_steps_per_second(row: DeepRow, seeds: int, steps: int) -> tuple[float, float]:
     """``(steps per second over all seeds, compile seconds)`` of ``steps`` environment steps per seed."""
     config = dataclasses.replace(row.config, total_steps=steps)
@@ -133,6 +134,7 @@ def score_rows() -> list[DeepRow]:
             DeepRow("DQN, zoo settings on 2 x 64", dqn, dqn.PRESETS["default"][SCORE_ENV], "dqn")]
 
 
+@float64
 def ours_seconds_to_score(row: DeepRow, seeds: int) -> np.ndarray:
     """Wall seconds (compiling apart) until each seed's greedy evaluation first reached the score (NaN: never),
     the seeds trained side by side; a seed reached round ``k`` at ``k / rounds`` of the wall time."""

@@ -25,6 +25,7 @@ import jax
 import numpy as np
 import pandas as pd
 
+from rlcompare.deep import float64, use_compilation_cache
 from rlcompare.deep.envs import DEEP_ENVS, DeepEnv
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
@@ -243,6 +244,7 @@ def compiled_training(config: DeepConfig) -> Callable[[jax.Array], TrainOutput]:
 
 
 @functools.lru_cache(maxsize=32)
+@float64
 def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: int, eval_episodes: int,
                      width: int) -> Callable[[jax.Array], TrainOutput]:
     """The jitted, vmapped training of ``width`` seeds, lowered and compiled for ``width`` keys; kept for the
@@ -251,6 +253,7 @@ def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: 
     return jax.jit(jax.vmap(train)).lower(seed_keys((0,) * width)).compile()
 
 
+@float64
 def params_template(config: DeepConfig) -> Any:
     """The shape of one seed's parameter tree, traced without training."""
     train = deep_method(config.algorithm).module.make_train(config.method_config(), config.environment,
@@ -309,7 +312,9 @@ def run(config: DeepConfig, *, out: Path | None = None, study: str = "",
     return results
 
 
+@float64
 def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | None) -> DeepResults:
+    use_compilation_cache()
     started = time.perf_counter()
     train = compiled_training(config)
     compile_seconds = time.perf_counter() - started

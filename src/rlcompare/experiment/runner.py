@@ -17,6 +17,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from rlcompare import _numba_cache as numba_cache
 from rlcompare.algorithms.registry import rule_for
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.engine import run as engine
@@ -62,6 +63,7 @@ def run(
     would not fit in this machine's memory are refused first (:func:`~rlcompare.experiment.config.check_memory`).
     """
     check_memory(config)
+    numba_cache.tend()
     if out is None:
         return _train(config, study, progress)
     with store.output_directory(Path(out), store.RUN):  # refused before training, locked while it lasts

@@ -19,12 +19,13 @@ import pandas as pd
 
 from rlcompare.analysis.stats import compare_paired, comparison_label
 from rlcompare.analysis.tables import per_seed_metrics
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.results import Results
 
 PAIRS = (("sarsa", "q_learning"), ("sarsa-constant", "q_learning-constant"), ("sarsa-decay", "q_learning-decay"))
 """(SARSA, Q-Learning) run directories compared in a study: the cliff's, then the paper grid's."""
 SIBLING_STUDIES = ("paper", "cartpole", "acrobot")
+SIDES = ("SARSA", "Q-Learning")
 
 
 def load_pairs(study_dir: Path) -> dict[str, Results]:
@@ -32,7 +33,7 @@ def load_pairs(study_dir: Path) -> dict[str, Results]:
     runs = {}
     for name in {name for pair in PAIRS for name in pair}:
         run_dir = Path(study_dir) / name
-        if store.is_complete(run_dir):
+        if rundir.is_complete(run_dir):
             with contextlib.suppress(store.StoreError):
                 runs[name] = Results.load(run_dir)
     return runs
@@ -50,10 +51,10 @@ def contrast_table(studies: dict[str, dict[str, Results]]) -> pd.DataFrame:
             exploration = f"ε = {config.epsilon:g}" if config.schedule == "constant" else "ε decaying"
             row = {"study": study, "environment": config.env, "exploration": exploration, "seeds": len(sarsa)}
             for metric, label in (("behaviour_return", "online"), ("greedy_return", "greedy")):
-                paired = compare_paired(sarsa[metric].to_numpy(), q[metric].to_numpy())
+                paired = compare_paired(sarsa[metric].to_numpy(), q[metric].to_numpy(), improvement=False)
                 row |= {f"{label}: SARSA": f"{paired.a_mean:.1f}", f"{label}: Q-Learning": f"{paired.b_mean:.1f}",
                         f"{label}: SARSA - Q-Learning": paired.difference.format(1),
-                        f"{label}: better": comparison_label(paired, paired.p_value, ("SARSA", "Q-Learning"))}
+                        f"{label}: better": comparison_label(paired.difference, paired.p_value, SIDES)}
             rows.append(row)
     return pd.DataFrame(rows)
 

@@ -251,7 +251,8 @@ def verdict_table(found: list[Comparison]) -> pd.DataFrame:
     return pd.DataFrame([{
         "env": c.env, "engine": c.engine, "metric": METRIC_NAMES[c.metric],
         "on - off (mean, 95% CI)": c.paired.difference.format(1), "P(on > off)": c.paired.improvement.format(2),
-        "p (Holm)": p, "verdict": stats.comparison_label(c.paired, p, ("on-policy", "off-policy")),
+        "p (Holm)": p, "verdict": stats.comparison_label(c.paired.difference, p, ("on-policy", "off-policy"),
+                                                                  c.paired.equivalence),
     } for c, p in zip(found, adjusted, strict=True)])
 
 
