@@ -13,7 +13,7 @@ import typer.main
 from typer.testing import CliRunner
 
 from rlcompare import ExperimentConfig, Results, cli
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import field_docs
 
 runner = CliRunner(env={"COLUMNS": "200"})
@@ -32,7 +32,7 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html",
                                                                  *store.OWN_FILES])
     for name in names:
-        assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(store.RUN_FILES + store.OWN_FILES)
+        assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
         assert name in result.output
     loaded = Results.load(tmp_path / "sarsa-constant")
     assert (loaded.config.seeds, loaded.config.episodes, loaded.config.epsilon) == ((0, 1), 100, 0.5)

@@ -13,7 +13,7 @@ from gymnasium_play import gymnasium_returns
 
 from rlcompare import ExperimentConfig, Results, load_agent, run
 from rlcompare.experiment import results as results_module
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_if_complete
 from rlcompare.studies.paper import paper_configs, reproduce
 
@@ -35,7 +35,7 @@ def test_results_tables_are_long_format(small_config: ExperimentConfig) -> None:
 
 def test_run_directory_round_trip(tmp_path: Path, small_config: ExperimentConfig) -> None:
     results = run(small_config, out=tmp_path / "run")
-    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(store.RUN_FILES + store.OWN_FILES)
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
     loaded = Results.load(tmp_path / "run")
     assert loaded.config == small_config
     for name, array in results.records._asdict().items():
@@ -59,14 +59,14 @@ def test_failed_rewrite_of_a_finished_run_is_not_taken_for_finished(
     write = store.write_bytes_atomic
 
     def disk_full_at_the_episodes(path: Path, data: bytes) -> None:
-        if Path(path).name == store.EPISODES_FILE:
+        if Path(path).name == rundir.EPISODES_FILE:
             raise store.StoreError(f"{path}: cannot write (no space left on the device)")
         write(path, data)
 
     monkeypatch.setattr(store, "write_bytes_atomic", disk_full_at_the_episodes)
     with pytest.raises(OSError, match="no space left"):
         run(changed, out=tmp_path / "run")
-    assert not store.is_complete(tmp_path / "run")
+    assert not rundir.is_complete(tmp_path / "run")
     assert load_if_complete(tmp_path / "run", changed) is None
     assert load_if_complete(tmp_path / "run", small_config) is None
 
@@ -110,7 +110,7 @@ def test_failed_write_leaves_nothing_that_looks_finished(
     write = store.write_bytes_atomic
 
     def full_at_the_evaluations(path: Path, data: bytes) -> None:
-        if Path(path).name == store.EVALUATIONS_FILE:
+        if Path(path).name == rundir.EVALUATIONS_FILE:
             with open(Path(path).with_name(".evaluations.parquet.x.tmp"), "wb"):
                 raise OSError("disk full")
         write(path, data)
@@ -119,8 +119,8 @@ def test_failed_write_leaves_nothing_that_looks_finished(
     with pytest.raises(OSError, match="disk full"):
         run(small_config, out=tmp_path / "run")
     left = sorted(p.name for p in (tmp_path / "run").iterdir() if not p.name.endswith(".tmp"))
-    assert left == sorted([*store.OWN_FILES, store.CONFIG_FILE, store.EPISODES_FILE])  # no meta.json
-    assert not store.is_complete(tmp_path / "run")
+    assert left == sorted([*store.OWN_FILES, rundir.CONFIG_FILE, rundir.EPISODES_FILE])  # no meta.json
+    assert not rundir.is_complete(tmp_path / "run")
     assert load_if_complete(tmp_path / "run", small_config) is None
     monkeypatch.undo()
     again = run(small_config, out=tmp_path / "run")  # resumes over what it wrote, temporaries cleared
@@ -132,7 +132,7 @@ def test_study_resumes_and_reruns_only_what_is_unfinished(tmp_path: Path) -> Non
     configs = paper_configs((0, 1), episodes=60, eval_every=30, eval_episodes=2)
     first = {r.config.name: reused for r, reused in reproduce(tmp_path, configs)}
     assert first == dict.fromkeys(first, False)
-    os.remove(tmp_path / "sarsa-decay" / store.META_FILE)  # as if interrupted while writing
+    os.remove(tmp_path / "sarsa-decay" / rundir.META_FILE)  # as if interrupted while writing
     again = {r.config.name: (r, reused) for r, reused in reproduce(tmp_path, configs)}
     assert [n for n, (_, reused) in again.items() if not reused] == ["sarsa-decay"]
     rerun = again["sarsa-decay"][0]
@@ -154,7 +154,7 @@ def test_output_path_that_is_a_file_is_refused(tmp_path: Path, small_config: Exp
 
 
 def test_loading_an_incomplete_directory_names_what_is_missing(tmp_path: Path) -> None:
-    (tmp_path / store.CONFIG_FILE).write_text("{}")
+    (tmp_path / rundir.CONFIG_FILE).write_text("{}")
     with pytest.raises(store.StoreError, match=r"missing episodes\.parquet"):
         Results.load(tmp_path)
 

@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from rlcompare import ExperimentConfig, Results, cli, load_agent, run
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.backends import LocalBackend
 from rlcompare.experiment.engines import load_if_complete
 from rlcompare.experiment.sweep import parse_sweep
@@ -254,7 +254,7 @@ def test_the_lock_is_released_when_its_holder_dies(tmp_path: Path) -> None:
 
 def test_another_configurations_files_in_a_run_directory_are_refused_and_retrained(study_copy: Path) -> None:
     original = Results.load(study_copy / "sarsa-decay")
-    for name in (store.EPISODES_FILE, store.QTABLES_FILE):
+    for name in (rundir.EPISODES_FILE, rundir.QTABLES_FILE):
         shutil.copyfile(study_copy / "q_learning-decay" / name, study_copy / "sarsa-decay" / name)
     with pytest.raises(store.StoreError, match=r"sarsa-decay/episodes\.parquet: does not belong to this run"):
         Results.load(study_copy / "sarsa-decay")
@@ -272,7 +272,7 @@ def test_another_configurations_files_in_a_run_directory_are_refused_and_retrain
 @pytest.mark.parametrize(("field", "value"), [("bins", 10), ("seeds", [5, 1]), ("alpha", 0.5)])
 def test_an_edited_config_is_refused_by_load_and_load_agent(field: str, value, tmp_path: Path) -> None:
     run(TINY, out=tmp_path / "run")
-    path = tmp_path / "run" / store.CONFIG_FILE
+    path = tmp_path / "run" / rundir.CONFIG_FILE
     data = store.read_json(path)
     data[field] = value
     path.write_text(json.dumps(data))
@@ -284,9 +284,9 @@ def test_an_edited_config_is_refused_by_load_and_load_agent(field: str, value, t
 
 def test_a_run_written_without_a_record_of_its_contents_is_not_trusted(tmp_path: Path) -> None:
     run(TINY, out=tmp_path / "run")
-    meta = store.read_json(tmp_path / "run" / store.META_FILE)
+    meta = store.read_json(tmp_path / "run" / rundir.META_FILE)
     del meta["contents"]
-    (tmp_path / "run" / store.META_FILE).write_text(json.dumps(meta))
+    (tmp_path / "run" / rundir.META_FILE).write_text(json.dumps(meta))
     with pytest.raises(store.StoreError, match="no record of the run's contents"):
         Results.load(tmp_path / "run")
 
@@ -302,11 +302,11 @@ def test_a_copied_or_corrupt_trial_is_redone_on_resume(small_sweep: Path, tmp_pa
     out = Path(shutil.copytree(small_sweep, tmp_path / "store"))
     trials = parse_sweep(SWEEP).trials()
     dirs = [trial_path(out, t.config_hash, t.seed) for t in trials]
-    for name in store.RUN_FILES:  # trial 0's files into trial 1's directory
+    for name in rundir.RUN_FILES:  # trial 0's files into trial 1's directory
         shutil.copyfile(dirs[0] / name, dirs[1] / name)
-    data = bytearray((dirs[2] / store.EPISODES_FILE).read_bytes())
+    data = bytearray((dirs[2] / rundir.EPISODES_FILE).read_bytes())
     data[len(data) // 2] ^= 0xFF
-    (dirs[2] / store.EPISODES_FILE).write_bytes(bytes(data))
+    (dirs[2] / rundir.EPISODES_FILE).write_bytes(bytes(data))
     _, problems = load_configurations(out)
     assert sum("left out" in p for p in problems) == 2
     result = invoke("report", str(out))
@@ -314,8 +314,8 @@ def test_a_copied_or_corrupt_trial_is_redone_on_resume(small_sweep: Path, tmp_pa
     assert result.output.count("left out") == 2
     assert run_sweep(parse_sweep(SWEEP), SWEEP, out, LocalBackend(1)) == (2, 2)
     for trial_dir in dirs:
-        assert snapshot(trial_dir)[store.EPISODES_FILE] == snapshot(small_sweep / trial_dir.relative_to(out))[
-            store.EPISODES_FILE]
+        assert snapshot(trial_dir)[rundir.EPISODES_FILE] == snapshot(small_sweep / trial_dir.relative_to(out))[
+            rundir.EPISODES_FILE]
     assert load_configurations(out)[1] == []
 
 
@@ -330,11 +330,11 @@ def two_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Resu
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(damage=st.one_of(
-    st.tuples(st.just("flip"), st.sampled_from(store.RUN_FILES), st.floats(0, 1, exclude_max=True),
+    st.tuples(st.just("flip"), st.sampled_from(rundir.RUN_FILES), st.floats(0, 1, exclude_max=True),
               st.integers(1, 255)),
-    st.tuples(st.just("truncate"), st.sampled_from(store.RUN_FILES), st.floats(0, 1, exclude_max=True),
+    st.tuples(st.just("truncate"), st.sampled_from(rundir.RUN_FILES), st.floats(0, 1, exclude_max=True),
               st.just(0)),
-    st.tuples(st.just("swap"), st.sampled_from(store.RUN_FILES), st.just(0.0), st.just(0)),
+    st.tuples(st.just("swap"), st.sampled_from(rundir.RUN_FILES), st.just(0.0), st.just(0)),
 ))
 def test_a_damaged_run_directory_is_refused_or_reads_exactly_as_written(damage, two_runs) -> None:
     """Random byte flips, truncations and files swapped in from another run: ``load`` raises a StoreError
@@ -363,8 +363,8 @@ def test_a_damaged_run_directory_is_refused_or_reads_exactly_as_written(damage, 
 
 # --- 8, 9, 10. sizes, full disks, read-only directories, failed runs -------------------------------------
 
-@pytest.mark.parametrize(("name", "message"), [(store.CONFIG_FILE, "does not belong to this run"),
-                                                (store.META_FILE, "more than rlcompare writes")])
+@pytest.mark.parametrize(("name", "message"), [(rundir.CONFIG_FILE, "does not belong to this run"),
+                                                (rundir.META_FILE, "more than rlcompare writes")])
 def test_an_oversized_metadata_file_is_refused_unread(name: str, message: str, tmp_path: Path) -> None:
     run(TINY, out=tmp_path / "run")
     (tmp_path / "run" / name).write_text('{"algorithm": "' + "x" * (store.MAX_JSON_BYTES + 10) + '"}')

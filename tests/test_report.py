@@ -18,7 +18,7 @@ from rlcompare import cli
 from rlcompare.analysis.convergence import RULES
 from rlcompare.analysis.stats import VERDICTS
 from rlcompare.analysis.tables import COLUMNS, Claim, judge
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.studies.paper import paper_configs, reproduce
 from rlcompare.studies.paper_report import (
     CLAIMS,
@@ -120,8 +120,8 @@ def test_figures_laid_out_by_hand_keep_every_label_inside_and_apart(study: Path)
 
 
 def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_copy: Path) -> None:
-    (study_copy / "sarsa-decay" / store.EPISODES_FILE).unlink()
-    (study_copy / "q_learning-constant" / store.QTABLES_FILE).write_bytes(b"not a zip file")
+    (study_copy / "sarsa-decay" / rundir.EPISODES_FILE).unlink()
+    (study_copy / "q_learning-constant" / rundir.QTABLES_FILE).write_bytes(b"not a zip file")
     shutil.rmtree(study_copy / "random")
     result = runner.invoke(cli.app, ["report", str(study_copy), "--no-videos"])
     assert result.exit_code == 1

@@ -22,7 +22,7 @@ from typer.testing import CliRunner
 
 from rlcompare import cli, run
 from rlcompare.engine.state import Records
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.backends import LocalBackend
 from rlcompare.experiment.sweep import SweepError, derive_seeds, load_sweep, parse_sweep
 from rlcompare.experiment.sweep_store import (
@@ -215,7 +215,7 @@ def test_each_trial_is_stored_once_and_equals_a_run_of_its_configuration(small_s
     assert sorted(p.relative_to(small_store).as_posix() for p in (small_store / "trials").glob("*/*")) == sorted(
         f"trials/config={t.config_hash}/trial={t.seed}" for t in sweep.trials())
     for trial in sweep.trials()[::4]:
-        stored = store.read_json(trial_path(small_store, trial.config_hash, trial.seed) / store.CONFIG_FILE)
+        stored = store.read_json(trial_path(small_store, trial.config_hash, trial.seed) / rundir.CONFIG_FILE)
         assert stored == trial.config.to_dict()
     configs, missing = load_configurations(small_store)
     assert missing == []
@@ -231,7 +231,7 @@ def test_the_store_reads_as_one_partitioned_dataset_with_the_swept_values(small_
     assert episodes.groupby(["config", "seed"]).size().eq(30).all()  # every trial once
     assert set(episodes.columns) >= {"config", "seed", "episode", "return", "algorithm", "alpha", "env"}
     assert sorted(episodes["alpha"].unique()) == [0.05, 0.2, 0.5]
-    evaluations = read_table(small_store, store.EVALUATIONS_FILE)
+    evaluations = read_table(small_store, rundir.EVALUATIONS_FILE)
     assert len(evaluations) == 15 * 2 * 2
 
 
@@ -250,7 +250,7 @@ def test_rerun_skips_finished_trials_and_runs_what_is_missing_or_partial(small_s
     shutil.copytree(small_store, out)
     trials = parse_sweep(SMALL).trials()
     shutil.rmtree(trial_path(out, trials[0].config_hash, trials[0].seed))  # never ran
-    (trial_path(out, trials[1].config_hash, trials[1].seed) / store.META_FILE).unlink()  # killed before meta.json
+    (trial_path(out, trials[1].config_hash, trials[1].seed) / rundir.META_FILE).unlink()  # killed before meta.json
     (out / "trials" / f"config={trials[2].config_hash}" / f"trial={trials[2].seed}" / ".episodes.parquet.x.tmp"
      ).write_bytes(b"half")
     assert run_sweep(parse_sweep(SMALL), SMALL, out, LocalBackend(2)) == (13, 2)
@@ -288,12 +288,12 @@ def test_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_result(small_sto
     os.killpg(process.pid, signal.SIGKILL)
     process.wait()
     sweep = load_sweep(sweep_file)
-    finished = [t for t in sweep.trials() if store.is_complete(trial_path(out, t.config_hash, t.seed))]
+    finished = [t for t in sweep.trials() if rundir.is_complete(trial_path(out, t.config_hash, t.seed))]
     assert 4 <= len(finished) < 20
     for trial in sweep.trials():  # a directory without meta.json is never read as a finished trial
         trial_dir = trial_path(out, trial.config_hash, trial.seed)
         if trial_dir.exists() and trial not in finished:
-            assert not (trial_dir / store.META_FILE).exists()
+            assert not (trial_dir / rundir.META_FILE).exists()
     again = subprocess.run(command, capture_output=True, text=True, check=False)
     assert again.returncode == 0, again.stderr
     assert f"{20 - len(finished)} trials run, {len(finished)} already finished" in again.stdout

@@ -22,7 +22,7 @@ from rlcompare import cli
 from rlcompare.deep import INSTALL_HINT
 from rlcompare.deep.engine import SWEEP_KEYS as DEEP_KEYS
 from rlcompare.deep.run import DeepConfig, DeepResults
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.sweep import SweepError, config_dict, config_hash, parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, read_table, trial_path
 from rlcompare.studies.sweep_report import PANELS, across_figure, deep_configuration_rows, deep_metrics
@@ -231,8 +231,8 @@ def test_each_trial_is_a_deep_run_directory_and_the_manifest_is_done(deep_store)
     for trial in sweep.trials():
         trial_dir = trial_path(out, trial.config_hash, trial.seed)
         assert sorted(p.name for p in trial_dir.iterdir() if not p.name.startswith(".")) == sorted(
-            store.DEEP_RUN_FILES)
-        assert store.read_json(trial_dir / store.CONFIG_FILE) == config_dict(trial.config)
+            rundir.DEEP_RUN_FILES)
+        assert store.read_json(trial_dir / rundir.CONFIG_FILE) == config_dict(trial.config)
 
 
 def test_trials_merge_per_configuration_in_the_sweep_order_of_seeds(deep_store) -> None:
@@ -278,7 +278,7 @@ def test_a_finished_deep_sweep_resumes_without_training_and_redoes_a_broken_tria
     assert "0 trials run, 4 already finished" in again.output
     assert before == {p: p.stat().st_mtime_ns for p in copy.glob("trials/*/*/*.npz")}
     trial = parse_sweep(TINY).trials()[3]
-    (trial_path(copy, trial.config_hash, trial.seed) / store.PARAMS_FILE).write_bytes(b"damaged")
+    (trial_path(copy, trial.config_hash, trial.seed) / rundir.PARAMS_FILE).write_bytes(b"damaged")
     redo = runner.invoke(cli.app, ["sweep", str(sweep_file), "--out", str(copy), "--workers", "1", "--no-report"],
                          prog_name="rlcompare")
     assert redo.exit_code == 0, redo.output

@@ -26,7 +26,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ConfigError
 
 
@@ -81,15 +81,15 @@ def train(config: Any, *, out: Path | None = None, study: str = "", progress: Ca
 
 
 def load_run(run_dir: Path, expected: Any = None) -> Any:
-    """A finished run directory of any engine, checked on load (:func:`~rlcompare.experiment.store.read_run`):
+    """A finished run directory of any engine, checked on load (:func:`~rlcompare.experiment.rundir.read_run`):
     a file that does not belong to the run is a :class:`~rlcompare.experiment.store.StoreError` naming it."""
-    config = store.read_json(Path(run_dir) / store.CONFIG_FILE) if expected is None else expected.to_dict()
+    config = store.read_json(Path(run_dir) / rundir.CONFIG_FILE) if expected is None else expected.to_dict()
     if not isinstance(config, dict):
-        raise store.StoreError(f"{Path(run_dir) / store.CONFIG_FILE}: not a configuration rlcompare wrote")
+        raise store.StoreError(f"{Path(run_dir) / rundir.CONFIG_FILE}: not a configuration rlcompare wrote")
     try:
         results = front_of(config).Results
     except ConfigError as error:
-        raise store.StoreError(f"{Path(run_dir) / store.CONFIG_FILE}: {error}") from None
+        raise store.StoreError(f"{Path(run_dir) / rundir.CONFIG_FILE}: {error}") from None
     return results.load(run_dir, expected=expected)
 
 
@@ -97,7 +97,7 @@ def load_if_complete(run_dir: Path, config: Any, load: Callable[..., Any] | None
     """The stored results of ``config`` in ``run_dir`` if that run finished and its files belong together, else
     None (so it is trained again). ``load``: a study's own reader in place of the engine's ``Results.load``."""
     reader = load or front_for(config).Results.load
-    if not (Path(run_dir) / store.META_FILE).is_file():  # written last: no meta.json, no finished run
+    if not (Path(run_dir) / rundir.META_FILE).is_file():  # written last: no meta.json, no finished run
         return None
     try:
         return reader(run_dir, expected=config)

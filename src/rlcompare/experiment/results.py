@@ -13,7 +13,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from rlcompare.engine.state import Records
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ExperimentConfig
 
 
@@ -21,7 +21,7 @@ from rlcompare.experiment.config import ExperimentConfig
 class Results:
     """Records of every seed of one configuration, with the configuration and how the run went."""
 
-    content_files: ClassVar[tuple[str, ...]] = store.CONTENT_FILES
+    content_files: ClassVar[tuple[str, ...]] = rundir.CONTENT_FILES
     """The files of its run directory beside ``meta.json``."""
 
     config: ExperimentConfig
@@ -82,11 +82,11 @@ class Results:
         return self.records.snapshots[self.seeds.index(seed), stages.index(stage)]
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory (:func:`~rlcompare.experiment.store.write_run`)."""
-        return store.write_run(run_dir, self.config.to_dict(), {
-            store.EPISODES_FILE: _parquet_bytes(self._episodes_table()),
-            store.EVALUATIONS_FILE: _parquet_bytes(self._evaluations_table()),
-            store.QTABLES_FILE: self._arrays_bytes(),
+        """Write the run directory (:func:`~rlcompare.experiment.rundir.write_run`)."""
+        return rundir.write_run(run_dir, self.config.to_dict(), {
+            rundir.EPISODES_FILE: _parquet_bytes(self._episodes_table()),
+            rundir.EVALUATIONS_FILE: _parquet_bytes(self._evaluations_table()),
+            rundir.QTABLES_FILE: self._arrays_bytes(),
         }, self.meta, {
             "seeds": list(self.seeds),
             "rows": {"episodes": int(self.records.returns.size), "evaluations": int(self.records.eval_returns.size)},
@@ -107,15 +107,15 @@ class Results:
         (and hold ``expected`` where given): anything else is a :class:`~rlcompare.experiment.store.StoreError`
         that names the file."""
         run_dir = Path(run_dir)
-        meta, stored = store.read_run(run_dir, cls.content_files, None if expected is None else expected.to_dict())
+        meta, stored = rundir.read_run(run_dir, cls.content_files, None if expected is None else expected.to_dict())
         try:
             config = ExperimentConfig.from_dict(_tuples(stored))
         except ValueError as error:
-            raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: {error}") from None
+            raise store.StoreError(f"{run_dir / rundir.CONFIG_FILE}: {error}") from None
         try:
-            episodes = pd.read_parquet(run_dir / store.EPISODES_FILE)
-            evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)
-            with np.load(run_dir / store.QTABLES_FILE, allow_pickle=False) as arrays:
+            episodes = pd.read_parquet(run_dir / rundir.EPISODES_FILE)
+            evaluations = pd.read_parquet(run_dir / rundir.EVALUATIONS_FILE)
+            with np.load(run_dir / rundir.QTABLES_FILE, allow_pickle=False) as arrays:
                 tables = {key: arrays[key] for key in arrays.files}
         except Exception as error:
             raise store.StoreError(f"{run_dir}: cannot read the stored records ({store.cut(str(error), 200)})"
@@ -127,8 +127,8 @@ class Results:
                                    f"({len(episodes)} episode rows for {runs} seeds x {n_episodes} episodes)")
         stored_seeds = tables.get("seeds", np.array([])).tolist()
         if stored_seeds != list(config.seeds) or meta["contents"].get("seeds") != list(config.seeds):
-            raise store.StoreError(f"{run_dir}: the seeds of {store.QTABLES_FILE} and {store.META_FILE} differ from "
-                                   f"those of {store.CONFIG_FILE}")
+            raise store.StoreError(f"{run_dir}: the seeds of {rundir.QTABLES_FILE} and {rundir.META_FILE} differ from "
+                                   f"those of {rundir.CONFIG_FILE}")
         order = {seed: position for position, seed in enumerate(config.seeds)}
         episodes = episodes.assign(run=episodes["seed"].map(order)).sort_values(["run", "episode"])
         evaluations = evaluations.assign(run=evaluations["seed"].map(order)).sort_values(["run", "round"],

@@ -27,7 +27,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
 
-from rlcompare.experiment import engines, store
+from rlcompare.experiment import engines, rundir, store
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.sweep import Sweep, Trial, config_dict, config_hash, swept_value
 
@@ -109,7 +109,7 @@ def is_finished(trial_dir: Path, config: dict | None = None, engine: str = engin
     """Whether a trial's run directory is finished and its files belong together (and hold ``config``);
     ``engine``: the sweep's, whose results say what files a trial has."""
     try:
-        store.verify_run(trial_dir, config, engines.engine(engine).front().Results.content_files)
+        rundir.verify_run(trial_dir, config, engines.engine(engine).front().Results.content_files)
     except store.StoreError:
         return False
     return True
@@ -120,7 +120,7 @@ def engine_of(manifest: dict) -> str:
     return manifest.get("engine", engines.DEFAULT)
 
 
-def read_table(root: Path, name: str = store.EPISODES_FILE) -> pd.DataFrame:
+def read_table(root: Path, name: str = rundir.EPISODES_FILE) -> pd.DataFrame:
     """One table of every finished trial (``episodes.parquet`` or ``evaluations.parquet``) as one frame,
     with the config hash and the swept values as columns; a trial whose files do not belong together is
     left out."""
@@ -154,12 +154,12 @@ def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
     that has no finished trial."""
     manifest = read_manifest(root)
     front = engines.engine(engine_of(manifest)).front()  # the deep engine is imported only for a deep sweep
-    load_as, files = front.Results, (*front.Results.content_files, store.META_FILE)
+    load_as, files = front.Results, (*front.Results.content_files, rundir.META_FILE)
     by_config: dict[str, list] = {}
     problems = []
     for entry in manifest["trials"]:
         run_dir = trial_path(root, entry["config_hash"], entry["seed"])
-        if store.is_complete(run_dir, files):
+        if rundir.is_complete(run_dir, files):
             try:
                 trial = load_as.load(run_dir)
             except store.StoreError as error:

@@ -43,7 +43,7 @@ from rlcompare.analysis.stats import (
 )
 from rlcompare.engine.state import STREAMS
 from rlcompare.envs.features import feature_count
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ExperimentConfig, records_bytes
 from rlcompare.experiment.runner import run
 
@@ -71,8 +71,8 @@ COLLAPSE_MARGIN = 5.0
 """An asymptote 'collapses' from α = 0.1 to α = 1.0 when it falls by more than this (return per episode)."""
 
 RUNS_FILE = "runs.parquet"
-CONTENT_FILES = (store.CONFIG_FILE, RUNS_FILE, store.QTABLES_FILE)
-RUN_FILES = (*CONTENT_FILES, store.META_FILE)
+CONTENT_FILES = (rundir.CONFIG_FILE, RUNS_FILE, rundir.QTABLES_FILE)
+RUN_FILES = (*CONTENT_FILES, rundir.META_FILE)
 COLOURS = {"sarsa": "tab:blue", "expected_sarsa": "tab:red", "q_learning": "black"}
 """The book's colours."""
 FLOOR = -160.0
@@ -129,7 +129,7 @@ class PhaseRuns:
         return self.runs["return"].to_numpy()
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory (:func:`~rlcompare.experiment.store.write_run`)."""
+        """Write the run directory (:func:`~rlcompare.experiment.rundir.write_run`)."""
         arrays = io.BytesIO()
         np.savez_compressed(arrays, snapshots=self.q_tables, seeds=np.asarray(self.seeds))
         table = io.BytesIO()
@@ -137,26 +137,26 @@ class PhaseRuns:
         timings = self.meta["timings"]
         timings["finished"] = time.time()
         timings["summary_seconds"] = timings["finished"] - timings.get("trained", timings["finished"])
-        return store.write_run(run_dir, self.config.to_dict(), {RUNS_FILE: table.getvalue(),
-                                                                store.QTABLES_FILE: arrays.getvalue()},
-                               self.meta, {"seeds": list(self.seeds), "rows": {"runs": len(self.runs)}})
+        return rundir.write_run(run_dir, self.config.to_dict(), {RUNS_FILE: table.getvalue(),
+                                                                 rundir.QTABLES_FILE: arrays.getvalue()},
+                                self.meta, {"seeds": list(self.seeds), "rows": {"runs": len(self.runs)}})
 
     @classmethod
     def load(cls, run_dir: Path, expected: ExperimentConfig | None = None) -> PhaseRuns:
         """Read a finished run directory back, after checking that its files belong together (and hold
         ``expected`` where given); anything else is a :class:`~rlcompare.experiment.store.StoreError`."""
         run_dir = Path(run_dir)
-        meta, data = store.read_run(run_dir, cls.content_files, None if expected is None else expected.to_dict())
+        meta, data = rundir.read_run(run_dir, cls.content_files, None if expected is None else expected.to_dict())
         try:
             data["seeds"], data["stages"] = tuple(data["seeds"]), tuple(tuple(s) for s in data["stages"])
             config = ExperimentConfig.from_dict(data)
             runs = pd.read_parquet(run_dir / RUNS_FILE)
-            with np.load(run_dir / store.QTABLES_FILE, allow_pickle=False) as arrays:
+            with np.load(run_dir / rundir.QTABLES_FILE, allow_pickle=False) as arrays:
                 q_tables, seeds = arrays["snapshots"], arrays["seeds"].tolist()
         except (ValueError, KeyError, OSError) as error:
             raise store.StoreError(f"{run_dir}: cannot read the stored runs ({store.cut(str(error), 200)})") from None
         if runs["seed"].tolist() != list(config.seeds) or seeds != list(config.seeds):
-            raise store.StoreError(f"{run_dir}: the runs stored are not those of {store.CONFIG_FILE}")
+            raise store.StoreError(f"{run_dir}: the runs stored are not those of {rundir.CONFIG_FILE}")
         return cls(config, runs, q_tables, meta)
 
 

@@ -37,7 +37,7 @@ from rlcompare.analysis.tables import (
     table_ii,
 )
 from rlcompare.analysis.video import VideoJob, VideoRenders, plan_stage_videos, start_videos
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.results import Results
 from rlcompare.studies.interface import Report
 from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
@@ -94,7 +94,7 @@ def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
     """Every configuration that loads, and a line for each that does not: the paper's five, then any other
     algorithm run on the paper's grid (``reproduce --algorithms``), which adds rows to the tables."""
     loaded, problems = {}, []
-    extra = sorted(p.name for p in Path(study_dir).glob("*/") if (p / store.CONFIG_FILE).is_file()
+    extra = sorted(p.name for p in Path(study_dir).glob("*/") if (p / rundir.CONFIG_FILE).is_file()
                    and p.name not in CONFIGURATIONS) if Path(study_dir).is_dir() else []
     for name in (*CONFIGURATIONS, *extra):
         run_dir = Path(study_dir) / name

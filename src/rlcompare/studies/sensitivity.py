@@ -46,7 +46,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, holm, paired_difference, rank_test
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.sweep import Sweep, SweepError, Trial, parse_sweep
 from rlcompare.experiment.sweep_store import read_manifest, read_table, run_sweep, trial_path
@@ -181,11 +181,11 @@ def seed_returns(root: Path) -> pd.DataFrame:
     return of the last evaluation round), as :func:`rlcompare.analysis.tables.per_seed_metrics` defines them.
     Read as two Parquet datasets: seconds for thousands of trials, where loading each run takes a minute."""
     columns = ["config", "algorithm", *GRID, "seed", "behaviour", "greedy"]
-    episodes = read_table(root, store.EPISODES_FILE)
+    episodes = read_table(root, rundir.EPISODES_FILE)
     if episodes.empty:
         return pd.DataFrame(columns=columns)
     behaviour = episodes.groupby(["config", "seed"])["return"].mean().rename("behaviour")
-    greedy = _last_round_means(read_table(root, store.EVALUATIONS_FILE)).rename("greedy")
+    greedy = _last_round_means(read_table(root, rundir.EVALUATIONS_FILE)).rename("greedy")
     frame = pd.concat([behaviour, greedy], axis=1).reset_index()
     first_seed = frame.groupby("config")["seed"].first()
     values = pd.DataFrame([{"config": hash_, **_cell_config(trial_path(root, hash_, seed))}
@@ -203,7 +203,7 @@ def _last_round_means(evaluations: pd.DataFrame) -> pd.Series:
 
 def _cell_config(trial_dir: Path) -> dict:
     """A trial's algorithm and values of the grid's keys, from its ``config.json``."""
-    config = store.read_json(trial_dir / store.CONFIG_FILE)
+    config = store.read_json(trial_dir / rundir.CONFIG_FILE)
     return {key: config[key] for key in ("algorithm", *GRID)}
 
 
@@ -444,7 +444,7 @@ def _build_report(out: Path) -> Report:
     if not cells.empty:
         table = display_table(cells)
         write_table(table, out / "tables", "cells")
-        config = store.read_json(trial_path(root, seeds["config"].iloc[0], seeds["seed"].iloc[0]) / store.CONFIG_FILE)
+        config = store.read_json(trial_path(root, seeds["config"].iloc[0], seeds["seed"].iloc[0]) / rundir.CONFIG_FILE)
         sections += [
             Section("The grid", method_paragraphs(config, cells, len(seeds), manifest)),
             *(Section(METRICS[metric].capitalize(), figures=[(
