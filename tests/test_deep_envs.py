@@ -16,10 +16,10 @@ import gymnasium as gym
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import DEEP_ENVS, DeepEnv, EnvState, step_autoreset
+from rlcompare.deep.envs import DeepEnv, EnvState, jax_env, jax_env_names, step_autoreset
 from rlcompare.envs import acrobot, cartpole, mountain_car
 
-NAMES = list(DEEP_ENVS)
+NAMES = list(jax_env_names())
 TRANSITIONS = 3000
 """Per environment, from Gymnasium's own episodes."""
 ENVS_SIDE_BY_SIDE, SCANNED_STEPS = 4, 600
@@ -30,7 +30,7 @@ def _policy(name: str, state: np.ndarray, generator: np.random.Generator) -> int
     """Episodes that end both ways: a controller that reaches the goal (MountainCar, Acrobot) or balances the
     pole until the cart drifts off or the limit comes (CartPole), with 20% random actions."""
     if generator.random() < 0.2:
-        return int(generator.integers(DEEP_ENVS[name].n_actions))
+        return int(generator.integers(jax_env(name).n_actions))
     if name == "CartPole-v1":
         return int(state[2] + 0.5 * state[3] > 0.0)
     velocity = state[1] if name == "MountainCar-v0" else state[3]
@@ -71,7 +71,7 @@ def _gymnasium_transitions(name: str) -> dict[str, np.ndarray]:
     """Gymnasium's own episodes (seeded resets, the registered limit): each state, the action taken, and what
     followed."""
     env, generator = gym.make(name).unwrapped, np.random.default_rng(3)
-    limit = DEEP_ENVS[name].max_steps
+    limit = jax_env(name).max_steps
     env.reset(seed=11)
     rows: dict[str, list] = {key: [] for key in ("state", "action", "next", "observation", "reward", "terminated")}
     length = 0
@@ -94,7 +94,7 @@ def _gymnasium_transitions(name: str) -> dict[str, np.ndarray]:
 def test_transitions_equal_gymnasium(name, compiled, same_trigonometry) -> None:
     """From each of Gymnasium's states, the jitted step (batched by ``vmap``, or unbatched in a loop) gives
     Gymnasium's next state, float32 observation, reward and termination, bit for bit."""
-    env, ref = DEEP_ENVS[name], _gymnasium_transitions(name)
+    env, ref = jax_env(name), _gymnasium_transitions(name)
     assert ref["terminated"].sum() >= 5, "the policy should reach the goal (or fail) several times"
     states = EnvState(jnp.asarray(ref["state"]), jnp.zeros(len(ref["state"]), jnp.int32))
     transition = partial(_transition, env)
@@ -116,7 +116,7 @@ def _scanned_rollout(name: str) -> Callable:
     """A program shaped like training: environments side by side under ``vmap``, stepped with
     :func:`step_autoreset` under ``lax.scan``, acting on the float32 observation. The random draws other than
     the resets' come in as arrays, which keeps the program quick to compile."""
-    env = DEEP_ENVS[name]
+    env = jax_env(name)
 
     def one_step(state: EnvState, draws: tuple[jax.Array, jax.Array, jax.Array]):
         explore, random_action, reset_key = draws
@@ -136,7 +136,7 @@ def test_scanned_autoreset_rollout_equals_gymnasium(name, same_trigonometry) -> 
     """Gymnasium, started from its own reset, given the same actions, and each new episode's start state copied
     from the port, follows the scanned rollout step for step: observation before and after each reset,
     physics, reward, termination, and truncation at the registered limit."""
-    env, generator = DEEP_ENVS[name], np.random.default_rng(5)
+    env, generator = jax_env(name), np.random.default_rng(5)
     theirs = [gym.make(name).unwrapped for _ in range(ENVS_SIDE_BY_SIDE)]
     for b, one in enumerate(theirs):
         one.reset(seed=b)
@@ -171,7 +171,7 @@ def test_scanned_autoreset_rollout_equals_gymnasium(name, same_trigonometry) -> 
 def test_step_autoreset_resets_exactly_where_an_episode_ended() -> None:
     """Terminated, truncated, both on one step (terminated only) or neither: a fresh start exactly where the
     episode ended, the steps counted from 0 again, and the observation the action led to kept."""
-    env = dataclasses.replace(DEEP_ENVS["CartPole-v1"], max_steps=5)
+    env = dataclasses.replace(jax_env("CartPole-v1"), max_steps=5)
     edge = [cartpole.X_THRESHOLD - 1e-3, 1.0, 0.0, 0.0]
     middle = [0.0, 0.0, 0.01, 0.0]
     state = EnvState(jnp.asarray([middle, edge, middle, edge]), jnp.asarray([0, 0, 4, 4], jnp.int32))
@@ -206,7 +206,7 @@ LAST_REWARDS = {"MountainCar-v0": -1.0, "CartPole-v1": 1.0, "Acrobot-v1": 0.0}
 @pytest.mark.parametrize("name", NAMES)
 def test_truncated_at_the_limit_unless_terminated(name) -> None:
     """Truncated on the step that reaches the registered limit, not before, and not when that step terminates."""
-    env = DEEP_ENVS[name]
+    env = jax_env(name)
     physics = np.array([GOALS[name]] + [RESTS[name]] * 3)
     limit = env.max_steps
     state = EnvState(jnp.asarray(physics), jnp.asarray([limit - 1, 0, limit - 2, limit - 1], jnp.int32))
@@ -227,7 +227,7 @@ BOUNDS = {"MountainCar-v0": ([mountain_car.RESET_LOW, 0.0], [mountain_car.RESET_
 def test_start_states_fill_gymnasiums_bounds(name) -> None:
     """Start states lie within Gymnasium's bounds and come within 1% of each end; Acrobot's are float32 values."""
     keys = np.random.default_rng(2).integers(2**32, size=(20_000, 2), dtype=np.uint32)
-    start = jax.vmap(DEEP_ENVS[name].start)
+    start = jax.vmap(jax_env(name).start)
     physics = np.asarray(jax.jit(lambda keys: start(jax.random.wrap_key_data(keys)))(keys))
     low, high = (np.asarray(bound, dtype=np.float64) for bound in BOUNDS[name])
     assert physics.dtype == np.float64

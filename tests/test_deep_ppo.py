@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 
 from rlcompare.deep import ppo
-from rlcompare.deep.envs import CARTPOLE, DEEP_ENVS, MOUNTAIN_CAR
+from rlcompare.deep.envs import CARTPOLE, MOUNTAIN_CAR, jax_env_names
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.experiment.config import ConfigError
 
@@ -112,7 +112,7 @@ def test_bad_values_are_refused_naming_the_field(field: str, value: object) -> N
 
 def test_presets_are_the_zoos_for_every_deep_environment() -> None:
     assert ppo.PRESETS["default"] is ppo.ZOO
-    assert set(ppo.ZOO) == set(DEEP_ENVS)
+    assert set(ppo.ZOO) == set(jax_env_names())
     cartpole = ppo.ZOO["CartPole-v1"]
     assert (cartpole.n_envs, cartpole.n_steps, cartpole.batch_size, cartpole.n_epochs) == (8, 32, 256, 20)
     assert ppo.ZOO["MountainCar-v0"].normalize_observations

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 
 from rlcompare import load_agent
 from rlcompare.cli import app
-from rlcompare.deep.envs import DEEP_ENVS
+from rlcompare.deep.envs import jax_env
 from rlcompare.deep.run import DeepConfig, DeepResults, compiled_program
 from rlcompare.deep.run import run as deep_run
 from rlcompare.experiment.config import ConfigError
@@ -73,7 +73,7 @@ def test_a_deep_agent_acts_in_gymnasium_as_in_the_port(study):
     """The greedy agent from the run directory takes the same actions on Gymnasium's observations as on the
     port's, and both environments give the same episode."""
     agent = load_agent(study[0] / "pqn_q_lambda-CartPole-v1", seed=1)
-    env, port = gym.make("CartPole-v1"), DEEP_ENVS["CartPole-v1"]
+    env, port = gym.make("CartPole-v1"), jax_env("CartPole-v1")
     observation, _ = env.reset(seed=3)
     state = port.reset(jax.random.key(0))._replace(physics=jnp.asarray(env.unwrapped.state, jnp.float64))
     done, length = False, 0

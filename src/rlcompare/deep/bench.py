@@ -17,7 +17,7 @@ import jax
 import numpy as np
 
 from rlcompare.deep import dqn, float64, ppo, pqn
-from rlcompare.deep.envs import DEEP_ENVS
+from rlcompare.deep.envs import jax_env
 from rlcompare.experiment.benchmark import BenchTable
 
 SEEDS = 8
@@ -53,7 +53,7 @@ def rows() -> list[DeepRow]:
 def ours_steps_per_second(row: DeepRow, seeds: int, steps: int) -> tuple[float, float]:
     """``(steps per second over all seeds, compile seconds)`` of ``steps`` environment steps per seed."""
     config = dataclasses.replace(row.config, total_steps=steps)
-    train = jax.jit(jax.vmap(row.module.make_train(config, DEEP_ENVS[ENV], 1, 1)))
+    train = jax.jit(jax.vmap(row.module.make_train(config, jax_env(ENV), 1, 1)))
     keys = jax.numpy.stack([jax.random.key(seed) for seed in range(seeds)])
     started = time.perf_counter()
     compiled = train.lower(keys).compile()
@@ -138,7 +138,7 @@ def score_rows() -> list[DeepRow]:
 def ours_seconds_to_score(row: DeepRow, seeds: int) -> np.ndarray:
     """Wall seconds (compiling apart) until each seed's greedy evaluation first reached the score (NaN: never),
     the seeds trained side by side; a seed reached round ``k`` at ``k / rounds`` of the wall time."""
-    train = jax.jit(jax.vmap(row.module.make_train(row.config, DEEP_ENVS[SCORE_ENV], SCORE_ROUNDS, 10)))
+    train = jax.jit(jax.vmap(row.module.make_train(row.config, jax_env(SCORE_ENV), SCORE_ROUNDS, 10)))
     keys = jax.numpy.stack([jax.random.key(seed) for seed in range(seeds)])
     compiled = train.lower(keys).compile()
     started = time.perf_counter()

@@ -22,15 +22,19 @@ where one ended and keeps the true last observation for bootstrapping at a time-
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import gymnasium as gym
 import jax
 import jax.numpy as jnp
 
 from rlcompare.envs import acrobot, cartpole, mountain_car
+from rlcompare.envs.registry import PORTS, environment
+from rlcompare.experiment.config import ConfigError
 
 
 class EnvState(NamedTuple):
@@ -230,10 +234,28 @@ def _acrobot_observe(physics: jax.Array) -> jax.Array:
                      ).astype(jnp.float32)
 
 
-MOUNTAIN_CAR = DeepEnv("MountainCar-v0", mountain_car.N_ACTIONS, 2, 200, _mountain_car_start,
-                       _mountain_car_dynamics, _as_float32)
-CARTPOLE = DeepEnv("CartPole-v1", cartpole.N_ACTIONS, 4, 500, _cartpole_start, _cartpole_dynamics, _as_float32)
-ACROBOT = DeepEnv("Acrobot-v1", acrobot.N_ACTIONS, acrobot.OBSERVATION_SIZE, 500, _acrobot_start,
-                  _acrobot_dynamics, _acrobot_observe)
-DEEP_ENVS = {env.name: env for env in (MOUNTAIN_CAR, CARTPOLE, ACROBOT)}
-"""Every environment the deep engine steps, with Gymnasium's registered limit."""
+def _port(name: str, start: Callable, dynamics: Callable, observe: Callable) -> DeepEnv:
+    """The JAX port of a registered environment: its actions and observation size from its registry entry, its
+    limit Gymnasium's registered one (200 steps for Mountain Car, where the paper's tables use 1000)."""
+    entry = environment(name)
+    return DeepEnv(name, entry.n_actions, entry.observation_size, gym.spec(name).max_episode_steps, start, dynamics,
+                   observe)
+
+
+MOUNTAIN_CAR = _port("MountainCar-v0", _mountain_car_start, _mountain_car_dynamics, _as_float32)
+CARTPOLE = _port("CartPole-v1", _cartpole_start, _cartpole_dynamics, _as_float32)
+ACROBOT = _port("Acrobot-v1", _acrobot_start, _acrobot_dynamics, _acrobot_observe)
+
+
+def jax_env_names() -> tuple[str, ...]:
+    """The environments the deep engine steps: those whose registry entry names a JAX port."""
+    return tuple(name for name in PORTS if environment(name).jax_port)
+
+
+def jax_env(name: str) -> DeepEnv:
+    """The JAX port of ``name``, from its registry entry (:mod:`rlcompare.envs.registry`), with Gymnasium's
+    registered limit; a :class:`~rlcompare.experiment.config.ConfigError` naming those there are."""
+    if name not in jax_env_names():
+        raise ConfigError("env", name, ", ".join(jax_env_names()))
+    module, _, attribute = environment(name).jax_port.partition(":")
+    return getattr(importlib.import_module(module), attribute)

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.deep import float64, use_compilation_cache
-from rlcompare.deep.envs import DEEP_ENVS, DeepEnv
+from rlcompare.deep.envs import DeepEnv, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.experiment import store
@@ -62,8 +62,7 @@ class DeepConfig:
 
     def __post_init__(self) -> None:
         deep_method(self.algorithm)
-        if not isinstance(self.env, str) or self.env not in DEEP_ENVS:
-            raise ConfigError("env", self.env, ", ".join(DEEP_ENVS))
+        jax_env(self.env)  # an environment without a JAX port is refused, naming those there are
         if not self.seeds or len(set(self.seeds)) != len(self.seeds) or any(
                 not isinstance(s, int) or s < 0 for s in self.seeds):
             raise ConfigError("seeds", self.seeds, "distinct non-negative integers, at least one")
@@ -83,7 +82,7 @@ class DeepConfig:
 
     @property
     def environment(self) -> DeepEnv:
-        return DEEP_ENVS[self.env]
+        return jax_env(self.env)
 
     @property
     def name(self) -> str:
@@ -249,7 +248,7 @@ def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: 
                      width: int) -> Callable[[jax.Array], TrainOutput]:
     """The jitted, vmapped training of ``width`` seeds, lowered and compiled for ``width`` keys; kept for the
     process (``cache_info()`` counts the runs that found it)."""
-    train = deep_method(algorithm).module.make_train(method_config, DEEP_ENVS[env], eval_rounds, eval_episodes)
+    train = deep_method(algorithm).module.make_train(method_config, jax_env(env), eval_rounds, eval_episodes)
     return jax.jit(jax.vmap(train)).lower(seed_keys((0,) * width)).compile()
 
 

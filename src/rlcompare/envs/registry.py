@@ -91,6 +91,9 @@ class Environment:
     bench_episodes: int = 0
     """Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps (``rlcompare bench``);
     0: not benchmarked."""
+    jax_port: str = ""
+    """Where the deep engine's port of it in JAX lives, ``module:attribute`` (imported only by that engine);
+    empty: the deep engine does not step it."""
 
     @property
     def observation_size(self) -> int:
@@ -107,7 +110,8 @@ class Environment:
         return self.dynamics is not None
 
 
-def _mountain_car(name: str, right: float, bench_episodes: int = 0, shown_as: str = "") -> Environment:
+def _mountain_car(name: str, right: float, bench_episodes: int = 0, shown_as: str = "", jax_port: str = ""
+                  ) -> Environment:
     low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
     high[0] = np.float32(right)
     return Environment(name, mountain_car.MountainCar(right), mountain_car.N_ACTIONS, 0, low, high, 1000, 20,
@@ -115,7 +119,7 @@ def _mountain_car(name: str, right: float, bench_episodes: int = 0, shown_as: st
                        map_axes=("position", "velocity"),
                        start_box=((mountain_car.RESET_LOW, mountain_car.RESET_HIGH), (0.0, 0.0)), shown_as=shown_as,
                        endings=("reached the flag", "out of time"), painter=MountainCarPainter,
-                       bench_episodes=bench_episodes)
+                       bench_episodes=bench_episodes, jax_port=jax_port)
 
 
 def _cartpole() -> Environment:
@@ -123,18 +127,20 @@ def _cartpole() -> Environment:
     high = np.array([np.float32(cartpole.X_THRESHOLD), _CARTPOLE_VELOCITY, theta, _CARTPOLE_ANGULAR_VELOCITY])
     return Environment(cartpole.ENV_ID, cartpole.CartPole(), cartpole.N_ACTIONS, 0, -high, high, 500, (1, 1, 6, 12),
                        "truncated", endings=("the pole fell", "balanced to the end"),
-                       bench_episodes=5000)
+                       bench_episodes=5000, jax_port="rlcompare.deep.envs:CARTPOLE")
 
 
 def _acrobot() -> Environment:
     return Environment(acrobot.ENV_ID, acrobot.Acrobot(), acrobot.N_ACTIONS, 0,
                        acrobot.OBSERVATION_LOW.astype(np.float64), acrobot.OBSERVATION_HIGH.astype(np.float64), 500,
                        (4, 4, 4, 4, 8, 8),
-                       "terminated", endings=("swung above the bar", "out of time"), bench_episodes=300)
+                       "terminated", endings=("swung above the bar", "out of time"), bench_episodes=300,
+                       jax_port="rlcompare.deep.envs:ACROBOT")
 
 
 _PORTED = {
-    "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300),
+    "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300,
+                                            jax_port="rlcompare.deep.envs:MOUNTAIN_CAR"),
     "MountainCar-book": lambda: _mountain_car("MountainCar-book", mountain_car.BOOK_MAX_POSITION,
                                               shown_as="MountainCar-v0"),
     "CartPole-v1": _cartpole,
