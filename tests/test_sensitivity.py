@@ -19,7 +19,7 @@ from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.sweep import SweepError, derive_seeds
 from rlcompare.experiment.sweep_store import read_manifest, trial_path
-from rlcompare.studies import sensitivity
+from rlcompare.studies import sensitivity, sensitivity_report
 from rlcompare.studies.sensitivity import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
 
 runner = CliRunner(env={"COLUMNS": "200"})
@@ -248,7 +248,7 @@ def synthetic_cells() -> pd.DataFrame:
 
 
 def test_the_summary_counts_each_way_and_says_where_the_conclusion_flips() -> None:
-    lines = sensitivity.summary(synthetic_cells())
+    lines = sensitivity_report.summary(synthetic_cells())
     text = "\n".join(lines)
     assert "SARSA better in 12 of 16 cells, Q-Learning better in 2, not resolved in 2" in text
     assert "The conclusion flips (Q-Learning better) in 2 cells" in text
@@ -259,7 +259,7 @@ def test_the_summary_counts_each_way_and_says_where_the_conclusion_flips() -> No
 
 
 def test_the_heatmap_has_a_panel_per_gamma_and_time_limit_and_annotates_each_cell() -> None:
-    figure = sensitivity.heatmap_figure(synthetic_cells(), "greedy")
+    figure = sensitivity_report.heatmap_figure(synthetic_cells(), "greedy")
     panels = [ax for ax in figure.axes if ax.get_title()]
     assert len(panels) == 4
     assert {ax.get_title() for ax in panels} == {f"γ = {g}, time limit {t}" for g in ("0.9", "1")
