@@ -29,7 +29,7 @@ from rlcompare.deep import float64, use_compilation_cache
 from rlcompare.deep.envs import DeepEnv, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ConfigError
 from rlcompare.experiment.results import _parquet_bytes, _with_labels
 from rlcompare.experiment.runner import package_version, versions
@@ -119,7 +119,7 @@ def _jsonable(value: Any) -> Any:
 class DeepResults:
     """Every seed of one deep configuration: its episodes, evaluations, final parameters and how the run went."""
 
-    content_files: ClassVar[tuple[str, ...]] = store.DEEP_CONTENT_FILES
+    content_files: ClassVar[tuple[str, ...]] = rundir.DEEP_CONTENT_FILES
     """The files of its run directory beside ``meta.json``."""
 
     config: DeepConfig
@@ -144,7 +144,7 @@ class DeepResults:
         names = [jax.tree_util.keystr(path) for path, _ in paths]
         missing = [name for name in names if name not in self.params]
         if missing or len(names) != len(self.params):
-            raise store.StoreError(f"{store.PARAMS_FILE}: its parameters are not those of {self.config.algorithm}'s "
+            raise store.StoreError(f"{rundir.PARAMS_FILE}: its parameters are not those of {self.config.algorithm}'s "
                                    f"network (missing {missing[:3]}, {len(self.params)} stored, {len(names)} expected)")
         return jax.tree_util.tree_unflatten(tree, [self.params[name] for name in names])
 
@@ -156,13 +156,13 @@ class DeepResults:
         return jax.tree.map(lambda leaf: leaf[index], self.stacked_params(template))
 
     def save(self, run_dir: Path) -> Path:
-        """Write the run directory (:func:`~rlcompare.experiment.store.write_run`)."""
+        """Write the run directory (:func:`~rlcompare.experiment.rundir.write_run`)."""
         labels = {"study": self.meta.get("study", ""), "env": self.config.env, "algorithm": self.config.algorithm,
                   "schedule": self.config.preset}
-        return store.write_run(run_dir, self.config.to_dict(), {
-            store.EPISODES_FILE: _parquet_bytes(_table(self.episodes, labels)),
-            store.EVALUATIONS_FILE: _parquet_bytes(_table(self.evaluations, labels)),
-            store.PARAMS_FILE: _npz_bytes({**self.params, "seeds": np.asarray(self.seeds)}),
+        return rundir.write_run(run_dir, self.config.to_dict(), {
+            rundir.EPISODES_FILE: _parquet_bytes(_table(self.episodes, labels)),
+            rundir.EVALUATIONS_FILE: _parquet_bytes(_table(self.evaluations, labels)),
+            rundir.PARAMS_FILE: _npz_bytes({**self.params, "seeds": np.asarray(self.seeds)}),
         }, self.meta, {"seeds": list(self.seeds)})
 
     @classmethod
@@ -170,27 +170,27 @@ class DeepResults:
         """Read a finished deep run directory after checking that its files belong together (and hold
         ``expected`` where given); anything else is a :class:`~rlcompare.experiment.store.StoreError`."""
         run_dir = Path(run_dir)
-        meta, stored = store.read_run(run_dir, cls.content_files,
+        meta, stored = rundir.read_run(run_dir, cls.content_files,
                                       None if expected is None else _json_round_trip(expected.to_dict()))
         try:
             config = DeepConfig.from_dict(stored)
         except (ValueError, TypeError) as error:
-            raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: {error}") from None
+            raise store.StoreError(f"{run_dir / rundir.CONFIG_FILE}: {error}") from None
         if _json_round_trip(config.to_dict()) != stored:
-            raise store.StoreError(f"{run_dir / store.CONFIG_FILE}: its hyperparameters are not what its preset "
+            raise store.StoreError(f"{run_dir / rundir.CONFIG_FILE}: its hyperparameters are not what its preset "
                                    "gives now (written by another version of rlcompare); run it again")
         try:
-            episodes = pd.read_parquet(run_dir / store.EPISODES_FILE)
-            evaluations = pd.read_parquet(run_dir / store.EVALUATIONS_FILE)
-            with np.load(run_dir / store.PARAMS_FILE, allow_pickle=False) as arrays:
+            episodes = pd.read_parquet(run_dir / rundir.EPISODES_FILE)
+            evaluations = pd.read_parquet(run_dir / rundir.EVALUATIONS_FILE)
+            with np.load(run_dir / rundir.PARAMS_FILE, allow_pickle=False) as arrays:
                 params = {key: arrays[key] for key in arrays.files}
         except Exception as error:
             raise store.StoreError(f"{run_dir}: cannot read the stored records ({store.cut(str(error), 200)})"
                                    ) from None
         seeds = params.pop("seeds", np.array([])).tolist()
         if seeds != list(config.seeds) or set(episodes["seed"]) - set(seeds):
-            raise store.StoreError(f"{run_dir}: the seeds of {store.PARAMS_FILE} or {store.EPISODES_FILE} differ "
-                                   f"from those of {store.CONFIG_FILE}")
+            raise store.StoreError(f"{run_dir}: the seeds of {rundir.PARAMS_FILE} or {rundir.EPISODES_FILE} differ "
+                                   f"from those of {rundir.CONFIG_FILE}")
         columns = ["seed", "episode", "env_step", "return", "length", "terminated"]
         return cls(config, episodes[columns].reset_index(drop=True),
                    evaluations[["seed", "round", "after_step", "return", "length", "terminated"]].reset_index(

@@ -377,17 +377,3 @@ def remove_stale_temporaries(directory: Path) -> None:
         target = directory / relative
         for stale in target.parent.glob(f".{glob.escape(target.name)}.*.tmp*"):
             stale.unlink(missing_ok=True)
-
-
-_IN_RUNDIR = frozenset({"CONFIG_FILE", "EPISODES_FILE", "EVALUATIONS_FILE", "PARAMS_FILE", "DEEP_CONTENT_FILES",
-                        "read_run", "write_run"})
-
-
-def __getattr__(name: str) -> Any:
-    """The run directory's names that deep/run.py still reads here: they live in
-    :mod:`rlcompare.experiment.rundir` (imported when first asked for, since it imports this module)."""
-    if name in _IN_RUNDIR:
-        from rlcompare.experiment import rundir
-
-        return getattr(rundir, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

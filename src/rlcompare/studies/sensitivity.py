@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rlcompare.analysis.stats import Estimate, holm, paired_difference, rank_test
+from rlcompare.analysis.stats import Estimate, compare_paired, comparison_label, holm
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.sweep import Sweep, SweepError, Trial, parse_sweep
@@ -211,14 +211,9 @@ def paired_values(rows: pd.DataFrame, metric: str) -> tuple[np.ndarray, np.ndarr
 
 def mark(difference: Estimate, adjusted_p: float, level: float = LEVEL) -> str:
     """SARSA better / Q-Learning better when the adjusted p-value is below ``level`` and the interval of
-    SARSA minus Q-Learning excludes 0 on that side; not resolved otherwise (NaN bounds included)."""
-    if not adjusted_p < level:
-        return NOT_RESOLVED
-    if difference.low > 0:
-        return SARSA_BETTER
-    if difference.high < 0:
-        return Q_BETTER
-    return NOT_RESOLVED
+    SARSA minus Q-Learning excludes 0 on that side; not resolved otherwise (NaN bounds included): the one
+    vocabulary of :func:`~rlcompare.analysis.stats.comparison_label`."""
+    return comparison_label(difference, adjusted_p, ("SARSA", "Q-Learning"), level=level)
 
 
 def mark_family(differences: Sequence[Estimate], p_values: Sequence[float], level: float = LEVEL
@@ -239,11 +234,11 @@ def compare_cells(seeds: pd.DataFrame) -> pd.DataFrame:
             a, b = paired_values(group, metric)
             if not len(a):
                 break
-            difference = paired_difference(a, b)
-            row |= {"seeds": len(a), f"{metric}_sarsa": float(np.mean(a)), f"{metric}_q_learning": float(np.mean(b)),
+            paired = compare_paired(a, b, improvement=False)
+            difference = paired.difference
+            row |= {"seeds": paired.seeds, f"{metric}_sarsa": paired.a_mean, f"{metric}_q_learning": paired.b_mean,
                     f"{metric}_difference": difference.value, f"{metric}_low": difference.low,
-                    f"{metric}_high": difference.high,
-                    f"{metric}_p": rank_test(a, b) if np.isfinite(a - b).all() else np.nan}
+                    f"{metric}_high": difference.high, f"{metric}_p": paired.p_value}
         else:
             rows.append(row)
     cells = pd.DataFrame(rows, columns=[*GRID, "seeds", *(f"{m}_{part}" for m in METRICS for part in (
