@@ -6,6 +6,8 @@ import ast
 import graphlib
 from pathlib import Path
 
+import pytest
+
 import rlcompare
 
 PACKAGE = Path(rlcompare.__file__).parent
@@ -56,10 +58,13 @@ IMPORT_EVERYTHING = r"""
 import importlib, json, os, pkgutil, time
 from pathlib import Path
 
-stale = Path(os.environ["XDG_CACHE_HOME"]) / "rlcompare" / "numba-0000000000000000"
-stale.mkdir(parents=True)
+cache = Path(os.environ["XDG_CACHE_HOME"])
 month_ago = time.time() - 60 * 86400
-os.utime(stale, (month_ago, month_ago))
+for stale in (cache / "rlcompare" / "numba-0000000000000000", cache / "rlcompare" / "jax"):
+    stale.mkdir(parents=True)
+    (stale / "entry").write_text("")
+    os.utime(stale, (month_ago, month_ago))
+before = sorted(str(path) for path in cache.rglob("*"))
 
 import jax
 import matplotlib
@@ -73,12 +78,15 @@ for name in names:
     importlib.import_module(name)
 print(json.dumps({"modules": len(names), "x64": bool(jax.config.jax_enable_x64),
                   "backend_before": backend, "backend_after": matplotlib.rcParams._get_backend_or_none(),
-                  "cache_dir": jax.config.jax_compilation_cache_dir, "stale_kept": stale.is_dir()}))
+                  "cache_dir": jax.config.jax_compilation_cache_dir,
+                  "deleted": sorted(set(before) - {str(path) for path in cache.rglob("*")})}))
 """
 
 
 def test_importing_every_module_changes_no_setting_of_jax_or_matplotlib_and_nothing_on_disk(tmp_path):
-    """A user's notebook that imports rlcompare keeps JAX's and matplotlib's defaults, and its caches."""
+    """A user's notebook that imports rlcompare keeps JAX's and matplotlib's defaults, and its caches: every module,
+    the studies included, imports without choosing a backend (a module that called ``matplotlib.use`` would fail
+    here), and nothing under the cache directory is deleted until a run starts (where old numba caches are pruned)."""
     import json
     import os
     import subprocess
@@ -93,4 +101,16 @@ def test_importing_every_module_changes_no_setting_of_jax_or_matplotlib_and_noth
     assert found["x64"] is False
     assert found["backend_after"] == found["backend_before"]
     assert found["cache_dir"] is None
-    assert found["stale_kept"]  # pruning waits for a run to start (numba itself makes its directory on import)
+    assert found["deleted"] == []
+
+
+def test_the_deep_engine_turns_float64_on_for_its_own_calls_only():
+    """Its entry points trace in float64 (the physics is Gymnasium's float64) and leave JAX's 32-bit default to the
+    caller when they return."""
+    jax = pytest.importorskip("jax")
+    from rlcompare.deep.run import DeepConfig, params_template
+
+    assert not jax.config.jax_enable_x64
+    params_template(DeepConfig(algorithm="pqn_q_lambda", env="MountainCar-v0", seeds=(0,)))
+    assert not jax.config.jax_enable_x64
+    assert jax.numpy.zeros(1).dtype == jax.numpy.float32
