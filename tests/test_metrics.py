@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlcompare.analysis.metrics import returns_per_seed
+from rlcompare.analysis.metrics import returns_from_tables, returns_per_seed
 
 
 def test_returns_by_hand_from_a_table_of_episodes_and_rounds():
@@ -38,3 +38,18 @@ def test_the_greedy_return_is_the_last_rounds_mean_bit_for_bit(shape):
     frame = returns_per_seed((0, 1), np.zeros((2, 1)), evaluations)
     last = evaluations[:, -1].mean(axis=1) if len(shape) == 3 else evaluations[:, -1]
     np.testing.assert_array_equal(frame["greedy_return"].to_numpy(), last)
+
+
+def test_the_long_tables_give_the_same_numbers_as_the_arrays():
+    """A sweep's trials read as two Parquet tables: the same definitions as the arrays of a loaded run."""
+    import pandas as pd
+
+    rng = np.random.default_rng(2)
+    training, evaluations = rng.normal(size=(3, 7)), rng.normal(size=(3, 4, 5))
+    seeds = (4, 5, 6)
+    episodes = pd.DataFrame({"seed": np.repeat(seeds, 7), "return": training.ravel()})
+    rounds = pd.DataFrame({"seed": np.repeat(seeds, 20), "round": np.tile(np.repeat(np.arange(4), 5), 3),
+                           "return": evaluations.ravel()})
+    arrays = returns_per_seed(seeds, training, evaluations)
+    tables = returns_from_tables(episodes, rounds, ["seed"])
+    pd.testing.assert_frame_equal(tables, arrays, check_dtype=False, rtol=1e-12)

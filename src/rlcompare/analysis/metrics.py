@@ -33,3 +33,16 @@ def returns_per_seed(seeds: tuple[int, ...], training: np.ndarray | list[np.ndar
         "greedy_return": per_round[:, -1] if evaluated else np.nan,
         "greedy_auc": per_round.mean(axis=1) if evaluated else np.nan,
     })
+
+
+def returns_from_tables(episodes: pd.DataFrame, evaluations: pd.DataFrame, by: list[str]) -> pd.DataFrame:
+    """:func:`returns_per_seed`'s three numbers, by the same definitions, from the long tables a run directory
+    holds (``return`` per training episode; ``round`` and ``return`` per evaluation episode), one row per group of
+    ``by`` (a sweep's configuration and seed): thousands of trials at once, without loading each run."""
+    behaviour = episodes.groupby(by)["return"].mean().rename("behaviour_return")
+    if evaluations.empty:
+        return behaviour.reset_index().assign(greedy_return=np.nan, greedy_auc=np.nan)
+    per_round = evaluations.groupby([*by, "round"])["return"].mean()  # rounds in ascending order in each group
+    greedy = per_round.groupby(level=by).last().rename("greedy_return")
+    auc = per_round.groupby(level=by).mean().rename("greedy_auc")
+    return pd.concat([behaviour, greedy, auc], axis=1).reset_index()

@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rlcompare.analysis.metrics import returns_from_tables
 from rlcompare.analysis.stats import Estimate, compare_paired, comparison_label, holm
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
@@ -173,27 +174,18 @@ def run(out: Path, options: SensitivityOptions, ui: UI, *, study: str = STUDY, f
 def seed_returns(root: Path) -> pd.DataFrame:
     """One row per finished trial of a sweep's store: its configuration's hash, algorithm and values of the
     grid's keys, its seed, ``behaviour`` (the mean return over every training episode) and ``greedy`` (the mean
-    return of the last evaluation round), as :func:`rlcompare.analysis.tables.per_seed_metrics` defines them.
+    return of the last evaluation round), as :mod:`rlcompare.analysis.metrics` defines them for every study.
     Read as two Parquet datasets: seconds for thousands of trials, where loading each run takes a minute."""
     columns = ["config", "algorithm", *GRID, "seed", "behaviour", "greedy"]
     episodes = read_table(root, rundir.EPISODES_FILE)
     if episodes.empty:
         return pd.DataFrame(columns=columns)
-    behaviour = episodes.groupby(["config", "seed"])["return"].mean().rename("behaviour")
-    greedy = _last_round_means(read_table(root, rundir.EVALUATIONS_FILE)).rename("greedy")
-    frame = pd.concat([behaviour, greedy], axis=1).reset_index()
+    frame = returns_from_tables(episodes, read_table(root, rundir.EVALUATIONS_FILE), ["config", "seed"]).rename(
+        columns={"behaviour_return": "behaviour", "greedy_return": "greedy"})
     first_seed = frame.groupby("config")["seed"].first()
     values = pd.DataFrame([{"config": hash_, **_cell_config(trial_path(root, hash_, seed))}
                            for hash_, seed in first_seed.items()])
     return frame.merge(values, on="config")[columns]
-
-
-def _last_round_means(evaluations: pd.DataFrame) -> pd.Series:
-    """The mean return of each trial's last evaluation round, by (config, seed); NaN-free, empty if none."""
-    if evaluations.empty:
-        return pd.Series(dtype=np.float64)
-    last = evaluations["round"] == evaluations.groupby("config")["round"].transform("max")
-    return evaluations[last].groupby(["config", "seed"])["return"].mean()
 
 
 def _cell_config(trial_dir: Path) -> dict:
