@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from rlcompare.analysis.compare import compare_paired, comparison_label
 from rlcompare.analysis.stats import (
     CONTRADICTED,
     NOT_RESOLVED,
     SUPPORTED,
     VERDICTS,
     Estimate,
-    compare_paired,
-    comparison_label,
     interval,
     iqm,
     paired_difference,

@@ -17,10 +17,8 @@ Shared conventions for the intervals:
   explicitly what such runs mean before asking for an interval;
 - no seeds at all is a caller error (``ValueError``).
 
-Every study compares A against B the same way (:func:`compare_paired`: the paired difference, its interval, the
-Wilcoxon p-value, the probability of improvement, an equivalence test where a margin is declared) and says what it
-found in one vocabulary: :func:`verdict` for a claim, and :func:`comparison_label` for A against B, its words
-("A better", "B better", "equivalent (within ±m)", "not resolved", "no data") read off the same verdict.
+Every study compares A against B the same way and says what it found in one vocabulary read off :func:`verdict`
+(:mod:`rlcompare.analysis.compare`).
 
 The verdict labels (``docs/why.md``, "Verdicts"):
 
@@ -245,52 +243,6 @@ def verdict(difference: Estimate, p_value: float, claimed_sign: int, level: floa
     else:
         return NOT_RESOLVED
     return SUPPORTED if observed == claimed_sign else CONTRADICTED
-
-
-class Paired(NamedTuple):
-    """A against B on paired seeds (seed ``s`` of each on the same start states): the comparison every study
-    makes."""
-
-    a_mean: float
-    b_mean: float
-    difference: Estimate
-    """Mean of A - B over seeds, with its BCa bootstrap interval (:func:`paired_difference`)."""
-    p_value: float
-    """Two-sided Wilcoxon signed-rank p-value (:func:`rank_test`); NaN where a value is not finite."""
-    improvement: Estimate
-    """P(a seed of A beats a seed of B) (:func:`probability_of_improvement`); NaN where not asked for."""
-    seeds: int
-    equivalence: Equivalence | None = None
-    """TOST of A - B within the declared ±margin; None where no margin is declared."""
-
-
-def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *, improvement: bool = True
-                   ) -> Paired:
-    """A against B on paired seeds: means, the difference with its interval, the rank test, the probability of
-    improvement (unless ``improvement`` is False: a bootstrap of its own, which a grid of many cells may skip)
-    and, where ``margin`` is given, the test of equivalence within ±margin."""
-    a, b = _per_seed(a), _per_seed(b)
-    finite = bool(np.isfinite(a - b).all())
-    return Paired(float(np.mean(a)), float(np.mean(b)), paired_difference(a, b),
-                  rank_test(a, b) if finite else np.nan,
-                  probability_of_improvement(a, b) if improvement else _NAN, int(a.size),
-                  None if margin is None else tost(a - b, -margin, margin))
-
-
-def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, str],
-                     equivalence: Equivalence | None = None, level: float = ALPHA) -> str:
-    """What A against B found, in the one vocabulary: "A better" / "B better" where :func:`verdict` supports or
-    contradicts "A - B > 0" (``difference``) at ``p_adjusted``; else "equivalent (within ±m)" where a margin was
-    declared and :func:`equivalence_verdict` supports ``equivalence``; "no data" without an estimate; "not
-    resolved" otherwise."""
-    direction = verdict(difference, p_adjusted, +1, level)
-    if direction in (SUPPORTED, CONTRADICTED):
-        return f"{names[0] if direction == SUPPORTED else names[1]} better"
-    if direction == NO_DATA:
-        return NO_DATA
-    if equivalence is not None and equivalence_verdict(equivalence, level=level) == SUPPORTED:
-        return f"equivalent (within ±{equivalence.upper:g})"
-    return NOT_RESOLVED
 
 
 class Equivalence(NamedTuple):

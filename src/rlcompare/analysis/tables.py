@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.algorithms.registry import label as method_label
+from rlcompare.analysis.compare import compare_paired
 from rlcompare.analysis.convergence import (
     DEFAULT_RULE,
     RULES,
@@ -38,7 +39,6 @@ from rlcompare.analysis.stats import (
     UNDECIDABLE,
     NoiseFloor,
     Verdict,
-    compare_paired,
     equivalence_verdict,
     holm,
     interval,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from rlcompare.analysis.stats import compare_paired, comparison_label
+from rlcompare.analysis.compare import compare_paired, comparison_label
 from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.results import Results

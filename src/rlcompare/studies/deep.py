@@ -21,6 +21,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import stats
+from rlcompare.analysis.compare import Paired, compare_paired, comparison_label
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.plots import plot_return_curves
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
@@ -222,11 +223,11 @@ class Comparison:
     env: str
     engine: str
     metric: str
-    paired: stats.Paired
+    paired: Paired
 
 
 def compare(on_policy: np.ndarray, off_policy: np.ndarray, env: str, engine: str, metric: str) -> Comparison:
-    return Comparison(env, engine, metric, stats.compare_paired(on_policy, off_policy, MARGIN[env]))
+    return Comparison(env, engine, metric, compare_paired(on_policy, off_policy, MARGIN[env]))
 
 
 def comparisons(deep: dict[str, DeepResults], tabular: dict[str, Results]) -> list[Comparison]:
@@ -251,7 +252,7 @@ def verdict_table(found: list[Comparison]) -> pd.DataFrame:
     return pd.DataFrame([{
         "env": c.env, "engine": c.engine, "metric": METRIC_NAMES[c.metric],
         "on - off (mean, 95% CI)": c.paired.difference.format(1), "P(on > off)": c.paired.improvement.format(2),
-        "p (Holm)": p, "verdict": stats.comparison_label(c.paired.difference, p, ("on-policy", "off-policy"),
+        "p (Holm)": p, "verdict": comparison_label(c.paired.difference, p, ("on-policy", "off-policy"),
                                                                   c.paired.equivalence),
     } for c, p in zip(found, adjusted, strict=True)])
 

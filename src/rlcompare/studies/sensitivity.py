@@ -43,8 +43,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rlcompare.analysis.compare import compare_paired, comparison_label
 from rlcompare.analysis.metrics import returns_from_tables
-from rlcompare.analysis.stats import Estimate, compare_paired, comparison_label, holm
+from rlcompare.analysis.stats import Estimate, holm
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.sweep import Sweep, SweepError, Trial, parse_sweep
@@ -204,7 +205,7 @@ def paired_values(rows: pd.DataFrame, metric: str) -> tuple[np.ndarray, np.ndarr
 def mark(difference: Estimate, adjusted_p: float, level: float = LEVEL) -> str:
     """SARSA better / Q-Learning better when the adjusted p-value is below ``level`` and the interval of
     SARSA minus Q-Learning excludes 0 on that side; not resolved otherwise (NaN bounds included): the one
-    vocabulary of :func:`~rlcompare.analysis.stats.comparison_label`."""
+    vocabulary of :func:`~rlcompare.analysis.compare.comparison_label`."""
     return comparison_label(difference, adjusted_p, ("SARSA", "Q-Learning"), level=level)
 
 
