@@ -29,6 +29,7 @@ def chromium() -> str:
     return path
 
 
+@pytest.mark.slow  # starts a browser; where chromium is missing the recorded run only saw it skipped
 def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_path: Path) -> None:
     sync_playwright = pytest.importorskip("playwright.sync_api").sync_playwright
     configs = paper_configs((0, 1, 2), episodes=300, max_steps=300, eval_every=50, eval_episodes=3)

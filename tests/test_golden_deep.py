@@ -3,9 +3,13 @@ across refactors, at the fixed vmap width (``docs/deep.md``: a seed's numbers de
 seeds beside it).
 
 ``tests/golden/deep.json`` holds, per configuration, the SHA-256 of every training and evaluation record (returns,
-lengths, endings, the steps they ended at) and the SHA-256 of the final parameters (every seed's array, by its path
-in the parameter tree, with its dtype and shape), both compared exactly: XLA on CPU gives the same bits run after
-run. A change meant to change results rewrites the file with ``RLCOMPARE_WRITE_GOLDEN=1 pytest
+lengths, endings, the steps they ended at), compared exactly, and of the final parameters (every seed's array, by
+its path in the parameter tree) eight random projections, compared to within :data:`PARAMS_RTOL` of the array's
+norm. The records are the same bits on every x86-64 CPU; the float32 parameters are not: XLA:CPU vectorises for
+the machine it runs on and sums in another order on another CPU (measured on these configurations: 5e-7 of an
+array's largest value between ``--xla_cpu_max_isa=AVX2`` and AVX-512 on one machine, and the sum of one array
+2e-5 of its norm apart between two machines), while a change to the method moves them by a percent or more.
+A change meant to change results rewrites the file with ``RLCOMPARE_WRITE_GOLDEN=1 pytest
 tests/test_golden_deep.py`` and says why in its commit.
 """
 
@@ -38,18 +42,45 @@ CONFIGS = {
 }
 
 
-def fingerprint(results: DeepResults) -> dict[str, str]:
-    """The SHA-256 of every record column, and of every parameter array with its path, dtype and shape."""
+PARAMS_RTOL = 1e-3
+"""How far a parameter projection may move, as a fraction of the array's norm (the projections' own scale)."""
+PROJECTIONS = 8
+
+
+def projections(array: np.ndarray) -> list[float]:
+    """``G @ array`` for a fixed Gaussian ``G`` of :data:`PROJECTIONS` rows, then the array's norm, in float64."""
+    flat = array.astype(np.float64).ravel()
+    gaussian = np.random.default_rng(0).standard_normal((PROJECTIONS, flat.size))
+    return [*(gaussian @ flat).tolist(), float(np.linalg.norm(flat))]
+
+
+def fingerprint(results: DeepResults) -> dict:
+    """The SHA-256 of every record column, and the projections of every parameter array by its path."""
     records = hashlib.sha256()
     for frame in (results.episodes, results.evaluations):
         for name in frame.columns:
             records.update(name.encode())
             records.update(np.ascontiguousarray(frame[name].to_numpy()).tobytes())
-    params = hashlib.sha256()
-    for name, array in sorted(results.params.items()):
-        params.update(f"{name} {array.dtype} {array.shape}".encode())
-        params.update(np.ascontiguousarray(array).tobytes())
-    return {"records": records.hexdigest(), "params": params.hexdigest()}
+    params = {f"{name} {array.dtype} {array.shape}": projections(array) for name, array in results.params.items()}
+    return {"records": records.hexdigest(), "params": dict(sorted(params.items()))}
+
+
+def params_moved(found: dict[str, list[float]], expected: dict[str, list[float]]) -> list[str]:
+    """The arrays missing, added or moved beyond :data:`PARAMS_RTOL` of their norm."""
+    if sorted(found) != sorted(expected):
+        return sorted(set(found) ^ set(expected))
+    return [name for name in expected
+            if not np.allclose(found[name], expected[name], rtol=0.0, atol=PARAMS_RTOL * expected[name][-1])]
+
+
+def test_params_projections_tell_float32_rounding_from_a_change():
+    rng = np.random.default_rng(1)
+    array = rng.standard_normal((64, 64)).astype(np.float32)
+    rounded = array * (1 + 1e-5 * rng.standard_normal(array.shape)).astype(np.float32)
+    changed = array * (1 + 1e-2 * rng.standard_normal(array.shape)).astype(np.float32)
+    expected = {"w": projections(array)}
+    assert not params_moved({"w": projections(rounded)}, expected)
+    assert params_moved({"w": projections(changed)}, expected) == ["w"]
 
 
 def test_deep_golden_outputs_are_unchanged():
@@ -59,6 +90,7 @@ def test_deep_golden_outputs_are_unchanged():
         pytest.skip("deep golden outputs rewritten")
     expected = json.loads(GOLDEN.read_text())
     assert sorted(found) == sorted(expected)
-    changed = sorted(f"{name} {part}" for name in expected for part in ("records", "params")
-                     if found[name][part] != expected[name][part])
+    changed = [f"{name} records" for name in expected if found[name]["records"] != expected[name]["records"]]
+    changed += [f"{name} params: {', '.join(moved)}" for name in expected
+                if (moved := params_moved(found[name]["params"], expected[name]["params"]))]
     assert not changed, f"deep results changed: {changed}"
