@@ -31,7 +31,8 @@ from minatar.environments import freeway as ref_freeway  # noqa: E402
 from minatar.environments import space_invaders as ref_space_invaders  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from rlcompare.deep.minatar import GAMES, asterix_spawn, asterix_spawn_draws, minatar_env  # noqa: E402
+from rlcompare.deep.minatar import GYMNAX_CLASSES, asterix_spawn, asterix_spawn_draws, minatar_env  # noqa: E402
+from rlcompare.envs.minatar import GAMES  # noqa: E402
 
 
 class Served:
@@ -218,7 +219,7 @@ CASES = {
 
 def play_both(game: str, case: Case, seed: int) -> dict[str, int]:
     """One episode in both, compared at every step; how long it ran, what it scored and what it reached."""
-    port = GAMES[game].gymnax_class(use_minimal_action_set=False)
+    port = GYMNAX_CLASSES[game](use_minimal_action_set=False)
     params = port.default_params.replace(max_steps_in_episode=10**9)
     step = jax.jit(lambda key, state, action: (lambda out: (*out[1:4], port.get_obs(out[1])))(
         port.step_env(key, state, action, params)))
@@ -349,3 +350,4 @@ def test_action_sets_are_the_reference_games_minimal_sets_or_all_six():
         assert minatar_env(f"MinAtar/{game.title}-v0").actions == tuple(range(6))
         assert len(game.channels) == reference.state_shape()[2]
         assert tuple(reference.channels) == game.channels
+        assert GYMNAX_CLASSES[game.module_name]().default_params.max_steps_in_episode == game.time_limit

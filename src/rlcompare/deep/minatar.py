@@ -1,18 +1,10 @@
-"""MinAtar's five games (Young and Tian 2019, arXiv 1903.03176) for the deep engine, under two named protocols.
+"""MinAtar's five games for the deep engine: gymnax's JAX ports (pinned, 1.0.1) under the protocols of
+:mod:`rlcompare.envs.minatar`.
 
-The games are gymnax's JAX ports (pinned, 1.0.1), checked against the reference ``minatar`` package (1.0.15) in
+The ports are checked against the reference ``minatar`` package (1.0.15), whole episodes at a time, in
 ``tests/test_minatar_games.py``; where gymnax departs from the reference the port here follows the reference
-(``docs/minatar.md`` lists each case). Around the game, a protocol fixes what the agent plays:
-
-| protocol  | sticky actions | actions               | episode ends                                         |
-|-----------|----------------|-----------------------|------------------------------------------------------|
-| ``minatar`` | 0.1            | all 6                 | the game's own end only (the MinAtar paper's)        |
-| ``gymnax``  | none           | the game's minimal set | the game's end, or gymnax's limit (PQN's curves)   |
-
-An environment is named as its library names it: ``MinAtar/Breakout-v0`` is the reference's Gymnasium
-registration with the full action set and the paper's protocol, ``Breakout-MinAtar`` gymnax's. The state carries
-the last action taken, which a sticky action repeats. Observations are booleans, ``(10, 10, channels)``, until
-the network.
+(``docs/minatar.md`` lists each case). The state carries the last action taken, which a sticky action repeats.
+Observations are booleans, ``(10, 10, channels)``, until the network.
 """
 
 from __future__ import annotations
@@ -24,30 +16,8 @@ import jax
 import jax.numpy as jnp
 from gymnax.environments.minatar import asterix, breakout, freeway, seaquest, space_invaders
 
-ACTION_NAMES = ("no-op", "left", "up", "right", "down", "fire")
-"""MinAtar's six actions, in the reference's order (``n l u r d f``)."""
-
-
-@dataclass(frozen=True)
-class Protocol:
-    """How the agent plays a game: the MinAtar paper's or gymnax's (PQN's)."""
-
-    name: str
-    sticky_action_prob: float
-    """The chance that the previous action is repeated in place of the one chosen (Machado et al. 2018)."""
-    full_action_set: bool
-    """All six actions; otherwise the game's minimal set."""
-    time_limit: bool
-    """Truncate at gymnax's ``max_steps_in_episode``; otherwise only the game ends an episode."""
-    summary: str
-
-
-PROTOCOLS = {
-    "minatar": Protocol("minatar", 0.1, True, False,
-                        "the MinAtar paper's: sticky actions 0.1, all 6 actions, difficulty ramping, no time limit"),
-    "gymnax": Protocol("gymnax", 0.0, False, True,
-                       "gymnax's and PQN's: no sticky actions, the minimal action set, gymnax's time limits"),
-}
+from rlcompare.envs import minatar
+from rlcompare.envs.minatar import ACTION_NAMES, FREEWAY_STEPS, NAMES, Game, Protocol
 
 
 class _Asterix(asterix.MinAsterix):
@@ -95,39 +65,16 @@ def asterix_spawn(key: jax.Array, entities: jax.Array) -> jax.Array:
     return jnp.where(n_free > 0, entities.at[slot].set(entity), entities)
 
 
-@dataclass(frozen=True)
-class Game:
-    """One game: its gymnax class, its observation channels and its minimal action set (indices into the six)."""
-
-    title: str
-    """``Breakout``: as the Gymnasium names spell it."""
-    module_name: str
-    """``breakout``: as the reference package names it."""
-    gymnax_class: type
-    channels: tuple[str, ...]
-    minimal_actions: tuple[int, ...]
-
-
-GAMES = {game.module_name: game for game in (
-    Game("Asterix", "asterix", _Asterix, ("player", "enemy", "trail", "gold"), (0, 1, 2, 3, 4)),
-    Game("Breakout", "breakout", breakout.MinBreakout, ("paddle", "ball", "trail", "brick"), (0, 1, 3)),
-    Game("Freeway", "freeway", freeway.MinFreeway,
-         ("chicken", "car", "speed1", "speed2", "speed3", "speed4", "speed5"), (0, 2, 4)),
-    Game("Seaquest", "seaquest", seaquest.MinSeaquest,
-         ("sub_front", "sub_back", "friendly_bullet", "trail", "enemy_bullet", "enemy_fish", "enemy_sub",
-          "oxygen_guage", "diver_guage", "diver"), (0, 1, 2, 3, 4, 5)),
-    Game("SpaceInvaders", "space_invaders", space_invaders.MinSpaceInvaders,
-         ("cannon", "alien", "alien_left", "alien_right", "friendly_bullet", "enemy_bullet"), (0, 1, 3, 5)),
-)}
-FREEWAY_STEPS = 2501
-"""The reference's Freeway ends its episode (terminal) after this many steps; gymnax truncates one step earlier."""
-
-
 class MinAtarState(NamedTuple):
     game: Any
     """gymnax's state of the game (its ``time`` counts this episode's steps)."""
     last_action: jax.Array
     """The last action taken, among all six (a sticky action repeats it); no-op at a reset."""
+
+
+GYMNAX_CLASSES = {"asterix": _Asterix, "breakout": breakout.MinBreakout, "freeway": freeway.MinFreeway,
+                  "seaquest": seaquest.MinSeaquest, "space_invaders": space_invaders.MinSpaceInvaders}
+"""Each game's port: gymnax's class, or one here where gymnax departs from the reference."""
 
 
 @dataclass(frozen=True)
@@ -141,7 +88,7 @@ class MinAtarEnv:
 
     @property
     def _env(self) -> Any:
-        return self.game.gymnax_class(use_minimal_action_set=False)
+        return GYMNAX_CLASSES[self.game.module_name](use_minimal_action_set=False)
 
     @property
     def _params(self) -> Any:
@@ -150,7 +97,7 @@ class MinAtarEnv:
     @property
     def actions(self) -> tuple[int, ...]:
         """The agent's actions, as indices into MinAtar's six."""
-        return tuple(range(len(ACTION_NAMES))) if self.protocol.full_action_set else self.game.minimal_actions
+        return minatar.actions(self.game, self.protocol)
 
     @property
     def n_actions(self) -> int:
@@ -165,13 +112,8 @@ class MinAtarEnv:
         return (10, 10, len(self.game.channels))
 
     @property
-    def observation_size(self) -> int:
-        return 10 * 10 * len(self.game.channels)
-
-    @property
     def max_steps(self) -> int | None:
-        """gymnax's limit under its protocol; None where only the game ends an episode."""
-        return int(self._params.max_steps_in_episode) if self.protocol.time_limit else None
+        return minatar.max_steps(self.game, self.protocol)
 
     def reset(self, key: jax.Array) -> MinAtarState:
         _, game = self._env.reset_env(key, self._params)
@@ -187,9 +129,12 @@ class MinAtarEnv:
             sticky = jax.random.uniform(sticky_key) < self.protocol.sticky_action_prob
             chosen = jnp.where(sticky, state.last_action, chosen)
         _, game, reward, terminated, _ = self._env.step_env(game_key, state.game, chosen, self._params)
-        if self.game.module_name == "freeway" and not self.protocol.time_limit:
-            terminated = terminated | (game.time >= FREEWAY_STEPS)
-        truncated = ~terminated & (game.time >= self.max_steps) if self.protocol.time_limit else jnp.zeros((), bool)
+        if self.max_steps is None:
+            if self.game.module_name == "freeway":
+                terminated = terminated | (game.time >= FREEWAY_STEPS)
+            truncated = jnp.zeros((), bool)
+        else:
+            truncated = ~terminated & (game.time >= self.max_steps)
         return MinAtarState(game, chosen), reward, terminated, truncated
 
     def observe(self, state: MinAtarState) -> jax.Array:
@@ -198,13 +143,5 @@ class MinAtarEnv:
 
 def minatar_env(name: str) -> MinAtarEnv:
     """``MinAtar/<Game>-v0`` (the paper's protocol) or ``<Game>-MinAtar`` (gymnax's)."""
-    for game in GAMES.values():
-        if name == f"MinAtar/{game.title}-v0":
-            return MinAtarEnv(name, game, PROTOCOLS["minatar"])
-        if name == f"{game.title}-MinAtar":
-            return MinAtarEnv(name, game, PROTOCOLS["gymnax"])
-    raise KeyError(name)
-
-
-MINATAR_ENV_NAMES = tuple(name for game in GAMES.values()
-                          for name in (f"MinAtar/{game.title}-v0", f"{game.title}-MinAtar"))
+    game, protocol = NAMES[name]
+    return MinAtarEnv(name, game, protocol)

@@ -1,0 +1,84 @@
+"""MinAtar's five games (Young and Tian 2019, arXiv 1903.03176) and the two protocols they are played under: the
+facts the registry, the pictures and the deep engine's port share (no JAX here; the port is
+:mod:`rlcompare.deep.minatar`).
+
+| protocol    | sticky actions | actions         | episode ends                        | example name            |
+|-------------|----------------|-----------------|-------------------------------------|-------------------------|
+| ``minatar`` | 0.1            | all 6           | the game's own end only (its paper) | ``MinAtar/Breakout-v0`` |
+| ``gymnax``  | none           | the minimal set | the game's end, or gymnax's limit   | ``Breakout-MinAtar``    |
+
+Each environment is named as its library names it: ``MinAtar/<Game>-v0`` is the reference package's Gymnasium
+registration (all six actions, sticky actions 0.1, difficulty ramping), ``<Game>-MinAtar`` gymnax's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ACTION_NAMES = ("no-op", "left", "up", "right", "down", "fire")
+"""MinAtar's six actions, in the reference's order (``n l u r d f``)."""
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """How the agent plays a game: the MinAtar paper's or gymnax's (PQN's)."""
+
+    name: str
+    sticky_action_prob: float
+    """The chance that the previous action is repeated in place of the one chosen (Machado et al. 2018)."""
+    full_action_set: bool
+    """All six actions; otherwise the game's minimal set."""
+    time_limit: bool
+    """Truncate at gymnax's ``max_steps_in_episode``; otherwise only the game ends an episode."""
+    summary: str
+
+
+PROTOCOLS = {
+    "minatar": Protocol("minatar", 0.1, True, False,
+                        "the MinAtar paper's: sticky actions 0.1, all 6 actions, difficulty ramping, no time limit"),
+    "gymnax": Protocol("gymnax", 0.0, False, True,
+                       "gymnax's and PQN's: no sticky actions, the minimal action set, gymnax's time limits"),
+}
+
+
+@dataclass(frozen=True)
+class Game:
+    """One game: its names, its observation channels (the reference's order) and its minimal action set."""
+
+    title: str
+    """``SpaceInvaders``: as the Gymnasium names spell it."""
+    module_name: str
+    """``space_invaders``: as the reference package names it."""
+    channels: tuple[str, ...]
+    minimal_actions: tuple[int, ...]
+    """Indices into :data:`ACTION_NAMES`."""
+    time_limit: int
+    """gymnax's ``max_steps_in_episode``."""
+
+    def name(self, protocol: str) -> str:
+        return f"MinAtar/{self.title}-v0" if protocol == "minatar" else f"{self.title}-MinAtar"
+
+
+GAMES = {game.module_name: game for game in (
+    Game("Asterix", "asterix", ("player", "enemy", "trail", "gold"), (0, 1, 2, 3, 4), 1000),
+    Game("Breakout", "breakout", ("paddle", "ball", "trail", "brick"), (0, 1, 3), 1000),
+    Game("Freeway", "freeway", ("chicken", "car", "speed1", "speed2", "speed3", "speed4", "speed5"), (0, 2, 4), 2500),
+    Game("Seaquest", "seaquest", ("sub_front", "sub_back", "friendly_bullet", "trail", "enemy_bullet", "enemy_fish",
+                                  "enemy_sub", "oxygen_guage", "diver_guage", "diver"), (0, 1, 2, 3, 4, 5), 1000),
+    Game("SpaceInvaders", "space_invaders",
+         ("cannon", "alien", "alien_left", "alien_right", "friendly_bullet", "enemy_bullet"), (0, 1, 3, 5), 1000),
+)}
+FREEWAY_STEPS = 2501
+"""The reference's Freeway ends its episode (terminal) after this many steps; gymnax truncates one step earlier."""
+NAMES = {game.name(protocol): (game, PROTOCOLS[protocol]) for game in GAMES.values() for protocol in PROTOCOLS}
+"""Every MinAtar environment's name, with its game and protocol."""
+
+
+def actions(game: Game, protocol: Protocol) -> tuple[int, ...]:
+    """The agent's actions under ``protocol``, as indices into MinAtar's six."""
+    return tuple(range(len(ACTION_NAMES))) if protocol.full_action_set else game.minimal_actions
+
+
+def max_steps(game: Game, protocol: Protocol) -> int | None:
+    """gymnax's limit under its protocol; None where only the game ends an episode."""
+    return game.time_limit if protocol.time_limit else None
