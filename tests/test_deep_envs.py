@@ -53,7 +53,7 @@ def _gymnasium_observation(env: gym.Env) -> np.ndarray:
 
 def _transition(env: DeepEnv, state: EnvState, action: jax.Array):
     state, reward, terminated, _ = env.step(state, action)
-    return state.physics, env.observe(state.physics), reward, terminated
+    return state.physics, env.observe(state), reward, terminated
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +120,7 @@ def _scanned_rollout(name: str) -> Callable:
 
     def one_step(state: EnvState, draws: tuple[jax.Array, jax.Array, jax.Array]):
         explore, random_action, reset_key = draws
-        action = _jax_policy(name, env.observe(state.physics), explore, random_action)
+        action = _jax_policy(name, env.observe(state), explore, random_action)
         step = step_autoreset(env, state, action, jax.random.wrap_key_data(reset_key))
         return step.state, (action, step)
 

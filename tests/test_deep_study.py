@@ -79,10 +79,10 @@ def test_a_deep_agent_acts_in_gymnasium_as_in_the_port(study):
     done, length = False, 0
     while not done:
         action = agent.act(observation)
-        assert action == agent.act(np.asarray(port.observe(state.physics)))
+        assert action == agent.act(np.asarray(port.observe(state)))
         observation, _, terminated, truncated, _ = env.step(action)
         state, _, port_terminated, port_truncated = port.step(state, action)
-        np.testing.assert_array_equal(np.asarray(port.observe(state.physics)), observation)
+        np.testing.assert_array_equal(np.asarray(port.observe(state)), observation)
         assert (bool(port_terminated), bool(port_truncated)) == (terminated, truncated)
         done, length = terminated or truncated, length + 1
     assert length > 0

@@ -274,7 +274,7 @@ def init_runner(config: DQNConfig, env: DeepEnv, key: jax.Array) -> Runner:
     params = network(config, env).init(net_key, jnp.zeros((1, env.observation_size), jnp.float32))
     env_state = jax.vmap(env.reset)(jax.random.split(env_key, config.n_envs))
     return Runner(params, params, optimizer(config).init(params), buffer_init(config.buffer_size, env.observation_size),
-                  env_state, jax.vmap(env.observe)(env_state.physics), rollout.Episodes.start(config.n_envs),
+                  env_state, jax.vmap(env.observe)(env_state), rollout.Episodes.start(config.n_envs),
                   jnp.zeros((), jnp.int64))
 
 

@@ -32,7 +32,7 @@ import gymnasium as gym
 import jax
 import jax.numpy as jnp
 
-from rlcompare.envs import acrobot, cartpole, mountain_car
+from rlcompare.envs import acrobot, cartpole, minatar, mountain_car
 from rlcompare.envs.registry import PORTS, environment
 from rlcompare.experiment.config import ConfigError
 
@@ -70,28 +70,37 @@ class DeepEnv:
     """``key -> physics``: a start state."""
     dynamics: Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array, jax.Array]]
     """``(physics, action) -> (physics, reward, terminated)``."""
-    observe: Callable[[jax.Array], jax.Array]
+    observation_of: Callable[[jax.Array], jax.Array]
     """``physics -> float32 observation``."""
+
+    @property
+    def observation_shape(self) -> tuple[int, ...]:
+        return (self.observation_size,)
 
     def reset(self, key: jax.Array) -> EnvState:
         return EnvState(self.start(key), jnp.zeros((), jnp.int32))
 
-    def step(self, state: EnvState, action: jax.Array) -> tuple[EnvState, jax.Array, jax.Array, jax.Array]:
-        """One transition: ``(state, reward, terminated, truncated)``; truncated at the limit, unless terminated."""
+    def step(self, state: EnvState, action: jax.Array, key: jax.Array | None = None
+             ) -> tuple[EnvState, jax.Array, jax.Array, jax.Array]:
+        """One transition: ``(state, reward, terminated, truncated)``; truncated at the limit, unless terminated.
+        The dynamics are deterministic: ``key`` is not used."""
         physics, reward, terminated = self.dynamics(state.physics, action)
         t = state.t + 1
         return EnvState(physics, t), reward, terminated, (t >= self.max_steps) & ~terminated
 
+    def observe(self, state: EnvState) -> jax.Array:
+        return self.observation_of(state.physics)
+
 
 def step_autoreset(env: DeepEnv, state: EnvState, action: jax.Array, key: jax.Array) -> Step:
-    """One step, and a reset (drawn from ``key``) where the episode ended, as Gymnasium's vector environments
-    do with ``autoreset_mode=SAME_STEP``."""
-    state, reward, terminated, truncated = env.step(state, action)
-    last_observation = env.observe(state.physics)
+    """One step (its random parts, if any, drawn from ``key`` folded with 1), and a reset (drawn from ``key``)
+    where the episode ended, as Gymnasium's vector environments do with ``autoreset_mode=SAME_STEP``."""
+    state, reward, terminated, truncated = env.step(state, action, jax.random.fold_in(key, 1))
+    last_observation = env.observe(state)
     fresh = env.reset(key)
     done = terminated | truncated
     state = jax.tree.map(lambda new, old: jnp.where(done, new, old), fresh, state)
-    return Step(state, env.observe(state.physics), last_observation, reward, terminated, truncated)
+    return Step(state, env.observe(state), last_observation, reward, terminated, truncated)
 
 
 # --- Float64 arithmetic as NumPy rounds it, under XLA ---
@@ -249,13 +258,14 @@ ACROBOT = _port("Acrobot-v1", _acrobot_start, _acrobot_dynamics, _acrobot_observ
 
 def jax_env_names() -> tuple[str, ...]:
     """The environments the deep engine steps: those whose registry entry names a JAX port."""
-    return tuple(name for name in PORTS if environment(name).jax_port)
+    return tuple(name for name in (*PORTS, *minatar.NAMES) if environment(name).jax_port)
 
 
 def jax_env(name: str) -> DeepEnv:
-    """The JAX port of ``name``, from its registry entry (:mod:`rlcompare.envs.registry`), with Gymnasium's
-    registered limit; a :class:`~rlcompare.experiment.config.ConfigError` naming those there are."""
+    """The JAX port of ``name``, from its registry entry (:mod:`rlcompare.envs.registry`); a
+    :class:`~rlcompare.experiment.config.ConfigError` naming those there are."""
     if name not in jax_env_names():
         raise ConfigError("env", name, ", ".join(jax_env_names()))
     module, _, attribute = environment(name).jax_port.partition(":")
-    return getattr(importlib.import_module(module), attribute)
+    port = getattr(importlib.import_module(module), attribute)
+    return port if isinstance(port, DeepEnv) else port(name)

@@ -37,3 +37,59 @@ class MLP(nn.Module):
             x = ACTIVATIONS[self.activation](x)
         init = nn.initializers.lecun_normal() if self.last_scale == 1.0 else nn.initializers.orthogonal(self.last_scale)
         return nn.Dense(self.outputs, kernel_init=init, param_dtype=jnp.float32, dtype=jnp.float32)(x)
+
+
+def patches_3x3(x: jax.Array) -> jax.Array:
+    """``(..., H, W, C) -> (..., H - 2, W - 2, 9 C)``: every 3 x 3 window of an image, its values ordered by channel,
+    then row, then column (``lax.conv_general_dilated_patches``)."""
+    leading, image = x.shape[:-3], x.shape[-3:]
+    patches = jax.lax.conv_general_dilated_patches(x.reshape(-1, *image), (3, 3), (1, 1), "VALID",
+                                                   dimension_numbers=("NHWC", "OIHW", "NHWC"))
+    return patches.reshape(*leading, *patches.shape[1:])
+
+
+class Conv3x3(nn.Module):
+    """A 3 x 3 convolution, stride 1, no padding, computed as a dense layer over :func:`patches_3x3`: the same
+    function as ``nn.Conv(features, (3, 3), padding="VALID")`` (its kernel is this one's, reshaped;
+    ``tests/test_deep_networks.py``), about ten times faster on a CPU, where XLA's convolution is slow for small
+    images."""
+
+    features: int
+    kernel_init: nn.initializers.Initializer = nn.initializers.lecun_normal()
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        return nn.Dense(self.features, kernel_init=self.kernel_init, param_dtype=jnp.float32,
+                        dtype=jnp.float32)(patches_3x3(x))
+
+
+class ConvNet(nn.Module):
+    """MinAtar's network (Young and Tian 2019): one 3 x 3 convolution of 16 channels, then dense layers of
+    ``hidden``, each followed by LayerNorm where ``layer_norm`` (PQN, purejaxql ``pqn_minatar.py``) and ReLU; the
+    last layer is linear. Observations are images ``(..., 10, 10, channels)`` of booleans."""
+
+    outputs: int
+    channels: int = 16
+    hidden: Sequence[int] = (128,)
+    layer_norm: bool = False
+    last_scale: float = 1.0
+    """Scale of the last layer's orthogonal initialisation (PPO's 0.01 for the policy); 1.0 keeps flax's default."""
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        x = self.normalised(Conv3x3(self.channels)(x.astype(jnp.float32)))  # over the channels of each cell
+        x = x.reshape(*x.shape[:-3], -1)
+        for width in self.hidden:
+            x = self.normalised(nn.Dense(width, param_dtype=jnp.float32, dtype=jnp.float32)(x))
+        init = nn.initializers.lecun_normal() if self.last_scale == 1.0 else nn.initializers.orthogonal(self.last_scale)
+        return nn.Dense(self.outputs, kernel_init=init, param_dtype=jnp.float32, dtype=jnp.float32)(x)
+
+    def normalised(self, x: jax.Array) -> jax.Array:
+        if self.layer_norm:
+            x = nn.LayerNorm(param_dtype=jnp.float32, dtype=jnp.float32)(x)
+        return nn.relu(x)
+
+
+def is_image(observation_shape: tuple[int, ...]) -> bool:
+    """Observations that :class:`ConvNet` reads: ``(height, width, channels)``."""
+    return len(observation_shape) == 3

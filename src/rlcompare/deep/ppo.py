@@ -494,7 +494,7 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
         init_key, reset_key, train_key = jax.random.split(key, 3)
         params = init_params(config, env, init_key)
         env_state = jax.vmap(env.reset)(jax.random.split(reset_key, config.n_envs))
-        observation = jax.vmap(env.observe)(env_state.physics)
+        observation = jax.vmap(env.observe)(env_state)
         if config.normalize_observations:
             params = params._replace(observations=update_running(params.observations, observation))
         runner = Runner(params, tx.init(params.network), RunningMeanStd.start(()),

@@ -33,9 +33,9 @@ from flax.training.train_state import TrainState
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
-from rlcompare.deep.networks import MLP
+from rlcompare.deep.networks import MLP, ConvNet, is_image
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
-from rlcompare.envs import acrobot, mountain_car
+from rlcompare.envs import acrobot, minatar, mountain_car
 from rlcompare.experiment.config import ConfigError
 
 TARGETS = ("max", "sample", "expected")
@@ -122,16 +122,21 @@ def _check(ok: bool, name: str, value: object, allowed: str) -> None:
 
 _SMALL = PQNConfig(total_steps=500_000, n_envs=16, n_steps=128, n_epochs=4, n_minibatches=4, hidden=(64, 64),
                    learning_rate=1e-3)
+_MINATAR = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=32,
+                     learning_rate=5e-4, lam=0.65, decay_fraction=0.1, reward_scale=1.0, hidden=(128,))
 PRESETS = {"default": {
     "CartPole-v1": _SMALL,
     "Acrobot-v1": _SMALL,
     "MountainCar-v0": dataclasses.replace(_SMALL, total_steps=1_000_000, scale_observations=True),
+    **dict.fromkeys(minatar.NAMES, _MINATAR),
 }}
 """Preset name -> environment -> config. ``default``: the shape the speed target is set on (16 environments x 128
 steps, 4 epochs x 4 minibatches, 2 x 64 LayerNorm MLP), with purejaxql's CartPole settings otherwise
 (``pqn_cartpole.yaml``: λ 0.95, γ 0.99, RAdam, gradients clipped at 10, rewards scaled by 0.1, ε from 1 over the
 first fifth) but ε ending at 0.05, a step size of 1e-3 for the smaller batches, and twice the steps on
-Mountain Car, whose observations are scaled onto [-1, 1]."""
+Mountain Car, whose observations are scaled onto [-1, 1]. MinAtar: purejaxql's ``pqn_minatar.yaml`` (128 environments
+x 32 steps, 2 epochs x 32 minibatches, RAdam at 5e-4 decayed linearly, λ 0.65, ε 1 -> 0.05 over the first tenth,
+rewards unscaled, 10 M steps) with MinAtar's network, LayerNorm after the convolution and the dense layer of 128."""
 
 
 class Rollout(NamedTuple):
@@ -156,7 +161,10 @@ class Runner(NamedTuple):
     update: jax.Array
 
 
-def network(config: PQNConfig, env: DeepEnv) -> MLP:
+def network(config: PQNConfig, env: DeepEnv) -> MLP | ConvNet:
+    """A LayerNorm MLP, or MinAtar's convolutional network with LayerNorm for images."""
+    if is_image(env.observation_shape):
+        return ConvNet(env.n_actions, hidden=config.hidden, layer_norm=True)
     box = OBSERVATION_BOXES.get(env.name) if config.scale_observations else None
     return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True, box=box)
 
@@ -276,7 +284,7 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
         return 0.5 * jnp.mean(jnp.square(taken - returns))
 
     def learn(train_state: TrainState, rollout: Rollout, returns: jax.Array, key: jax.Array) -> TrainState:
-        batch = (rollout.observations.reshape(-1, env.observation_size), rollout.actions.reshape(-1),
+        batch = (rollout.observations.reshape(-1, *env.observation_shape), rollout.actions.reshape(-1),
                  returns.reshape(-1))
 
         def epoch(state: TrainState, epoch_key: jax.Array) -> tuple[TrainState, None]:
@@ -304,10 +312,10 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
 
     def start(key: jax.Array) -> Runner:
         init_key, reset_key, action_key = jax.random.split(key, 3)
-        params = net.init(init_key, jnp.zeros((1, env.observation_size), jnp.float32))
+        params = net.init(init_key, jnp.zeros((1, *env.observation_shape), jnp.float32))
         train_state = TrainState.create(apply_fn=net.apply, params=params, tx=optimiser)
         env_state = jax.vmap(env.reset)(jax.random.split(reset_key, config.n_envs))
-        observation = jax.vmap(env.observe)(env_state.physics)
+        observation = jax.vmap(env.observe)(env_state)
         first_action = epsilon_greedy(action_key, net.apply(params, observation), epsilon_at(0))
         return Runner(train_state, env_state, observation, first_action, Episodes.start(config.n_envs),
                       jnp.zeros((), jnp.int32))

@@ -9,7 +9,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import DeepEnv, EnvState
+from rlcompare.deep.envs import DeepEnv
 
 Params = Any
 Act = Callable[[Params, jax.Array], jax.Array]
@@ -61,23 +61,41 @@ class TrainOutput(NamedTuple):
     eval_terminated: jax.Array
 
 
+EVALUATION_STEPS = 27_000
+"""Where a greedy evaluation stops an episode that has no limit of its own (MinAtar under its paper's protocol):
+the 108,000 frames of 4 that Machado et al. (2018) allow an Atari evaluation episode."""
+
+
+def evaluation_limit(env: DeepEnv) -> int:
+    return env.max_steps or EVALUATION_STEPS
+
+
 def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: int
              ) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """Greedy episodes run side by side to the limit: ``(returns, lengths, terminated)``, each ``(episodes,)``."""
+    """Greedy episodes run side by side until each has ended or :func:`evaluation_limit` steps have passed:
+    ``(returns, lengths, terminated)``, each ``(episodes,)``. The environments' own draws come from ``key``
+    folded with 1 and the step."""
     states = jax.vmap(env.reset)(jax.random.split(key, episodes))
+    step_key = jax.random.fold_in(key, 1)
+    limit = evaluation_limit(env)
 
-    def one_step(carry: tuple[EnvState, jax.Array, jax.Array, jax.Array, jax.Array], _: None):
-        state, running, returns, lengths, terminated = carry
-        action = act(params, jax.vmap(env.observe)(state.physics))
-        state, reward, term, trunc = jax.vmap(env.step)(state, action)
+    def going(carry: tuple) -> jax.Array:
+        t, _, running, *_ = carry
+        return (t < limit) & jnp.any(running)
+
+    def one_step(carry: tuple) -> tuple:
+        t, state, running, returns, lengths, terminated = carry
+        action = act(params, jax.vmap(env.observe)(state))
+        keys = jax.random.split(jax.random.fold_in(step_key, t), episodes)
+        state, reward, term, trunc = jax.vmap(env.step)(state, action, keys)
         returns = returns + jnp.where(running, reward, 0.0).astype(jnp.float32)
         lengths = lengths + running.astype(jnp.int32)
         terminated = terminated | (running & term)
-        return (state, running & ~(term | trunc), returns, lengths, terminated), None
+        return t + 1, state, running & ~(term | trunc), returns, lengths, terminated
 
-    start = (states, jnp.ones(episodes, bool), jnp.zeros(episodes, jnp.float32), jnp.zeros(episodes, jnp.int32),
-             jnp.zeros(episodes, bool))
-    (_, _, returns, lengths, terminated), _ = jax.lax.scan(one_step, start, None, length=env.max_steps)
+    start = (jnp.zeros((), jnp.int32), states, jnp.ones(episodes, bool), jnp.zeros(episodes, jnp.float32),
+             jnp.zeros(episodes, jnp.int32), jnp.zeros(episodes, bool))
+    _, _, _, returns, lengths, terminated = jax.lax.while_loop(going, one_step, start)
     return returns, lengths, terminated
 
 

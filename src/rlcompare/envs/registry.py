@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rlcompare.envs import acrobot, cartpole, discretize, features, gymnasium_env, mountain_car, table, tiles
+from rlcompare.envs import acrobot, cartpole, discretize, features, gymnasium_env, minatar, mountain_car, table, tiles
 from rlcompare.envs.mountain_car_picture import MountainCarPainter
 from rlcompare.envs.table import TableEnv, from_gymnasium
 
@@ -92,8 +92,12 @@ class Environment:
     """Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps (``rlcompare bench``);
     0: not benchmarked."""
     jax_port: str = ""
-    """Where the deep engine's port of it in JAX lives, ``module:attribute`` (imported only by that engine);
-    empty: the deep engine does not step it."""
+    """Where the deep engine's port of it in JAX lives, ``module:attribute`` (imported only by that engine): the
+    port, or a function of the name that makes it; empty: the deep engine does not step it."""
+    observation_shape: tuple[int, ...] = ()
+    """The shape of an observation where it is not a vector of ``observation_size`` (MinAtar's images)."""
+    tabular: bool = True
+    """The tabular engine can play it (False for images: the deep engine only)."""
 
     @property
     def observation_size(self) -> int:
@@ -138,6 +142,19 @@ def _acrobot() -> Environment:
                        jax_port="rlcompare.deep.envs:ACROBOT")
 
 
+def _minatar(name: str) -> Environment:
+    """A MinAtar game under a protocol (:mod:`rlcompare.envs.minatar`); ``max_steps`` 0 where only the game
+    ends an episode."""
+    game, protocol = minatar.NAMES[name]
+    shape = (10, 10, len(game.channels))
+    actions = minatar.actions(game, protocol)
+    return Environment(name, None, len(actions), 0, np.zeros(int(np.prod(shape))), np.ones(int(np.prod(shape))),
+                       minatar.max_steps(game, protocol) or 0, 1, "positive_return",
+                       action_names=tuple(minatar.ACTION_NAMES[action] for action in actions),
+                       endings=("game over", "out of time"), jax_port="rlcompare.deep.minatar:minatar_env",
+                       observation_shape=shape, tabular=False)
+
+
 _PORTED = {
     "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300,
                                             jax_port="rlcompare.deep.envs:MOUNTAIN_CAR"),
@@ -165,6 +182,8 @@ def environment(name: str, adapter: bool = False) -> Environment:
         return dataclasses.replace(port, dynamics=None)
     if name in _PORTED:
         return _PORTED[name]()
+    if name in minatar.NAMES:
+        return _minatar(name)
     if name in TABLE_ENVIRONMENTS:
         tabled = table_of(name)
         limit, success, bench_episodes = _TABLE_DEFAULTS[name]

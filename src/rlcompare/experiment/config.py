@@ -172,11 +172,15 @@ class ExperimentConfig:
     def environment(self) -> Environment:
         """What is known of ``env``: how it is stepped and its defaults."""
         try:
-            return environment(self.env, self.adapter)
+            entry = environment(self.env, self.adapter)
         except UnsupportedEnvironment as error:
             raise ConfigError("env", self.env, f"{', '.join(ENVIRONMENTS)}, or a registered Gymnasium "
                               "environment with Discrete actions and Discrete or Box observations "
                               f"({cut(str(error), 200)})") from None
+        if not entry.tabular:
+            raise ConfigError("env", self.env, f"an environment the tabular engine plays ({', '.join(ENVIRONMENTS)}, "
+                              f"or Gymnasium's); {self.env} has image observations: train it with the deep engine")
+        return entry
 
     @property
     def name(self) -> str:
