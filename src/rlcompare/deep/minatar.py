@@ -14,8 +14,9 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-from gymnax.environments.minatar import asterix, breakout, freeway, seaquest, space_invaders
+from gymnax.environments.minatar import asterix, breakout, freeway, space_invaders
 
+from rlcompare.deep.minatar_seaquest import Seaquest
 from rlcompare.envs import minatar
 from rlcompare.envs.minatar import ACTION_NAMES, FREEWAY_STEPS, NAMES, Game, Protocol
 
@@ -73,7 +74,7 @@ class MinAtarState(NamedTuple):
 
 
 GYMNAX_CLASSES = {"asterix": _Asterix, "breakout": breakout.MinBreakout, "freeway": freeway.MinFreeway,
-                  "seaquest": seaquest.MinSeaquest, "space_invaders": space_invaders.MinSpaceInvaders}
+                  "seaquest": Seaquest, "space_invaders": space_invaders.MinSpaceInvaders}
 """Each game's port: gymnax's class, or one here where gymnax departs from the reference."""
 
 
@@ -116,29 +117,45 @@ class MinAtarEnv:
         return minatar.max_steps(self.game, self.protocol)
 
     def reset(self, key: jax.Array) -> MinAtarState:
-        _, game = self._env.reset_env(key, self._params)
-        return MinAtarState(game, jnp.zeros((), jnp.int32))
+        with jax.enable_x64(False):  # gymnax's games mix int32 and the default int; 32 bits throughout
+            _, game = self._env.reset_env(key, self._params)
+            return MinAtarState(_thirty_two_bits(game), jnp.zeros((), jnp.int32))
 
     def step(self, state: MinAtarState, action: jax.Array, key: jax.Array
              ) -> tuple[MinAtarState, jax.Array, jax.Array, jax.Array]:
         """One step: the chosen action, or with the protocol's chance the last one again (the reference's
         ``Environment.act``), then the game's transition."""
-        sticky_key, game_key = jax.random.split(key)
-        chosen = jnp.asarray(self.actions, jnp.int32)[action]
-        if self.protocol.sticky_action_prob > 0.0:
-            sticky = jax.random.uniform(sticky_key) < self.protocol.sticky_action_prob
-            chosen = jnp.where(sticky, state.last_action, chosen)
-        _, game, reward, terminated, _ = self._env.step_env(game_key, state.game, chosen, self._params)
-        if self.max_steps is None:
-            if self.game.module_name == "freeway":
-                terminated = terminated | (game.time >= FREEWAY_STEPS)
-            truncated = jnp.zeros((), bool)
-        else:
-            truncated = ~terminated & (game.time >= self.max_steps)
-        return MinAtarState(game, chosen), reward, terminated, truncated
+        with jax.enable_x64(False):
+            sticky_key, game_key = jax.random.split(key)
+            chosen = jnp.asarray(self.actions, jnp.int32)[jax.lax.convert_element_type(action, jnp.int32)]
+            if self.protocol.sticky_action_prob > 0.0:
+                sticky = jax.random.uniform(sticky_key) < self.protocol.sticky_action_prob
+                chosen = jnp.where(sticky, state.last_action, chosen)
+            _, game, reward, terminated, _ = self._env.step_env(game_key, state.game, chosen, self._params)
+            if self.max_steps is None:
+                if self.game.module_name == "freeway":
+                    terminated = terminated | (game.time >= FREEWAY_STEPS)
+                truncated = jnp.zeros((), bool)
+            else:
+                truncated = ~terminated & (game.time >= self.max_steps)
+            return MinAtarState(_thirty_two_bits(game), chosen), reward, terminated, truncated
 
     def observe(self, state: MinAtarState) -> jax.Array:
-        return self._env.get_obs(state.game).astype(bool)
+        with jax.enable_x64(False):
+            return self._env.get_obs(state.game).astype(bool)
+
+
+def _thirty_two_bits(state: Any) -> Any:
+    """Every field of a game's state as a 32-bit (or boolean) array of fixed type: gymnax leaves Python numbers
+    in its states, which JAX's 64-bit mode, on in the deep engine for classic control's physics, would widen."""
+
+    def fixed(value: Any) -> jax.Array:
+        value = jnp.asarray(value)
+        kind = jnp.bool_ if value.dtype == jnp.bool_ else jnp.int32 if jnp.issubdtype(value.dtype, jnp.integer) \
+            else jnp.float32
+        return jax.lax.convert_element_type(value, kind)
+
+    return jax.tree.map(fixed, state)
 
 
 def minatar_env(name: str) -> MinAtarEnv:

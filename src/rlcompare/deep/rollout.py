@@ -70,11 +70,12 @@ def evaluation_limit(env: DeepEnv) -> int:
     return env.max_steps or EVALUATION_STEPS
 
 
-def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: int
+def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: int, epsilon: float = 0.0
              ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Greedy episodes run side by side until each has ended or :func:`evaluation_limit` steps have passed:
     ``(returns, lengths, terminated)``, each ``(episodes,)``. The environments' own draws come from ``key``
-    folded with 1 and the step."""
+    folded with 1 and the step. With ``epsilon``, each action is uniformly random with that chance (DQN's
+    evaluation takes 0.05; 1 is the uniformly random policy)."""
     states = jax.vmap(env.reset)(jax.random.split(key, episodes))
     step_key = jax.random.fold_in(key, 1)
     limit = evaluation_limit(env)
@@ -87,6 +88,10 @@ def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: i
         t, state, running, returns, lengths, terminated = carry
         action = act(params, jax.vmap(env.observe)(state))
         keys = jax.random.split(jax.random.fold_in(step_key, t), episodes)
+        if epsilon > 0.0:
+            explore_key, action_key = jax.random.split(jax.random.fold_in(key, 2 + t))
+            random_actions = jax.random.randint(action_key, (episodes,), 0, env.n_actions)
+            action = jnp.where(jax.random.uniform(explore_key, (episodes,)) < epsilon, random_actions, action)
         state, reward, term, trunc = jax.vmap(env.step)(state, action, keys)
         returns = returns + jnp.where(running, reward, 0.0).astype(jnp.float32)
         lengths = lengths + running.astype(jnp.int32)

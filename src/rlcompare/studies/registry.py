@@ -12,6 +12,7 @@ import importlib
 from dataclasses import dataclass
 from typing import Any
 
+from rlcompare.experiment.config import ConfigError
 from rlcompare.studies.interface import Options, Seeded, listed, option
 
 PAPER_LEARNERS = ("q_learning", "sarsa")
@@ -83,6 +84,33 @@ class DeepOptions(Seeded):
 
 
 @dataclass(frozen=True)
+class MinAtarOptions(Seeded):
+    seeds: int = option(5, minimum=1, spellings=("--runs",))
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (the MinAtar paper ran 30)."""
+    budget: str = "short"
+    """short (3 games, 400,000 steps: about 20 minutes on 2 CPU cores), paper (every game, the MinAtar paper's
+    5 M frames) or pqn (every game, purejaxql's 10 M steps)."""
+    games: str | None = None
+    """Comma-separated games (asterix, breakout, freeway, seaquest, space_invaders). Default: the budget's."""
+    protocol: str = "minatar"
+    """minatar (the MinAtar paper's: sticky actions 0.1, all 6 actions, no time limit) or gymnax (PQN's: no
+    sticky actions, minimal action sets, gymnax's limits)."""
+    steps: int | None = option(None, minimum=1)
+    """Environment steps of every training, in place of the budget's."""
+    workers: int | None = option(None, minimum=1)
+    """Trainings at once. Default: one per core, at most 2."""
+
+    def check(self) -> None:
+        from rlcompare.envs.minatar import GAMES, PROTOCOLS
+
+        for name, allowed in (("budget", ("short", "paper", "pqn")), ("protocol", tuple(PROTOCOLS))):
+            if getattr(self, name) not in allowed:
+                raise ConfigError(name, getattr(self, name), f"one of {', '.join(allowed)}")
+        if self.games is not None:
+            listed("games", self.games, tuple(GAMES))
+
+
+@dataclass(frozen=True)
 class SensitivityOptions(Options):
     seeds: int = option(20, minimum=1, spellings=("--runs",))
     """Number of seeds, from the study's sweep: SeedSequence(0).spawn(N)."""
@@ -139,6 +167,8 @@ STUDIES = {study.name: study for study in (
           "5 min on 2 cores)", Fig63Options, "rlcompare.studies.book:FIG_6_3"),
     Study("deep", "the question with networks: Q(λ), SARSA(λ), DQN, PPO on three environments (the 'deep' extra)",
           DeepOptions, "rlcompare.studies.deep", extra="deep"),
+    Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
+          "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
     Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, ε_end and the time limit? (a sweep; Ray: "
           "--address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
 )}

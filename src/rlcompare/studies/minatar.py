@@ -1,0 +1,254 @@
+"""``rlcompare reproduce minatar``: the paper's question on MinAtar's games (Young and Tian 2019), with networks.
+
+The pair is the paper's, in one PQN-style engine whose only switch is the bootstrap: Q(λ) (off-policy, the max) and
+SARSA(λ) (on-policy, the action taken), with MinAtar's convolutional network and purejaxql's MinAtar settings,
+trained on paired seeds under one protocol (``docs/minatar.md``). The report draws greedy learning curves against
+environment steps, tabulates each game's final greedy return (mean and IQM with 95% intervals) beside a uniformly
+random policy's, gives the across-game IQM of scores normalised between random and the best method here, and
+judges "on-policy against off-policy target" per game, Holm-corrected over the games.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.analysis import stats
+from rlcompare.analysis.compare import compare_paired, comparison_label
+from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.envs import minatar
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies import deep
+from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.registry import MinAtarOptions
+
+STUDY = "minatar"
+PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
+"""The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
+BUDGETS = {
+    "short": (("breakout", "space_invaders", "asterix"), 400_000),
+    "paper": (tuple(minatar.GAMES), 5_000_000),
+    "pqn": (tuple(minatar.GAMES), 10_000_000),
+}
+"""Budget -> (default games, environment steps per training). ``short``: about 20 minutes on 2 CPU cores, a short
+look that says so in its report; ``paper``: the MinAtar paper's 5 M frames (a frame is a step: MinAtar skips none);
+``pqn``: purejaxql's 10 M steps."""
+MARGIN = 1.0
+"""Differences of mean return smaller than one reward (one brick, alien, treasure or crossing per episode) count
+as no difference: declared here before any run."""
+RANDOM_EPISODES = 200
+"""Episodes of the uniformly random policy per game, the floor of the normalised scores."""
+DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What the study trains: games, protocol, seeds and steps."""
+
+    games: tuple[str, ...]
+    protocol: str
+    seeds: tuple[int, ...]
+    steps: int
+    budget: str
+    workers: int = DEFAULT_WORKERS
+
+    def env(self, game: str) -> str:
+        return minatar.GAMES[game].name(self.protocol)
+
+    def configs(self) -> dict[str, DeepConfig]:
+        return {f"{method}-{game}": DeepConfig(algorithm=method, env=self.env(game), seeds=self.seeds,
+                                               hyperparameters={"total_steps": self.steps},
+                                               vmap_width=min(len(self.seeds), 5), eval_rounds=10, eval_episodes=8)
+                for game in self.games for method in PAIR}
+
+
+def plan_of(options: MinAtarOptions) -> Plan:
+    """The plan from the options; an unknown game or protocol, or steps PQN cannot train in, is a
+    :class:`ConfigError` naming the option."""
+    default_games, default_steps = BUDGETS[options.budget]
+    games = listed("games", options.games, tuple(minatar.GAMES)) if options.games else default_games
+    plan = Plan(games, options.protocol, options.seed_range, options.steps or default_steps, options.budget,
+                options.workers or DEFAULT_WORKERS)
+    try:
+        plan.configs()
+    except ConfigError as error:
+        raise ConfigError("steps" if error.field_name == "total_steps" else error.field_name, error.value,
+                          error.allowed) from None
+    return plan
+
+
+def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | None = None, force: bool = False
+              ) -> Iterator[tuple[str, DeepResults, bool]]:
+    """Train (or load, where finished) every configuration into ``out``."""
+    advance = None if progress is None else (lambda n: progress("deep", n))
+    yield from run_or_load(Path(out), plan.configs(), study=STUDY, progress=advance, force=force,
+                           workers=plan.workers)
+
+
+def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
+    plan = plan_of(options)
+    configs = plan.configs()
+    ui.say(f"MinAtar, {minatar.PROTOCOLS[plan.protocol].summary}: {len(configs)} trainings x {len(plan.seeds)} "
+           f"seeds x {plan.steps:,} steps (budget '{plan.budget}'); each compiles its program first.")
+    runs = {}
+    with ui.tasks({"deep": sum(c.progress_total for c in configs.values())}) as advance:
+        for name, results, reused in reproduce(out, plan, force=force, progress=advance):
+            runs[name] = results
+            ui.done(name, results, reused)
+    return runs
+
+
+# --- what the report computes from the run directories ----------------------------------------------------
+
+def game_of(results: DeepResults) -> str:
+    return next(game for game in minatar.GAMES.values() if results.config.env in
+                (game.name("minatar"), game.name("gymnax"))).module_name
+
+
+def final_returns(results: DeepResults) -> np.ndarray:
+    """Each seed's mean greedy return in the last evaluation round."""
+    return deep.eval_curves(results)[1][:, -1]
+
+
+def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0) -> np.ndarray:
+    """Returns of the uniformly random policy in the port, under the environment's protocol."""
+    import jax
+    import jax.numpy as jnp
+
+    from rlcompare.deep import float64
+    from rlcompare.deep.envs import jax_env
+    from rlcompare.deep.rollout import evaluate
+
+    env = jax_env(env_name)
+
+    def no_op(params: None, observations: jax.Array) -> jax.Array:
+        return jnp.zeros(observations.shape[0], jnp.int32)
+
+    @float64
+    def play() -> np.ndarray:
+        return np.asarray(jax.jit(lambda key: evaluate(env, no_op, None, key, episodes, epsilon=1.0)[0])(
+            jax.random.key(seed)))
+
+    return play()
+
+
+def summary_table(runs: dict[str, DeepResults], floors: dict[str, float]) -> pd.DataFrame:
+    rows = []
+    for results in runs.values():
+        final = final_returns(results)
+        rows.append({"game": minatar.GAMES[game_of(results)].title, "env": results.config.env,
+                     "method": DEEP_METHODS[results.config.algorithm].label,
+                     "final greedy, mean": stats.interval(final).format(2),
+                     "final greedy, IQM": stats.interval(final, "iqm").format(2),
+                     "random policy": round(floors[results.config.env], 2), "seeds": len(final),
+                     "steps/s": round(results.meta["timings"]["steps_per_second"])})
+    return pd.DataFrame(rows)
+
+
+def normalised(runs: dict[str, DeepResults], floors: dict[str, float]) -> dict[str, np.ndarray]:
+    """Per method, ``(games, seeds)`` final returns scaled so that the random policy is 0 and the best method's
+    mean here is 1, game by game."""
+    by_game: dict[str, dict[str, np.ndarray]] = {}
+    for results in runs.values():
+        by_game.setdefault(results.config.env, {})[results.config.algorithm] = final_returns(results)
+    scores: dict[str, list[np.ndarray]] = {}
+    for env, methods in by_game.items():
+        best = max(values.mean() for values in methods.values())
+        scale = best - floors[env] if best > floors[env] else 1.0
+        for method, values in methods.items():
+            scores.setdefault(method, []).append((values - floors[env]) / scale)
+    return {method: np.stack(values) for method, values in scores.items()}
+
+
+def across_games_table(scores: dict[str, np.ndarray]) -> pd.DataFrame:
+    """IQM over every (game, seed) score with a stratified bootstrap over seeds within each game (rliable's
+    ``get_interval_estimates`` with its IQM: Agarwal et al. 2021)."""
+    rows = []
+    for method, values in scores.items():
+        rows.append({"method": DEEP_METHODS[method].label, "games": values.shape[0],
+                     "IQM of normalised scores [95% CI]": _stratified_iqm(values).format(2)})
+    return pd.DataFrame(rows)
+
+
+def _stratified_iqm(values: np.ndarray, resamples: int = 2000, seed: int = 0) -> stats.Estimate:
+    rng = np.random.default_rng(seed)
+    games, seeds = values.shape
+    draws = rng.integers(0, seeds, (resamples, games, seeds))
+    resampled = np.take_along_axis(values[None], draws, axis=2).reshape(resamples, -1)
+    low, high = np.percentile(stats.iqm(resampled, axis=1), [2.5, 97.5])
+    return stats.Estimate(float(stats.iqm(values.ravel())), float(low), float(high))
+
+
+def verdict_table(runs: dict[str, DeepResults], games: list[str]) -> pd.DataFrame:
+    """SARSA(λ) against Q(λ) per game on paired seeds (final greedy return), Holm-adjusted over the games."""
+    found = []
+    for game in games:
+        pair = [next((r for r in runs.values() if game_of(r) == game and r.config.algorithm == m), None)
+                for m in PAIR]
+        if None not in pair and pair[0].seeds == pair[1].seeds:
+            found.append((game, compare_paired(final_returns(pair[0]), final_returns(pair[1]), MARGIN)))
+    adjusted = stats.holm(paired.p_value for _, paired in found)
+    return pd.DataFrame([{
+        "game": minatar.GAMES[game].title, "on - off (mean, 95% CI)": paired.difference.format(2),
+        "P(on > off)": paired.improvement.format(2), "p (Holm)": p,
+        "verdict": comparison_label(paired.difference, p, ("on-policy", "off-policy"), paired.equivalence),
+    } for (game, paired), p in zip(found, adjusted, strict=True)])
+
+
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
+    """Tables, verdicts, figures and ``report.html`` of a MinAtar study directory, from its run directories."""
+    with store.rewriting(Path(out), "study"):
+        return _build_report(Path(out))
+
+
+def _build_report(out: Path) -> Report:
+    runs, _, problems = deep.load_runs(out)
+    tables, figures = out / "tables", out / "figures"
+    floors = {env: float(random_returns(env).mean()) for env in sorted({r.config.env for r in runs.values()})}
+    games = [g for g in minatar.GAMES if any(game_of(r) == g for r in runs.values())]
+    summary = summary_table(runs, floors)
+    across = across_games_table(normalised(runs, floors))
+    verdicts = verdict_table(runs, games)
+    for name, frame in (("minatar_summary", summary), ("minatar_across_games", across),
+                        ("minatar_verdicts", verdicts)):
+        write_table(frame, tables, name)
+    curve_figures = []
+    for env in sorted({r.config.env for r in runs.values()}):
+        path = figures / f"curves-{env.replace('/', '_')}.png"
+        curve_figures.append((save_figure(deep.curves_figure(runs, env, "steps"), path),
+                              f"{env}: greedy return against environment steps (mean over seeds, 95% band)"))
+    steps = {r.config.method_config().total_steps for r in runs.values()}
+    budget = ("a short budget" if max(steps, default=0) < BUDGETS["paper"][1] else "the MinAtar paper's budget"
+              if max(steps) < BUDGETS["pqn"][1] else "PQN's budget")
+    protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
+    lines = [f"{row.game}: {row.verdict}" for row in verdicts.itertuples()]
+    sections = [
+        Section("On-policy or off-policy target, with a convolutional network", [
+            f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, final "
+            f"greedy return. Protocol: {'; '.join(protocols)}. Training: {', '.join(f'{s:,}' for s in sorted(steps))}"
+            f" environment steps per seed, {budget}: read the verdicts as what this budget shows, not what the "
+            f"methods reach. Margin of no difference, declared before the runs: ±{MARGIN:g} per episode. p-values "
+            "Holm-adjusted over the games."], [("Verdicts", verdicts)]),
+        Section("Every game", [
+            f"Final: each seed's mean greedy return in the last evaluation round of the port. Random: the mean of "
+            f"{RANDOM_EPISODES} episodes of a uniformly random policy under the same protocol."],
+            [("Summary", summary)]),
+        Section("Across games", [
+            "Scores normalised game by game between the random policy (0) and the best method's mean here (1); "
+            "IQM over every game and seed with a stratified bootstrap interval (Agarwal et al. 2021). The MinAtar "
+            "paper's DQN scores are not used as the upper anchor: rlcompare has no citable table of them."],
+            [("IQM of normalised final returns", across)]),
+        Section("Learning curves", figures=curve_figures),
+    ]
+    page = write_report(out / "report.html", "MinAtar: on- or off-policy target with a network", sections, problems)
+    return Report(page, lines, problems)
