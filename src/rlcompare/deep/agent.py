@@ -21,11 +21,13 @@ class DeepAgent:
         self.config, self.seed = config, seed
         self.params: Any = results.seed_params(seed, params_template(config))
         self._act = jax.jit(deep_method(config.algorithm).module.act(config.method_config(), config.environment))
-        self._shape = (config.environment.observation_size,)
+        self._shape = tuple(config.environment.observation_shape)
 
     @float64
     def act(self, observation: np.ndarray) -> int:
         """The greedy action for one observation as Gymnasium's ``env.step`` returns it."""
+        if isinstance(observation, np.ndarray) and observation.dtype == np.bool_:  # MinAtar's images
+            observation = observation.astype(np.float32)
         checked = check_box_observation(observation, self._shape, self.config.env).astype(np.float32)
         return int(self._act(self.params, checked[None])[0])
 

@@ -1,0 +1,134 @@
+"""The MinAtar study through the CLI at a tiny size: its run directories and report, resuming, bad input, and a
+trained agent playing the reference game and Gymnasium's as it plays our port."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+from typer.testing import CliRunner
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("gymnax")
+minatar_reference = pytest.importorskip("minatar")
+
+from rlcompare import load_agent  # noqa: E402
+from rlcompare.cli import app  # noqa: E402
+from rlcompare.deep import float64  # noqa: E402
+from rlcompare.deep.envs import jax_env  # noqa: E402
+from rlcompare.deep.rollout import evaluate  # noqa: E402
+from rlcompare.studies.minatar import random_returns  # noqa: E402
+
+TINY = ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960"]
+EPISODES = 150
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("minatar") / "study"
+    result = CliRunner().invoke(app, [*TINY, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def test_the_study_writes_its_runs_and_a_report(study):
+    out, output = study
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == [
+        "figures", "pqn_q_lambda-breakout", "pqn_sarsa_lambda-breakout", "tables"]
+    summary = pd.read_csv(out / "tables" / "minatar_summary.csv")
+    assert summary["env"].tolist() == ["MinAtar/Breakout-v0"] * 2
+    verdicts = pd.read_csv(out / "tables" / "minatar_verdicts.csv")
+    assert verdicts["game"].tolist() == ["Breakout"]
+    assert "Breakout:" in output
+    page = (out / "report.html").read_text()
+    assert "a short budget" in page
+    assert "sticky actions 0.1" in page
+
+
+def test_a_finished_study_is_loaded_not_trained_again(study):
+    out, _ = study
+    before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+    result = CliRunner().invoke(app, [*TINY, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert result.output.count("loaded") == 2
+    assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+
+
+@pytest.mark.parametrize(("arguments", "named"), [
+    (["--games", "breakout,pong"], "--games"),
+    (["--protocol", "atari"], "--protocol"),
+    (["--budget", "huge"], "--budget"),
+    (["--steps", "100"], "--steps"),
+])
+def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
+    result = CliRunner().invoke(app, ["reproduce", "minatar", "--seeds", "2", *arguments,
+                                      "--out", str(tmp_path / "x")])
+    assert result.exit_code == 2
+    assert named in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_the_random_policy_scores_as_the_reference_games_random_policy():
+    ours = random_returns("MinAtar/Breakout-v0", EPISODES)
+    reference = minatar_reference.Environment("breakout", sticky_action_prob=0.1)
+    reference.seed(0)
+    rng = np.random.default_rng(0)
+    theirs = []
+    for _ in range(EPISODES):
+        reference.reset()
+        score, done = 0.0, False
+        while not done:
+            reward, done = reference.act(int(rng.integers(6)))
+            score += reward
+        theirs.append(score)
+    assert stats.mannwhitneyu(ours, theirs).pvalue > 1e-3
+
+
+def play(agent, env_step, reset, episodes: int) -> np.ndarray:
+    returns = []
+    for k in range(episodes):
+        observation, score, done = reset(k), 0.0, False
+        while not done:
+            observation, reward, done = env_step(agent.act(observation))
+            score += reward
+        returns.append(score)
+    return np.asarray(returns)
+
+
+def test_a_trained_agent_plays_the_reference_game_and_gymnasiums_as_it_plays_our_port(study):
+    import gymnasium as gym
+    from minatar.gym import register_envs
+
+    agent = load_agent(study[0] / "pqn_q_lambda-breakout", seed=1)
+    port = jax_env("MinAtar/Breakout-v0")
+    in_port = float64(lambda: np.asarray(jax.jit(
+        lambda key: evaluate(port, agent._act, agent.params, key, EPISODES)[0])(jax.random.key(5))))()
+
+    reference = minatar_reference.Environment("breakout", sticky_action_prob=0.1)
+    reference.seed(7)
+
+    def reference_step(action: int):
+        reward, done = reference.act(action)
+        return reference.state(), reward, done
+
+    in_reference = play(agent, reference_step, lambda k: (reference.reset(), reference.state())[1], EPISODES)
+
+    if "MinAtar/Breakout-v0" not in gym.registry:
+        register_envs()
+    with warnings.catch_warnings():  # v1 is the minimal action set, not a newer version of v0
+        warnings.filterwarnings("ignore", ".*MinAtar/Breakout-v0 is out of date", DeprecationWarning)
+        env = gym.make("MinAtar/Breakout-v0")
+
+    def gymnasium_step(action: int):
+        observation, reward, terminated, truncated, _ = env.step(action)
+        return observation, reward, terminated or truncated
+
+    in_gymnasium = play(agent, gymnasium_step, lambda k: env.reset(seed=100 + k)[0], EPISODES)
+    assert in_port.std() > 0  # the agent's episodes differ: the comparison below could fail
+    for played in (in_reference, in_gymnasium):
+        assert stats.mannwhitneyu(in_port, played).pvalue > 1e-3
+        assert abs(played.mean() - in_port.mean()) < 4 * np.hypot(played.std(), in_port.std()) / np.sqrt(EPISODES)
