@@ -111,8 +111,7 @@ def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force
 # --- what the report computes from the run directories ----------------------------------------------------
 
 def game_of(results: DeepResults) -> str:
-    return next(game for game in minatar.GAMES.values() if results.config.env in
-                (game.name("minatar"), game.name("gymnax"))).module_name
+    return minatar.NAMES[results.config.env][0].module_name
 
 
 def final_returns(results: DeepResults) -> np.ndarray:
