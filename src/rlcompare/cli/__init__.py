@@ -175,11 +175,12 @@ def bench(
 
     if deep:
         try:
-            from rlcompare.deep.bench import deep_table, score_table
+            from rlcompare.deep.bench import deep_table, minatar_table, score_table
         except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
             fail(str(error))
         with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):
             print_bench(deep_table())
+            print_bench(minatar_table())
             if to_score:
                 print_bench(score_table())
         return

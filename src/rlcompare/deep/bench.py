@@ -35,6 +35,7 @@ class DeepRow:
     """``dqn``, ``ppo`` or ``""`` (no Stable-Baselines3 counterpart)."""
     steps: int = 100_000
     """Environment steps per seed that ours is timed over."""
+    env: str = ENV
 
 
 def rows() -> list[DeepRow]:
@@ -53,7 +54,7 @@ def rows() -> list[DeepRow]:
 def ours_steps_per_second(row: DeepRow, seeds: int, steps: int) -> tuple[float, float]:
     """``(steps per second over all seeds, compile seconds)`` of ``steps`` environment steps per seed."""
     config = dataclasses.replace(row.config, total_steps=steps)
-    train = jax.jit(jax.vmap(row.module.make_train(config, jax_env(ENV), 1, 1)))
+    train = jax.jit(jax.vmap(row.module.make_train(config, jax_env(row.env), 1, 1)))
     keys = jax.numpy.stack([jax.random.key(seed) for seed in range(seeds)])
     started = time.perf_counter()
     compiled = train.lower(keys).compile()
@@ -122,6 +123,31 @@ def deep_table(sb3_steps: int = 4_000) -> BenchTable:
     return BenchTable(f"Deep engine on {ENV}, environment steps per second (CPU: {jax.devices()[0]})",
                       ("method", "compile s", "ours, 1 seed", f"ours, {SEEDS} seeds", "SB3, 1 seed",
                        f"ours {SEEDS} seeds / SB3"), table, notes)
+
+
+MINATAR_ENV, MINATAR_SEEDS = "Breakout-MinAtar", 4
+
+
+def minatar_rows() -> list[DeepRow]:
+    config = pqn.PRESETS["default"][MINATAR_ENV]
+    return [DeepRow("Q(λ), PQN engine, purejaxql's MinAtar settings", pqn, dataclasses.replace(config, target="max"),
+                    "", 128 * 32 * 60, MINATAR_ENV),
+            DeepRow("SARSA(λ), same", pqn, dataclasses.replace(config, target="sample"), "", 128 * 32 * 60,
+                    MINATAR_ENV)]
+
+
+def minatar_table() -> BenchTable:
+    """The PQN pair on MinAtar's Breakout (gymnax's protocol, purejaxql's settings and network), 1 seed and
+    several side by side."""
+    table = []
+    for row in minatar_rows():
+        one, compile_seconds = ours_steps_per_second(row, 1, row.steps)
+        many, _ = ours_steps_per_second(row, MINATAR_SEEDS, row.steps)
+        table.append((row.label, f"{compile_seconds:.1f}", f"{one:,.0f}", f"{many:,.0f}"))
+    return BenchTable(f"Deep engine on {MINATAR_ENV}, environment steps per second (CPU: {jax.devices()[0]})",
+                      ("method", "compile s", "1 seed", f"{MINATAR_SEEDS} seeds"), table,
+                      ("128 environments x 32 steps per update, 2 epochs x 32 minibatches, MinAtar's network with "
+                       "LayerNorm; one greedy evaluation included.",))
 
 
 SCORE_ENV, SCORE = "CartPole-v1", 475.0
