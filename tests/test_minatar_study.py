@@ -44,6 +44,7 @@ def test_the_study_writes_its_runs_and_a_report(study):
     assert verdicts["game"].tolist() == ["Breakout"]
     assert "Breakout:" in output
     page = (out / "report.html").read_text()
+    assert page.count("<img") == 2  # Breakout's curves, the performance profiles
     assert "a short budget" in page
     assert "sticky actions 0.1" in page
 

@@ -18,9 +18,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
 from rlcompare.analysis import stats
 from rlcompare.analysis.compare import compare_paired, comparison_label
+from rlcompare.analysis.profiles import profile_band, stratified_interval
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.run import DeepConfig, DeepResults
@@ -170,22 +172,27 @@ def normalised(runs: dict[str, DeepResults], floors: dict[str, float]) -> dict[s
 
 
 def across_games_table(scores: dict[str, np.ndarray]) -> pd.DataFrame:
-    """IQM over every (game, seed) score with a stratified bootstrap over seeds within each game (rliable's
-    ``get_interval_estimates`` with its IQM: Agarwal et al. 2021)."""
-    rows = []
+    """IQM over every (game, seed) score with a stratified bootstrap interval (rliable's IQM, Agarwal et al.
+    2021)."""
+    return pd.DataFrame([{"method": DEEP_METHODS[method].label, "games": values.shape[0],
+                          "IQM of normalised scores [95% CI]": stratified_interval(values).format(2)}
+                         for method, values in scores.items()])
+
+
+def profile_figure(scores: dict[str, np.ndarray]) -> Figure:
+    """Performance profiles: the fraction of runs, over every game, whose normalised score is above each
+    threshold, with a 95% stratified bootstrap band (Agarwal et al. 2021, Figure 5)."""
+    thresholds = np.linspace(0.0, 1.5, 61)
+    figure = Figure(figsize=(6, 4))
+    ax = figure.subplots()
     for method, values in scores.items():
-        rows.append({"method": DEEP_METHODS[method].label, "games": values.shape[0],
-                     "IQM of normalised scores [95% CI]": _stratified_iqm(values).format(2)})
-    return pd.DataFrame(rows)
-
-
-def _stratified_iqm(values: np.ndarray, resamples: int = 2000, seed: int = 0) -> stats.Estimate:
-    rng = np.random.default_rng(seed)
-    games, seeds = values.shape
-    draws = rng.integers(0, seeds, (resamples, games, seeds))
-    resampled = np.take_along_axis(values[None], draws, axis=2).reshape(resamples, -1)
-    low, high = np.percentile(stats.iqm(resampled, axis=1), [2.5, 97.5])
-    return stats.Estimate(float(stats.iqm(values.ravel())), float(low), float(high))
+        profile, low, high = profile_band(values, thresholds)
+        line, = ax.plot(thresholds, profile, label=DEEP_METHODS[method].label)
+        ax.fill_between(thresholds, low, high, color=line.get_color(), alpha=0.2)
+    ax.set_xlabel("normalised score τ (random 0, best method here 1)")
+    ax.set_ylabel("fraction of runs with score > τ")
+    ax.legend()
+    return figure
 
 
 def verdict_table(runs: dict[str, DeepResults], games: list[str]) -> pd.DataFrame:
@@ -216,7 +223,8 @@ def _build_report(out: Path) -> Report:
     floors = {env: float(random_returns(env).mean()) for env in sorted({r.config.env for r in runs.values()})}
     games = [g for g in minatar.GAMES if any(game_of(r) == g for r in runs.values())]
     summary = summary_table(runs, floors)
-    across = across_games_table(normalised(runs, floors))
+    scores = normalised(runs, floors)
+    across = across_games_table(scores)
     verdicts = verdict_table(runs, games)
     for name, frame in (("minatar_summary", summary), ("minatar_across_games", across),
                         ("minatar_verdicts", verdicts)):
@@ -226,6 +234,8 @@ def _build_report(out: Path) -> Report:
         path = figures / f"curves-{env.replace('/', '_')}.png"
         curve_figures.append((save_figure(deep.curves_figure(runs, env, "steps"), path),
                               f"{env}: greedy return against environment steps (mean over seeds, 95% band)"))
+    profile = [(save_figure(profile_figure(scores), figures / "performance-profiles.png"),
+                "Performance profiles over every game and seed (95% stratified bootstrap band)")] if scores else []
     steps = {r.config.method_config().total_steps for r in runs.values()}
     budget = ("a short budget" if max(steps, default=0) < BUDGETS["paper"][1] else "the MinAtar paper's budget"
               if max(steps) < BUDGETS["pqn"][1] else "PQN's budget")
@@ -246,7 +256,7 @@ def _build_report(out: Path) -> Report:
             "Scores normalised game by game between the random policy (0) and the best method's mean here (1); "
             "IQM over every game and seed with a stratified bootstrap interval (Agarwal et al. 2021). The MinAtar "
             "paper's DQN scores are not used as the upper anchor: rlcompare has no citable table of them."],
-            [("IQM of normalised final returns", across)]),
+            [("IQM of normalised final returns", across)], profile),
         Section("Learning curves", figures=curve_figures),
     ]
     page = write_report(out / "report.html", "MinAtar: on- or off-policy target with a network", sections, problems)
