@@ -12,6 +12,14 @@ bootstraps from the true last observation; a termination does not (SB3's ``handl
 Departures from SB3: each environment draws its own ε coin (SB3 draws one per vector step); the network has
 flax's initialisation (lecun normal, zero biases), not torch's; gradients are clipped exactly to the norm (torch
 adds 1e-6); the training runs whole rounds of updates (:func:`updates_per_round`).
+
+On MinAtar's images (Young and Tian 2019, arXiv 1903.03176) the Q-network is MinAtar's (:class:`ConvNet`, no
+LayerNorm), the buffer keeps the observations as booleans, and the ``default`` preset is the MinAtar paper's DQN
+(:data:`MINATAR`): centered RMSProp, no gradient clipping, ε decaying after the random start. Where it departs from
+the reference's ``examples/dqn.py``: batches are drawn with replacement (``random.sample`` draws without); the
+first training comes one step earlier (after ``learning_starts`` + 1 transitions are stored, the reference's
+``t > REPLAY_START_SIZE`` after + 2); the target interval counts environment steps from the start (the reference
+counts gradient steps, so its refreshes land one step later); flax's initialisation, not torch's.
 """
 
 from __future__ import annotations
@@ -28,12 +36,23 @@ import optax
 
 from rlcompare.deep import rollout
 from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
-from rlcompare.deep.networks import MLP
+from rlcompare.deep.networks import MLP, ConvNet, is_image
+from rlcompare.envs import minatar
 from rlcompare.experiment.config import ConfigError
 
 Params = Any
 Apply = Callable[[Params, jax.Array], jax.Array]
 """``(params, observations) -> Q-values``, one per action."""
+
+OPTIMIZERS = ("adam", "rmsprop")
+"""``adam``: SB3's DQN (torch's Adam, ε 1e-8). ``rmsprop``: MinAtar's DQN, torch's centered RMSProp with the
+reference's settings (:data:`RMSPROP_DECAY`, :data:`RMSPROP_EPS`)."""
+RMSPROP_DECAY = 0.95
+"""Decay of RMSProp's averages of the gradient and its square (MinAtar ``examples/dqn.py``,
+``SQUARED_GRAD_MOMENTUM``, torch's ``alpha``; the DQN paper's gradient and squared-gradient momentum)."""
+RMSPROP_EPS = 0.01
+"""Added to RMSProp's denominator outside the square root, as torch does (MinAtar ``examples/dqn.py``,
+``MIN_SQUARED_GRAD`` passed as torch's ``eps``): the update is ``g / (sqrt(E[g^2] - E[g]^2) + 0.01)``."""
 
 
 @dataclass(frozen=True)
@@ -50,7 +69,9 @@ class DQNConfig:
     """Environment steps of the training (over all environments; the zoo's ``n_timesteps``), >= 1. The
     exploration schedule spans it; the training runs whole updates, so it may take a little more."""
     learning_rate: float = 1e-4
-    """Adam's step size, > 0."""
+    """The optimizer's step size, > 0."""
+    optimizer: str = "adam"
+    """``adam`` (SB3's) or ``rmsprop`` (MinAtar's centered RMSProp, :data:`OPTIMIZERS`)."""
     buffer_size: int = 1_000_000
     """Transitions the replay buffer holds (over all environments), >= ``n_envs``; the oldest go first."""
     learning_starts: int = 100
@@ -73,13 +94,19 @@ class DQNConfig:
     decay_fraction: float = 0.1
     """Share of ``total_steps`` over which ε goes linearly from start to end (SB3's ``exploration_fraction``),
     in (0, 1]."""
+    decay_after_learning_starts: bool = False
+    """ε's decay begins once ``learning_starts`` steps are taken (MinAtar's reference); False: at the first step
+    (SB3's)."""
     max_grad_norm: float = 10.0
-    """Gradients are scaled down to this global norm, > 0."""
+    """Gradients are scaled down to this global norm, >= 0; 0: not clipped (MinAtar's reference)."""
     hidden: tuple[int, ...] = (64, 64)
     """Widths of the Q-network's hidden layers (ReLU), each >= 1."""
 
     def __post_init__(self) -> None:
-        _require("double", isinstance(self.double, bool), self.double, "True or False")
+        for name in ("double", "decay_after_learning_starts"):
+            _require(name, isinstance(getattr(self, name), bool), getattr(self, name), "True or False")
+        _require("optimizer", isinstance(self.optimizer, str) and self.optimizer in OPTIMIZERS, self.optimizer,
+                 ", ".join(OPTIMIZERS))
         for name, low in _INTEGER_MINIMUMS.items():
             value = getattr(self, name)
             _require(name, _is_integer(value) and value >= low, value, f"an integer >= {low}")
@@ -96,7 +123,7 @@ class DQNConfig:
 _INTEGER_MINIMUMS = {"n_envs": 1, "total_steps": 1, "learning_starts": 0, "batch_size": 1, "train_freq": 1,
                      "gradient_steps": 1, "target_update_interval": 1}
 _NUMBER_RANGES = {"learning_rate": (0, math.inf, True), "gamma": (0, 1, False), "epsilon_start": (0, 1, False),
-                  "epsilon_end": (0, 1, False), "decay_fraction": (0, 1, True), "max_grad_norm": (0, math.inf, True)}
+                  "epsilon_end": (0, 1, False), "decay_fraction": (0, 1, True), "max_grad_norm": (0, math.inf, False)}
 """``name: (low, high, low excluded)``; ``high`` is included (infinity excluded by finiteness)."""
 
 
@@ -139,10 +166,27 @@ def small(config: DQNConfig) -> DQNConfig:
     return dataclasses.replace(config, hidden=(64, 64))
 
 
-PRESETS = {"default": {env: small(config) for env, config in _ZOO_SETTINGS.items()}, "zoo": _ZOO_SETTINGS}
+MINATAR_SOURCE = ("Young and Tian 2019 (arXiv 1903.03176) and its reference code, examples/dqn.py in "
+                  "github.com/kenjyoung/MinAtar (commit 4241f24, 2024-12-19)")
+"""Where the MinAtar preset comes from."""
+MINATAR = DQNConfig(total_steps=5_000_000, n_envs=1, learning_rate=2.5e-4, optimizer="rmsprop", buffer_size=100_000,
+                    learning_starts=5_000, batch_size=32, gamma=0.99, train_freq=1, gradient_steps=1,
+                    target_update_interval=1_000, epsilon_start=1.0, epsilon_end=0.1, decay_fraction=0.02,
+                    decay_after_learning_starts=True, max_grad_norm=0.0, hidden=(128,))
+"""MinAtar's DQN (:data:`MINATAR_SOURCE`): ``NUM_FRAMES`` 5 M, ``REPLAY_BUFFER_SIZE`` 100,000, ``BATCH_SIZE`` 32,
+``TARGET_NETWORK_UPDATE_FREQ`` 1,000, ``TRAINING_FREQ`` 1, centered RMSProp (``STEP_SIZE`` 0.00025,
+``SQUARED_GRAD_MOMENTUM`` 0.95, ``MIN_SQUARED_GRAD`` 0.01), ``GAMMA`` 0.99, ``REPLAY_START_SIZE`` 5,000 uniformly
+random steps, then ε from 1 to ``END_EPSILON`` 0.1 over ``FIRST_N_FRAMES`` 100,000 (0.02 of 5 M), Huber loss, no
+gradient clipping; MinAtar's network (a 3 x 3 convolution of 16, a dense layer of 128). Double DQN takes the same
+settings (van Hasselt et al. 2016 keep DQN's); MinAtar's paper ran only DQN."""
+
+PRESETS = {"default": {**{env: small(config) for env, config in _ZOO_SETTINGS.items()},
+                       **dict.fromkeys(minatar.NAMES, MINATAR)},
+           "zoo": _ZOO_SETTINGS}
 """Preset name -> environment -> config, with ``double=False`` (the registry fixes it per method). ``zoo``: the
 zoo's DQN settings (:data:`ZOO`), SB3's defaults elsewhere (``exploration_initial_eps`` 1.0, ``max_grad_norm``
-10); ``default``: the same on a 2 x 64 network, which trains many seeds in minutes on a CPU."""
+10); ``default``: the same on a 2 x 64 network, which trains many seeds in minutes on a CPU, and on every MinAtar
+name (both protocols) the MinAtar paper's DQN, :data:`MINATAR` (:data:`MINATAR_SOURCE`)."""
 
 
 # --- the replay buffer ---
@@ -151,14 +195,14 @@ class Transitions(NamedTuple):
     """Transitions along a leading axis, as the buffer stores them."""
 
     observations: jax.Array
-    """(n, observation size) float32"""
+    """(n, *observation shape) in the environment's dtype: float32 vectors (classic control), booleans (MinAtar)"""
     actions: jax.Array
     """(n,) int32"""
     rewards: jax.Array
     """(n,) float32"""
     next_observations: jax.Array
-    """(n, observation size) float32: the observation the action led to, before any reset (a time-limit cut
-    bootstraps from it)."""
+    """(n, *observation shape), as ``observations``: the observation the action led to, before any reset (a
+    time-limit cut bootstraps from it)."""
     terminated: jax.Array
     """(n,) bool: a terminal state, whose value is zero; a time-limit cut is not one."""
 
@@ -174,11 +218,12 @@ class Buffer(NamedTuple):
     """int32, filled slots."""
 
 
-def buffer_init(capacity: int, observation_size: int) -> Buffer:
-    """An empty buffer of ``capacity`` transitions."""
-    data = Transitions(jnp.zeros((capacity, observation_size), jnp.float32), jnp.zeros(capacity, jnp.int32),
-                       jnp.zeros(capacity, jnp.float32), jnp.zeros((capacity, observation_size), jnp.float32),
-                       jnp.zeros(capacity, bool))
+def buffer_init(capacity: int, observation_shape: int | tuple[int, ...], dtype: jnp.dtype = jnp.float32) -> Buffer:
+    """An empty buffer of ``capacity`` transitions whose observations have ``observation_shape`` (a size: a vector)
+    and ``dtype`` (MinAtar's booleans take a byte a cell: 100,000 x 10 x 10 x 10 is 10 MB a copy, not 40)."""
+    shape = (capacity, observation_shape) if isinstance(observation_shape, int) else (capacity, *observation_shape)
+    data = Transitions(jnp.zeros(shape, dtype), jnp.zeros(capacity, jnp.int32), jnp.zeros(capacity, jnp.float32),
+                       jnp.zeros(shape, dtype), jnp.zeros(capacity, bool))
     return Buffer(data, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
 
@@ -225,13 +270,19 @@ def q_loss(params: Params, target_params: Params, batch: Transitions, apply: App
 
 def epsilon(config: DQNConfig, steps: jax.Array) -> jax.Array:
     """ε after ``steps`` environment steps: SB3's ``LinearSchedule``, from ``epsilon_start`` to ``epsilon_end``
-    over the first ``decay_fraction`` of ``total_steps``, then constant."""
+    over the first ``decay_fraction`` of ``total_steps`` (counted from ``learning_starts`` where
+    ``decay_after_learning_starts``, as MinAtar's reference), then constant."""
+    if config.decay_after_learning_starts:
+        steps = jnp.maximum(steps - config.learning_starts, 0)
     progress = jnp.minimum(steps / (config.decay_fraction * config.total_steps), 1.0)
     return (config.epsilon_start + progress * (config.epsilon_end - config.epsilon_start)).astype(jnp.float32)
 
 
-def network(config: DQNConfig, env: DeepEnv) -> MLP:
-    """The Q-network: ``observations -> (..., n_actions)`` Q-values (flax's default initialisation)."""
+def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet:
+    """The Q-network: ``observations -> (..., n_actions)`` Q-values (flax's default initialisation): an MLP of
+    ``hidden``, or for images MinAtar's network without LayerNorm (a 3 x 3 convolution of 16, then ``hidden``)."""
+    if is_image(env.observation_shape):
+        return ConvNet(env.n_actions, hidden=config.hidden, layer_norm=False)
     return MLP(hidden=config.hidden, outputs=env.n_actions)
 
 
@@ -246,8 +297,16 @@ def act(config: DQNConfig, env: DeepEnv) -> rollout.Act:
 
 
 def optimizer(config: DQNConfig) -> optax.GradientTransformation:
-    """SB3's: gradients clipped to a global norm of ``max_grad_norm``, then Adam (ε = 1e-8, as torch's)."""
-    return optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate))
+    """Gradients clipped to a global norm of ``max_grad_norm`` (unless 0), then SB3's Adam (ε = 1e-8, as torch's)
+    or MinAtar's centered RMSProp (torch's ``RMSprop(alpha=0.95, eps=0.01, centered=True)``, ε outside the root)."""
+    if config.optimizer == "rmsprop":
+        step = optax.rmsprop(config.learning_rate, decay=RMSPROP_DECAY, eps=RMSPROP_EPS, eps_in_sqrt=False,
+                             centered=True)
+    else:
+        step = optax.adam(config.learning_rate)
+    if config.max_grad_norm == 0:
+        return optax.chain(step)
+    return optax.chain(optax.clip_by_global_norm(config.max_grad_norm), step)
 
 
 # --- one seed's training ---
@@ -262,7 +321,7 @@ class Runner(NamedTuple):
     env_state: EnvState
     """(n_envs,) environments."""
     observations: jax.Array
-    """(n_envs, observation size) float32, what the agent sees now."""
+    """(n_envs, *observation shape) in the environment's dtype, what the agent sees now."""
     episodes: rollout.Episodes
     steps: jax.Array
     """int64, environment steps so far over all environments (SB3's ``num_timesteps``)."""
@@ -271,11 +330,12 @@ class Runner(NamedTuple):
 def init_runner(config: DQNConfig, env: DeepEnv, key: jax.Array) -> Runner:
     """A fresh network (the target a copy of it), an empty buffer and ``n_envs`` started environments."""
     net_key, env_key = jax.random.split(key)
-    params = network(config, env).init(net_key, jnp.zeros((1, env.observation_size), jnp.float32))
+    params = network(config, env).init(net_key, jnp.zeros((1, *env.observation_shape), jnp.float32))
     env_state = jax.vmap(env.reset)(jax.random.split(env_key, config.n_envs))
-    return Runner(params, params, optimizer(config).init(params), buffer_init(config.buffer_size, env.observation_size),
-                  env_state, jax.vmap(env.observe)(env_state), rollout.Episodes.start(config.n_envs),
-                  jnp.zeros((), jnp.int64))
+    observations = jax.vmap(env.observe)(env_state)
+    buffer = buffer_init(config.buffer_size, observations.shape[1:], observations.dtype)
+    return Runner(params, params, optimizer(config).init(params), buffer, env_state, observations,
+                  rollout.Episodes.start(config.n_envs), jnp.zeros((), jnp.int64))
 
 
 def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
@@ -301,7 +361,7 @@ def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Arra
 
 
 def _train(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], Runner]:
-    """``(runner, key) -> runner`` after ``gradient_steps`` Adam steps on :func:`q_loss`."""
+    """``(runner, key) -> runner`` after ``gradient_steps`` steps of :func:`optimizer` on :func:`q_loss`."""
     apply, tx = network(config, env).apply, optimizer(config)
     gradient = jax.grad(q_loss)
 
