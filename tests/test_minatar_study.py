@@ -133,3 +133,10 @@ def test_a_trained_agent_plays_the_reference_game_and_gymnasiums_as_it_plays_our
     for played in (in_reference, in_gymnasium):
         assert stats.mannwhitneyu(in_port, played).pvalue > 1e-3
         assert abs(played.mean() - in_port.mean()) < 4 * np.hypot(played.std(), in_port.std()) / np.sqrt(EPISODES)
+
+
+def test_the_smallest_p_the_report_quotes_is_the_signed_rank_tests():
+    from rlcompare.studies.minatar import smallest_p
+
+    for seeds in range(3, 11):
+        assert stats.wilcoxon(np.arange(1.0, seeds + 1)).pvalue == pytest.approx(smallest_p(seeds))
