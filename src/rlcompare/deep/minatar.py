@@ -38,7 +38,7 @@ class _Asterix(asterix.MinAsterix):
         return self.get_obs(state), state, reward.astype(jnp.float32), done, {}
 
 
-class SpawnDraws(NamedTuple):
+class AsterixDraws(NamedTuple):
     """The draws of one Asterix spawn, in the reference's order (``rand``, ``rand``, ``randint``)."""
 
     left_to_right: jax.Array
@@ -49,8 +49,8 @@ class SpawnDraws(NamedTuple):
     """uniform in [0, 1): which free row, by rank among the free rows"""
 
 
-def asterix_spawn_draws(key: jax.Array) -> SpawnDraws:
-    return SpawnDraws(*jax.random.uniform(key, (3,)))
+def asterix_spawn_draws(key: jax.Array) -> AsterixDraws:
+    return AsterixDraws(*jax.random.uniform(key, (3,)))
 
 
 def asterix_spawn(key: jax.Array, entities: jax.Array) -> jax.Array:

@@ -16,6 +16,11 @@ Departures from SB3:
 * Gradient clipping is optax's ``clip_by_global_norm`` (PyTorch's ``clip_grad_norm_`` divides by norm + 1e-6).
 * Not implemented: ``clip_range_vf``, ``target_kl`` (both off in SB3's defaults and in the zoo presets here),
   gSDE, continuous actions.
+
+MinAtar's images (``(10, 10, channels)`` booleans) go through MinAtar's convolution, in the actor and in the
+critic each, as purejaxql's ``ppo_minatar.py`` (Gallici et al. 2024's PPO baseline, from purejaxrl), and its loss
+is available: ``value_loss="purejaxrl"``. Its settings are :data:`MINATAR`; where they still depart from that
+source is listed there.
 """
 
 from __future__ import annotations
@@ -31,8 +36,9 @@ import numpy as np
 import optax
 
 from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
-from rlcompare.deep.networks import ACTIVATIONS
+from rlcompare.deep.networks import ACTIVATIONS, Conv3x3, is_image
 from rlcompare.deep.rollout import Act, Episodes, Finished, TrainOutput, track, train_in_rounds
+from rlcompare.envs import minatar
 from rlcompare.experiment.config import ConfigError
 
 NORMALIZE_EPSILON = 1e-8
@@ -41,6 +47,11 @@ NORMALIZE_CLIP = 10.0
 """``VecNormalize``'s ``clip_obs`` and ``clip_reward``."""
 ADAM_EPSILON = 1e-5
 """SB3's Adam ε for its actor-critic policies (``ActorCriticPolicy.__init__``)."""
+CONV_CHANNELS = 16
+"""MinAtar's convolution: 16 channels of 3 x 3, stride 1, no padding (Young and Tian 2019)."""
+VALUE_LOSSES = ("sb3", "purejaxrl")
+"""``sb3``: ``mean((R - V)²)`` (SB3's ``F.mse_loss``, no ½); ``purejaxrl``: ``½ mean(max((R - V)², (R - V_clip)²))``,
+``V_clip = V_old + clip(V - V_old, ±clip_range)`` (purejaxrl's ``_loss_fn``, as CleanRL's ``clip_vloss``)."""
 
 
 @dataclass(frozen=True)
@@ -84,9 +95,11 @@ class PPOConfig:
     hidden: tuple[int, ...] = (64, 64)
     """Widths of the hidden layers of each of the two networks, actor and critic (SB3's ``net_arch``)."""
     activation: str = "tanh"
-    """Hidden activation: ``tanh`` (SB3's default) or ``relu``."""
+    """Hidden activation: ``tanh`` (SB3's default) or ``relu``; also after the convolution, for images."""
     total_steps: int = 1_000_000
     """Environment steps of training in all, rounded down to whole updates."""
+    value_loss: str = "sb3"
+    """The critic's loss: ``sb3`` or ``purejaxrl`` (:data:`VALUE_LOSSES`)."""
 
     def __post_init__(self) -> None:
         for name, allowed in _CHECKS.items():
@@ -159,9 +172,24 @@ _CHECKS: dict[str, _Allowed] = {
     "activation": _Allowed(lambda v, _: v in ACTIVATIONS, " or ".join(ACTIVATIONS)),
     "total_steps": _Allowed(lambda v, c: _is_int(v) and v >= c.n_envs * c.n_steps,
                             "an integer >= n_envs * n_steps (one update)"),
+    "value_loss": _Allowed(lambda v, _: v in VALUE_LOSSES, " or ".join(VALUE_LOSSES)),
 }
 assert set(_CHECKS) == {f.name for f in fields(PPOConfig)}
 
+
+MINATAR = PPOConfig(n_envs=64, n_steps=128, batch_size=64 * 128 // 8, n_epochs=4, learning_rate=5e-3, anneal_lr=True,
+                    gamma=0.99, gae_lambda=0.95, clip_range=0.2, ent_coef=1e-4, vf_coef=0.5, max_grad_norm=0.5,
+                    hidden=(128,), activation="relu", total_steps=10_000_000, value_loss="purejaxrl")
+"""MinAtar: purejaxql's ``config/alg/ppo_minatar.yaml`` with its ``ppo_minatar.py`` (mttga/purejaxql at 0436c80):
+64 environments x 128 steps, 4 epochs x 8 minibatches (of 1,024), Adam at 5e-3 decayed linearly, γ 0.99,
+GAE λ 0.95, clip 0.2 (not annealed), entropy 1e-4, value coefficient 0.5 on its clipped, halved value loss,
+gradients clipped at 0.5, ReLU, 10 M steps; separate actor and critic, each MinAtar's convolution (16 channels,
+flax's default initialisation) and a dense layer of 128 (orthogonal √2), heads orthogonal 0.01 and 1. The same
+numbers as purejaxrl's MinAtar notebook (``examples/brax_minatar.ipynb``) but for its entropy 0.01 on a flattened
+64 x 64 MLP. Departures: the schedule is SB3's, one update ahead of purejaxrl's (its ``frac`` counts the updates
+done, SB3's progress the steps after this rollout); advantages are normalised with ``ddof=1`` (purejaxrl 0: a
+factor √(1024/1023)); a time-limit cut (gymnax's protocol) bootstraps from V(last observation), where purejaxrl's
+auto-reset treats it as termination; no observation normalisation (booleans)."""
 
 ZOO: dict[str, PPOConfig] = {
     "CartPole-v1": PPOConfig(n_envs=8, n_steps=32, batch_size=256, gae_lambda=0.8, gamma=0.98, n_epochs=20,
@@ -171,13 +199,16 @@ ZOO: dict[str, PPOConfig] = {
                             normalize_observations=True, normalize_rewards=True, total_steps=1_000_000),
     "MountainCar-v0": PPOConfig(n_envs=16, n_steps=16, gae_lambda=0.98, gamma=0.99, n_epochs=4, ent_coef=0.0,
                                 normalize_observations=True, normalize_rewards=True, total_steps=1_000_000),
+    **dict.fromkeys(minatar.NAMES, MINATAR),
 }
 """Environment -> rl-baselines3-zoo's tuned PPO settings, ``hyperparams/ppo.yml`` (DLR-RM/rl-baselines3-zoo at
 22e3ff2, 2026-04): ``lin_x`` is ``x`` with the matching ``anneal_*``; ``normalize: true`` is ``VecNormalize`` of
-observations and rewards (with the algorithm's γ); fields the file leaves out keep SB3's defaults."""
+observations and rewards (with the algorithm's γ); fields the file leaves out keep SB3's defaults. The zoo has no
+MinAtar: every MinAtar name, both protocols, has purejaxql's settings (:data:`MINATAR`)."""
 
 PRESETS: dict[str, dict[str, PPOConfig]] = {"default": ZOO}
-"""Preset name -> environment -> config. ``default``: the zoo's (:data:`ZOO`)."""
+"""Preset name -> environment -> config. ``default``: the zoo's for classic control, purejaxql's for MinAtar
+(:data:`ZOO`)."""
 
 
 # --- networks (SB3's MlpPolicy: separate actor and critic, orthogonal initialisation, zero biases) ---
@@ -185,16 +216,23 @@ PRESETS: dict[str, dict[str, PPOConfig]] = {"default": ZOO}
 class OrthogonalMLP(nn.Module):
     """``observation -> outputs``: dense layers initialised orthogonally with gain √2, each followed by the
     activation, then a linear layer with gain ``last_scale`` (SB3's ``ActorCriticPolicy`` with ``ortho_init``);
-    :class:`~rlcompare.deep.networks.MLP` keeps flax's LeCun-normal hidden layers."""
+    :class:`~rlcompare.deep.networks.MLP` keeps flax's LeCun-normal hidden layers. With ``conv_channels``, an image
+    ``(..., H, W, C)`` first goes through a 3 x 3 convolution of that many channels (flax's default LeCun-normal
+    initialisation, as ``nn.Conv``), the activation, and is flattened (purejaxql ``ppo_minatar.py``)."""
 
     hidden: Sequence[int]
     outputs: int
     activation: str
     last_scale: float
+    conv_channels: int = 0
+    """0: no convolution (a vector observation)."""
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         x = x.astype(jnp.float32)
+        if self.conv_channels:
+            x = ACTIVATIONS[self.activation](Conv3x3(self.conv_channels)(x))
+            x = x.reshape(*x.shape[:-3], -1)
         for width in self.hidden:
             x = nn.Dense(width, kernel_init=nn.initializers.orthogonal(np.sqrt(2.0)), param_dtype=jnp.float32,
                          dtype=jnp.float32)(x)
@@ -204,16 +242,17 @@ class OrthogonalMLP(nn.Module):
 
 
 class ActorCritic(nn.Module):
-    """``observation -> (logits, value)`` from two separate MLPs; the policy head's gain is 0.01, the value
-    head's 1.0 (SB3)."""
+    """``observation -> (logits, value)`` from two separate networks; the policy head's gain is 0.01, the value
+    head's 1.0 (SB3, purejaxrl). For images each has its own convolution (purejaxql ``ppo_minatar.py``)."""
 
     hidden: Sequence[int]
     n_actions: int
     activation: str
+    conv_channels: int = 0
 
     def setup(self) -> None:
-        self.actor = OrthogonalMLP(self.hidden, self.n_actions, self.activation, 0.01)
-        self.critic = OrthogonalMLP(self.hidden, 1, self.activation, 1.0)
+        self.actor = OrthogonalMLP(self.hidden, self.n_actions, self.activation, 0.01, self.conv_channels)
+        self.critic = OrthogonalMLP(self.hidden, 1, self.activation, 1.0, self.conv_channels)
 
     def __call__(self, observation: jax.Array) -> tuple[jax.Array, jax.Array]:
         return self.logits(observation), self.value(observation)
@@ -226,8 +265,10 @@ class ActorCritic(nn.Module):
 
 
 def network(config: PPOConfig, env: DeepEnv) -> ActorCritic:
-    """The flax module whose variables are :attr:`PolicyParams.network`."""
-    return ActorCritic(config.hidden, env.n_actions, config.activation)
+    """The flax module whose variables are :attr:`PolicyParams.network`: MLPs, or for images (MinAtar) MinAtar's
+    convolution before each."""
+    channels = CONV_CHANNELS if is_image(env.observation_shape) else 0
+    return ActorCritic(config.hidden, env.n_actions, config.activation, channels)
 
 
 # --- running normalisation (SB3's RunningMeanStd and VecNormalize; statistics in float64, as there) ---
@@ -269,7 +310,7 @@ def normalize_reward(reward: jax.Array, stats: RunningMeanStd) -> jax.Array:
 
 class PolicyParams(NamedTuple):
     """What the greedy policy needs: the network's variables and the observation statistics (left at their
-    start, and unused, without ``normalize_observations``)."""
+    start, and unused, without ``normalize_observations``; always so for images)."""
 
     network: Any
     observations: RunningMeanStd
@@ -277,14 +318,16 @@ class PolicyParams(NamedTuple):
 
 def init_params(config: PPOConfig, env: DeepEnv, key: jax.Array) -> PolicyParams:
     """Fresh parameters; also the template to restore saved ones into."""
-    variables = network(config, env).init(key, jnp.zeros((1, env.observation_size), jnp.float32))
-    return PolicyParams(variables, RunningMeanStd.start((env.observation_size,)))
+    variables = network(config, env).init(key, jnp.zeros((1, *env.observation_shape), jnp.float32))
+    return PolicyParams(variables, RunningMeanStd.start(env.observation_shape))
 
 
 def _observe(config: PPOConfig, params: PolicyParams, observation: jax.Array) -> jax.Array:
+    """What the network and the rollout buffer see: normalised where ``normalize_observations``; images stay
+    booleans (the network casts them); vectors float32."""
     if config.normalize_observations:
         return normalize_observation(observation, params.observations)
-    return observation.astype(jnp.float32)
+    return observation if observation.dtype == jnp.bool_ else observation.astype(jnp.float32)
 
 
 def act(config: PPOConfig, env: DeepEnv) -> Act:
@@ -340,6 +383,14 @@ def value_loss(values: jax.Array, returns: jax.Array) -> jax.Array:
     return jnp.mean((returns - values) ** 2)
 
 
+def clipped_value_loss(values: jax.Array, old_values: jax.Array, returns: jax.Array,
+                       clip_range: float | jax.Array) -> jax.Array:
+    """purejaxrl's: ``½ mean(max((V - R)², (V_old + clip(V - V_old, ±ε) - R)²))``, the pessimistic of the value and
+    the value kept within ``ε`` of the one the rollout recorded (``purejaxrl/ppo.py``, ``_loss_fn``)."""
+    clipped = old_values + jnp.clip(values - old_values, -clip_range, clip_range)
+    return 0.5 * jnp.maximum((values - returns) ** 2, (clipped - returns) ** 2).mean()
+
+
 def entropy(logits: jax.Array) -> jax.Array:
     """Entropy of each categorical distribution given by ``logits`` (last axis)."""
     log_p = jax.nn.log_softmax(logits)
@@ -359,17 +410,22 @@ class Batch(NamedTuple):
     log_probs: jax.Array
     advantages: jax.Array
     returns: jax.Array
+    values: jax.Array
+    """V(s) when the action was taken (for ``value_loss="purejaxrl"``)."""
 
 
 def ppo_loss(module: ActorCritic, variables: Any, batch: Batch, clip_range: jax.Array, config: PPOConfig
              ) -> jax.Array:
-    """SB3's loss: ``policy_loss - ent_coef * entropy + vf_coef * value_loss`` on one minibatch."""
+    """SB3's loss: ``policy_loss - ent_coef * entropy + vf_coef * value_loss`` on one minibatch, the value loss
+    SB3's or purejaxrl's (``config.value_loss``)."""
     logits, values = module.apply(variables, batch.observations)
     advantages = batch.advantages
     if config.normalize_advantage and config.batch_size > 1:
         advantages = normalize_advantages(advantages)
     policy = clipped_surrogate_loss(log_probability(logits, batch.actions), batch.log_probs, advantages, clip_range)
-    return policy - config.ent_coef * entropy(logits).mean() + config.vf_coef * value_loss(values, batch.returns)
+    critic = (clipped_value_loss(values, batch.values, batch.returns, clip_range) if config.value_loss == "purejaxrl"
+              else value_loss(values, batch.returns))
+    return policy - config.ent_coef * entropy(logits).mean() + config.vf_coef * critic
 
 
 def progress_remaining(config: PPOConfig, update: jax.Array) -> jax.Array:
@@ -402,7 +458,7 @@ class Runner(NamedTuple):
     """(envs,) each environment's running discounted return, for ``normalize_rewards``."""
     env_state: EnvState
     observation: jax.Array
-    """(envs, observation size) float32, normalised where ``normalize_observations``."""
+    """(envs, *observation shape): float32, normalised where ``normalize_observations``; images booleans."""
     episodes: Episodes
     update: jax.Array
 
@@ -428,6 +484,8 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
     if not _is_int(rounds) or not 1 <= rounds <= config.updates:
         raise ConfigError("total_steps", config.total_steps, f"at least {rounds} updates of n_envs x n_steps = "
                                                              f"{config.batch} steps (one per evaluation round)")
+    if config.normalize_observations and is_image(env.observation_shape):
+        raise ConfigError("normalize_observations", True, "false for images (MinAtar's are booleans)")
     module = network(config, env)
     tx = optimizer(config)
     greedy = act(config, env)
@@ -477,7 +535,7 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
                          transitions.done, config.gamma, config.gae_lambda)
         flat = jax.tree.map(lambda x: x.reshape(config.batch, *x.shape[2:]),
                             Batch(transitions.observation, transitions.action, transitions.log_prob, advantages,
-                                  advantages + transitions.value))
+                                  advantages + transitions.value, transitions.value))
         clip_range = config.clip_range * (progress_remaining(config, runner.update)
                                           if config.anneal_clip_range else 1.0)
         carry = (runner.params.network, runner.opt_state, jnp.asarray(clip_range, jnp.float32))
