@@ -17,9 +17,11 @@ import jax
 import jax.numpy as jnp
 
 from rlcompare.deep.envs import DeepEnv, EnvState, jax_env, jax_env_names, step_autoreset
-from rlcompare.envs import acrobot, cartpole, mountain_car
+from rlcompare.envs import acrobot, cartpole, minatar, mountain_car
 
-NAMES = list(jax_env_names())
+NAMES = [name for name in jax_env_names() if name not in minatar.NAMES]
+"""Gymnasium's classic control, ported (MinAtar's games are checked against their reference in
+tests/test_minatar_games.py)."""
 TRANSITIONS = 3000
 """Per environment, from Gymnasium's own episodes."""
 ENVS_SIDE_BY_SIDE, SCANNED_STEPS = 4, 600
