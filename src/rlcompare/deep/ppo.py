@@ -213,12 +213,42 @@ PRESETS: dict[str, dict[str, PPOConfig]] = {"default": ZOO}
 
 # --- networks (SB3's MlpPolicy: separate actor and critic, orthogonal initialisation, zero biases) ---
 
+def gram_schmidt(a: jax.Array) -> jax.Array:
+    """The ``Q`` of ``a``'s QR decomposition with ``R``'s diagonal positive, ``a`` ``(n, m)`` with ``n >= m``: classical
+    Gram-Schmidt, each column orthogonalised twice (CGS2, orthogonal to rounding), in plain JAX operations."""
+
+    def column(j: jax.Array, q: jax.Array) -> jax.Array:
+        v = jax.lax.dynamic_index_in_dim(a, j, axis=1, keepdims=False)
+        for _ in range(2):
+            v = v - q @ (q.T @ v)  # q's columns from j on are still 0
+        return jax.lax.dynamic_update_index_in_dim(q, v / jnp.linalg.norm(v), j, axis=1)
+
+    return jax.lax.fori_loop(0, a.shape[1], column, jnp.zeros_like(a))
+
+
+def orthogonal(scale: float) -> nn.initializers.Initializer:
+    """flax's ``orthogonal(scale)`` for a dense kernel (the same Gaussian matrix, its QR's ``Q`` with the signs that
+    make ``R``'s diagonal positive, scaled), with the QR by :func:`gram_schmidt` in place of LAPACK's: jaxlib 0.10's
+    batched CPU QR (``lapack_sorgqr_ffi``) splits its batch over the thread pool it runs on and waits, so as many
+    such QRs at once as the pool has threads wait forever (measured: two 1024 x 128 kernels under ``vmap`` of two
+    seeds, on 2 cores, as MinAtar's actor and critic are). Equal to flax's within float32 rounding."""
+
+    def init(key: jax.Array, shape: Sequence[int], dtype: Any = jnp.float32) -> jax.Array:
+        rows, columns = shape
+        gaussian = jax.random.normal(key, (columns, rows) if rows < columns else (rows, columns), dtype)
+        q = gram_schmidt(gaussian)
+        return scale * (q.T if rows < columns else q)
+
+    return init
+
+
 class OrthogonalMLP(nn.Module):
     """``observation -> outputs``: dense layers initialised orthogonally with gain √2, each followed by the
     activation, then a linear layer with gain ``last_scale`` (SB3's ``ActorCriticPolicy`` with ``ortho_init``);
     :class:`~rlcompare.deep.networks.MLP` keeps flax's LeCun-normal hidden layers. With ``conv_channels``, an image
     ``(..., H, W, C)`` first goes through a 3 x 3 convolution of that many channels (flax's default LeCun-normal
-    initialisation, as ``nn.Conv``), the activation, and is flattened (purejaxql ``ppo_minatar.py``)."""
+    initialisation, as ``nn.Conv``), the activation, and is flattened (purejaxql ``ppo_minatar.py``); the dense
+    layers are then initialised by :func:`orthogonal`, without LAPACK."""
 
     hidden: Sequence[int]
     outputs: int
@@ -233,12 +263,12 @@ class OrthogonalMLP(nn.Module):
         if self.conv_channels:
             x = ACTIVATIONS[self.activation](Conv3x3(self.conv_channels)(x))
             x = x.reshape(*x.shape[:-3], -1)
+        init = orthogonal if self.conv_channels else nn.initializers.orthogonal  # classic control: as it was
         for width in self.hidden:
-            x = nn.Dense(width, kernel_init=nn.initializers.orthogonal(np.sqrt(2.0)), param_dtype=jnp.float32,
-                         dtype=jnp.float32)(x)
+            x = nn.Dense(width, kernel_init=init(np.sqrt(2.0)), param_dtype=jnp.float32, dtype=jnp.float32)(x)
             x = ACTIVATIONS[self.activation](x)
-        return nn.Dense(self.outputs, kernel_init=nn.initializers.orthogonal(self.last_scale),
-                        param_dtype=jnp.float32, dtype=jnp.float32)(x)
+        return nn.Dense(self.outputs, kernel_init=init(self.last_scale), param_dtype=jnp.float32,
+                        dtype=jnp.float32)(x)
 
 
 class ActorCritic(nn.Module):
