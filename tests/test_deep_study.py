@@ -19,6 +19,7 @@ from rlcompare.cli import app
 from rlcompare.deep.envs import jax_env
 from rlcompare.deep.run import DeepConfig, DeepResults, compiled_program
 from rlcompare.deep.run import run as deep_run
+from rlcompare.experiment import store
 from rlcompare.experiment.config import ConfigError
 
 TINY = ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50", "--methods",
@@ -140,3 +141,34 @@ def test_without_jax_the_deep_study_says_how_to_install_it(monkeypatch, tmp_path
     assert result.exit_code == 2
     assert "pip install -e '.[deep]'" in result.output
     assert "Traceback" not in result.output
+
+
+def test_a_run_written_before_a_setting_was_added_loads_when_the_default_keeps_what_it_did(study, tmp_path):
+    """A method's setting added later (PPO's value_loss, DQN's optimizer) has the default that keeps the old
+    behaviour: a run directory without it reads as the configuration it was; one missing a setting its preset
+    changed does not."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(study[0] / "pqn_q_lambda-CartPole-v1", run)
+    config_file = run / "config.json"
+    written = json.loads(config_file.read_text())
+    assert written["resolved"]["gamma"] == 0.99  # PQNConfig's own default
+    assert written["resolved"]["n_envs"] != 32  # the preset's, not the default
+
+    def rewrite(config: dict) -> None:
+        """config.json as an older rlcompare wrote it, recorded in meta.json as it would have been."""
+        from rlcompare.experiment import rundir
+
+        config_file.write_text(json.dumps(config))
+        meta = json.loads((run / "meta.json").read_text())
+        meta["contents"]["files"]["config.json"] = rundir._record_of(config_file)
+        (run / "meta.json").write_text(json.dumps(meta))
+
+    rewrite({**written, "resolved": {k: v for k, v in written["resolved"].items() if k != "gamma"}})
+    loaded = DeepResults.load(run, DeepConfig.from_dict(written))
+    assert loaded.config.method_config().gamma == 0.99
+
+    rewrite({**written, "resolved": {k: v for k, v in written["resolved"].items() if k != "n_envs"}})
+    with pytest.raises(store.StoreError, match="not what its preset gives now"):
+        DeepResults.load(run)

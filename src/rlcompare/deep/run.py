@@ -107,6 +107,17 @@ class DeepConfig:
         return cls(**{k: (tuple(v) if k == "seeds" else v) for k, v in data.items() if k in known})
 
 
+def _with_settings_added_since(stored: dict[str, Any], config: DeepConfig) -> dict[str, Any]:
+    """``config.json`` of a run with the method's settings added since it was written, at their defaults: a
+    setting is added with the default that keeps what the method did before (PPO's ``value_loss``, DQN's
+    ``optimizer``), so an older run still reads as the configuration it was."""
+    resolved = stored.get("resolved")
+    if not isinstance(resolved, dict):
+        return stored
+    defaults = _json_round_trip(_jsonable(dataclasses.asdict(type(config.method_config())())))
+    return {**stored, "resolved": {**{k: v for k, v in defaults.items() if k not in resolved}, **resolved}}
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, dict):
         return {k: _jsonable(v) for k, v in value.items()}
@@ -170,12 +181,14 @@ class DeepResults:
         """Read a finished deep run directory after checking that its files belong together (and hold
         ``expected`` where given); anything else is a :class:`~rlcompare.experiment.store.StoreError`."""
         run_dir = Path(run_dir)
-        meta, stored = rundir.read_run(run_dir, cls.content_files,
-                                      None if expected is None else _json_round_trip(expected.to_dict()))
+        meta, stored = rundir.read_run(run_dir, cls.content_files)
         try:
             config = DeepConfig.from_dict(stored)
         except (ValueError, TypeError) as error:
             raise store.StoreError(f"{run_dir / rundir.CONFIG_FILE}: {error}") from None
+        stored = _with_settings_added_since(stored, config)
+        if expected is not None and _json_round_trip(expected.to_dict()) != stored:
+            raise store.StoreError(f"{run_dir / rundir.CONFIG_FILE}: another configuration than the one asked for")
         if _json_round_trip(config.to_dict()) != stored:
             raise store.StoreError(f"{run_dir / rundir.CONFIG_FILE}: its hyperparameters are not what its preset "
                                    "gives now (written by another version of rlcompare); run it again")
