@@ -27,7 +27,7 @@ import pytest
 from rlcompare import ExperimentConfig
 
 DURATIONS = Path(__file__).with_name("durations.json")
-FAST_SECONDS = 1.0
+FAST_SECONDS = 0.5
 """The fast tier's bound on a test's recorded time."""
 FIXTURE_SECONDS = "shared fixtures' set-up seconds"
 """The name under which a test's report carries the shared fixtures set up for it (from xdist's workers)."""
