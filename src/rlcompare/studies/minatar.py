@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
@@ -24,7 +26,10 @@ from rlcompare.analysis import stats
 from rlcompare.analysis.compare import compare_paired, comparison_label
 from rlcompare.analysis.profiles import profile_band, stratified_interval
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.deep import float64
+from rlcompare.deep.envs import jax_env
 from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.rollout import evaluate
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.envs import minatar
 from rlcompare.experiment import store
@@ -133,13 +138,6 @@ def final_returns(results: DeepResults) -> np.ndarray:
 
 def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0) -> np.ndarray:
     """Returns of the uniformly random policy in the port, under the environment's protocol."""
-    import jax
-    import jax.numpy as jnp
-
-    from rlcompare.deep import float64
-    from rlcompare.deep.envs import jax_env
-    from rlcompare.deep.rollout import evaluate
-
     env = jax_env(env_name)
 
     def no_op(params: None, observations: jax.Array) -> jax.Array:
