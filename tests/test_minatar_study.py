@@ -140,3 +140,34 @@ def test_the_smallest_p_the_report_quotes_is_the_signed_rank_tests():
 
     for seeds in range(3, 11):
         assert stats.wilcoxon(np.arange(1.0, seeds + 1)).pvalue == pytest.approx(smallest_p(seeds))
+
+
+def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our_port(tmp_path):
+    """``Breakout-MinAtar`` (gymnax's protocol: the minimal actions, no sticky actions) is Gymnasium's
+    ``MinAtar/Breakout-v1`` with sticky actions off."""
+    import gymnasium as gym
+    from minatar.gym import register_envs
+
+    from rlcompare.deep.run import DeepConfig
+    from rlcompare.deep.run import run as deep_run
+
+    deep_run(DeepConfig(algorithm="pqn_q_lambda", env="Breakout-MinAtar", seeds=(0,), vmap_width=1, eval_rounds=2,
+                        eval_episodes=2, hyperparameters={"total_steps": 128 * 32 * 8}), out=tmp_path / "run")
+    agent = load_agent(tmp_path / "run", seed=0)
+    port = jax_env("Breakout-MinAtar")
+    in_port = float64(lambda: np.asarray(jax.jit(
+        lambda key: evaluate(port, agent._act, agent.params, key, EPISODES)[0])(jax.random.key(5))))()
+    if "MinAtar/Breakout-v1" not in gym.registry:
+        register_envs()
+    env = gym.make("MinAtar/Breakout-v1", sticky_action_prob=0.0)
+    assert env.action_space.n == port.n_actions == 3
+
+    def gymnasium_step(action: int):
+        observation, reward, terminated, truncated, _ = env.step(action)
+        return observation, reward, terminated or truncated
+
+    in_gymnasium = play(agent, gymnasium_step, lambda k: env.reset(seed=200 + k)[0], EPISODES)
+    assert in_port.std() > 0
+    assert stats.mannwhitneyu(in_port, in_gymnasium).pvalue > 1e-3
+    assert abs(in_gymnasium.mean() - in_port.mean()) < 4 * np.hypot(in_gymnasium.std(), in_port.std()) / np.sqrt(
+        EPISODES)
