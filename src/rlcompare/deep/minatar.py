@@ -9,6 +9,7 @@ Observations are booleans, ``(10, 10, channels)``, until the network.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -87,11 +88,11 @@ class MinAtarEnv:
     game: Game
     protocol: Protocol
 
-    @property
+    @functools.cached_property
     def _env(self) -> Any:
         return GYMNAX_CLASSES[self.game.module_name](use_minimal_action_set=False)
 
-    @property
+    @functools.cached_property
     def _params(self) -> Any:
         return self._env.default_params
 

@@ -116,12 +116,18 @@ def plan_of(options: DeepOptions) -> Plan:
     plan = Plan(seeds=options.seed_range, methods=listed("methods", options.methods, tuple(DEEP_METHODS)),
                 envs=listed("envs", options.envs, ENVS), steps=options.steps, tabular_episodes=options.episodes,
                 workers=options.workers or DEFAULT_WORKERS)
+    built_with_steps_option(plan.deep_configs)
+    return plan
+
+
+def built_with_steps_option(configs: Callable[[], object]) -> None:
+    """Build a study's deep configurations once, to check them; a method's ``total_steps`` refused is named as the
+    study's ``steps`` option, the one its user gave."""
     try:
-        plan.deep_configs()
+        configs()
     except ConfigError as error:
         raise ConfigError("steps" if error.field_name == "total_steps" else error.field_name, error.value,
                           error.allowed) from None
-    return plan
 
 
 def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | None = None, force: bool = False

@@ -33,7 +33,6 @@ from rlcompare.deep.rollout import evaluate
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.envs import minatar
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ConfigError
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.studies import deep
 from rlcompare.studies.interface import UI, Report, listed
@@ -96,11 +95,7 @@ def plan_of(options: MinAtarOptions) -> Plan:
     games = listed("games", options.games, tuple(minatar.GAMES)) if options.games else default_games
     plan = Plan(games, options.protocol, options.seed_range, options.steps or default_steps, options.budget,
                 options.workers or DEFAULT_WORKERS)
-    try:
-        plan.configs()
-    except ConfigError as error:
-        raise ConfigError("steps" if error.field_name == "total_steps" else error.field_name, error.value,
-                          error.allowed) from None
+    deep.built_with_steps_option(plan.configs)
     return plan
 
 
@@ -219,6 +214,13 @@ def verdict_table(runs: dict[str, DeepResults], games: list[str]) -> pd.DataFram
     } for (game, paired), p in zip(found, adjusted, strict=True)])
 
 
+def budget_words(steps: int) -> str:
+    """How a training of ``steps`` stands beside the named budgets."""
+    if steps >= BUDGETS["pqn"][1]:
+        return "PQN's budget"
+    return "the MinAtar paper's budget" if steps >= BUDGETS["paper"][1] else "a short budget"
+
+
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
     """Tables, verdicts, figures and ``report.html`` of a MinAtar study directory, from its run directories."""
     with store.rewriting(Path(out), "study"):
@@ -228,7 +230,8 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = Non
 def _build_report(out: Path) -> Report:
     runs, _, problems = deep.load_runs(out)
     tables, figures = out / "tables", out / "figures"
-    floors = {env: float(random_returns(env).mean()) for env in sorted({r.config.env for r in runs.values()})}
+    envs = sorted({r.config.env for r in runs.values()})
+    floors = {env: float(random_returns(env).mean()) for env in envs}
     games = [g for g in minatar.GAMES if any(game_of(r) == g for r in runs.values())]
     summary = summary_table(runs, floors)
     scores = normalised(runs, floors)
@@ -238,15 +241,14 @@ def _build_report(out: Path) -> Report:
                         ("minatar_verdicts", verdicts)):
         write_table(frame, tables, name)
     curve_figures = []
-    for env in sorted({r.config.env for r in runs.values()}):
+    for env in envs:
         path = figures / f"curves-{env.replace('/', '_')}.png"
         curve_figures.append((save_figure(deep.curves_figure(runs, env, "steps"), path),
                               f"{env}: greedy return against environment steps (mean over seeds, 95% band)"))
     profile = [(save_figure(profile_figure(scores), figures / "performance-profiles.png"),
                 "Performance profiles over every game and seed (95% stratified bootstrap band)")] if scores else []
     steps = {r.config.method_config().total_steps for r in runs.values()}
-    budget = ("a short budget" if max(steps, default=0) < BUDGETS["paper"][1] else "the MinAtar paper's budget"
-              if max(steps) < BUDGETS["pqn"][1] else "PQN's budget")
+    budget = budget_words(max(steps, default=0))
     protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
     seeds = min((len(r.seeds) for r in runs.values()), default=0)
     lines = [f"{row.game}: {row.verdict}" for row in verdicts.itertuples()]
