@@ -14,12 +14,12 @@ from rlcompare.experiment.agent import check_box_observation
 
 
 class DeepAgent:
-    """The greedy policy of one seed's final network: ``act(observation) -> action``."""
+    """The greedy policy of one seed's network at one stage of learning: ``act(observation) -> action``."""
 
-    def __init__(self, results: DeepResults, seed: int) -> None:
+    def __init__(self, results: DeepResults, seed: int, stage: str = "final") -> None:
         config = results.config
-        self.config, self.seed = config, seed
-        self.params: Any = results.seed_params(seed, params_template(config))
+        self.config, self.seed, self.stage = config, seed, stage
+        self.params: Any = results.seed_params(seed, params_template(config), stage)
         self._act = jax.jit(deep_method(config.algorithm).module.act(config.method_config(), config.environment))
         self._shape = tuple(config.environment.observation_shape)
 
@@ -33,10 +33,8 @@ class DeepAgent:
 
 
 def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent:
-    """The greedy agent of ``seed``'s final network (a deep run keeps no earlier stage)."""
-    if stage != "final":
-        raise KeyError(f"stage {stage!r} is not in this run; stages: ['final'] (a deep run keeps its final network)")
-    return DeepAgent(results, seed)
+    """The greedy agent of ``seed``'s network at ``stage`` (``results.stages``)."""
+    return DeepAgent(results, seed, stage)
 
 
 @float64

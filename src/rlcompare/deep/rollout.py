@@ -48,11 +48,23 @@ def track(episodes: Episodes, reward: jax.Array, terminated: jax.Array, truncate
     return restarted, Finished(done, returns, lengths, terminated)
 
 
+STAGES = (("early", 0.1), ("middle", 0.5))
+"""The stages of learning kept besides the final network, as shares of the training (the tabular engine's
+``DEFAULT_STAGES``): the paper shows its agents "in three stages of learning"."""
+
+
+def stage_rounds(rounds: int) -> tuple[int, ...]:
+    """The round after which each of :data:`STAGES` is kept (0-based; at least the first round)."""
+    return tuple(max(1, round(share * rounds)) - 1 for _, share in STAGES)
+
+
 class TrainOutput(NamedTuple):
     """What one seed's training returns (a leading seed axis under ``vmap``)."""
 
     params: Params
     """The final parameters of the greedy policy."""
+    snapshots: Params
+    """The greedy policy's parameters after each of :func:`stage_rounds`, with a leading stage axis."""
     finished: Finished
     """(rounds, updates per round, steps per update, envs): the training episodes as they ended."""
     eval_returns: jax.Array
@@ -108,17 +120,26 @@ def train_in_rounds(update: Callable[[Any, jax.Array], tuple[Any, Finished]], pa
                     env: DeepEnv, act: Act, rounds: int, updates_per_round: int, eval_episodes: int
                     ) -> Callable[[Any, jax.Array], TrainOutput]:
     """``(runner, key) -> TrainOutput``: ``rounds`` x ``updates_per_round`` calls of ``update(runner, key) ->
-    (runner, finished)`` (``finished`` stacked over an update's steps), a greedy evaluation after each round."""
+    (runner, finished)`` (``finished`` stacked over an update's steps), a greedy evaluation after each round, and
+    the parameters kept at each stage of learning."""
+    kept_after = jnp.asarray(stage_rounds(rounds))
 
-    def one_round(runner: Any, key: jax.Array) -> tuple[Any, tuple]:
+    def one_round(carry: tuple[Any, Params], round_and_key: tuple[jax.Array, jax.Array]) -> tuple[tuple, tuple]:
+        runner, snapshots = carry
+        index, key = round_and_key
         update_key, eval_key = jax.random.split(key)
         runner, finished = jax.lax.scan(update, runner, jax.random.split(update_key, updates_per_round))
-        returns, lengths, terminated = evaluate(env, act, params_of(runner), eval_key, eval_episodes)
-        return runner, (finished, returns, lengths, terminated)
+        params = params_of(runner)
+        returns, lengths, terminated = evaluate(env, act, params, eval_key, eval_episodes)
+        keep = kept_after == index
+        snapshots = jax.tree.map(
+            lambda kept, now: jnp.where(keep.reshape((-1,) + (1,) * now.ndim), now[None], kept), snapshots, params)
+        return (runner, snapshots), (finished, returns, lengths, terminated)
 
     def train(runner: Any, key: jax.Array) -> TrainOutput:
-        runner, (finished, returns, lengths, terminated) = jax.lax.scan(one_round, runner,
-                                                                         jax.random.split(key, rounds))
-        return TrainOutput(params_of(runner), finished, returns, lengths, terminated)
+        empty = jax.tree.map(lambda leaf: jnp.zeros((len(STAGES), *leaf.shape), leaf.dtype), params_of(runner))
+        (runner, snapshots), (finished, returns, lengths, terminated) = jax.lax.scan(
+            one_round, (runner, empty), (jnp.arange(rounds), jax.random.split(key, rounds)))
+        return TrainOutput(params_of(runner), snapshots, finished, returns, lengths, terminated)
 
     return train

@@ -25,7 +25,7 @@ import jax
 import numpy as np
 import pandas as pd
 
-from rlcompare.deep import float64, use_compilation_cache
+from rlcompare.deep import float64, rollout, use_compilation_cache
 from rlcompare.deep.envs import DeepEnv, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
@@ -143,28 +143,40 @@ class DeepResults:
     """Each parameter's path in the method's parameter tree (``jax.tree_util.keystr``) -> its array, with a
     leading seed axis."""
     meta: dict[str, Any]
+    snapshots: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    """Each earlier stage of learning (:data:`~rlcompare.deep.rollout.STAGES`) -> its parameters, as ``params``
+    (empty for a run written before deep runs kept them)."""
 
     @property
     def seeds(self) -> tuple[int, ...]:
         return self.config.seeds
 
-    def stacked_params(self, template: Any) -> Any:
-        """Every seed's parameters in the tree shape of ``template`` (the method's own, :func:`params_template`),
-        with a leading seed axis; a name the stored file lacks is a :class:`~rlcompare.experiment.store.StoreError`."""
+    @property
+    def stages(self) -> list[str]:
+        """The stages of learning whose networks this run keeps, in order, ``final`` last."""
+        return [*self.snapshots, "final"]
+
+    def stacked_params(self, template: Any, stage: str = "final") -> Any:
+        """Every seed's parameters at ``stage`` in the tree shape of ``template`` (the method's own,
+        :func:`params_template`), with a leading seed axis; a name the stored file lacks is a
+        :class:`~rlcompare.experiment.store.StoreError`, a stage the run lacks a :class:`KeyError`."""
+        if stage not in self.stages:
+            raise KeyError(f"stage {stage!r} is not in this run; stages: {self.stages}")
+        stored = self.params if stage == "final" else self.snapshots[stage]
         paths, tree = jax.tree_util.tree_flatten_with_path(template)
         names = [jax.tree_util.keystr(path) for path, _ in paths]
-        missing = [name for name in names if name not in self.params]
-        if missing or len(names) != len(self.params):
+        missing = [name for name in names if name not in stored]
+        if missing or len(names) != len(stored):
             raise store.StoreError(f"{rundir.PARAMS_FILE}: its parameters are not those of {self.config.algorithm}'s "
-                                   f"network (missing {missing[:3]}, {len(self.params)} stored, {len(names)} expected)")
-        return jax.tree_util.tree_unflatten(tree, [self.params[name] for name in names])
+                                   f"network (missing {missing[:3]}, {len(stored)} stored, {len(names)} expected)")
+        return jax.tree_util.tree_unflatten(tree, [stored[name] for name in names])
 
-    def seed_params(self, seed: int, template: Any) -> Any:
+    def seed_params(self, seed: int, template: Any, stage: str = "final") -> Any:
         """One seed's parameters (see :meth:`stacked_params`)."""
         if seed not in self.seeds:
             raise KeyError(f"seed {seed} is not in this run; seeds: {list(self.seeds)}")
         index = self.seeds.index(seed)
-        return jax.tree.map(lambda leaf: leaf[index], self.stacked_params(template))
+        return jax.tree.map(lambda leaf: leaf[index], self.stacked_params(template, stage))
 
     def save(self, run_dir: Path) -> Path:
         """Write the run directory (:func:`~rlcompare.experiment.rundir.write_run`)."""
@@ -173,7 +185,8 @@ class DeepResults:
         return rundir.write_run(run_dir, self.config.to_dict(), {
             rundir.EPISODES_FILE: _parquet_bytes(_table(self.episodes, labels)),
             rundir.EVALUATIONS_FILE: _parquet_bytes(_table(self.evaluations, labels)),
-            rundir.PARAMS_FILE: _npz_bytes({**self.params, "seeds": np.asarray(self.seeds)}),
+            rundir.PARAMS_FILE: _npz_bytes({**self.params, **_stage_arrays(self.snapshots),
+                                             "seeds": np.asarray(self.seeds)}),
         }, self.meta, {"seeds": list(self.seeds)})
 
     @classmethod
@@ -201,13 +214,14 @@ class DeepResults:
             raise store.StoreError(f"{run_dir}: cannot read the stored records ({store.cut(str(error), 200)})"
                                    ) from None
         seeds = params.pop("seeds", np.array([])).tolist()
+        params, snapshots = _split_stages(params)
         if seeds != list(config.seeds) or set(episodes["seed"]) - set(seeds):
             raise store.StoreError(f"{run_dir}: the seeds of {rundir.PARAMS_FILE} or {rundir.EPISODES_FILE} differ "
                                    f"from those of {rundir.CONFIG_FILE}")
         columns = ["seed", "episode", "env_step", "return", "length", "terminated"]
         return cls(config, episodes[columns].reset_index(drop=True),
                    evaluations[["seed", "round", "after_step", "return", "length", "terminated"]].reset_index(
-                       drop=True), params, meta)
+                       drop=True), params, meta, snapshots)
 
 
 def merge_seeds(parts: list[DeepResults]) -> DeepResults:
@@ -223,8 +237,36 @@ def merge_seeds(parts: list[DeepResults]) -> DeepResults:
     return DeepResults(dataclasses.replace(first.config, seeds=seeds),
                        pd.concat([part.episodes for part in parts], ignore_index=True),
                        pd.concat([part.evaluations for part in parts], ignore_index=True),
-                       {name: np.concatenate([part.params[name] for part in parts]) for name in first.params},
-                       {**first.meta, "seeds": list(seeds), "timings": timings})
+                       _concatenated([part.params for part in parts]),
+                       {**first.meta, "seeds": list(seeds), "timings": timings},
+                       {stage: _concatenated([part.snapshots[stage] for part in parts]) for stage in first.snapshots
+                        if all(stage in part.snapshots for part in parts)})
+
+
+def _concatenated(arrays: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {name: np.concatenate([part[name] for part in arrays]) for name in arrays[0]}
+
+
+STAGE_SEPARATOR = ":"
+"""``params.npz`` names an earlier stage's array ``<stage>:<path>`` (a path starts with ``[``)."""
+
+
+def _stage_arrays(snapshots: dict[str, dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {f"{stage}{STAGE_SEPARATOR}{name}": array for stage, arrays in snapshots.items()
+            for name, array in arrays.items()}
+
+
+def _split_stages(stored: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, dict[str, np.ndarray]]]:
+    """``params.npz``'s arrays as ``(final parameters, {stage: parameters})``, in the order they were written."""
+    final: dict[str, np.ndarray] = {}
+    snapshots: dict[str, dict[str, np.ndarray]] = {}
+    for name, array in stored.items():
+        stage, separator, path = name.partition(STAGE_SEPARATOR)
+        if separator and not stage.startswith("["):
+            snapshots.setdefault(stage, {})[path] = array
+        else:
+            final[name] = array
+    return final, snapshots
 
 
 def _json_round_trip(data: dict) -> dict:
@@ -351,7 +393,14 @@ def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | Non
                     "device": str(jax.devices()[0])},
         "versions": {**versions(), **{pkg: package_version(pkg) for pkg in ("jax", "flax", "optax")}},
     }
-    params = {jax.tree_util.keystr(path): np.asarray(leaf)
-              for path, leaf in jax.tree_util.tree_flatten_with_path(output.params)[0]}
+    snapshots = {stage: _named_arrays(jax.tree.map(lambda leaf, i=index: leaf[:, i], output.snapshots))
+                 for index, (stage, _) in enumerate(rollout.STAGES)}
     return DeepResults(config, episodes_frame(config.seeds, output),
-                       evaluations_frame(config.seeds, output, steps_per_round), params, meta)
+                       evaluations_frame(config.seeds, output, steps_per_round), _named_arrays(output.params), meta,
+                       snapshots)
+
+
+def _named_arrays(tree: Any) -> dict[str, np.ndarray]:
+    """A parameter tree's leaves by their path (``jax.tree_util.keystr``)."""
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    return {jax.tree_util.keystr(path): np.asarray(leaf) for path, leaf in leaves}
