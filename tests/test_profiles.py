@@ -6,6 +6,8 @@ import numpy as np
 from scipy import stats
 
 from rlcompare.analysis.profiles import (
+    average_improvement,
+    improvement_interval,
     performance_profile,
     pooled_iqm,
     profile_band,
@@ -53,3 +55,22 @@ def test_the_profile_band_holds_the_profile():
     assert np.all(low <= profile)
     assert np.all(profile <= high)
     assert np.all(np.diff(profile) <= 0)
+
+
+def test_the_average_probability_of_improvement_is_scipys_mann_whitney_u_averaged_over_tasks():
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(3, 6)).round(1)  # rounded: some ties, which count half
+    y = rng.normal(0.3, size=(3, 5)).round(1)
+    expected = np.mean([stats.mannwhitneyu(x[t], y[t]).statistic / (6 * 5) for t in range(3)])
+    assert np.isclose(average_improvement(x, y), expected)
+    assert np.isclose(average_improvement(y, x), 1 - expected)
+    assert average_improvement(x * 100 + 7, y * 100 + 7) == average_improvement(x, y)  # scale-free per task
+
+
+def test_the_improvement_interval_separates_a_shift_and_covers_one_half_without_one():
+    rng = np.random.default_rng(5)
+    better = improvement_interval(rng.normal(1.0, size=(4, 10)), rng.normal(size=(4, 10)))
+    assert better.low > 0.5
+    assert better.low <= better.value <= better.high
+    same = improvement_interval(rng.normal(size=(4, 10)), rng.normal(size=(4, 10)))
+    assert same.low < 0.5 < same.high

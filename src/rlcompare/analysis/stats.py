@@ -165,7 +165,7 @@ def paired_difference(
     return interval(a - b, "mean", confidence=confidence, n_resamples=n_resamples, seed=seed)
 
 
-def _improvement(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+def improvement_share(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
     """P(X_a > X_b) + ½ P(X_a = X_b) over all pairs, as the Mann-Whitney U of ``a`` over ``n·m``.
 
     Computed from mid-ranks of the pooled sample (``U = Σ ranks of a − n(n+1)/2``), which is
@@ -192,12 +192,12 @@ def probability_of_improvement(
     a, b = _per_seed(a), _per_seed(b)
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         return _NAN
-    value = float(_improvement(a, b))
+    value = float(improvement_share(a, b))
     if a.size < 2 or b.size < 2:
         return Estimate(value, np.nan, np.nan)
     if np.all(a == a[0]) and np.all(b == b[0]):
         return Estimate(value, value, value)
-    low, high = _bootstrap((a, b), _improvement, "percentile", confidence, n_resamples, seed)
+    low, high = _bootstrap((a, b), improvement_share, "percentile", confidence, n_resamples, seed)
     return Estimate(value, low, high)
 
 
