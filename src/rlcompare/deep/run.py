@@ -30,7 +30,7 @@ from rlcompare.deep.envs import DeepEnv, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.config import ConfigError, gib, physical_memory
 from rlcompare.experiment.results import _parquet_bytes, _with_labels
 from rlcompare.experiment.runner import package_version, versions
 
@@ -315,6 +315,32 @@ def params_template(config: DeepConfig) -> Any:
     return jax.eval_shape(train, jax.random.key(0)).params
 
 
+def memory_needed(config: DeepConfig, compiled: Any) -> tuple[int, int]:
+    """``(while training, records)``: bytes XLA allocates for one group of ``vmap_width`` seeds (its replay
+    buffers, rollouts and outputs, as the compiled program reports them), and bytes of every group's records kept
+    and joined after it. ``(0, 0)`` where the backend does not say."""
+    stats = compiled.memory_analysis()
+    if stats is None:
+        return 0, 0
+    output = stats.output_size_in_bytes
+    groups = -(-len(config.seeds) // config.vmap_width)
+    return stats.argument_size_in_bytes + output + stats.temp_size_in_bytes, 2 * groups * output
+
+
+def check_memory(config: DeepConfig, compiled: Any) -> None:
+    """A training that fits in this machine's memory, refused after compiling and before the first step (a
+    :class:`ConfigError` naming ``total_steps`` where the records are the larger part, else ``vmap_width``)."""
+    training, records = memory_needed(config, compiled)
+    memory = physical_memory()
+    if training + records <= memory:
+        return
+    name, value = ("total_steps", config.method_config().total_steps) if records > training else (
+        "vmap_width", config.vmap_width)
+    raise ConfigError(name, value, f"a training that fits in memory: {config.name} on {len(config.seeds)} seeds, "
+                      f"{config.vmap_width} side by side, needs {gib(training)} while training and "
+                      f"{gib(records)} for its records; this machine has {gib(memory)}")
+
+
 def seed_keys(seeds: tuple[int, ...]) -> jax.Array:
     return jax.numpy.stack([jax.random.key(seed) for seed in seeds])
 
@@ -372,6 +398,7 @@ def _train(config: DeepConfig, study: str, progress: Callable[[int], None] | Non
     started = time.perf_counter()
     train = compiled_training(config)
     compile_seconds = time.perf_counter() - started
+    check_memory(config, train)
     started = time.perf_counter()
     outputs = []
     for group, padded in groups(config.seeds, config.vmap_width):

@@ -392,7 +392,7 @@ def physical_memory() -> int:
         return FALLBACK_MEMORY
 
 
-def _gib(size: int) -> str:
+def gib(size: int) -> str:
     return f"{size / 2**30:,.1f} GiB" if size < 10 * 2**30 else f"{size / 2**30:,.0f} GiB"
 
 
@@ -416,8 +416,8 @@ def check_memory(c: ExperimentConfig) -> None:
         features = feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
         shape = (f"{runs} x {len(c.stage_episodes())} snapshots x {features:,} features x "
                  f"{c.environment.n_actions} actions")
-    raise ConfigError(name, value, f"a run whose records fit in memory: {shape} need {_gib(needed)}; this "
-                      f"machine has {_gib(memory)}")
+    raise ConfigError(name, value, f"a run whose records fit in memory: {shape} need {gib(needed)}; this "
+                      f"machine has {gib(memory)}")
 
 
 _CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles)

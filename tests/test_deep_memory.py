@@ -1,0 +1,36 @@
+"""A deep training that does not fit in memory is refused after compiling, before its first step, naming what
+to change; the compiled program's own accounting counts replay buffers and records."""
+
+from __future__ import annotations
+
+import pytest
+
+pytest.importorskip("jax")
+
+from rlcompare.deep import run as deep_run
+from rlcompare.deep.run import DeepConfig, compiled_training, memory_needed
+from rlcompare.experiment import rundir
+from rlcompare.experiment.config import ConfigError
+
+OBSERVATION_BYTES = 10 * 10 * 4  # Breakout's four boolean channels
+
+
+def test_a_replay_buffer_counts_while_training_and_longer_training_in_the_records() -> None:
+    small = DeepConfig(algorithm="dqn", env="MinAtar/Breakout-v0", seeds=(0, 1, 2), vmap_width=2, eval_rounds=2,
+                       eval_episodes=1, hyperparameters={"total_steps": 2_000, "buffer_size": 1_000,
+                                                         "learning_starts": 100})
+    large = DeepConfig(**{**small.__dict__, "hyperparameters": {**small.hyperparameters, "buffer_size": 50_000}})
+    small_training, small_records = memory_needed(small, compiled_training(small))
+    large_training, large_records = memory_needed(large, compiled_training(large))
+    assert large_training - small_training >= 2 * 49_000 * OBSERVATION_BYTES  # two seeds' buffers, side by side
+    assert large_records == small_records > 0  # the records grow with steps, not with the buffer
+
+
+def test_a_training_too_large_for_the_machine_is_refused_before_it_runs(monkeypatch, tmp_path) -> None:
+    config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=(0,), vmap_width=1, eval_rounds=1,
+                        eval_episodes=1, hyperparameters={"total_steps": 2_048, "n_envs": 8, "n_steps": 16})
+    monkeypatch.setattr(deep_run, "physical_memory", lambda: 100_000)
+    with pytest.raises(ConfigError, match=r"vmap_width: got 1; allowed: a training that fits in memory: "
+                                          r"pqn_q_lambda-CartPole-v1 on 1 seeds.*this machine has 0.0 GiB"):
+        deep_run.run(config, out=tmp_path / "run")
+    assert not (tmp_path / "run" / rundir.PARAMS_FILE).exists()
