@@ -20,7 +20,8 @@ from rlcompare.cli import app  # noqa: E402
 from rlcompare.deep import float64  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
-from rlcompare.studies.minatar import random_returns  # noqa: E402
+from rlcompare.studies.minatar import plan_of, random_returns  # noqa: E402
+from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 
 TINY = ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960"]
 EPISODES = 150
@@ -37,14 +38,21 @@ def study(tmp_path_factory):
 def test_the_study_writes_its_runs_and_a_report(study):
     out, output = study
     assert sorted(p.name for p in out.iterdir() if p.is_dir()) == [
-        "figures", "pqn_q_lambda-breakout", "pqn_sarsa_lambda-breakout", "tables"]
+        "figures", "pqn_q_lambda-breakout", "pqn_sarsa_lambda-breakout", "tables", "videos"]
     summary = pd.read_csv(out / "tables" / "minatar_summary.csv")
     assert summary["env"].tolist() == ["MinAtar/Breakout-v0"] * 2
+    assert summary["final at ε = 0.05, mean"].str.match(r"-?\d+\.\d\d \[").all()
     verdicts = pd.read_csv(out / "tables" / "minatar_verdicts.csv")
     assert verdicts["game"].tolist() == ["Breakout"]
+    improvement = pd.read_csv(out / "tables" / "minatar_improvement.csv")
+    assert improvement["games"].tolist() == [1]
     assert "Breakout:" in output
     page = (out / "report.html").read_text()
     assert page.count("<img") == 2  # Breakout's curves, the performance profiles
+    assert sorted(p.name for p in (out / "videos").iterdir()) == [
+        "pqn_q_lambda-breakout.gif", "pqn_q_lambda-breakout.mp4", "pqn_sarsa_lambda-breakout.gif",
+        "pqn_sarsa_lambda-breakout.mp4"]
+    assert page.count("<video") == 2
     assert "a short budget" in page
     assert "sticky actions 0.1" in page
 
@@ -63,6 +71,7 @@ def test_a_finished_study_is_loaded_not_trained_again(study):
     (["--protocol", "atari"], "--protocol"),
     (["--budget", "huge"], "--budget"),
     (["--steps", "100"], "--steps"),
+    (["--methods", "pqn_q_lambda,a2c"], "--methods"),
 ])
 def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
     result = CliRunner().invoke(app, ["reproduce", "minatar", "--seeds", "2", *arguments,
@@ -171,3 +180,14 @@ def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our
     assert stats.mannwhitneyu(in_port, in_gymnasium).pvalue > 1e-3
     assert abs(in_gymnasium.mean() - in_port.mean()) < 4 * np.hypot(in_gymnasium.std(), in_port.std()) / np.sqrt(
         EPISODES)
+
+
+def test_every_method_trains_with_its_minatar_preset_when_asked():
+    plan = plan_of(MinAtarOptions(seeds=3, games="seaquest", methods="all", budget="paper"))
+    configs = plan.configs()
+    assert sorted(configs) == sorted(f"{m}-seaquest" for m in (
+        "pqn_q_lambda", "pqn_sarsa_lambda", "pqn_expected_sarsa_lambda", "dqn", "double_dqn", "ppo"))
+    dqn = configs["dqn-seaquest"].method_config()
+    assert (dqn.buffer_size, dqn.batch_size, dqn.optimizer, dqn.total_steps) == (100_000, 32, "rmsprop", 5_000_000)
+    assert configs["ppo-seaquest"].method_config().n_envs == 64
+    assert {c.env for c in configs.values()} == {"MinAtar/Seaquest-v0"}

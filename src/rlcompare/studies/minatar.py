@@ -2,10 +2,12 @@
 
 The pair is the paper's, in one PQN-style engine whose only switch is the bootstrap: Q(λ) (off-policy, the max) and
 SARSA(λ) (on-policy, the action taken), with MinAtar's convolutional network and purejaxql's MinAtar settings,
-trained on paired seeds under one protocol (``docs/minatar.md``). The report draws greedy learning curves against
-environment steps, tabulates each game's final greedy return (mean and IQM with 95% intervals) beside a uniformly
-random policy's, gives the across-game IQM of scores normalised between random and the best method here, and
-judges "on-policy against off-policy target" per game, Holm-corrected over the games.
+trained on paired seeds under one protocol (``docs/minatar.md``); ``--methods`` adds DQN, Double DQN, PPO or
+Expected SARSA(λ) with their MinAtar presets. The report draws greedy learning curves against environment steps,
+tabulates each game's final return (greedy, and at ε = 0.05 as DQN's protocol; mean and IQM with 95% intervals)
+beside a uniformly random policy's, gives the across-game IQM of scores normalised between random and the best
+method here, performance profiles and the probability of improvement, judges "on-policy against off-policy target"
+per game, Holm-corrected over the games, and shows each method's agent at three stages of learning in every game.
 """
 
 from __future__ import annotations
@@ -24,13 +26,14 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis import stats
 from rlcompare.analysis.compare import compare_paired, comparison_label
-from rlcompare.analysis.profiles import profile_band, stratified_interval
+from rlcompare.analysis.minatar_video import MAX_STEPS, render_stages
+from rlcompare.analysis.profiles import improvement_interval, profile_band, stratified_interval
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.deep import float64
 from rlcompare.deep.envs import jax_env
-from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.methods import DEEP_METHODS, deep_method
 from rlcompare.deep.rollout import evaluate
-from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.deep.run import DeepConfig, DeepResults, params_template
 from rlcompare.envs import minatar
 from rlcompare.experiment import store
 from rlcompare.experiment.runner import run_or_load
@@ -55,6 +58,12 @@ MARGIN = 1.0
 as no difference: declared here before any run."""
 RANDOM_EPISODES = 200
 """Episodes of the uniformly random policy per game, the floor of the normalised scores."""
+EVAL_EPSILON = 0.05
+"""DQN's evaluation protocol (Mnih et al. 2015): ε-greedy with ε = 0.05, beside the greedy evaluation (ε = 0)."""
+EPSILON_EPISODES = 8
+"""Episodes per seed of the final network at :data:`EVAL_EPSILON`, played when the report is drawn."""
+EPSILON_KEY = 20_000
+"""Seed ``s``'s episodes at ε = 0.05 play from ``jax.random.key(EPSILON_KEY + s)``, apart from training's keys."""
 DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
 VMAP_WIDTH = 10
 """Seeds trained side by side in one program, at most."""
@@ -76,6 +85,7 @@ class Plan:
     steps: int
     budget: str
     workers: int = DEFAULT_WORKERS
+    methods: tuple[str, ...] = PAIR
 
     def env(self, game: str) -> str:
         return minatar.GAMES[game].name(self.protocol)
@@ -85,16 +95,17 @@ class Plan:
                                                hyperparameters={"total_steps": self.steps},
                                                vmap_width=min(len(self.seeds), VMAP_WIDTH), eval_rounds=10,
                                                eval_episodes=8)
-                for game in self.games for method in PAIR}
+                for game in self.games for method in self.methods}
 
 
 def plan_of(options: MinAtarOptions) -> Plan:
-    """The plan from the options; an unknown game or protocol, or steps PQN cannot train in, is a
+    """The plan from the options; an unknown game, protocol or method, or steps a method cannot train in, is a
     :class:`ConfigError` naming the option."""
     default_games, default_steps = BUDGETS[options.budget]
     games = listed("games", options.games, tuple(minatar.GAMES)) if options.games else default_games
+    methods = listed("methods", options.methods, tuple(DEEP_METHODS), every="all")
     plan = Plan(games, options.protocol, options.seed_range, options.steps or default_steps, options.budget,
-                options.workers or DEFAULT_WORKERS)
+                options.workers or DEFAULT_WORKERS, methods)
     deep.built_with_steps_option(plan.configs)
     return plan
 
@@ -146,14 +157,27 @@ def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0
     return play()
 
 
+@float64
+def epsilon_returns(results: DeepResults, epsilon: float = EVAL_EPSILON, episodes: int = EPSILON_EPISODES
+                    ) -> np.ndarray:
+    """Each seed's mean return of its final network acting ε-greedily (DQN's evaluation protocol)."""
+    config = results.config
+    act = deep_method(config.algorithm).module.act(config.method_config(), config.environment)
+    params = results.stacked_params(params_template(config))
+    keys = jnp.stack([jax.random.key(EPSILON_KEY + seed) for seed in results.seeds])
+    play = jax.vmap(lambda p, key: evaluate(config.environment, act, p, key, episodes, epsilon)[0])
+    return np.asarray(jax.jit(play)(params, keys)).mean(axis=1)
+
+
 def summary_table(runs: dict[str, DeepResults], floors: dict[str, float]) -> pd.DataFrame:
     rows = []
     for results in runs.values():
         final = final_returns(results)
         rows.append({"game": minatar.GAMES[game_of(results)].title, "env": results.config.env,
                      "method": DEEP_METHODS[results.config.algorithm].label,
-                     "final greedy, mean": stats.interval(final).format(2),
-                     "final greedy, IQM": stats.interval(final, "iqm").format(2),
+                     "final greedy (ε = 0), mean": stats.interval(final).format(2),
+                     "final greedy (ε = 0), IQM": stats.interval(final, "iqm").format(2),
+                     f"final at ε = {EVAL_EPSILON:g}, mean": stats.interval(epsilon_returns(results)).format(2),
                      "random policy": round(floors[results.config.env], 2), "seeds": len(final),
                      "steps/s": round(results.meta["timings"]["steps_per_second"])})
     return pd.DataFrame(rows)
@@ -180,6 +204,17 @@ def across_games_table(scores: dict[str, np.ndarray]) -> pd.DataFrame:
     return pd.DataFrame([{"method": DEEP_METHODS[method].label, "games": values.shape[0],
                           "IQM of normalised scores [95% CI]": stratified_interval(values).format(2)}
                          for method, values in scores.items()])
+
+
+def improvement_table(scores: dict[str, np.ndarray]) -> pd.DataFrame:
+    """P(on > off) over the games: the chance that a run of the on-policy target beats one of the off-policy
+    target on a game, averaged over the games, with a stratified bootstrap interval (Agarwal et al. 2021)."""
+    on, off = PAIR
+    if on not in scores or off not in scores:
+        return pd.DataFrame()
+    return pd.DataFrame([{"on-policy": DEEP_METHODS[on].label, "off-policy": DEEP_METHODS[off].label,
+                          "games": scores[on].shape[0],
+                          "P(on > off) [95% CI]": improvement_interval(scores[on], scores[off]).format(2)}])
 
 
 def profile_figure(scores: dict[str, np.ndarray]) -> Figure:
@@ -221,13 +256,26 @@ def budget_words(steps: int) -> str:
     return "the MinAtar paper's budget" if steps >= BUDGETS["paper"][1] else "a short budget"
 
 
+def video_cells(runs: dict[str, DeepResults], videos: Path) -> list[tuple[str, str, str]]:
+    """Each training's first seed at its three stages of learning, one video per game and method."""
+    cells = []
+    for name, results in runs.items():
+        seed = results.seeds[0]
+        mp4, gif = render_stages(results, seed, videos / f"{name}.mp4", videos / f"{name}.gif")
+        cells.append((f"videos/{mp4.name}", f"videos/{gif.name}",
+                      f"{minatar.GAMES[game_of(results)].title}, {DEEP_METHODS[results.config.algorithm].label}, "
+                      f"seed {seed}: {', '.join(results.stages)}"))
+    return cells
+
+
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
-    """Tables, verdicts, figures and ``report.html`` of a MinAtar study directory, from its run directories."""
+    """Tables, verdicts, figures, videos and ``report.html`` of a MinAtar study directory, from its run
+    directories."""
     with store.rewriting(Path(out), "study"):
-        return _build_report(Path(out))
+        return _build_report(Path(out), videos)
 
 
-def _build_report(out: Path) -> Report:
+def _build_report(out: Path, videos: bool) -> Report:
     runs, _, problems = deep.load_runs(out)
     tables, figures = out / "tables", out / "figures"
     envs = sorted({r.config.env for r in runs.values()})
@@ -236,9 +284,10 @@ def _build_report(out: Path) -> Report:
     summary = summary_table(runs, floors)
     scores = normalised(runs, floors)
     across = across_games_table(scores)
+    improvement = improvement_table(scores)
     verdicts = verdict_table(runs, games)
     for name, frame in (("minatar_summary", summary), ("minatar_across_games", across),
-                        ("minatar_verdicts", verdicts)):
+                        ("minatar_improvement", improvement), ("minatar_verdicts", verdicts)):
         write_table(frame, tables, name)
     curve_figures = []
     for env in envs:
@@ -261,15 +310,23 @@ def _build_report(out: Path) -> Report:
             f"Holm-adjusted over the games; with {seeds} seeds the signed-rank test cannot give a p below "
             f"{smallest_p(seeds):.3g}."], [("Verdicts", verdicts)]),
         Section("Every game", [
-            f"Final: each seed's mean greedy return in the last evaluation round of the port. Random: the mean of "
-            f"{RANDOM_EPISODES} episodes of a uniformly random policy under the same protocol."],
+            f"Final greedy (ε = 0): each seed's mean return in the last evaluation round of training, in the port. "
+            f"At ε = {EVAL_EPSILON:g} (DQN's protocol): the same final network acting ε-greedily, {EPSILON_EPISODES} "
+            f"episodes a seed played when this report was drawn. Random: the mean of {RANDOM_EPISODES} episodes of "
+            "a uniformly random policy under the same protocol."],
             [("Summary", summary)]),
         Section("Across games", [
             "Scores normalised game by game between the random policy (0) and the best method's mean here (1); "
             "IQM over every game and seed with a stratified bootstrap interval (Agarwal et al. 2021). The MinAtar "
             "paper's DQN scores are not used as the upper anchor: rlcompare has no citable table of them."],
-            [("IQM of normalised final returns", across)], profile),
+            [("IQM of normalised final returns", across), ("Probability of improvement", improvement)], profile),
         Section("Learning curves", figures=curve_figures),
+        Section("The agents at three stages of learning", [
+            "Each training's first seed, its networks after a tenth and half of the training and at its end, playing "
+            "one greedy episode side by side from the same start and with the same draws (the first "
+            f"{MAX_STEPS:,} steps), in MinAtar's own colours." if videos else
+            "Videos were not rendered (--no-videos)."],
+            videos=video_cells(runs, out / "videos") if videos else []),
     ]
     page = write_report(out / "report.html", "MinAtar: on- or off-policy target with a network", sections, problems)
     return Report(page, lines, problems)

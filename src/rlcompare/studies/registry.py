@@ -98,8 +98,13 @@ class MinAtarOptions(Seeded):
     sticky actions, minimal action sets, gymnax's limits)."""
     steps: int | None = option(None, minimum=1)
     """Environment steps of every training, in place of the budget's."""
+    methods: str = "pqn_sarsa_lambda,pqn_q_lambda"
+    """Comma-separated deep methods, each with its MinAtar preset: the paper's pair (the default) and any of
+    pqn_expected_sarsa_lambda, dqn, double_dqn, ppo; 'all' for every one."""
     workers: int | None = option(None, minimum=1)
     """Trainings at once. Default: one per core, at most 2."""
+    videos: bool = True
+    """Render videos of each method's agent at three stages of learning in every game."""
 
     def check(self) -> None:
         from rlcompare.envs.minatar import GAMES, PROTOCOLS
