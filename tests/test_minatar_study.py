@@ -191,3 +191,51 @@ def test_every_method_trains_with_its_minatar_preset_when_asked():
     assert (dqn.buffer_size, dqn.batch_size, dqn.optimizer, dqn.total_steps) == (100_000, 32, "rmsprop", 5_000_000)
     assert configs["ppo-seaquest"].method_config().n_envs == 64
     assert {c.env for c in configs.values()} == {"MinAtar/Seaquest-v0"}
+
+
+def _same_runs(a, b, names=("pqn_q_lambda-breakout", "pqn_sarsa_lambda-breakout")) -> None:
+    from rlcompare.deep.run import DeepResults
+
+    for name in names:
+        ours, theirs = DeepResults.load(a / name), DeepResults.load(b / name)
+        pd.testing.assert_frame_equal(ours.episodes, theirs.episodes)
+        pd.testing.assert_frame_equal(ours.evaluations, theirs.evaluations)
+        for key, array in theirs.params.items():
+            np.testing.assert_array_equal(ours.params[key], array)
+        for stage, arrays in theirs.snapshots.items():
+            for key, array in arrays.items():
+                np.testing.assert_array_equal(ours.snapshots[stage][key], array)
+
+
+def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path, monkeypatch):
+    from rlcompare.experiment.backends import LocalBackend
+    from rlcompare.studies import minatar as minatar_study
+
+    monkeypatch.setattr(minatar_study, "VMAP_WIDTH", 1)  # two seeds: two blocks, each its own task
+    plan = plan_of(MinAtarOptions(seeds=2, games="breakout", steps=40960, methods="pqn_q_lambda"))
+    assert [b.seeds for b in minatar_study.seed_blocks(plan.configs()["pqn_q_lambda-breakout"])] == [(0,), (1,)]
+    whole = list(minatar_study.reproduce(tmp_path / "whole", plan))
+    tasks = list(minatar_study.reproduce(tmp_path / "tasks", plan, backend=LocalBackend(2)))
+    assert [(name, reused) for name, _, reused in tasks] == [("pqn_q_lambda-breakout", False)]
+    assert tasks[0][1].meta["seeds"] == whole[0][1].meta["seeds"] == [0, 1]
+    _same_runs(tmp_path / "tasks", tmp_path / "whole", ["pqn_q_lambda-breakout"])
+    again = list(minatar_study.reproduce(tmp_path / "tasks", plan, backend=LocalBackend(2)))
+    assert [(name, reused) for name, _, reused in again] == [("pqn_q_lambda-breakout", True)]
+
+
+@pytest.mark.slow  # starting and stopping the cluster take about half a minute
+def test_the_study_on_a_ray_cluster_equals_the_study_here(study, tmp_path):
+    import subprocess
+    import sys
+
+    pytest.importorskip("ray")
+    from test_ray import loopback_cluster
+
+    here, _ = study
+    with loopback_cluster() as (address, env, _, _):
+        done = subprocess.run([sys.executable, "-m", "rlcompare.cli", *TINY, "--out", str(tmp_path / "ray"),
+                               "--address", address, "--no-videos"], capture_output=True, text=True,
+                              env={**env, "COLUMNS": "200"}, timeout=500, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f"on Ray at {address}" in done.stdout
+    _same_runs(tmp_path / "ray", here)

@@ -12,6 +12,7 @@ per game, Holm-corrected over the games, and shows each method's agent at three 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -33,10 +34,12 @@ from rlcompare.deep import float64
 from rlcompare.deep.envs import jax_env
 from rlcompare.deep.methods import DEEP_METHODS, deep_method
 from rlcompare.deep.rollout import evaluate
-from rlcompare.deep.run import DeepConfig, DeepResults, params_template
+from rlcompare.deep.run import DeepConfig, DeepResults, merge_seeds, params_template
 from rlcompare.envs import minatar
-from rlcompare.experiment import store
+from rlcompare.experiment import engines, store
+from rlcompare.experiment.backends import make_backend
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.experiment.sweep import Trial
 from rlcompare.studies import deep
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.registry import MinAtarOptions
@@ -110,22 +113,72 @@ def plan_of(options: MinAtarOptions) -> Plan:
     return plan
 
 
-def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | None = None, force: bool = False
-              ) -> Iterator[tuple[str, DeepResults, bool]]:
-    """Train (or load, where finished) every configuration into ``out``."""
+def reproduce(out: Path, plan: Plan, *, progress: Callable[[str, int], None] | None = None, force: bool = False,
+              backend: Any = None) -> Iterator[tuple[str, DeepResults, bool]]:
+    """Train (or load, where finished) every configuration into ``out``: on this machine, or with ``backend``
+    (a connected :class:`~rlcompare.experiment.backends.RayBackend`) as tasks on a cluster."""
     advance = None if progress is None else (lambda n: progress("deep", n))
-    yield from run_or_load(Path(out), plan.configs(), study=STUDY, progress=advance, force=force,
-                           workers=plan.workers)
+    if backend is None:
+        yield from run_or_load(Path(out), plan.configs(), study=STUDY, progress=advance, force=force,
+                               workers=plan.workers)
+        return
+    with store.output_directory(Path(out), store.Owner("study", STUDY), force=force):
+        yield from _trained_on(backend, Path(out), plan.configs(), advance)
+
+
+def seed_blocks(config: DeepConfig) -> list[DeepConfig]:
+    """``config`` cut into blocks of ``vmap_width`` seeds: each trains as it would in one program of the whole (a
+    seed's numbers depend on the width, not on the seeds beside it), so the merged blocks equal the whole."""
+    width = config.vmap_width
+    return [dataclasses.replace(config, seeds=config.seeds[first:first + width])
+            for first in range(0, len(config.seeds), width)]
+
+
+def _trained_on(backend: Any, out: Path, configs: dict[str, DeepConfig], progress: Callable[[int], None] | None
+                ) -> Iterator[tuple[str, DeepResults, bool]]:
+    """Every configuration ``out`` lacks as tasks of ``backend``, a block of seeds each; a configuration is saved
+    when its last block is back, so an interrupted study loses only the configurations it had not finished."""
+    trials, blocks, finished = [], {}, []
+    for name, config in configs.items():
+        stored = engines.load_if_complete(out / name, config)
+        if stored is not None:
+            if progress is not None:
+                progress(config.progress_total)
+            yield name, stored, True
+            continue
+        parts = seed_blocks(config)
+        blocks[name] = [None] * len(parts)
+        trials += [Trial(part, name, index) for index, part in enumerate(parts)]
+
+    def save(trial: Trial, results: DeepResults) -> None:
+        parts = blocks[trial.config_hash]
+        parts[trial.seed_index] = results
+        if progress is not None:
+            progress(len(results.seeds))
+        if all(part is not None for part in parts):
+            merged = merge_seeds(parts)
+            with store.output_directory(out / trial.config_hash, store.RUN):
+                merged.save(out / trial.config_hash)
+            finished.append((trial.config_hash, merged))
+
+    backend.run(trials, save)
+    for name, results in finished:
+        yield name, results, False
 
 
 def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
     plan = plan_of(options)
     configs = plan.configs()
+    backend = None
+    if options.address is not None:
+        backend = make_backend("ray", address=options.address)
+        backend.connect()  # a cluster that cannot be reached is reported before anything is written
+    where = f"on Ray at {options.address}" if backend else "on this machine"
     ui.say(f"MinAtar, {minatar.PROTOCOLS[plan.protocol].summary}: {len(configs)} trainings x {len(plan.seeds)} "
-           f"seeds x {plan.steps:,} steps (budget '{plan.budget}'); each compiles its program first.")
+           f"seeds x {plan.steps:,} steps (budget '{plan.budget}') {where}; each compiles its program first.")
     runs = {}
     with ui.tasks({"deep": sum(c.progress_total for c in configs.values())}) as advance:
-        for name, results, reused in reproduce(out, plan, force=force, progress=advance):
+        for name, results, reused in reproduce(out, plan, force=force, progress=advance, backend=backend):
             runs[name] = results
             ui.done(name, results, reused)
     return runs

@@ -105,6 +105,9 @@ class MinAtarOptions(Seeded):
     """Trainings at once. Default: one per core, at most 2."""
     videos: bool = True
     """Render videos of each method's agent at three stages of learning in every game."""
+    address: str | None = None
+    """Train on the Ray cluster at this address ('auto': the one 'ray start' began here; or HOST:PORT), each
+    training's blocks of up to 10 seeds a task, instead of on this machine."""
 
     def check(self) -> None:
         from rlcompare.envs.minatar import GAMES, PROTOCOLS
