@@ -239,3 +239,38 @@ def test_the_study_on_a_ray_cluster_equals_the_study_here(study, tmp_path):
     assert done.returncode == 0, done.stdout + done.stderr
     assert f"on Ray at {address}" in done.stdout
     _same_runs(tmp_path / "ray", here)
+
+
+def _results_with_finals(method: str, env: str, finals: np.ndarray):
+    from rlcompare.deep.run import DeepConfig, DeepResults
+
+    seeds = tuple(range(len(finals)))
+    evaluations = pd.DataFrame({"seed": seeds, "round": 0, "after_step": 100, "return": finals,
+                                "length": 10, "terminated": True})
+    return DeepResults(DeepConfig(algorithm=method, env=env, seeds=seeds), pd.DataFrame(), evaluations, {}, {})
+
+
+def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_the_games():
+    from rlcompare.studies.minatar import OVERALL_MARGIN, normalised, verdict_table
+
+    rng = np.random.default_rng(0)
+    floors = {"MinAtar/Breakout-v0": 0.5, "MinAtar/Asterix-v0": 1.0}
+    finals = {("pqn_sarsa_lambda", "MinAtar/Breakout-v0"): 10 + rng.normal(0, 0.5, 8),
+              ("pqn_q_lambda", "MinAtar/Breakout-v0"): 6 + rng.normal(0, 0.5, 8),
+              ("pqn_sarsa_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8),
+              ("pqn_q_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8)}
+    runs = {f"{m}-{e}": _results_with_finals(m, e, f) for (m, e), f in finals.items()}
+    scores = normalised(runs, floors)
+    verdicts = verdict_table(runs, ["breakout", "asterix"], scores)
+    assert verdicts["game"].tolist() == ["Breakout", "Asterix", "overall (normalised)"]
+    breakout_scale = finals[("pqn_sarsa_lambda", "MinAtar/Breakout-v0")].mean() - 0.5
+    asterix_scale = max(finals[(m, "MinAtar/Asterix-v0")].mean() for m in ("pqn_sarsa_lambda", "pqn_q_lambda")) - 1
+    by_hand = np.mean([(finals[("pqn_sarsa_lambda", e)] - finals[("pqn_q_lambda", e)]) / scale
+                       for e, scale in (("MinAtar/Breakout-v0", breakout_scale),
+                                        ("MinAtar/Asterix-v0", asterix_scale))], axis=0).mean()
+    assert verdicts["on - off (mean, 95% CI)"].iloc[2].startswith(f"{by_hand:.2f} [")
+    assert by_hand > OVERALL_MARGIN
+    p_values = verdicts["p (Holm)"].to_numpy()
+    assert p_values[0] == pytest.approx(3 * 2 / 2**8)  # every Breakout seed on one side: Holm's first of three
+    assert verdicts["verdict"].iloc[0].startswith("on-policy")
+    assert verdicts["verdict"].iloc[2].startswith("on-policy")
