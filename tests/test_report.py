@@ -20,16 +20,8 @@ from rlcompare.analysis.stats import VERDICTS
 from rlcompare.analysis.tables import COLUMNS, Claim, judge
 from rlcompare.experiment import rundir, store
 from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_report import (
-    CLAIMS,
-    CONFIGURATIONS,
-    FIGURES,
-    build_report,
-    curve_figure,
-    load_study,
-    stages_figure,
-    visits_figure,
-)
+from rlcompare.studies.paper_figures import curve_figure, stages_figure, visits_figure
+from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report, load_study
 
 runner = CliRunner(env={"COLUMNS": "200"})
 ABLATION = ("q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",
