@@ -1,0 +1,140 @@
+"""rliable's aggregate figures, drawn here on our own statistics (:mod:`rlcompare.analysis.profiles`): interval
+estimates of the median, IQM, mean and optimality gap, the probability of improvement between methods, IQM
+sample-efficiency curves and performance profiles, each with its 95% stratified bootstrap interval or band (Agarwal
+et al. 2021, "Deep Reinforcement Learning at the Edge of the Statistical Precipice", NeurIPS; rliable's
+``plot_utils``: ``plot_interval_estimates``, ``plot_probability_of_improvement``, ``plot_sample_efficiency_curve``
+and ``plot_performance_profiles``). rliable itself no longer imports with pandas 3.
+
+``scores`` maps each method's label (what the figure writes) to its ``(tasks, runs)`` normalised scores, every
+method over the same tasks. Each function returns a :class:`~matplotlib.figure.Figure` and touches no pyplot state;
+a method keeps one colour in every figure drawn with the same ``scores`` (:func:`method_colors`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.analysis.profiles import (
+    curve_band,
+    improvement_estimates,
+    interval_estimates,
+    profile_band,
+)
+
+NORMALISED = "normalised score"
+BAR = 0.6
+"""Height of an interval's bar, in rows (rliable's ``interval_height``)."""
+
+
+def method_colors(methods: Sequence[str]) -> dict[str, str]:
+    """Matplotlib's colour cycle in the order of ``methods``: the same method the same colour in every figure."""
+    return {method: f"C{index % 10}" for index, method in enumerate(methods)}
+
+
+def _interval_row(ax, row: int, value: float, low: float, high: float, color: str) -> None:
+    """rliable's interval estimate: a bar over the interval and a black tick at the point estimate."""
+    if np.isfinite(low) and np.isfinite(high):
+        ax.barh(row, high - low, height=BAR, left=low, color=color, alpha=0.75)
+    ax.vlines(value, row - BAR * 7.5 / 16, row + BAR * 6 / 16, color="k", alpha=0.6)
+
+
+def interval_figure(scores: Mapping[str, np.ndarray], xlabel: str = NORMALISED, *,
+                    estimates: pd.DataFrame | None = None, resamples: int = 2000) -> Figure:
+    """One panel per aggregate metric (median, IQM, mean, optimality gap), one row per method: the 95% stratified
+    bootstrap interval as a bar, the point estimate as a tick (rliable's ``plot_interval_estimates``).
+    ``estimates``: :func:`~rlcompare.analysis.profiles.interval_estimates` of ``scores``, where already computed."""
+    if estimates is None:
+        estimates = interval_estimates(scores, resamples=resamples)
+    methods, metrics = list(scores), list(dict.fromkeys(estimates["metric"]))
+    colors = method_colors(methods)
+    figure = Figure(figsize=(3.1 * len(metrics), 1.3 + 0.42 * len(methods)), layout="constrained")
+    axes = figure.subplots(1, len(metrics), squeeze=False)[0]
+    for ax, metric in zip(axes, metrics, strict=True):
+        chosen = estimates[estimates["metric"] == metric].set_index("method")
+        for row, method in enumerate(methods):
+            estimate = chosen.loc[method]
+            _interval_row(ax, row, estimate["value"], estimate["low"], estimate["high"], colors[method])
+        ax.set_yticks(range(len(methods)), methods) if ax is axes[0] else ax.set_yticks([])
+        ax.set_ylim(len(methods) - 0.5, -0.5)  # the first method on top
+        ax.set_title(metric + (" (lower is better)" if metric == "optimality gap" else ""), fontsize="medium")
+        ax.xaxis.get_major_locator().set_params(nbins=4)
+        ax.tick_params(axis="y", length=0)
+        ax.grid(axis="x", alpha=0.3)
+        ax.spines[["left", "top", "right"]].set_visible(False)
+    figure.supxlabel(f"{xlabel} (95% stratified bootstrap intervals)", fontsize="medium")
+    return figure
+
+
+def improvement_figure(scores: Mapping[str, np.ndarray], pairs: Sequence[tuple[str, str]] | None = None, *,
+                       estimates: pd.DataFrame | None = None, resamples: int = 2000) -> Figure:
+    """One row per pair of methods ``(X, Y)`` (default: every ordered pair): P(X > Y), the chance that a run of X
+    beats a run of Y on a task, averaged over the tasks, its 95% stratified bootstrap interval as a bar and a dashed
+    line at 0.5, X named on the left and Y on the right (rliable's ``plot_probability_of_improvement``).
+    ``estimates``: :func:`~rlcompare.analysis.profiles.improvement_estimates`, where already computed."""
+    if estimates is None:
+        estimates = improvement_estimates(scores, pairs, resamples=resamples)
+    colors = method_colors(list(scores))
+    rows = len(estimates)
+    figure = Figure(figsize=(7, 1.2 + 0.36 * rows), layout="constrained")
+    ax = figure.subplots()
+    for row, pair in enumerate(estimates.itertuples()):
+        _interval_row(ax, row, pair.value, pair.low, pair.high, colors[pair.X])
+    ax.axvline(0.5, color="0.4", linestyle="--", linewidth=1)
+    ax.set_xlim(0, 1)
+    ax.set_ylim(rows - 0.5, -0.5)
+    ax.set_yticks(range(rows), list(estimates["X"]))
+    ax.set_ylabel("X")
+    twin = ax.twinx()
+    twin.set_ylim(ax.get_ylim())
+    twin.set_yticks(range(rows), list(estimates["Y"]))
+    twin.set_ylabel("Y")
+    ax.set_xlabel("P(X > Y), averaged over tasks (95% stratified bootstrap interval)")
+    ax.grid(axis="x", alpha=0.3)
+    return figure
+
+
+def sample_efficiency_figure(x: np.ndarray, curves: Mapping[str, np.ndarray], xlabel: str, *,
+                             ylabel: str = f"IQM of {NORMALISED}", resamples: int = 2000) -> Figure:
+    """IQM over every task and run of each method's ``(tasks, runs, points)`` curves at each ``x`` (frames, steps,
+    episodes), with its 95% stratified bootstrap band, one line per method (rliable's
+    ``plot_sample_efficiency_curve``)."""
+    colors = method_colors(list(curves))
+    figure = Figure(figsize=(7, 4.2), layout="constrained")
+    ax = figure.subplots()
+    for method, values in curves.items():
+        point, low, high = curve_band(values, resamples=resamples)
+        ax.plot(x, point, color=colors[method], marker="o", markersize=3, linewidth=1.5, label=method)
+        ax.fill_between(x, low, high, color=colors[method], alpha=0.2, linewidth=0)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return figure
+
+
+def profile_figure(scores: Mapping[str, np.ndarray], xlabel: str = NORMALISED, *,
+                   thresholds: np.ndarray | None = None, resamples: int = 2000) -> Figure:
+    """Performance profiles: the fraction of runs, over every task, whose score is above each threshold τ, with a
+    95% stratified bootstrap band (rliable's ``plot_performance_profiles``; Agarwal et al. 2021, Figure 5).
+    ``thresholds``: by default from the lower of 0 and the lowest score to the higher of 1 and the highest."""
+    if thresholds is None:
+        pooled = np.concatenate([np.ravel(values) for values in scores.values()])
+        finite = pooled[np.isfinite(pooled)]
+        thresholds = np.linspace(finite.min(initial=0.0), finite.max(initial=1.0), 81)
+    colors = method_colors(list(scores))
+    figure = Figure(figsize=(7, 4.2), layout="constrained")
+    ax = figure.subplots()
+    for method, values in scores.items():
+        profile, low_band, high_band = profile_band(values, thresholds, resamples=resamples)
+        ax.plot(thresholds, profile, color=colors[method], linewidth=1.5, label=method)
+        ax.fill_between(thresholds, low_band, high_band, color=colors[method], alpha=0.2, linewidth=0)
+    ax.set_xlabel(f"{xlabel} τ")
+    ax.set_ylabel("fraction of runs with score > τ")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return figure

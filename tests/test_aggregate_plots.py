@@ -1,0 +1,107 @@
+"""rliable's aggregate figures as drawn here: what each panel, bar, line and label shows, read back from the figure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.collections import LineCollection
+from matplotlib.colors import to_rgba
+from matplotlib.patches import Rectangle
+
+from rlcompare.analysis.aggregate_plots import (
+    improvement_figure,
+    interval_figure,
+    method_colors,
+    profile_figure,
+    sample_efficiency_figure,
+)
+from rlcompare.analysis.profiles import improvement_estimates, interval_estimates, iqm_curve
+
+RESAMPLES = 200
+
+
+@pytest.fixture(scope="module")
+def scores() -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    return {"SARSA(λ)": rng.normal(0.8, 0.2, (3, 10)), "Q(λ)": rng.normal(0.5, 0.3, (3, 10)),
+            "PPO": rng.normal(1.0, 0.1, (3, 10))}
+
+
+def _bars(ax) -> list[Rectangle]:
+    return [p for p in ax.patches if isinstance(p, Rectangle)]
+
+
+def _labels(ax) -> list[str]:
+    return [label.get_text() for label in ax.get_yticklabels()]
+
+
+def test_the_interval_figure_has_a_panel_per_metric_and_a_bar_per_method_over_its_interval(scores):
+    estimates = interval_estimates(scores, resamples=RESAMPLES)
+    figure = interval_figure(scores, estimates=estimates)
+    axes = figure.axes
+    assert [ax.get_title() for ax in axes] == ["median", "IQM", "mean", "optimality gap (lower is better)"]
+    assert _labels(axes[0]) == ["SARSA(λ)", "Q(λ)", "PPO"]
+    assert all(_labels(ax) == [] for ax in axes[1:])
+    for ax, metric in zip(axes, ["median", "IQM", "mean", "optimality gap"], strict=True):
+        bars = _bars(ax)
+        assert len(bars) == 3
+        expected = estimates[estimates["metric"] == metric]
+        np.testing.assert_allclose([b.get_x() for b in bars], expected["low"])
+        np.testing.assert_allclose([b.get_x() + b.get_width() for b in bars], expected["high"])
+        ticks = [c.get_segments()[0] for c in ax.collections if isinstance(c, LineCollection)]
+        np.testing.assert_allclose([segment[0, 0] for segment in ticks], expected["value"])
+    colors = method_colors(list(scores))
+    assert [b.get_facecolor() for b in _bars(axes[0])] == [to_rgba(colors[m], 0.75) for m in scores]
+    assert len(set(colors.values())) == 3
+
+
+def test_a_method_without_an_interval_gets_its_tick_and_no_bar():
+    scores = {"one run": np.array([[0.2], [0.4]]), "two runs": np.array([[0.1, 0.3], [0.5, 0.7]])}
+    figure = interval_figure(scores, resamples=RESAMPLES)
+    assert all(len(_bars(ax)) == 1 for ax in figure.axes)
+
+
+def test_the_improvement_figure_has_a_row_per_ordered_pair_and_a_line_at_one_half(scores):
+    estimates = improvement_estimates(scores, resamples=RESAMPLES)
+    figure = improvement_figure(scores, estimates=estimates)
+    ax, twin = figure.axes
+    assert len(_bars(ax)) == 6
+    assert _labels(ax) == ["SARSA(λ)", "SARSA(λ)", "Q(λ)", "Q(λ)", "PPO", "PPO"]
+    assert _labels(twin) == ["Q(λ)", "PPO", "SARSA(λ)", "PPO", "SARSA(λ)", "Q(λ)"]
+    assert any(np.allclose(line.get_xdata(), 0.5) for line in ax.get_lines())
+    np.testing.assert_allclose([b.get_x() for b in _bars(ax)], estimates["low"])
+    assert ax.get_xlim() == (0.0, 1.0)
+    chosen = improvement_figure(scores, [("PPO", "Q(λ)")], resamples=RESAMPLES)
+    assert _labels(chosen.axes[0]) == ["PPO"]
+    assert _labels(chosen.axes[1]) == ["Q(λ)"]
+
+
+def test_the_sample_efficiency_figure_draws_each_methods_iqm_curve_with_its_band():
+    rng = np.random.default_rng(1)
+    x = np.arange(1, 6) * 1000
+    curves = {"a": np.linspace(0, 1, 5) + rng.normal(0, 0.1, (2, 6, 5)), "b": rng.normal(0, 0.1, (2, 6, 5))}
+    figure = sample_efficiency_figure(x, curves, "environment steps", resamples=RESAMPLES)
+    ax, = figure.axes
+    lines = ax.get_lines()
+    assert [line.get_label() for line in lines] == ["a", "b"]
+    np.testing.assert_allclose(lines[0].get_xdata(), x)
+    np.testing.assert_allclose(lines[0].get_ydata(), iqm_curve(curves["a"]))
+    assert len(ax.collections) == 2  # one band per method
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("environment steps", "IQM of normalised score")
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["a", "b"]
+
+
+def test_the_profile_figure_draws_a_falling_profile_and_band_per_method(scores):
+    figure = profile_figure(scores, "score", resamples=RESAMPLES)
+    ax, = figure.axes
+    lines = ax.get_lines()
+    assert [line.get_label() for line in lines] == list(scores)
+    for line in lines:
+        assert np.all(np.diff(line.get_ydata()) <= 0)
+        assert line.get_ydata()[0] == 1.0
+        assert line.get_ydata()[-1] == 0.0
+    assert len(ax.collections) == 3
+    assert ax.get_xlabel() == "score τ"
+    thresholds = np.linspace(0, 2, 5)
+    chosen = profile_figure(scores, thresholds=thresholds, resamples=RESAMPLES)
+    np.testing.assert_allclose(chosen.axes[0].get_lines()[0].get_xdata(), thresholds)
