@@ -105,31 +105,49 @@ def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findi
     for _ in reproduce(paper_dir, configs):
         pass
     outcome = build_report(paper_dir, videos=False)
-    assert all("SARSA - Q-Learning =" in sentence for sentence in outcome.lines[:3])  # three direction claims
-    assert outcome.lines[3].startswith("Of the paper's 9 claims tested here:")
+    assert [s[:len("With ε decaying, SARSA collects")] for s in outcome.lines[:2]] == [
+        "With ε constant, SARSA collects", "With ε decaying, SARSA collects"]  # a sentence per schedule
+    assert outcome.lines[2].startswith("Of the paper's 9 claims tested here:")
     # the same cells, run by either study, give the same decomposition
-    assert outcome.lines[4:] == why.findings(decomposition(runs))[:len(outcome.lines) - 4]
+    assert outcome.lines[3:] == why.findings(decomposition(runs))[:len(outcome.lines) - 3]
     page = outcome.path.read_text()
-    assert page.index("<h2>Findings</h2>") < page.index("<h2>Setting</h2>")
+    assert page.index(">The answer</h2>") < page.index('href="#setting"') < page.index(">Setting</h2>")
 
 
-def test_findings_follow_the_labels():
+def test_the_opening_says_the_gaps_in_words_with_the_labels():
     import pandas as pd
 
-    from rlcompare.analysis.findings import answer, tally
+    from rlcompare.analysis.compare import compare_paired
+    from rlcompare.analysis.findings import gap_and_interval, more_or_less, opening, tally
+    from rlcompare.analysis.stats import Estimate
     from rlcompare.analysis.tables import Claim
 
-    claims = [Claim("a", "constant", "behaviour_return"), Claim("b", "decay", "greedy_return"),
-              Claim("c", "decay", "convergence_episode", kind="same", value=10)]
-    verdicts = pd.DataFrame({"verdict": ["supported", "contradicted", "not resolved (fragile)"],
-                             "estimate": ["5.0 [1.0, 9.0]", "-4.0 [-6.0, -2.0]", "1 [-20, 22]"],
-                             "p (Holm)": [0.01, 0.02, 0.5], "fragile": [False, False, True]})
-    sentences = answer(claims, verdicts)
-    assert len(sentences) == 2
-    assert sentences[0].startswith("With ε constant, while learning")
-    assert "SARSA beats" in sentences[0]
-    assert "Q-Learning beats on-policy SARSA" in sentences[1]
-    assert tally(verdicts) == ("Of the paper's 3 claims tested here: 1 supported, 1 contradicted, 1 not resolved; "
+    claims = [Claim("a", "constant", "behaviour_return"), Claim("b", "constant", "greedy_return"),
+              Claim("c", "decay", "behaviour_return", sign=-1), Claim("d", "decay", "greedy_return", kind="same",
+                                                                      value=20),
+              Claim("e", "decay", "convergence_episode", kind="same", value=10)]
+    verdicts = pd.DataFrame({"verdict": ["supported", "not resolved", "supported", "supported",
+                                         "not resolved (fragile)"],
+                             "p (Holm)": [0.01, 0.3, 0.02, 0.01, 0.5], "fragile": [False] * 4 + [True]})
+    rng = np.random.default_rng(0)
+    metrics = {name: pd.DataFrame({"behaviour_return": rng.normal(shift, 1, 8), "greedy_return": rng.normal(0, 5, 8)})
+               for name, shift in (("sarsa-constant", 5), ("q_learning-constant", 0), ("sarsa-decay", -3),
+                                   ("q_learning-decay", 0))}
+    sentences = opening(claims, verdicts, metrics)
+    gap = compare_paired(metrics["sarsa-constant"]["behaviour_return"].to_numpy(),
+                         metrics["q_learning-constant"]["behaviour_return"].to_numpy(), improvement=False).difference
+    words, interval = gap_and_interval(gap)
+    assert sentences[0].startswith(f"With ε constant, SARSA collects {words} reward per episode than Q-Learning while "
+                                   f"it learns ({interval}; SARSA better, with the 5 claims corrected together)")
+    assert "; not resolved once the 5 claims are corrected together). 8 paired seeds." in sentences[0]
+    assert " less reward per episode than Q-Learning while it learns (95% interval" in sentences[1]
+    assert "; Q-Learning better, with the 5 claims corrected together)" in sentences[1]  # the claim: SARSA lower
+    assert "; the same within ±20: supported)" in sentences[1]
+    assert more_or_less(Estimate(8.68, 1.89, 14.5)) == "8.7 more (95% interval 1.9 to 14.5)"
+    assert more_or_less(Estimate(-3.1, -5.0, -1.2)) == "3.1 less (95% interval 1.2 to 5.0)"
+    assert more_or_less(Estimate(14.2, -19.8, 88.0)) == "14.2 more (95% interval 19.8 less to 88.0 more)"
+    assert more_or_less(Estimate(-250.0, -600.0, -120.0)) == "250 less (95% interval 120 to 600)"
+    assert tally(verdicts) == ("Of the paper's 5 claims tested here: 3 supported, 2 not resolved; "
                                "1 of them fragile (the label changes with the convergence rule).")
 
 

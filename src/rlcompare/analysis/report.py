@@ -7,10 +7,12 @@ archived as a whole and opened without a server or a network.
 from __future__ import annotations
 
 import html
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
@@ -19,8 +21,13 @@ from rlcompare.experiment.store import write_atomic
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2rem auto; max-width: 1200px; color: #222; line-height: 1.45; }
 h1 { font-size: 1.6rem; } h2 { border-bottom: 1px solid #ddd; padding-bottom: .2rem; margin-top: 2.2rem; }
-table { border-collapse: collapse; margin: .8rem 0; font-size: .9rem; }
-th, td { border: 1px solid #ccc; padding: .3rem .6rem; text-align: right; }
+table { border-collapse: collapse; margin: .8rem 0; font-size: .9rem; max-width: 100%; }
+th, td { border: 1px solid #ccc; padding: .3rem .6rem; text-align: right; overflow-wrap: anywhere; }
+td:first-child { min-width: 8rem; }
+.table-wrap { max-width: 100%; overflow-x: auto; }
+h3 .files { font-size: .8rem; font-weight: normal; margin-left: .6rem; }
+nav.contents { background: #f6f8fa; padding: .4rem 1rem; margin: 1.5rem 0; }
+nav.contents ol { margin: .3rem 0; columns: 2; }
 th:first-child, td:first-child { text-align: left; }
 th { background: #f3f3f3; }
 figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #eee; }
@@ -41,7 +48,8 @@ class Section:
 
     title: str
     paragraphs: list[str] = field(default_factory=list)
-    tables: list[tuple[str, pd.DataFrame]] = field(default_factory=list)
+    tables: list[tuple[str, pd.DataFrame] | tuple[str, pd.DataFrame, str]] = field(default_factory=list)
+    """(caption, table) or (caption, table, relative path of its CSV file)"""
     figures: list[tuple[str, str]] = field(default_factory=list)
     """(relative path, caption)"""
     videos: list[tuple[str, str, str]] = field(default_factory=list)
@@ -57,15 +65,53 @@ def _verdict_cell(match: re.Match[str]) -> str:
     return f'<td class="{classes}">{label}{fragile or ""}</td>'
 
 
-def _table_html(caption: str, frame: pd.DataFrame) -> str:
-    body = frame.to_html(index=False, escape=True, border=0, na_rep="", float_format=lambda v: f"{v:.3g}")
-    return f"<h3>{html.escape(caption)}</h3>\n{_VERDICT_CELL.sub(_verdict_cell, body)}"
+NO_DATA = "no data"
+"""What a table shows where it has no number."""
+
+
+def plain_number(value: float) -> str:
+    """A number as a reader writes it: thousands separated, about three significant digits, never an exponent
+    (``2,490``, ``-176``, ``8.68``, ``0.0012``); NaN is :data:`NO_DATA`."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return NO_DATA
+    if float(value).is_integer() and abs(value) < 1e15:
+        return f"{int(value):,}"
+    size = abs(value)
+    if size >= 100:
+        return f"{value:,.0f}"
+    if size >= 1:
+        return f"{value:.{2 if size < 10 else 1}f}"
+    return np.format_float_positional(value, precision=3, unique=True, fractional=False, trim="-")
+
+
+def shown(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` as a reader sees it: numbers plain (:func:`plain_number`), missing values :data:`NO_DATA`."""
+    def cell(value: object) -> object:
+        if isinstance(value, bool | np.bool_):
+            return value
+        if isinstance(value, int | float | np.integer | np.floating):
+            return plain_number(float(value))
+        return NO_DATA if value is None or value is pd.NA else value
+
+    return frame.map(cell) if not frame.empty else frame
+
+
+def _table_html(caption: str, frame: pd.DataFrame, csv: str = "") -> str:
+    body = shown(frame).to_html(index=False, escape=True, border=0, na_rep=NO_DATA)
+    link = f' <a class="files" href="{html.escape(csv)}">CSV</a>' if csv else ""
+    return (f"<h3>{html.escape(caption)}{link}</h3>\n"
+            f'<div class="table-wrap">{_VERDICT_CELL.sub(_verdict_cell, body)}</div>')
+
+
+def anchor(title: str) -> str:
+    """The id of a section's heading: its title in lower case, words joined by hyphens."""
+    return re.sub(r"[^a-z0-9]+", "-", title.lower()).strip("-") or "section"
 
 
 def _section_html(section: Section) -> str:
-    parts = [f"<h2>{html.escape(section.title)}</h2>"]
+    parts = [f'<h2 id="{anchor(section.title)}">{html.escape(section.title)}</h2>']
     parts += [f"<p>{html.escape(text)}</p>" for text in section.paragraphs]
-    parts += [_table_html(caption, frame) for caption, frame in section.tables]
+    parts += [_table_html(*table) for table in section.tables]
     parts += [
         f'<figure><img src="{html.escape(path)}" alt="{html.escape(caption)}">'
         f"<figcaption>{html.escape(caption)}</figcaption></figure>"
@@ -87,9 +133,17 @@ def render_report(title: str, sections: list[Section], problems: list[str]) -> s
     if problems:
         items = "".join(f"<li>{html.escape(p)}</li>" for p in problems)
         warning = f'<div class="problems"><strong>Incomplete:</strong><ul>{items}</ul></div>'
-    body = "\n".join(_section_html(s) for s in sections)
+    parts = [_section_html(s) for s in sections]
+    if len(sections) > 2:  # the answer first, then what the page holds
+        parts.insert(1, _contents(sections[1:]))
+    body = "\n".join(parts)
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
             f"<style>{_STYLE}</style></head>\n<body><h1>{html.escape(title)}</h1>\n{warning}\n{body}\n</body></html>\n")
+
+
+def _contents(sections: list[Section]) -> str:
+    items = "".join(f'<li><a href="#{anchor(s.title)}">{html.escape(s.title)}</a></li>' for s in sections)
+    return f'<nav class="contents"><strong>On this page</strong><ol>{items}</ol></nav>'
 
 
 def save_figure(figure: Figure, path: Path, dpi: int = 100) -> str:
@@ -101,11 +155,13 @@ def save_figure(figure: Figure, path: Path, dpi: int = 100) -> str:
     return f"{path.parent.name}/{path.name}"
 
 
-def write_table(frame: pd.DataFrame, directory: Path, name: str) -> None:
-    """``name.csv`` and ``name.md`` of ``frame`` in ``directory``."""
+def write_table(frame: pd.DataFrame, directory: Path, name: str) -> str:
+    """``name.csv`` (every digit) and ``name.md`` (as the page shows it) of ``frame`` in ``directory``; the CSV's
+    path relative to the study directory, for the page's link."""
     write_atomic(directory / f"{name}.csv", lambda handle: handle.write(frame.to_csv(index=False).encode()))
-    markdown = frame.to_markdown(index=False) + "\n"
+    markdown = shown(frame).to_markdown(index=False) + "\n"
     write_atomic(directory / f"{name}.md", lambda handle: handle.write(markdown.encode()))
+    return f"{directory.name}/{name}.csv"
 
 
 def write_report(path: Path, title: str, sections: list[Section], problems: list[str]) -> Path:

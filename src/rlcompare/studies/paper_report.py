@@ -17,7 +17,7 @@ import pandas as pd
 
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import has_start_region
-from rlcompare.analysis.findings import paper_findings
+from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, paper_findings
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA, interval
 from rlcompare.analysis.tables import (
@@ -161,13 +161,11 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
         "verdicts": judgement.verdicts,
         "verdict_rules": judgement.rules,
     }
-    for name, frame in tables.items():
-        write_table(frame, tables_dir, name)
     split = decomposition(runs)
     if not split.empty:
         tables["decomposition"] = formatted(split)
-        write_table(tables["decomposition"], tables_dir, "decomposition")
-    findings = paper_findings(claims, judgement.verdicts, why_findings(split) if not split.empty else None)
+    files = {name: write_table(frame, tables_dir, name) for name, frame in tables.items()}
+    findings = paper_findings(claims, judgement.verdicts, metrics, why_findings(split) if not split.empty else None)
     seconds["tables and verdicts"] = time.perf_counter() - started
 
     mark = time.perf_counter()
@@ -200,8 +198,8 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
             video_cells.append((f"videos/{job.mp4.name}", f"videos/{gif.name}" if gif is not None else "", caption))
         seconds["videos"] = time.perf_counter() - (renders.started or started)
 
-    sections = [Section("Findings", findings),
-                *_sections(first, runs, metrics, tables, curve_figures, explanation_figures, video_cells)]
+    sections = [Section("The answer", [*findings, BEHAVIOUR_AND_GREEDY]),
+                *_sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells)]
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
@@ -301,7 +299,7 @@ ORDER_TEXT = (
     "mean over seeds with 95% BCa intervals. `rlcompare reproduce why` adds Expected SARSA's expectation target.")
 
 
-def _sections(first, runs, metrics, tables, curve_figures, explanation_figures, video_cells) -> list[Section]:
+def _sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells) -> list[Section]:
     c = first.config
     setting = pd.DataFrame({
         "setting": ["environment", "grid", "α", "γ", "episode limit", "ε constant", "ε decay", "episodes",
@@ -317,17 +315,18 @@ def _sections(first, runs, metrics, tables, curve_figures, explanation_figures, 
         Section("Setting", ["Configurations read: " + ", ".join(runs) + "."],
                 tables=[("Configuration", setting.astype(str)), ("Versions", versions)]),
         Section("Table I: time to converge", [_table_i_text(c), *schedule_notes(runs, metrics)],
-                tables=[("Table I", tables["table_i"])]),
+                tables=[("Table I", tables["table_i"], files["table_i"])]),
         Section("Table II: mean cumulative reward", [
             "Behaviour: the ε-greedy return averaged over every training episode of a seed. Greedy: the return "
             "of the final greedy policy. Mean and interquartile mean over seeds, 95% bootstrap intervals."],
-            tables=[("Table II", tables["table_ii"])]),
+            tables=[("Table II", tables["table_ii"], files["table_ii"])]),
         Section("Verdicts on the paper's claims", [*_verdict_text(), family(tables["verdicts"])],
-                tables=[("Verdicts", tables["verdicts"]), ("Convergence verdicts under each rule",
-                                                           tables["verdict_rules"])]),
+                tables=[("Verdicts", tables["verdicts"], files["verdicts"]),
+                        ("Convergence verdicts under each rule", tables["verdict_rules"], files["verdict_rules"])]),
         Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),
         *([Section("Why: the target against the order of choosing A'", [ORDER_TEXT],
-                   tables=[("SARSA minus Q-Learning, decomposed", tables["decomposition"])])]
+                   tables=[("SARSA minus Q-Learning, decomposed", tables["decomposition"],
+                             files["decomposition"])])]
           if "decomposition" in tables else []),
         Section("Why: policies, values, visits and first actions", figures=explanation_figures)
         if explanation_figures else Section("Why", ["The maps over position and velocity are Mountain Car's."]),

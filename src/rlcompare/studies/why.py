@@ -31,7 +31,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
-from rlcompare.analysis.findings import SCHEDULE_TEXT
+from rlcompare.analysis.findings import SCHEDULE_TEXT, amount, more_or_less
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
@@ -199,8 +199,8 @@ CAUSE_TEXT = {"order": "the order of choosing A' and updating", "target": "the t
 
 
 def findings(frame: pd.DataFrame) -> list[str]:
-    """Two sentences per schedule: how large the gap is while learning and which part makes the most of it;
-    then the same for the greedy policies of the last window."""
+    """Two sentences per schedule: how large the gap is while learning and what it is made of, each part signed,
+    the largest named; then the same for the greedy policies of the last window."""
     sentences = []
     for schedule in SCHEDULES:
         rows = frame[(frame["schedule"] == schedule) & (frame["return"] == "behaviour")
@@ -209,23 +209,24 @@ def findings(frame: pd.DataFrame) -> list[str]:
             continue
         row = rows.iloc[0]
         total: Estimate = row["SARSA - Q-Learning"]
-        parts = ", ".join(f"{term} {row[term].format(1)}" for term in DECOMPOSITION)
         largest = max(DECOMPOSITION, key=lambda term: abs(row[term].value))
         sentences.append(
-            f"With {SCHEDULE_TEXT[schedule]}, SARSA's return while learning {_compared(total)} Q-Learning's by "
-            f"{abs(total.value):.1f} (SARSA - Q-Learning = {total.format(1)}) = {parts}. The largest part is "
-            f"{CAUSE_TEXT[largest]}, {row[largest].value:.1f} of {total.value:.1f} {_decided(row[largest])}.")
+            f"With {SCHEDULE_TEXT[schedule]}, SARSA's return while learning is {more_or_less(total)} than "
+            f"Q-Learning's. It is the sum of {_parts(row)}; the largest in size is {CAUSE_TEXT[largest]} "
+            f"{_decided(row[largest])}.")
         greedy = frame[(frame["schedule"] == schedule) & (frame["return"] == "greedy")]
         if not greedy.empty:
             last = greedy.iloc[-1]
-            sentences.append(f"The greedy policies of the {last['episodes']} episodes: SARSA - Q-Learning = "
-                             f"{last['SARSA - Q-Learning'].format(1)}, of which order {last['order'].format(1)} "
-                             f"and target {last['target'].format(1)}.")
+            sentences.append(f"The greedy policies of the {last['episodes']} episodes: SARSA's return is "
+                             f"{more_or_less(last['SARSA - Q-Learning'])}; {CAUSE_TEXT['order']} "
+                             f"{amount(last['order'], signed=True)}, {CAUSE_TEXT['target']} "
+                             f"{amount(last['target'], signed=True)}.")
     return sentences
 
 
-def _compared(total: Estimate) -> str:
-    return "exceeds" if total.value > 0 else "falls short of"
+def _parts(row: pd.Series) -> str:
+    parts = [f"{CAUSE_TEXT[term]} {amount(row[term], signed=True)}" for term in DECOMPOSITION]
+    return f"{', '.join(parts[:-1])} and {parts[-1]}"
 
 
 def _decided(estimate: Estimate) -> str:
