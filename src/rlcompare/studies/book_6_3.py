@@ -379,9 +379,9 @@ def report_6_3(out: Path, runs: dict[str, PhaseRuns]) -> Path:
     out = Path(out)
     table = numbers(runs)
     image = save_figure(figure_6_3(table), out / "figures" / "fig6_3.png")
-    write_table(table, out / "tables", "fig6_3")
+    table_file = write_table(table, out / "tables", "fig6_3")
     judged = verdicts(claims(runs))
-    write_table(judged, out / "tables", "verdicts")
+    verdicts_file = write_table(judged, out / "tables", "verdicts")
     timing, wall = timing_table(runs)
     interim, asymptotic = timing.iloc[0], timing.iloc[1]
     counts = (f"{interim['runs each']:,} runs x {interim['episodes per run']:,} episodes (interim) and "
@@ -404,7 +404,7 @@ def report_6_3(out: Path, runs: dict[str, PhaseRuns]) -> Path:
             "asymptotically (about -50: it learns the edge path and falls off while exploring), against about "
             "-20 to -25 for the safe path of the on-policy methods.",
             f"Episodes cut by the step limit ({MAX_STEPS:,} steps; the book has none): {cut}."],
-            tables=[("Mean return per episode [95% interval]", wide_table(table))],
+            tables=[("Mean return per episode [95% interval]", wide_table(table), table_file)],
             figures=[(image, "Figure 6.3, redrawn: solid asymptotic, dashed interim; the axis stops at -160 as the "
                              "book's does, and the value of a point below it is written at its edge")]),
         Section("The book's claims, on paired runs", [
@@ -414,7 +414,7 @@ def report_6_3(out: Path, runs: dict[str, PhaseRuns]) -> Path:
             "method at all. Each claim is a one-sided t test of the paired per-run differences against its "
             f"margin, Holm-corrected across all {len(judged)} claims at {ALPHA:g}. "
             + ", ".join(f"{n} {v}" for v, n in tally.items()) + "."],
-            tables=[("Verdicts", judged)]),
+            tables=[("Verdicts", judged, verdicts_file)]),
         Section("Run counts and wall time", [
             f"{wall_text}; the report took {time.perf_counter() - started:.1f} s more. The book's run counts "
             "are what the usual Python reproductions cut by 10 to 100 times."],

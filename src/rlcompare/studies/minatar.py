@@ -347,9 +347,9 @@ def _build_report(out: Path, videos: bool) -> Report:
     across = across_games_table(scores)
     improvement = improvement_table(scores)
     verdicts = verdict_table(runs, games, scores)
-    for name, frame in (("minatar_summary", summary), ("minatar_across_games", across),
-                        ("minatar_improvement", improvement), ("minatar_verdicts", verdicts)):
-        write_table(frame, tables, name)
+    files = {name: write_table(frame, tables, name) for name, frame in (
+        ("minatar_summary", summary), ("minatar_across_games", across), ("minatar_improvement", improvement),
+        ("minatar_verdicts", verdicts))}
     curve_figures = []
     for env in envs:
         path = figures / f"curves-{env.replace('/', '_')}.png"
@@ -371,18 +371,19 @@ def _build_report(out: Path, videos: bool) -> Report:
             f"game, ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
             f"the games; random 0, the best method here 1). p-values Holm-adjusted over the games and the overall "
             f"row; with {seeds} seeds the signed-rank test cannot give a p below "
-            f"{smallest_p(seeds):.3g}."], [("Verdicts", verdicts)]),
+            f"{smallest_p(seeds):.3g}."], [("Verdicts", verdicts, files["minatar_verdicts"])]),
         Section("Every game", [
             f"Final greedy (ε = 0): each seed's mean return in the last evaluation round of training, in the port. "
             f"At ε = {EVAL_EPSILON:g} (DQN's protocol): the same final network acting ε-greedily, {EPSILON_EPISODES} "
             f"episodes a seed played when this report was drawn. Random: the mean of {RANDOM_EPISODES} episodes of "
             "a uniformly random policy under the same protocol."],
-            [("Summary", summary)]),
+            [("Summary", summary, files["minatar_summary"])]),
         Section("Across games", [
             "Scores normalised game by game between the random policy (0) and the best method's mean here (1); "
             "IQM over every game and seed with a stratified bootstrap interval (Agarwal et al. 2021). The MinAtar "
             "paper's DQN scores are not used as the upper anchor: rlcompare has no citable table of them."],
-            [("IQM of normalised final returns", across), ("Probability of improvement", improvement)], profile),
+            [("IQM of normalised final returns", across, files["minatar_across_games"]),
+             ("Probability of improvement", improvement, files["minatar_improvement"])], profile),
         Section("Learning curves", figures=curve_figures),
         Section("The agents at three stages of learning", [
             "Each training's first seed, its networks after a tenth and half of the training and at its end, playing "

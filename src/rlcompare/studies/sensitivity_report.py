@@ -215,14 +215,14 @@ def build_report(out: Path) -> Report:
     sections = [Section("Summary", lines)]
     if not cells.empty:
         table = display_table(cells)
-        write_table(table, out / "tables", "cells")
+        table_file = write_table(table, out / "tables", "cells")
         config = store.read_json(trial_path(root, seeds["config"].iloc[0], seeds["seed"].iloc[0]) / rundir.CONFIG_FILE)
         sections += [
             Section("The grid", method_paragraphs(config, cells, len(seeds), manifest)),
             *(Section(METRICS[metric].capitalize(), figures=[(
                 save_figure(heatmap_figure(cells, metric), out / "figures" / f"heatmap-{metric}.png", dpi=90),
                 f"SARSA - Q-Learning on the {METRICS[metric]}; blue: SARSA returns more")]) for metric in METRICS),
-            Section("Cells", tables=[("SARSA against Q-Learning, cell by cell", table)]),
+            Section("Cells", tables=[("SARSA against Q-Learning, cell by cell", table, table_file)]),
         ]
     path = write_report(out / "report.html", "Sensitivity: SARSA against Q-Learning across settings", sections,
                         problems)

@@ -260,8 +260,9 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
             raise store.StoreError(f"{out}: no schedule has the four cells of Q-Learning and SARSA, each drawing "
                                    "before and after its update: " + "; ".join(problems))
         table = formatted(frame)
-        write_table(table, out / "tables", "decomposition")
-        write_table(cells_table(runs), out / "tables", "cells")
+        cells = cells_table(runs)
+        files = {name: write_table(frame, out / "tables", name) for name, frame in
+                 (("decomposition", table), ("cells", cells))}
         image = save_figure(decomposition_figure(frame), out / "figures" / "decomposition.png")
         first, sentences = next(iter(runs.values())), findings(frame)
         path = write_report(out / "report.html", "Why does SARSA win on Mountain Car? Target against order", [
@@ -275,8 +276,8 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
                 "after the update; its target's A' is drawn before it (docs/why.md). Mean over seeds with 95% "
                 f"BCa bootstrap intervals; {len(first.seeds)} seeds x {first.config.episodes} episodes, the "
                 "paper's setting otherwise."],
-                tables=[("SARSA minus Q-Learning, decomposed", table.astype(str)),
-                        ("Every cell", cells_table(runs))],
+                tables=[("SARSA minus Q-Learning, decomposed", table.astype(str), files["decomposition"]),
+                        ("Every cell", cells, files["cells"])],
                 figures=[(image, "The total and its three parts, per schedule and return")]),
         ], problems)
         return Report(path, sentences, problems)
