@@ -90,6 +90,49 @@ def test_value_map_averages_the_best_value_over_seeds(ax) -> None:
     assert np.ma.is_masked(image[1, 1]) or np.isnan(image[1, 1])
 
 
+def _blank(ax) -> np.ndarray:
+    """The cells a map leaves transparent: masked or NaN in its image (the map's own, drawn first)."""
+    image = ax.images[0].get_array()
+    return np.ma.getmaskarray(image) | np.isnan(np.ma.getdata(image))
+
+
+def test_value_map_masks_unvisited_cells_and_hatches_rarely_visited_ones(ax) -> None:
+    q = _tables_with_greedy([0, 1, 2])  # cells 0-2 updated by every seed; cell 3 by none at this snapshot
+    visits = np.array([[50, 50, 3, 0], [50, 50, 5, 0], [50, 50, 1, 0]])  # cell 2: 3 a seed; cell 3: never
+    plots.plot_value_map(ax, q, bins=2, frame=FRAME, vmin=-5.0, visits=visits, few_visits=20)
+    # cells are position_bin * 2 + velocity_bin; the image has velocity on rows
+    np.testing.assert_array_equal(_blank(ax), [[False, False], [False, True]])
+    assert ax.images[0].get_array()[0, 1] == pytest.approx(-1.0)  # a rarely visited cell keeps its value ...
+    assert ax.images[0].norm.vmin == -5.0
+    assert ax.images[0].norm.vmax == 0.0  # ... on the same scale
+    hatched = [c for c in ax.collections if c.get_gid() == "few-visits"]
+    assert len(hatched) == 1
+    (box,) = hatched[0].get_paths()
+    x_mid, y_mid = box.get_extents().get_points().mean(axis=0)
+    assert x_mid > (FRAME.extent[0] + FRAME.extent[1]) / 2 > FRAME.extent[0]  # cell 2: the right column ...
+    assert y_mid < (FRAME.extent[2] + FRAME.extent[3]) / 2  # ... bottom row
+    assert len(ax.images) == 1  # no cell is visited only later: nothing drawn beneath
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["never visited", "fewer than 20 visits a seed: value still near its initial 0"]
+
+
+def test_maps_tell_cells_visited_later_from_cells_never_visited(ax) -> None:
+    q = _tables_with_greedy([0, 1])  # cells 2 and 3 not updated at this snapshot
+    visits = np.array([[50, 50, 40, 0], [50, 50, 30, 0]])  # cell 2 is visited after it, cell 3 never
+    plots.plot_policy_map(ax, q[:2], bins=2, frame=FRAME, visits=visits, few_visits=20)
+    np.testing.assert_array_equal(_blank(ax), [[False, True], [False, True]])
+    beneath = ax.images[1]
+    assert beneath.get_zorder() < ax.images[0].get_zorder()
+    drawn_beneath = ~(np.ma.getmaskarray(beneath.get_array()) | np.isnan(np.ma.getdata(beneath.get_array())))
+    np.testing.assert_array_equal(drawn_beneath, [[False, True], [False, False]])  # cell 2 only: grey
+    assert not [c for c in ax.collections if c.get_gid() == "few-visits"]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == [*FRAME.actions, "never visited", "not visited yet"]
+    bare = Figure().subplots()
+    plots.plot_policy_map(bare, q[:2], bins=2, frame=FRAME, visits=visits, legend=False)
+    assert bare.get_legend() is None
+
+
 def test_visits_are_summed_over_seeds(ax) -> None:
     visits = np.array([[1, 0, 5, 0], [2, 0, 5, 0]])
     plots.plot_visits(ax, visits, bins=2, frame=FRAME)

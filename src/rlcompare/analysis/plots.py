@@ -9,9 +9,11 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.cm import ScalarMappable
+from matplotlib.collections import PatchCollection
 from matplotlib.colorbar import Colorbar
 from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch, Rectangle
 from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from rlcompare.analysis.curves import mean_band, moving_average, thinned
@@ -61,35 +63,94 @@ def _label_axes(ax: Axes, frame: MapFrame) -> None:
     ax.set_ylabel(frame.axes[1])
 
 
-def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame) -> Axes:
+def plot_policy_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame, *, visits: np.ndarray | None = None,
+                    few_visits: float = 0.0, legend: bool = True) -> Axes:
     """Greedy action in each cell, by majority over the seeds that updated it; cells none updated are blank.
 
     ``q_tables`` is ``(seeds, cells, actions)``. A fresh table holds zeros and every update with a reward
-    of -1 makes a value negative, so an all-zero row marks a cell that was never updated.
+    of -1 makes a value negative, so an all-zero row marks a cell that was never updated. ``visits`` and
+    ``few_visits`` mark the cells visited never, later or rarely (:func:`mark_visits`); ``legend=False`` leaves
+    the key to the figure (:func:`action_handles`, :func:`visit_handles`).
     """
     greedy = q_tables.argmax(axis=2)
     updated = np.any(q_tables != 0, axis=2)  # a seed that never updated a cell has no say in it
     counts = np.stack([((greedy == a) & updated).sum(axis=0) for a in range(q_tables.shape[2])])
     majority = counts.argmax(axis=0).astype(np.float64)
     majority[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
-    cmap = ListedColormap(ACTION_COLORS).with_extremes(bad="white")
+    cmap = ListedColormap(ACTION_COLORS).with_extremes(bad=(0, 0, 0, 0))  # blank: what lies beneath shows
     ax.imshow(_cell_grid(majority, bins), origin="lower", extent=frame.extent, aspect="auto", cmap=cmap,
-              norm=BoundaryNorm([-0.5, 0.5, 1.5, 2.5], cmap.N), interpolation="nearest")
-    handles = [mpl.patches.Patch(color=c, label=n) for c, n in zip(ACTION_COLORS, frame.actions, strict=True)]
-    ax.legend(handles=handles, loc="upper left", fontsize="x-small", framealpha=0.8)
+              norm=BoundaryNorm([-0.5, 0.5, 1.5, 2.5], cmap.N), interpolation="nearest", zorder=1)
+    marks = mark_visits(ax, np.isnan(majority), bins, frame, visits, few_visits)
+    if legend:
+        ax.legend(handles=action_handles(frame) + marks, loc="upper left", fontsize="x-small", framealpha=0.8)
     _label_axes(ax, frame)
     return ax
 
 
-def plot_value_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame, *, vmin: float | None = None) -> Axes:
-    """State value ``max_a Q(s, a)`` averaged over seeds; never-updated cells blank."""
+def plot_value_map(ax: Axes, q_tables: np.ndarray, bins: int, frame: MapFrame, *, vmin: float | None = None,
+                   visits: np.ndarray | None = None, few_visits: float = 0.0, legend: bool = True) -> Axes:
+    """State value ``max_a Q(s, a)`` averaged over seeds; never-updated cells blank. ``visits``, ``few_visits``
+    and ``legend`` as for :func:`plot_policy_map`."""
     values = q_tables.max(axis=2).mean(axis=0)
     values[~np.any(q_tables != 0, axis=(0, 2))] = np.nan
-    image = ax.imshow(_cell_grid(values, bins), origin="lower", extent=frame.extent, aspect="auto", cmap="viridis",
-                      vmin=vmin, vmax=0.0, interpolation="nearest")
+    cmap = mpl.colormaps["viridis"].with_extremes(bad=(0, 0, 0, 0))
+    image = ax.imshow(_cell_grid(values, bins), origin="lower", extent=frame.extent, aspect="auto", cmap=cmap,
+                      vmin=vmin, vmax=0.0, interpolation="nearest", zorder=1)
     colorbar_beside(ax, image, "max_a Q(s, a)")
+    marks = mark_visits(ax, np.isnan(values), bins, frame, visits, few_visits)
+    if legend and marks:
+        ax.legend(handles=marks, loc="upper left", fontsize="x-small", framealpha=0.8)
     _label_axes(ax, frame)
     return ax
+
+
+NOT_YET = "#e6e6e6"
+"""The fill of a map's cells that training visits only after the map's snapshot; cells it never visits stay
+white."""
+FEW_HATCH = (0.0, 0.0, 0.0, 0.55)
+
+
+def action_handles(frame: MapFrame) -> list[Patch]:
+    """The key to a policy map's colours."""
+    return [Patch(color=c, label=n) for c, n in zip(ACTION_COLORS, frame.actions, strict=True)]
+
+
+def visit_handles(few_visits: float = 0.0) -> list[Patch]:
+    """The key to :func:`mark_visits`."""
+    handles = [Patch(facecolor="white", edgecolor="#999999", linewidth=0.5, label="never visited"),
+               Patch(facecolor=NOT_YET, label="not visited yet")]
+    if few_visits > 0:
+        handles.append(Patch(facecolor="white", edgecolor=FEW_HATCH, hatch="////", linewidth=0,
+                             label=f"fewer than {few_visits:g} visits a seed: value still near its initial 0"))
+    return handles
+
+
+def mark_visits(ax: Axes, blank: np.ndarray, bins: int, frame: MapFrame, visits: np.ndarray | None,
+                few_visits: float = 0.0) -> list[Patch]:
+    """What a map's ``blank`` cells (transparent in its image) and its rarely visited cells are, from ``visits``
+    (``(seeds, cells)``, steps taken from each cell in all of training): cells no seed ever visited stay white,
+    cells visited only after the map's snapshot are filled light grey (:data:`NOT_YET`) beneath the image, and
+    cells visited fewer than ``few_visits`` times a seed on average are hatched over it. Returns the key's
+    entries (:func:`visit_handles`) of what is on this map."""
+    if visits is None:
+        return []
+    never = np.asarray(visits).sum(axis=0) == 0
+    later = blank & ~never
+    few = ~never & ~blank & (np.asarray(visits).mean(axis=0) < few_visits)
+    if later.any():
+        ax.imshow(_cell_grid(np.where(later, 1.0, np.nan), bins), origin="lower", extent=frame.extent,
+                  aspect="auto", cmap=ListedColormap([NOT_YET]), vmin=0, vmax=1, interpolation="nearest",
+                  zorder=0.5)
+    if few.any():
+        x_low, x_high, y_low, y_high = frame.extent
+        width, height = (x_high - x_low) / bins, (y_high - y_low) / bins
+        boxes = [Rectangle((x_low + (cell // bins) * width, y_low + (cell % bins) * height), width, height)
+                 for cell in np.flatnonzero(few)]  # cells are x_bin * bins + y_bin
+        ax.add_collection(PatchCollection(boxes, facecolor="none", edgecolor=FEW_HATCH, hatch="////", linewidth=0,
+                                          zorder=2, gid="few-visits"))
+    never_handle, later_handle, *few_handle = visit_handles(few_visits)
+    return ([never_handle] * bool(never.any()) + [later_handle] * bool(later.any())
+            + few_handle * bool(few.any()))
 
 
 def plot_visits(ax: Axes, visits: np.ndarray, bins: int, frame: MapFrame) -> Axes:
