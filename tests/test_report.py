@@ -16,11 +16,14 @@ from typer.testing import CliRunner
 
 from rlcompare import cli
 from rlcompare.analysis.convergence import RULES
-from rlcompare.analysis.stats import VERDICTS
-from rlcompare.analysis.tables import COLUMNS, Claim, judge
+from rlcompare.analysis.stats import VERDICTS, interval
+from rlcompare.analysis.tables import COLUMNS, Claim, judge, per_seed_metrics
+from rlcompare.engine.state import Records
 from rlcompare.experiment import rundir, store
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.experiment.results import Results
 from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_figures import curve_figure, stages_figure, visits_figure
+from rlcompare.studies.paper_figures import curve_figure, paired_difference_figure, stages_figure, visits_figure
 from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report, load_study
 
 runner = CliRunner(env={"COLUMNS": "200"})
@@ -109,6 +112,115 @@ def test_figures_laid_out_by_hand_keep_every_label_inside_and_apart(study: Path)
     columns = {round(ax.get_position().x0, 6) for ax in maps}
     assert len(columns) == len(maps) // 2  # the policy maps above line up with the value maps below
     assert {round(ax.get_position().width, 6) for ax in maps} == {round(maps[0].get_position().width, 6)}
+
+
+def _synthetic(algorithm: str, schedule: str, returns: np.ndarray, greedy: np.ndarray,
+               seeds: tuple[int, ...] = (0, 1, 2)) -> Results:
+    """A run with the given behaviour returns ``(seeds, episodes)`` and greedy returns ``(seeds, rounds,
+    episodes)``, every 50 episodes; nothing else of it is read by the figures."""
+    runs, episodes = returns.shape
+    config = ExperimentConfig(algorithm=algorithm, schedule=schedule, seeds=seeds, episodes=episodes, eval_every=50,
+                              eval_episodes=greedy.shape[2])
+    records = Records(returns=returns, lengths=np.ones((runs, episodes), dtype=np.int64),
+                      terminated=np.ones((runs, episodes), dtype=bool), eval_returns=greedy,
+                      eval_lengths=np.ones(greedy.shape, dtype=np.int64), eval_terminated=np.ones(greedy.shape, bool),
+                      snapshots=np.zeros((runs, 3, 4, 3)), snapshot_episodes=np.array([1, 2, 3]),
+                      visits=np.zeros((runs, 4), dtype=np.int64))
+    return Results(config=config, epsilons=np.full(episodes, 0.5), records=records, meta={})
+
+
+def _synthetic_pair(schedule: str = "constant", episodes: int = 300, gap: float = 10.0, seed: int = 0
+                    ) -> tuple[Results, Results]:
+    rng = np.random.default_rng(seed)
+    q = rng.normal(-400, 50, (3, episodes))
+    sarsa = q + gap + rng.normal(0, 5, (3, episodes))
+    q_greedy = rng.normal(-200, 20, (3, episodes // 50, 2))
+    return (_synthetic("sarsa", schedule, sarsa, q_greedy + rng.normal(gap, 8, q_greedy.shape)),
+            _synthetic("q_learning", schedule, q, q_greedy))
+
+
+def _trailing_mean(values: np.ndarray, window: int) -> np.ndarray:
+    return np.array([values[max(0, i + 1 - window):i + 1].mean() for i in range(values.size)])
+
+
+def test_curves_of_sarsa_and_q_learning_draw_their_paired_difference_below() -> None:
+    sarsa, q = _synthetic_pair()
+    figure = curve_figure([q, sarsa], "Fig. 6")
+    behaviour, greedy, difference, greedy_difference = figure.axes[:4]
+    assert "behaviour" in difference.get_title()
+    assert "100" in difference.get_title()
+    assert "greedy" in greedy_difference.get_title()
+    gap = sarsa.records.returns - q.records.returns
+    by_hand = np.mean([_trailing_mean(seed, 100) for seed in gap], axis=0)  # each seed smoothed, then the mean
+    line, zero = difference.get_lines()
+    np.testing.assert_allclose(line.get_xdata(), np.arange(1, 301))
+    np.testing.assert_allclose(line.get_ydata(), by_hand)
+    assert zero.get_ydata()[0] == 0
+    (band,) = difference.collections
+    low, high = band.get_paths()[0].vertices[:, 1].min(), band.get_paths()[0].vertices[:, 1].max()
+    assert low < by_hand.min()
+    assert by_hand.max() < high
+    greedy_gap = (sarsa.records.eval_returns.mean(axis=2) - q.records.eval_returns.mean(axis=2)).mean(axis=0)
+    np.testing.assert_allclose(greedy_difference.get_lines()[0].get_ydata(), greedy_gap)  # unsmoothed, as above
+    np.testing.assert_allclose(greedy_difference.get_lines()[0].get_xdata(), [50, 100, 150, 200, 250, 300])
+    assert "3 paired seeds" in line.get_label()
+    assert behaviour.get_ylabel().startswith("behaviour")
+    assert greedy.get_ylabel().startswith("greedy")
+    assert overlapping_or_cut(figure) == []
+
+
+def test_curves_draw_no_difference_unless_sarsa_and_q_learning_share_their_seeds() -> None:
+    sarsa, q = _synthetic_pair()
+    assert len(curve_figure([sarsa], "Fig. 5").axes) == 2
+    other_seeds = _synthetic("q_learning", "constant", q.records.returns, q.records.eval_returns, seeds=(3, 4, 5))
+    assert len(curve_figure([other_seeds, sarsa], "Fig. 6").axes) == 2
+    assert len(curve_figure([q, _synthetic_pair(seed=1)[1]], "two Q-Learning").axes) == 2
+
+
+def _panel(figure: Figure, metric: str):
+    return next(ax for ax in figure.axes if ax.get_title().startswith(metric))
+
+
+def test_paired_difference_figure_draws_each_seed_and_the_mean_with_its_interval() -> None:
+    constant, decay = _synthetic_pair("constant", gap=10.0), _synthetic_pair("decay", gap=-20.0, seed=2)
+    runs = {"sarsa-constant": constant[0], "q_learning-constant": constant[1], "sarsa-decay": decay[0],
+            "q_learning-decay": decay[1]}
+    figure = paired_difference_figure(runs)
+    assert "3 seeds" in figure.get_suptitle()
+    for metric, per_seed in (("behaviour", lambda r: r.records.returns.mean(axis=1)),
+                             ("greedy", lambda r: r.records.eval_returns[:, -1].mean(axis=1))):
+        ax = _panel(figure, metric)
+        for schedule, (sarsa, q) in (("constant", constant), ("decay", decay)):
+            differences = per_seed(sarsa) - per_seed(q)
+            (dots,) = [c for c in ax.collections if c.get_gid() == f"seeds-{schedule}"]
+            np.testing.assert_allclose(dots.get_offsets()[:, 1], differences)  # one dot a seed, in seed order
+            (bar,) = [c for c in ax.collections if c.get_gid() == f"interval-{schedule}"]
+            ((_, low), (_, high)), = bar.get_segments()
+            estimate = interval(differences)
+            assert (low, high) == pytest.approx((estimate.low, estimate.high))
+            assert low < differences.mean() < high
+        assert [line.get_ydata()[0] for line in ax.get_lines() if line.get_linestyle() == "-"][-1] == 0
+    assert np.mean(_panel(figure, "behaviour").collections[0].get_offsets()[:, 1]) == pytest.approx(10, abs=3)
+    del runs["q_learning-decay"]
+    one = paired_difference_figure(runs)
+    assert [c.get_gid() for c in _panel(one, "behaviour").collections if c.get_gid()] == [
+        "seeds-constant", "interval-constant"]
+    assert paired_difference_figure({"sarsa-decay": decay[0]}) is None
+
+
+def test_paired_difference_figure_reads_the_numbers_of_table_ii(study: Path) -> None:
+    runs, _ = load_study(study)
+    metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
+    figure = paired_difference_figure(runs, metrics)
+    assert overlapping_or_cut(figure) == []
+    for metric in ("behaviour_return", "greedy_return"):
+        ax = _panel(figure, metric.split("_")[0])
+        for schedule in ("constant", "decay"):
+            sarsa, q = metrics[f"sarsa-{schedule}"], metrics[f"q_learning-{schedule}"]
+            (dots,) = [c for c in ax.collections if c.get_gid() == f"seeds-{schedule}"]
+            np.testing.assert_allclose(dots.get_offsets()[:, 1], sarsa[metric] - q[metric])
+    np.testing.assert_allclose(paired_difference_figure(runs).axes[0].collections[0].get_offsets(),
+                               figure.axes[0].collections[0].get_offsets())  # the same numbers from the runs alone
 
 
 def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_copy: Path) -> None:
