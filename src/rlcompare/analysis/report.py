@@ -32,7 +32,7 @@ th:first-child, td:first-child { text-align: left; }
 th { background: #f3f3f3; }
 figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: .9rem; color: #555; }
-.videos { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr)); gap: 1rem; }
+.videos { display: grid; grid-template-columns: repeat(auto-fill, minmax(520px, 1fr)); gap: 1rem; }
 .videos video { width: 100%; }
 .problems { background: #fff4e5; border: 1px solid #f0b45b; padding: .6rem 1rem; }
 .verdict-supported { color: #1a7f37; font-weight: 600; } .verdict-contradicted { color: #c62828; font-weight: 600; }

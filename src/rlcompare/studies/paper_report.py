@@ -13,6 +13,7 @@ import dataclasses
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
@@ -115,14 +116,40 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
         return _build_report(Path(study_dir), videos, video_seed, video_workers)
 
 
+def video_seeds(results: Results) -> dict[str, int]:
+    """The seeds whose final greedy return is the median, the lowest and the highest (the lower middle one of an
+    even count; ties to the earlier seed), in that order and each once."""
+    final = results.records.eval_returns[:, -1].mean(axis=-1) if results.records.eval_returns.shape[1] else \
+        results.records.returns[:, -1]
+    order = np.argsort(final, kind="stable")
+    chosen: dict[str, int] = {}
+    for role, index in (("median", order[(len(order) - 1) // 2]), ("lowest", order[0]), ("highest", order[-1])):
+        seed = int(results.seeds[index])
+        if seed not in chosen.values():
+            chosen[role] = seed
+    return chosen
+
+
+WATCH_FOR = ("Watch the first seconds: the car must back up the left hill to gain the momentum it lacks; the paper "
+             "says SARSA with ε constant learns to push left first and Q-Learning to push forward first.")
+
+
 def _video_plan(study_dir: Path, runs: dict[str, Results], video_seed: int | None) -> list[tuple[str, VideoJob]]:
-    """Each video of the paper's configurations with its caption in the report, in the report's order."""
+    """Each video of the paper's configurations with its caption in the report, in the report's order: the median
+    seed (by its final greedy return) at every stage of learning, then the lowest and highest seeds' final
+    policies; only ``video_seed`` where one is asked for. The random baseline once."""
     plan = []
     for name, results in ((n, r) for n, r in runs.items() if n in CONFIGURATIONS):
-        seed = results.seeds[0] if video_seed is None else video_seed
-        for job in plan_stage_videos(study_dir / name, study_dir / "videos", seed=seed, config=results.config):
-            stage = "random policy" if results.config.algorithm == "random" else job.stage
-            plan.append((f"{label(results)}, seed {seed}: {stage}", job))
+        if video_seed is not None or results.config.algorithm == "random":
+            chosen = {"": results.seeds[0] if video_seed is None else video_seed}
+        else:
+            chosen = video_seeds(results)
+        for role, seed in chosen.items():
+            stages = None if role in ("", "median") else ["final"]
+            for job in plan_stage_videos(study_dir / name, study_dir / "videos", seed=seed, stages=stages,
+                                         config=results.config):
+                stage = "random policy" if results.config.algorithm == "random" else job.stage
+                plan.append((f"{label(results)}, {f'{role} ' if role else ''}seed {seed}: {stage}", job))
     return plan
 
 
@@ -331,6 +358,8 @@ def _sections(first, runs, metrics, tables, files, curve_figures, explanation_fi
         Section("Why: policies, values, visits and first actions", figures=explanation_figures)
         if explanation_figures else Section("Why", ["The maps over position and velocity are Mountain Car's."]),
         Section("Videos of the greedy agents at three stages of learning",
-                [f"Rendered by Gymnasium's own {c.environment.gymnasium_id} renderer from the same start state."]
+                [f"Rendered by Gymnasium's own {c.environment.gymnasium_id} renderer from the same start state: each "
+                 "learner's median seed (by its final greedy return) at three stages of learning, then the final "
+                 "policies of its lowest and highest seeds.", *([WATCH_FOR] if c.env == "MountainCar-v0" else [])]
                 if video_cells else ["Videos were not rendered (--no-videos)."], videos=video_cells),
     ]
