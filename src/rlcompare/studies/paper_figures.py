@@ -85,6 +85,8 @@ def curve_figure(runs: list[Results], title: str) -> Figure:
             greedy_difference_ax.set_axis_off()
         for ax in axes[1]:
             ax.axhline(0, color="black", linewidth=0.8, zorder=1)
+            if ax.get_legend() is not None:
+                ax.legend(loc="best", fontsize="small")  # the difference crosses the corners the curves leave free
     figure.suptitle(f"{title}  ({seeds} seeds, mean and 95% bootstrap band)")
     return figure
 
