@@ -201,3 +201,16 @@ def test_a_missing_or_damaged_cell_is_named_and_the_rest_still_decomposed(study,
     assert set(table["schedule"]) == {"constant"}  # decay lost a cell the decomposition needs
     assert (table["order, expectation target"] == "not run").all()
     assert (table["order"] != "not run").all()
+
+
+def test_the_answer_names_the_largest_part_of_each_schedule_in_brief():
+    from rlcompare.analysis.stats import Estimate
+
+    rows = [{"schedule": schedule, "return": "behaviour", "episodes": "all training",
+             **dict(zip(("order", "target", "interaction"), map(lambda v: Estimate(v, v - 5, v + 5), values),
+                        strict=True))}
+            for schedule, values in (("constant", (15.6, -22.7, 15.9)), ("decay", (59.7, 12.0, -3.4)))]
+    assert why.in_brief(pd.DataFrame(rows)) == (
+        "Why, while learning: the largest part of the difference is, with ε constant, the target (the action taken "
+        "against the max), at -22.7; with ε decaying, the order of choosing A' and updating, at +59.7.")
+    assert why.in_brief(pd.DataFrame(rows[1:]).assign(schedule="decay")).count("with ε") == 1

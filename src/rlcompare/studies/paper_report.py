@@ -18,7 +18,7 @@ import pandas as pd
 
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import has_start_region
-from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, paper_findings
+from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA, interval
 from rlcompare.analysis.tables import (
@@ -41,10 +41,11 @@ from rlcompare.studies.paper_figures import (
     curve_figure,
     first_actions_figure,
     label,
+    paired_difference_figure,
     stages_figure,
     visits_figure,
 )
-from rlcompare.studies.why import decomposition, decomposition_figure, formatted
+from rlcompare.studies.why import decomposition, decomposition_figure, formatted, in_brief
 from rlcompare.studies.why import findings as why_findings
 
 CONFIGURATIONS = ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant")
@@ -225,7 +226,14 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
             video_cells.append((f"videos/{job.mp4.name}", f"videos/{gif.name}" if gif is not None else "", caption))
         seconds["videos"] = time.perf_counter() - (renders.started or started)
 
-    sections = [Section("The answer", [*findings, BEHAVIOUR_AND_GREEDY]),
+    answer = opening(claims, judgement.verdicts, metrics)
+    brief = [in_brief(split)] if not split.empty else []
+    pictured = paired_difference_figure(runs, metrics)
+    answer_figure = [(save_figure(pictured, figures_dir / "paired-differences.png"),
+                      "SARSA minus Q-Learning, seed by seed: each dot one seed's paired difference; the bar the mean "
+                      "and its 95% interval")] if pictured is not None else []
+    sections = [Section("The answer", [*answer, *brief], figures=answer_figure),
+                Section("What the answer rests on", [*findings[len(answer):], BEHAVIOUR_AND_GREEDY]),
                 *_sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells)]
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")

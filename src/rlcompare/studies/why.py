@@ -31,7 +31,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
-from rlcompare.analysis.findings import SCHEDULE_TEXT, amount, more_or_less
+from rlcompare.analysis.findings import SCHEDULE_TEXT, amount, more_or_less, number
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
@@ -222,6 +222,21 @@ def findings(frame: pd.DataFrame) -> list[str]:
                              f"{amount(last['order'], signed=True)}, {CAUSE_TEXT['target']} "
                              f"{amount(last['target'], signed=True)}.")
     return sentences
+
+
+def in_brief(frame: pd.DataFrame) -> str:
+    """One sentence: per schedule, the part of SARSA - Q-Learning while learning that is largest in size."""
+    parts = []
+    for schedule in SCHEDULES:
+        rows = frame[(frame["schedule"] == schedule) & (frame["return"] == "behaviour")
+                     & (frame["episodes"] == "all training")]
+        if not rows.empty:
+            row = rows.iloc[0]
+            largest = max(DECOMPOSITION, key=lambda term: abs(row[term].value))
+            value = row[largest].value
+            parts.append(f"with {SCHEDULE_TEXT[schedule]}, {CAUSE_TEXT[largest]}, at {'+' if value > 0 else ''}"
+                         f"{number(value)}")
+    return f"Why, while learning: the largest part of the difference is, {'; '.join(parts)}." if parts else ""
 
 
 def _parts(row: pd.Series) -> str:
