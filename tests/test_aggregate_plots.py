@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from matplotlib.collections import LineCollection
 from matplotlib.colors import to_rgba
@@ -105,3 +106,55 @@ def test_the_profile_figure_draws_a_falling_profile_and_band_per_method(scores):
     thresholds = np.linspace(0, 2, 5)
     chosen = profile_figure(scores, thresholds=thresholds, resamples=RESAMPLES)
     np.testing.assert_allclose(chosen.axes[0].get_lines()[0].get_xdata(), thresholds)
+
+
+# --- the deep study's aggregates over environments, from stand-ins for its runs ---------------------------------
+
+def _deep_run(algorithm: str, env: str, finals: list[float], steps_per_round: int, rounds: int = 4):
+    """A stand-in for a deep run directory: what the report reads, each seed's greedy return rising linearly to
+    its final value over ``rounds`` evaluation rounds of two episodes."""
+    from types import SimpleNamespace
+
+    rows = [{"seed": seed, "round": r, "after_step": (r + 1) * steps_per_round, "return": final * (r + 1) / rounds}
+            for seed, final in enumerate(finals) for r in range(rounds) for _ in range(2)]
+    return SimpleNamespace(config=SimpleNamespace(algorithm=algorithm, env=env), seeds=tuple(range(len(finals))),
+                           evaluations=pd.DataFrame(rows))
+
+
+def test_the_deep_study_normalises_each_environment_between_random_and_its_best_method(tmp_path, monkeypatch):
+    deep = pytest.importorskip("rlcompare.studies.deep")  # the deep extra
+    runs = {"pqn_q_lambda-CartPole-v1": _deep_run("pqn_q_lambda", "CartPole-v1", [100, 200, 300], 1000),
+            "dqn-CartPole-v1": _deep_run("dqn", "CartPole-v1", [400, 500, 500], 500),
+            "pqn_q_lambda-Acrobot-v1": _deep_run("pqn_q_lambda", "Acrobot-v1", [-300, -200, -100], 1000),
+            "dqn-Acrobot-v1": _deep_run("dqn", "Acrobot-v1", [-500, -500, -500], 500),
+            "ppo-Acrobot-v1": _deep_run("ppo", "Acrobot-v1", [-90, -90, -90], 700)}  # not run on CartPole
+    floors = {"CartPole-v1": 20.0, "Acrobot-v1": -500.0}
+    across = deep.across_environments(runs, floors)
+    assert across.envs == ["CartPole-v1", "Acrobot-v1"]
+    assert list(across.scores) == ["Q(λ), network", "DQN"]  # PPO ran one environment of the two
+    cartpole_best = 1400 / 3 - 20  # DQN's mean final return over the random policy's
+    np.testing.assert_allclose(across.scores["DQN"][0], (np.array([400, 500, 500]) - 20) / cartpole_best)
+    # on Acrobot, Q(λ)'s mean -200 is the best of the two kept (PPO's -90 is not), the floor -500
+    np.testing.assert_allclose(across.scores["Q(λ), network"][1], [2 / 3, 1, 4 / 3])
+    np.testing.assert_allclose(across.scores["DQN"][1], 0)
+    assert across.xlabel == "share of each training's environment steps"  # budgets differ by method
+    np.testing.assert_allclose(across.x, [0.25, 0.5, 0.75, 1])
+    np.testing.assert_allclose(across.curves["DQN"][..., -1], across.scores["DQN"])
+    same = {name: run for name, run in runs.items() if name.startswith("pqn")}
+    same["ppo-CartPole-v1"] = _deep_run("ppo", "CartPole-v1", [30, 40, 50], 1000)
+    assert deep.across_environments(same, floors).xlabel == "environment steps"
+
+    monkeypatch.setattr(deep, "random_returns", lambda env: np.array([floors[env]]))
+    section = deep.aggregate_section(runs, tmp_path / "tables", tmp_path / "figures")
+    assert [caption for caption, _ in section.tables] == ["Aggregates of normalised final returns",
+                                                          "Probability of improvement"]
+    assert len(section.tables[1][1]) == 2  # both ordered pairs
+    assert [path for path, _ in section.figures] == [
+        "figures/aggregate-intervals.png", "figures/probability-of-improvement.png",
+        "figures/performance-profiles.png", "figures/sample-efficiency.png"]
+    assert all((tmp_path / path).is_file() for path, _ in section.figures)
+    assert (tmp_path / "tables" / "deep_aggregates.csv").is_file()
+    assert "Acrobot-v1 -500.0" in section.paragraphs[0]
+    alone = deep.aggregate_section({"dqn-CartPole-v1": runs["dqn-CartPole-v1"]}, tmp_path / "t", tmp_path / "f")
+    assert alone.figures == []
+    assert "two or more" in alone.paragraphs[0]

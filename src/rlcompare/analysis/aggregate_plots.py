@@ -8,11 +8,14 @@ and ``plot_performance_profiles``). rliable itself no longer imports with pandas
 ``scores`` maps each method's label (what the figure writes) to its ``(tasks, runs)`` normalised scores, every
 method over the same tasks. Each function returns a :class:`~matplotlib.figure.Figure` and touches no pyplot state;
 a method keeps one colour in every figure drawn with the same ``scores`` (:func:`method_colors`).
+:func:`draw_aggregates` draws them all for a report and saves them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -20,10 +23,14 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis.profiles import (
     curve_band,
+    every_pair,
     improvement_estimates,
+    improvement_table,
     interval_estimates,
+    interval_table,
     profile_band,
 )
+from rlcompare.analysis.report import save_figure
 
 NORMALISED = "normalised score"
 BAR = 0.6
@@ -138,3 +145,63 @@ def profile_figure(scores: Mapping[str, np.ndarray], xlabel: str = NORMALISED, *
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
     return figure
+
+
+MAX_PAIRED = 6
+"""Up to this many methods, the probability of improvement is drawn for every ordered pair (30 rows); beyond, for
+the best method by IQM against each other one."""
+
+
+class Aggregates(NamedTuple):
+    """What a report shows of rliable's aggregates: two tables and the figures saved, with their captions."""
+
+    intervals: pd.DataFrame
+    """:func:`~rlcompare.analysis.profiles.interval_table`: median, IQM, mean, optimality gap per method."""
+    improvements: pd.DataFrame
+    """:func:`~rlcompare.analysis.profiles.improvement_table`: P(X > Y) per pair."""
+    figures: list[tuple[str, str]]
+    """(path relative to the study directory, caption), as :class:`~rlcompare.analysis.report.Section` takes them."""
+
+
+def improvement_pairs(methods: Sequence[str], estimates: pd.DataFrame) -> list[tuple[str, str]]:
+    """Every ordered pair of up to :data:`MAX_PAIRED` methods; beyond, the best by IQM (``estimates``:
+    :func:`~rlcompare.analysis.profiles.interval_estimates`) against each other one."""
+    if len(methods) <= MAX_PAIRED:
+        return every_pair(methods)
+    iqms = estimates[estimates["metric"] == "IQM"].set_index("method")["value"]
+    best = max(methods, key=lambda method: iqms[method])
+    return [(best, method) for method in methods if method != best]
+
+
+def draw_aggregates(scores: Mapping[str, np.ndarray], directory: Path, *, xlabel: str = NORMALISED,
+                    tasks: str = "tasks", curves: Mapping[str, np.ndarray] | None = None, x: np.ndarray | None = None,
+                    curve_xlabel: str = "", prefix: str = "", resamples: int = 2000) -> Aggregates:
+    """Every aggregate of ``scores`` (``(tasks, runs)`` per method): the interval estimates and the probability of
+    improvement as tables, and the interval-estimate, probability-of-improvement, performance-profile and (with
+    ``curves``, ``(tasks, runs, points)`` per method at ``x``) sample-efficiency figures saved as PNG files in
+    ``directory`` (names begin with ``prefix``). ``tasks`` names the tasks in the captions (environments, games)."""
+    intervals = interval_estimates(scores, resamples=resamples)
+    pairs = improvement_pairs(list(scores), intervals)
+    improvements = improvement_estimates(scores, pairs, resamples=resamples)
+    shape = next(iter(scores.values())).shape
+    over = f"{shape[0]} {tasks} x {shape[1]} runs"
+    paired = ("every ordered pair of methods" if len(pairs) == len(scores) * (len(scores) - 1)
+              else f"the best method by IQM ({pairs[0][0]}) against each other one")
+    drawn = [
+        (interval_figure(scores, xlabel, estimates=intervals), "aggregate-intervals",
+         f"Median and mean of the {tasks}' mean scores, IQM and optimality gap (γ = 1: the mean shortfall below 1) "
+         f"of every run, over {over}: bars are 95% stratified bootstrap intervals, ticks the estimates"),
+        (improvement_figure(scores, estimates=improvements), "probability-of-improvement",
+         f"Probability of improvement, {paired}: the chance that a run of X beats a run of Y on one of the {tasks}, "
+         f"averaged over the {tasks}, with its 95% stratified bootstrap interval; 0.5 is no difference"),
+        (profile_figure(scores, xlabel, resamples=resamples), "performance-profiles",
+         f"Performance profiles: the fraction of runs, over every one of the {tasks}, with a score above τ (95% "
+         "stratified bootstrap bands)"),
+    ]
+    if curves:
+        drawn.append((sample_efficiency_figure(x, curves, curve_xlabel, resamples=resamples), "sample-efficiency",
+                      f"Sample efficiency: the IQM of every run's {xlabel} over the {tasks} at each point of training, "
+                      "with a 95% stratified bootstrap band"))
+    figures = [(save_figure(figure, Path(directory) / f"{prefix}{name}.png"), caption)
+               for figure, name, caption in drawn]
+    return Aggregates(interval_table(intervals), improvement_table(improvements), figures)

@@ -101,12 +101,17 @@ def interval_estimates(scores: Mapping[str, np.ndarray], confidence: float = 0.9
     return pd.DataFrame(rows, columns=["method", "metric", "value", "low", "high", "tasks", "runs"])
 
 
+def _shown(row, digits: int) -> str:
+    """``value [low, high]``; "no data" where there is no value (a NaN score)."""
+    return "no data" if np.isnan(row.value) else Estimate(row.value, row.low, row.high).format(digits)
+
+
 def interval_table(estimates: pd.DataFrame, digits: int = 2) -> pd.DataFrame:
     """:func:`interval_estimates` as a report shows it: one row per method, each metric as ``value [low, high]``."""
     rows = {}
     for row in estimates.itertuples():
         entry = rows.setdefault(row.method, {"method": row.method, "tasks": row.tasks, "runs per task": row.runs})
-        entry[f"{row.metric} [95% CI]"] = Estimate(row.value, row.low, row.high).format(digits)
+        entry[f"{row.metric} [95% CI]"] = _shown(row, digits)
     return pd.DataFrame(list(rows.values()))
 
 
@@ -162,8 +167,7 @@ def improvement_estimates(scores: Mapping[str, np.ndarray], pairs: Sequence[tupl
 def improvement_table(estimates: pd.DataFrame, digits: int = 2) -> pd.DataFrame:
     """:func:`improvement_estimates` as a report shows it: ``P(X > Y) [95% CI]`` per pair."""
     return pd.DataFrame({"X": estimates["X"], "Y": estimates["Y"], "tasks": estimates["tasks"],
-                         "P(X > Y) [95% CI]": [Estimate(r.value, r.low, r.high).format(digits)
-                                               for r in estimates.itertuples()]})
+                         "P(X > Y) [95% CI]": [_shown(row, digits) for row in estimates.itertuples()]})
 
 
 def iqm_curve(curves: np.ndarray) -> np.ndarray:

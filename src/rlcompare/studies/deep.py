@@ -5,7 +5,11 @@ Q(λ), SARSA(λ) and Expected SARSA(λ) in one PQN-style engine whose only switc
 DQN, PPO. Beside them, the tabular pair (Q-Learning, SARSA) on the same environments with the paper's settings.
 The report draws learning curves against environment steps and against seconds, tabulates the final greedy
 return and the area under the curve (mean and IQM with 95% intervals), the probability of improvement on paired
-seeds, and judges "on-policy against off-policy target" per environment, with and without a network.
+seeds, and judges "on-policy against off-policy target" per environment, with and without a network. Over two or
+more environments it adds rliable's aggregates of the deep methods (Agarwal et al. 2021): scores normalised per
+environment between a uniformly random policy and the best method here, their median, IQM, mean and optimality gap
+with stratified bootstrap intervals, performance profiles, the probability of improvement between the methods and
+IQM sample-efficiency curves.
 """
 
 from __future__ import annotations
@@ -21,13 +25,18 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import stats
+from rlcompare.analysis.aggregate_plots import draw_aggregates
 from rlcompare.analysis.compare import Paired, compare_paired, comparison_label
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.plots import plot_return_curves
+from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.tables import per_seed_metrics
+from rlcompare.deep import float64
 from rlcompare.deep.agent import gymnasium_returns
+from rlcompare.deep.envs import jax_env
 from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.rollout import evaluate
 from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ConfigError, ExperimentConfig
@@ -50,6 +59,8 @@ MARGIN = {"CartPole-v1": 25.0, "Acrobot-v1": 25.0, "MountainCar-v0": 10.0}
 """Differences of mean return smaller than this count as no difference (5% of each environment's return range),
 declared here before any run."""
 TABULAR_EPISODES = DeepOptions.episodes
+RANDOM_EPISODES = 200
+"""Episodes of the uniformly random policy per environment, in the port: the floor (0) of the normalised scores."""
 DEFAULT_WORKERS = max(1, min(4, os.cpu_count() or 1))
 PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
 """The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
@@ -277,6 +288,71 @@ def anchor_table(deep: dict[str, DeepResults], gymnasium: dict[str, np.ndarray])
     return pd.DataFrame(rows)
 
 
+def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0) -> np.ndarray:
+    """Returns of the uniformly random policy in the port (``evaluate`` at ε = 1), from ``jax.random.key(seed)``.
+    JAX is imported here, after :mod:`rlcompare.deep` has said how to install it where it is missing."""
+    import jax
+    import jax.numpy as jnp
+
+    env = jax_env(env_name)
+
+    def no_op(params: None, observations: jax.Array) -> jax.Array:
+        return jnp.zeros(observations.shape[0], jnp.int32)
+
+    @float64
+    def play() -> np.ndarray:
+        return np.asarray(jax.jit(lambda key: evaluate(env, no_op, None, key, episodes, epsilon=1.0)[0])(
+            jax.random.key(seed)))
+
+    return play()
+
+
+@dataclass(frozen=True)
+class Across:
+    """The deep methods over the environments, as rliable's aggregates take them: per method's label,
+    ``scores`` ``(envs, seeds)`` final greedy returns and ``curves`` ``(envs, seeds, rounds)`` greedy returns at
+    each evaluation round, normalised per environment (random policy 0, best method's mean final return 1), with
+    the curves' ``x`` and what it is."""
+
+    envs: list[str]
+    scores: dict[str, np.ndarray]
+    curves: dict[str, np.ndarray]
+    x: np.ndarray
+    xlabel: str
+
+
+def across_environments(deep: dict[str, DeepResults], floors: dict[str, float]) -> Across:
+    """Each deep method's runs on every environment that two or more methods ran (a method missing one is left
+    out), normalised between ``floors`` (the random policy's mean return) and the best mean final greedy return of
+    the methods kept. The curves are drawn against environment steps where every training evaluated at the same
+    steps, else against the share of each training's own steps (the presets' budgets differ by method and
+    environment)."""
+    finals: dict[str, dict[str, np.ndarray]] = {}
+    rounds: dict[str, dict[str, np.ndarray]] = {}
+    steps: dict[tuple[str, str], np.ndarray] = {}
+    for env in ENVS:
+        for method in DEEP_METHODS:
+            results = deep.get(f"{method}-{env}")
+            if results is not None:
+                label = DEEP_METHODS[method].label
+                steps[env, label], curves = eval_curves(results)
+                finals.setdefault(env, {})[label] = curves[:, -1]
+                rounds.setdefault(env, {})[label] = curves
+    kept = by_method(finals)
+    envs = [env for env, methods in finals.items() if len(methods) > 1]
+    finals = {env: {method: finals[env][method] for method in kept} for env in envs}  # 1: the best of these
+    scales = score_scales(finals, floors)
+    scores = by_method(finals, scales)
+    curves = {method: values for method, values in by_method(rounds, scales).items() if method in scores}
+    drawn = [steps[env, method] for env in envs for method in curves]
+    x, xlabel = (drawn[0], "environment steps") if drawn else (np.zeros(0), "")
+    if any(not np.array_equal(s, x) for s in drawn):
+        x, xlabel = x / x[-1], "share of each training's environment steps"
+        if any(s.shape != x.shape or not np.allclose(s / s[-1], x) for s in drawn):
+            curves, x, xlabel = {}, np.zeros(0), ""
+    return Across(envs, scores, curves, x, xlabel)
+
+
 def curves_figure(deep: dict[str, DeepResults], env: str, against: str) -> Figure:
     """Greedy return against environment steps (``steps``) or wall-clock seconds (``seconds``), mean over seeds
     with a 95% bootstrap band, one line per method."""
@@ -290,6 +366,40 @@ def curves_figure(deep: dict[str, DeepResults], env: str, against: str) -> Figur
     ax.set_xlabel("environment steps" if against == "steps" else "seconds of training")
     ax.set_title(env)
     return figure
+
+
+def aggregate_section(deep: dict[str, DeepResults], tables: Path, figures: Path) -> Section:
+    """rliable's aggregates of the deep methods over the environments (``deep_aggregates.csv``,
+    ``deep_improvement.csv`` and the figures), or why there are none: they need two or more environments."""
+    title = "Across environments"
+    ran = {r.config.env for r in deep.values()}
+    if len(ran) < 2:
+        return Section(title, [f"The aggregates over environments (rliable's) need two or more; this study ran "
+                               f"{', '.join(sorted(ran)) or 'none'}."])
+    floors = {env: float(random_returns(env).mean()) for env in ENVS if env in ran}
+    across = across_environments(deep, floors)
+    if len(across.envs) < 2 or len(across.scores) < 2:
+        return Section(title, ["The aggregates need two or more methods run on two or more environments alike."])
+    drawn = draw_aggregates(across.scores, figures, xlabel="normalised score", tasks="environments",
+                            curves=across.curves, x=across.x, curve_xlabel=across.xlabel)
+    write_table(drawn.intervals, tables, "deep_aggregates")
+    write_table(drawn.improvements, tables, "deep_improvement")
+    seeds = next(iter(across.scores.values())).shape[1]
+    return Section(title, [
+        f"The deep methods over {len(across.envs)} environments ({', '.join(across.envs)}) x {seeds} seeds, as "
+        "rliable defines its aggregates (Agarwal et al. 2021, \"Deep Reinforcement Learning at the Edge of the "
+        "Statistical Precipice\"), drawn here. Each seed's final greedy return (the last evaluation round, in the "
+        "port) is normalised environment by environment between a uniformly random policy's mean return (0; "
+        f"{RANDOM_EPISODES} episodes in the port: " + ", ".join(f"{env} {floor:.1f}" for env, floor in floors.items())
+        + ") and the best deep method's mean here (1), so 1 is the best this study reached, not the environment's "
+        "best. Median and mean are of each environment's mean over seeds; IQM, optimality gap (γ = 1) and the "
+        "profiles pool every seed of every environment; intervals and bands are 95% stratified bootstrap ones "
+        "(seeds resampled within each environment). The tabular pair is left out: its runs count episodes, not "
+        "environment steps. "
+        + (f"Sample efficiency: the IQM at each evaluation round, against the {across.xlabel}." if across.curves else
+           "No sample-efficiency curves: the trainings were evaluated at different shares of their steps.")],
+        [("Aggregates of normalised final returns", drawn.intervals),
+         ("Probability of improvement", drawn.improvements)], drawn.figures)
 
 
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
@@ -327,6 +437,7 @@ def _build_report(out: Path) -> Report:
             f"whose mean reaches {', '.join(f'{e} {g:g}' for e, g in GOAL.items())}. Final: the greedy return of "
             "the last evaluation round in the port; AUC: its mean over all rounds. Seeds that failed count in "
             "every number."], [("Summary", summary)]),
+        aggregate_section(deep, tables, figures),
         Section("Published anchors", ["The zoo's numbers are one trained agent each; ours are IQMs over seeds."],
                 [("Anchors", anchors)]),
         Section("Learning curves", figures=curve_figures),
