@@ -7,13 +7,14 @@ on a developer's machine without it the test is skipped.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 from pathlib import Path
 
 import pytest
 
 from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, build_report
+from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, _video_plan, build_report, load_study
 
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-sync",
                  "--disable-background-networking", "--disable-component-update"]
@@ -52,15 +53,31 @@ def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_pat
             " v.videoWidth])"
         )
         tables = page.evaluate(
-            "() => Object.fromEntries([...document.querySelectorAll('h3')].map(h => [h.textContent,"
+            "() => Object.fromEntries([...document.querySelectorAll('h3')].map(h => [h.firstChild.textContent.trim(),"
             " [...h.nextElementSibling.querySelectorAll('tbody tr')].map(r => r.cells[0].textContent)]))"
         )
-        page.screenshot(path=str(tmp_path / "report.png"), full_page=True)
+        first_screen = page.evaluate(
+            "() => ({answer: document.querySelector('h2 + p').getBoundingClientRect().top,"
+            " text: document.querySelector('h2 + p').textContent,"
+            " figure: document.querySelector('img').getBoundingClientRect().top})"
+        )
+        unresolved = page.evaluate(
+            "() => [...document.querySelectorAll('nav a')].map(a => a.getAttribute('href'))"
+            ".filter(h => !document.getElementById(h.slice(1)))"
+        )
+        links = page.evaluate("() => [...document.querySelectorAll('nav a')].length")
+        widest = page.evaluate(
+            "() => Math.max(...[...document.querySelectorAll('table')].map(t => t.getBoundingClientRect().right))"
+        )
+        cells = page.evaluate("() => [...document.querySelectorAll('td')].map(c => c.textContent)")
+        csv = page.evaluate("() => [...document.querySelectorAll('h3 a.files')].map(a => a.getAttribute('href'))")
+        page.screenshot(path=str(tmp_path / "first-screen.png"))
         browser.close()
 
     assert len(images) >= 7 + 4 + 2  # figures 3-9, a stage figure per learner, visits, first actions
     assert all(width > 0 for _, width in images), images
-    assert len(videos) == 1 + 4 * 3  # the random baseline once, each learner at three stages
+    assert len(videos) == len(_video_plan(tmp_path, load_study(tmp_path)[0], None))  # median seed x 3, extremes
+    assert len(videos) > 1 + 4 * 3
     assert all(state >= 2 and duration > 0 and width > 0 for _, state, duration, width in videos), videos
     ablation = ["q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",
                 "sarsa-decay-after_update"]
@@ -68,4 +85,13 @@ def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_pat
     assert tables["Table II"] == [*CONFIGURATIONS, *ablation]
     assert tables["SARSA minus Q-Learning, decomposed"] == ["constant"] * 6 + ["decay"] * 6
     assert tables["Verdicts"] == [claim.text for claim in CLAIMS]
-    assert (tmp_path / "report.png").stat().st_size > 50_000
+    assert first_screen["text"].startswith("With ε constant, SARSA collects")  # the answer, on the first screen
+    assert first_screen["answer"] < 300
+    assert first_screen["figure"] < 800  # with its figure
+    assert links >= 8
+    assert unresolved == []
+    assert widest <= 1280
+    assert not [c for c in cells if "nan" in c.split() or re.search(r"\de[+-]\d", c)]
+    assert all((tmp_path / path).is_file() for path in csv)
+    assert len(csv) >= 4
+    assert (tmp_path / "first-screen.png").stat().st_size > 50_000
