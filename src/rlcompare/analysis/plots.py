@@ -17,6 +17,7 @@ from matplotlib.patches import Patch, Rectangle
 from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from rlcompare.analysis.curves import mean_band, moving_average, thinned
+from rlcompare.analysis.stats import Estimate, interval
 
 ACTION_COLORS = ("#3b6fb6", "#bdbdbd", "#d1495b")
 
@@ -207,3 +208,32 @@ def plot_first_actions(ax: Axes, shares: dict[str, np.ndarray], actions: tuple[s
     ax.legend(loc="upper right", fontsize="small")
     ax.tick_params(axis="x", labelrotation=15)
     return ax
+
+
+def plot_paired_differences(ax: Axes, differences: dict[str, np.ndarray], labels: dict[str, str] | None = None
+                            ) -> dict[str, Estimate]:
+    """Each group's per-seed paired differences as dots, their mean with its 95% BCa interval as a bar beside
+    them (:func:`~rlcompare.analysis.stats.interval`, as the verdicts use), the numbers written beside it, and a
+    line at 0; a group with a value that is not finite is left out. The dots' and bars' artists have the gids
+    ``seeds-<key>`` and ``interval-<key>``. Returns each drawn group's estimate."""
+    drawn = {}
+    for position, (key, values) in enumerate(differences.items()):
+        values = np.asarray(values, dtype=np.float64)
+        if not np.isfinite(values).all():
+            continue
+        estimate = drawn[key] = interval(values)
+        jitter = ((np.arange(values.size) * 0.618034) % 1 - 0.5) * 0.24  # evenly spread, in seed order
+        ax.scatter(position - 0.1 + jitter, values, s=22, color="#3b6fb6", alpha=0.75, linewidths=0, zorder=3,
+                   gid=f"seeds-{key}", label="one seed" if len(drawn) == 1 else None)
+        low, high = (estimate.low, estimate.high) if np.isfinite(estimate.low) else (estimate.value,) * 2
+        bar = ax.errorbar([position + 0.2], [estimate.value], yerr=[[estimate.value - low], [high - estimate.value]],
+                          fmt="o", color="black", capsize=5, linewidth=1.6, zorder=4,
+                          label="mean, 95% BCa interval" if len(drawn) == 1 else None)
+        bar.lines[2][0].set_gid(f"interval-{key}")
+        ax.annotate(f"{estimate.value:+.1f}\n[{low:.1f}, {high:.1f}]", (position + 0.28, estimate.value),
+                    fontsize="small", va="center")
+    ax.axhline(0, color="black", linewidth=0.8, zorder=1)
+    ax.set_xticks(range(len(differences)), [(labels or {}).get(key, key) for key in differences])
+    ax.set_xlim(-0.4, len(differences) - 0.25)
+    ax.grid(alpha=0.3, axis="y")
+    return drawn

@@ -12,7 +12,6 @@ from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis import plots
 from rlcompare.analysis.explain import final_first_action_shares, map_frame
 from rlcompare.analysis.metrics import returns_per_seed
-from rlcompare.analysis.stats import interval
 from rlcompare.experiment.results import Results
 
 SMOOTHING = 100
@@ -201,30 +200,12 @@ def paired_difference_figure(runs: dict[str, Results], metrics: dict[str, pd.Dat
     axes = figure.subplots(1, len(panels), squeeze=False)[0]
     plots.fixed_layout(figure, 1, len(panels), left=0.9, right=0.15, bottom=0.75, top=0.9, column_gap=0.9)
     for ax, metric in zip(axes, panels, strict=True):
-        for position, (schedule, frame) in enumerate(differences.items()):
-            values = frame[metric].to_numpy(dtype=np.float64)
-            if not np.isfinite(values).all():
-                continue
-            estimate = interval(values)
-            jitter = ((np.arange(values.size) * 0.618034) % 1 - 0.5) * 0.24  # evenly spread, in seed order
-            ax.scatter(position - 0.1 + jitter, values, s=22, color="#3b6fb6", alpha=0.75, linewidths=0, zorder=3,
-                       gid=f"seeds-{schedule}", label="one seed" if position == 0 else None)
-            low, high = (estimate.low, estimate.high) if np.isfinite(estimate.low) else (estimate.value,) * 2
-            bar = ax.errorbar([position + 0.2], [estimate.value],
-                              yerr=[[estimate.value - low], [high - estimate.value]],
-                              fmt="o", color="black", capsize=5, linewidth=1.6, zorder=4,
-                              label="mean, 95% BCa interval" if position == 0 else None)
-            bar.lines[2][0].set_gid(f"interval-{schedule}")
-            ax.annotate(f"{estimate.value:+.1f}\n[{low:.1f}, {high:.1f}]", (position + 0.28, estimate.value),
-                        fontsize="small", va="center")
-        ax.axhline(0, color="black", linewidth=0.8, zorder=1)
-        ax.set_xticks(range(len(differences)), [f"{schedule_text(runs[f'sarsa-{s}'].config)}\n{len(d)} seeds"
-                                                for s, d in differences.items()])
-        ax.set_xlim(-0.4, len(differences) - 0.25)
+        plots.plot_paired_differences(
+            ax, {schedule: frame[metric].to_numpy(dtype=np.float64) for schedule, frame in differences.items()},
+            {s: f"{schedule_text(runs[f'sarsa-{s}'].config)}\n{len(d)} seeds" for s, d in differences.items()})
         ax.set_ylabel("SARSA - Q-Learning (reward per episode)")
         ax.set_title(RETURN_PANELS[metric].format(episodes=first.episodes, eval_episodes=first.eval_episodes),
                      fontsize="medium")
-        ax.grid(alpha=0.3, axis="y")
         ax.legend(loc="best", fontsize="small")
     seeds = sorted({len(d) for d in differences.values()})
     figure.suptitle("SARSA minus Q-Learning on the same seeds, in mean cumulative reward per episode\n"
