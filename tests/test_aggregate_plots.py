@@ -8,6 +8,7 @@ import pytest
 from matplotlib.collections import LineCollection
 from matplotlib.colors import to_rgba
 from matplotlib.patches import Rectangle
+from scipy import stats
 
 from rlcompare.analysis.aggregate_plots import (
     improvement_figure,
@@ -158,3 +159,50 @@ def test_the_deep_study_normalises_each_environment_between_random_and_its_best_
     alone = deep.aggregate_section({"dqn-CartPole-v1": runs["dqn-CartPole-v1"]}, tmp_path / "t", tmp_path / "f")
     assert alone.figures == []
     assert "two or more" in alone.paragraphs[0]
+
+
+# --- a sweep's aggregates over its environments, from stand-ins for its configurations ----------------------------
+
+def _tabular_configuration(env: str, algorithm: str, alpha: float, finals: list[float], rounds: int = 3):
+    """A stand-in for a tabular configuration of a sweep and its per-seed metrics: greedy returns rising linearly to
+    ``finals`` over ``rounds`` evaluation rounds of two episodes, every 10 episodes."""
+    from types import SimpleNamespace
+
+    finals = np.asarray(finals, np.float64)
+    eval_returns = np.repeat((finals[:, None] * np.arange(1, rounds + 1) / rounds)[..., None], 2, axis=2)
+    config = SimpleNamespace(env=env, algorithm=algorithm, alpha=alpha, eval_every=10, name=algorithm)
+    results = SimpleNamespace(config=config, seeds=tuple(range(len(finals))),
+                              records=SimpleNamespace(eval_returns=eval_returns))
+    return results, pd.DataFrame({"greedy_return": finals, "behaviour_return": finals / 2})
+
+
+def test_a_sweep_over_environments_aggregates_the_configurations_that_ran_on_all_of_them(tmp_path):
+    from rlcompare.studies.sweep_report import aggregate_section
+
+    made = {f"{env}-{algorithm}-{alpha}": _tabular_configuration(env, algorithm, alpha, finals)
+            for env, algorithm, alpha, finals in (
+                ("CliffWalking-v1", "sarsa", 0.1, [-30, -20, -10]), ("CliffWalking-v1", "q_learning", 0.1, [-90] * 3),
+                ("FrozenLake-v1", "sarsa", 0.1, [0, 1, 1]), ("FrozenLake-v1", "q_learning", 0.1, [0, 0, 1]),
+                ("FrozenLake-v1", "q_learning", 0.5, [1, 1, 1]),  # on one environment of the two
+                ("Taxi-v4", "sarsa", 0.5, [5, 6, 7]))}  # alone on its environment
+    runs = {name: results for name, (results, _) in made.items()}
+    metrics = {name: frame for name, (_, frame) in made.items()}
+    swept = ["env", "algorithm", "alpha"]
+    section = aggregate_section(runs, metrics, swept, "tabular", tmp_path / "tables", tmp_path / "figures")
+    intervals = section.tables[0][1]
+    assert intervals["method"].tolist() == ["algorithm=sarsa, alpha=0.1", "algorithm=q_learning, alpha=0.1"]
+    # per environment, the worst configuration's mean is 0 and the best's 1: CliffWalking -90 and -20, FrozenLake
+    # 1/3 and 2/3 (q_learning at α = 0.5 left out, so not the best)
+    sarsa = np.concatenate([(np.array([-30, -20, -10]) + 90) / 70, (np.array([0, 1, 1]) - 1 / 3) / (1 / 3)])
+    assert intervals.loc[0, "mean [95% CI]"].startswith("1.00 [")
+    assert intervals.loc[1, "mean [95% CI]"].startswith("0.00 [")
+    assert intervals.loc[0, "IQM [95% CI]"].startswith(f"{stats.trim_mean(sarsa, 0.25):.2f} [")  # 1.25
+    assert [path for path, _ in section.figures][-1] == "figures/sample-efficiency.png"
+    assert len(section.figures) == 4
+    text = section.paragraphs[0]
+    assert "algorithm=q_learning, alpha=0.5" in text
+    assert "one configuration alone: Taxi-v4" in text
+    one_env = {name: run for name, run in runs.items() if name.startswith("Cliff")}
+    assert aggregate_section(one_env, metrics, swept, "tabular", tmp_path, tmp_path) is None
+    apart = {name: run for name, run in runs.items() if name.endswith("0.5")}  # one configuration per environment
+    assert aggregate_section(apart, metrics, swept, "tabular", tmp_path, tmp_path).figures == []

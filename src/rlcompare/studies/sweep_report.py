@@ -8,6 +8,12 @@
   returns against its value, one line per combination of the other swept keys, one row of panels per
   environment (their returns are on different scales), 95% intervals as bars.
 - ``figures/curves-<env>.png``: learning curves of every configuration of an environment (up to 12).
+- Over two or more environments, rliable's aggregates (Agarwal et al. 2021) of the configurations that ran on
+  every one of them, each configuration a method (named by its swept values but ``env``) and each environment a
+  task: scores normalised per environment between the worst and the best configuration's mean (0 and 1), their
+  median, IQM, mean and optimality gap with stratified bootstrap intervals (``tables/aggregates``), the probability
+  of improvement (``tables/improvement``), performance profiles and IQM sample-efficiency curves
+  (``figures/aggregate-*.png`` and beside them).
 
 A deep sweep's configurations (:class:`~rlcompare.deep.run.DeepResults`) have their own columns: the final greedy
 return (each seed's mean over the last evaluation round's episodes) and the area under the greedy curve (each
@@ -25,6 +31,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots
+from rlcompare.analysis.aggregate_plots import draw_aggregates
+from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import interval
 from rlcompare.analysis.tables import per_seed_metrics
@@ -156,6 +164,80 @@ def deep_curves_figure(runs: list, swept: list[str], env: str) -> Figure:
     return figure
 
 
+def _label(config, swept: list[str]) -> str:
+    """A configuration as a method across environments: its swept values but the environment."""
+    return ", ".join(f"{k}={_value(swept_value(config, k))}" for k in swept if k != "env") or config.name
+
+
+def greedy_curve(results) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, (seeds, rounds) mean greedy return)``: after which episode (tabular) or environment step (deep) each
+    evaluation round came; no rounds where the configuration did not evaluate."""
+    if hasattr(results, "records"):
+        returns = results.records.eval_returns
+        per_round = returns.mean(axis=2) if returns.size else np.zeros(returns.shape[:2])
+        return (np.arange(per_round.shape[1]) + 1) * results.config.eval_every, per_round
+    curves = results.evaluations.groupby(["seed", "round"], sort=True)["return"].mean().unstack("round")
+    return np.sort(results.evaluations["after_step"].unique()), curves.reindex(list(results.seeds)).to_numpy()
+
+
+def aggregate_section(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: list[str], engine: str,
+                      tables_dir: Path, figures_dir: Path) -> Section | None:
+    """rliable's aggregates over the environments of a sweep that ran two or more (None where it ran one): each
+    configuration's swept values but ``env`` are a method, each environment a task, scores normalised per
+    environment between the worst configuration's mean (0) and the best's (1)."""
+    envs = sorted({r.config.env for r in runs.values()})
+    if len(envs) < 2:
+        return None
+    title = "Across environments"
+    column, what = (("final", "final greedy return") if engine == "deep" else
+                    ("greedy_return", "final greedy return") if all(
+                        np.isfinite(m["greedy_return"]).all() for m in metrics_of.values()) else
+                    ("behaviour_return", "behaviour return (mean over training)"))
+    finals: dict[str, dict[str, np.ndarray]] = {env: {} for env in envs}
+    rounds: dict[str, dict[str, np.ndarray]] = {env: {} for env in envs}
+    x_of = {}
+    for config_hash, results in runs.items():
+        label, env = _label(results.config, swept), results.config.env
+        finals[env][label] = metrics_of[config_hash][column].to_numpy(np.float64)
+        x_of[env, label], rounds[env][label] = greedy_curve(results)
+    kept = by_method(finals)
+    shared = [env for env in envs if len(finals[env]) > 1]
+    left_out = sorted({label for env in envs for label in finals[env]} - set(kept))
+    if len(shared) < 2 or len(kept) < 2:
+        return Section(title, [
+            "rliable's aggregates need two or more configurations that ran on two or more environments alike; "
+            f"here {len(shared)} environment(s) had more than one configuration and {len(kept)} configuration(s) "
+            "ran on all of those."])
+    finals = {env: {label: finals[env][label] for label in kept} for env in shared}
+    scales = score_scales(finals)
+    scores = by_method(finals, scales)
+    xs = [x_of[env, label] for env in shared for label in scores]
+    curves = {}
+    if column != "behaviour_return" and all(x.size and np.array_equal(x, xs[0]) for x in xs):
+        curves = by_method({env: {label: rounds[env][label] for label in scores} for env in shared}, scales)
+    drawn = draw_aggregates(scores, figures_dir, tasks="environments", curves=curves, x=xs[0],
+                            curve_xlabel="environment steps" if engine == "deep" else "episodes")
+    write_table(drawn.intervals, tables_dir, "aggregates")
+    write_table(drawn.improvements, tables_dir, "improvement")
+    return Section(title, [
+        f"{len(scores)} configurations over {len(shared)} environments ({', '.join(shared)}), each configuration "
+        "named by its swept values but the environment, as rliable defines its aggregates (Agarwal et al. 2021, "
+        "\"Deep Reinforcement Learning at the Edge of the Statistical Precipice\"), drawn here. Each seed's "
+        f"{what} is normalised environment by environment between the worst configuration's mean (0) and the best's "
+        "(1): the scale is this sweep's own range, not the environment's, so a score says where a configuration "
+        "stands among these. Median and mean are of each environment's mean over seeds; IQM, optimality gap (γ = 1) "
+        "and the profiles pool every seed of every environment; intervals and bands are 95% stratified bootstrap "
+        "ones (seeds resampled within each environment). "
+        + ("Sample efficiency: the IQM of the greedy return at each evaluation round. " if curves else
+           "No sample-efficiency curves: the configurations did not evaluate at the same points. ")
+        + (f"Left out, not run on every one of these environments with as many seeds: {'; '.join(left_out)}. "
+           if left_out else "")
+        + (f"Left out, one configuration alone: {', '.join(env for env in envs if env not in shared)}."
+           if len(shared) < len(envs) else "")],
+        [("Aggregates of normalised scores", drawn.intervals), ("Probability of improvement", drawn.improvements)],
+        drawn.figures)
+
+
 def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path, list[str]]:
     """Tables, figures and ``report.html`` of the sweep stored in ``root``; the page and what is missing."""
     with store.rewriting(Path(root), store.SWEEP.kind):
@@ -198,6 +280,7 @@ def _build_sweep_report(root: Path, group_by: tuple[str, ...]) -> tuple[Path, li
             problems.append(f"learning curves on {env}: {len(chosen)} configurations, more than {MAX_CURVES}; "
                             "see the tables and the figures across each swept key")
     done = sum(is_finished(trial_path(root, t["config_hash"], t["seed"]), engine=engine) for t in manifest["trials"])
+    across_envs = aggregate_section(runs, metrics, swept, engine, tables_dir, figures_dir)
     sections = [
         Section("Sweep", [f"{manifest['name']}: {len(runs)} configurations with finished trials, {done} of "
                           f"{len(manifest['trials'])} trials finished, root seed {manifest['root_seed']}. Swept: "
@@ -207,6 +290,7 @@ def _build_sweep_report(root: Path, group_by: tuple[str, ...]) -> tuple[Path, li
         *([Section("Grouped", tables=grouped)] if grouped else []),
         Section("Across the swept parameters", figures=across) if across else Section(
             "Across the swept parameters", ["No numeric key is swept."]),
+        *([across_envs] if across_envs else []),
         Section("Learning curves", figures=curves),
     ]
     path = write_report(root / "report.html", f"Sweep: {manifest['name']}", sections, problems)
