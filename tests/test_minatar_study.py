@@ -46,9 +46,10 @@ def test_the_study_writes_its_runs_and_a_report(study):
     assert verdicts["game"].tolist() == ["Breakout"]
     improvement = pd.read_csv(out / "tables" / "minatar_improvement.csv")
     assert improvement["games"].tolist() == [1]
-    assert "Breakout:" in output
+    assert "SARSA(λ) scores on Breakout" in " ".join(output.split())
     page = (out / "report.html").read_text()
-    assert page.count("<img") == 2  # Breakout's curves, the performance profiles
+    assert page.count("<img") == 3  # the paired differences, Breakout's curves, the performance profiles
+    assert page.index(">The answer</h2>") < page.index("paired-differences.png") < page.index('<nav')
     assert sorted(p.name for p in (out / "videos").iterdir()) == [
         "pqn_q_lambda-breakout.gif", "pqn_q_lambda-breakout.mp4", "pqn_sarsa_lambda-breakout.gif",
         "pqn_sarsa_lambda-breakout.mp4"]
@@ -251,7 +252,7 @@ def _results_with_finals(method: str, env: str, finals: np.ndarray):
 
 
 def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_the_games():
-    from rlcompare.studies.minatar import OVERALL_MARGIN, normalised, verdict_table
+    from rlcompare.studies.minatar import OVERALL_MARGIN, answer, comparisons, normalised, verdict_table
 
     rng = np.random.default_rng(0)
     floors = {"MinAtar/Breakout-v0": 0.5, "MinAtar/Asterix-v0": 1.0}
@@ -261,7 +262,8 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
               ("pqn_q_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8)}
     runs = {f"{m}-{e}": _results_with_finals(m, e, f) for (m, e), f in finals.items()}
     scores = normalised(runs, floors)
-    verdicts = verdict_table(runs, ["breakout", "asterix"], scores)
+    compared = comparisons(runs, ["breakout", "asterix"], scores)
+    verdicts = verdict_table(compared)
     assert verdicts["game"].tolist() == ["Breakout", "Asterix", "overall (normalised)"]
     breakout_scale = finals[("pqn_sarsa_lambda", "MinAtar/Breakout-v0")].mean() - 0.5
     asterix_scale = max(finals[(m, "MinAtar/Asterix-v0")].mean() for m in ("pqn_sarsa_lambda", "pqn_q_lambda")) - 1
@@ -274,3 +276,9 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
     assert p_values[0] == pytest.approx(3 * 2 / 2**8)  # every Breakout seed on one side: Holm's first of three
     assert verdicts["verdict"].iloc[0].startswith("on-policy")
     assert verdicts["verdict"].iloc[2].startswith("on-policy")
+    games, overall = answer(compared, 8)
+    assert games.startswith("On-policy SARSA(λ) against off-policy Q(λ), final greedy return per episode, 8 paired "
+                            "seeds: SARSA(λ) scores on Breakout 4.")
+    assert "; on-policy better); on Asterix " in games
+    assert overall.startswith(f"Over the games, in scores normalised between the random policy (0) and the best "
+                              f"method here (1), SARSA(λ) scores {by_hand:.1f} more (95% interval")

@@ -25,8 +25,9 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from rlcompare.analysis import stats
-from rlcompare.analysis.compare import compare_paired, comparison_label
+from rlcompare.analysis import plots, stats
+from rlcompare.analysis.compare import Paired, compare_paired, comparison_label
+from rlcompare.analysis.findings import gap_and_interval
 from rlcompare.analysis.minatar_video import MAX_STEPS, render_stages
 from rlcompare.analysis.profiles import improvement_interval, profile_band, stratified_interval
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
@@ -289,25 +290,74 @@ def profile_figure(scores: dict[str, np.ndarray]) -> Figure:
     return figure
 
 
-def verdict_table(runs: dict[str, DeepResults], games: list[str], scores: dict[str, np.ndarray]) -> pd.DataFrame:
-    """SARSA(λ) against Q(λ) per game on paired seeds (final greedy return) and, over two or more games, overall
-    (each seed's normalised score averaged over the games), Holm-adjusted together."""
-    found = []
+OVERALL = "overall (normalised)"
+
+
+def paired_finals(runs: dict[str, DeepResults], games: list[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per game title, the final greedy returns of SARSA(λ) and of Q(λ) on the same seeds."""
+    found = {}
     for game in games:
         pair = [next((r for r in runs.values() if game_of(r) == game and r.config.algorithm == m), None)
                 for m in PAIR]
         if None not in pair and pair[0].seeds == pair[1].seeds:
-            found.append((minatar.GAMES[game].title,
-                          compare_paired(final_returns(pair[0]), final_returns(pair[1]), MARGIN)))
+            found[minatar.GAMES[game].title] = (final_returns(pair[0]), final_returns(pair[1]))
+    return found
+
+
+def comparisons(runs: dict[str, DeepResults], games: list[str], scores: dict[str, np.ndarray]
+                ) -> dict[str, tuple[Paired, float, str]]:
+    """SARSA(λ) against Q(λ) per game on paired seeds (final greedy return) and, over two or more games, overall
+    (each seed's normalised score averaged over the games): each comparison, its Holm-adjusted p (the games and
+    the overall row together) and its label."""
+    found = {game: compare_paired(on, off, MARGIN) for game, (on, off) in paired_finals(runs, games).items()}
     on, off = (scores.get(method) for method in PAIR)
     if len(found) > 1 and on is not None and off is not None and on.shape == off.shape:
-        found.append(("overall (normalised)", compare_paired(on.mean(axis=0), off.mean(axis=0), OVERALL_MARGIN)))
-    adjusted = stats.holm(paired.p_value for _, paired in found)
+        found[OVERALL] = compare_paired(on.mean(axis=0), off.mean(axis=0), OVERALL_MARGIN)
+    adjusted = stats.holm(paired.p_value for paired in found.values())
+    return {game: (paired, p, comparison_label(paired.difference, p, ("on-policy", "off-policy"),
+                                               paired.equivalence))
+            for (game, paired), p in zip(found.items(), adjusted, strict=True)}
+
+
+def verdict_table(compared: dict[str, tuple[Paired, float, str]]) -> pd.DataFrame:
+    """:func:`comparisons` as a table."""
     return pd.DataFrame([{
         "game": game, "on - off (mean, 95% CI)": paired.difference.format(2),
-        "P(on > off)": paired.improvement.format(2), "p (Holm)": p,
-        "verdict": comparison_label(paired.difference, p, ("on-policy", "off-policy"), paired.equivalence),
-    } for (game, paired), p in zip(found, adjusted, strict=True)])
+        "P(on > off)": paired.improvement.format(2), "p (Holm)": p, "verdict": label,
+    } for game, (paired, p, label) in compared.items()])
+
+
+def answer(compared: dict[str, tuple[Paired, float, str]], seeds: int) -> list[str]:
+    """The answer in plain words: a sentence for the games, one for the overall comparison."""
+    on, off = (DEEP_METHODS[m].label.removesuffix(", network") for m in PAIR)
+    games = []
+    for game, (paired, _, label) in compared.items():
+        if game != OVERALL:
+            gap, interval = gap_and_interval(paired.difference)
+            games.append(f"on {game} {gap} ({interval}; {label})")
+    sentences = [f"On-policy {on} against off-policy {off}, final greedy return per episode, {seeds} paired seeds: "
+                 f"{on} scores {'; '.join(games)}."] if games else []
+    if OVERALL in compared:
+        paired, _, label = compared[OVERALL]
+        gap, interval = gap_and_interval(paired.difference)
+        sentences.append(f"Over the games, in scores normalised between the random policy (0) and the best method "
+                         f"here (1), {on} scores {gap} ({interval}; {label}).")
+    return sentences
+
+
+def difference_figure(runs: dict[str, DeepResults], games: list[str]) -> Figure | None:
+    """The answer in one picture: per game, SARSA(λ) minus Q(λ) seed by seed with the mean and its interval."""
+    found = paired_finals(runs, games)
+    if not found:
+        return None
+    figure = Figure(figsize=(3.4 * len(found) + 1, 4), layout="constrained")
+    axes = figure.subplots(1, len(found), squeeze=False)[0]
+    for ax, (game, (on, off)) in zip(axes, found.items(), strict=True):
+        plots.plot_paired_differences(ax, {game: on - off}, {game: f"{game}\n{len(on)} seeds"})
+        ax.set_ylabel("SARSA(λ) - Q(λ), final greedy return")
+    figure.suptitle("SARSA(λ) minus Q(λ) on the same seeds: each dot one seed, the bar the mean with its 95% BCa "
+                    "interval")
+    return figure
 
 
 def budget_words(steps: int) -> str:
@@ -346,7 +396,8 @@ def _build_report(out: Path, videos: bool) -> Report:
     scores = normalised(runs, floors)
     across = across_games_table(scores)
     improvement = improvement_table(scores)
-    verdicts = verdict_table(runs, games, scores)
+    compared = comparisons(runs, games, scores)
+    verdicts = verdict_table(compared)
     files = {name: write_table(frame, tables, name) for name, frame in (
         ("minatar_summary", summary), ("minatar_across_games", across), ("minatar_improvement", improvement),
         ("minatar_verdicts", verdicts))}
@@ -361,8 +412,12 @@ def _build_report(out: Path, videos: bool) -> Report:
     budget = budget_words(max(steps, default=0))
     protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
     seeds = min((len(r.seeds) for r in runs.values()), default=0)
-    lines = [f"{row.game}: {row.verdict}" for row in verdicts.itertuples()]
+    lines = answer(compared, seeds)
+    pictured = difference_figure(runs, games)
+    answer_figure = [(save_figure(pictured, figures / "paired-differences.png"),
+                      "SARSA(λ) minus Q(λ), seed by seed, per game")] if pictured is not None else []
     sections = [
+        Section("The answer", lines, figures=answer_figure),
         Section("On-policy or off-policy target, with a convolutional network", [
             f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, final "
             f"greedy return. Protocol: {'; '.join(protocols)}. Training: {', '.join(f'{s:,}' for s in sorted(steps))}"
