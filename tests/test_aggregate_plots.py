@@ -147,8 +147,9 @@ def test_the_deep_study_normalises_each_environment_between_random_and_its_best_
 
     monkeypatch.setattr(deep, "random_returns", lambda env: np.array([floors[env]]))
     section = deep.aggregate_section(runs, tmp_path / "tables", tmp_path / "figures")
-    assert [caption for caption, _ in section.tables] == ["Aggregates of normalised final returns",
-                                                          "Probability of improvement"]
+    assert [table[0] for table in section.tables] == ["Aggregates of normalised final returns",
+                                                      "Probability of improvement"]
+    assert section.tables[0][2] == "tables/deep_aggregates.csv"
     assert len(section.tables[1][1]) == 2  # both ordered pairs
     assert [path for path, _ in section.figures] == [
         "figures/aggregate-intervals.png", "figures/probability-of-improvement.png",

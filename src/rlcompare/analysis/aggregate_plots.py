@@ -204,4 +204,4 @@ def draw_aggregates(scores: Mapping[str, np.ndarray], directory: Path, *, xlabel
                       "with a 95% stratified bootstrap band"))
     figures = [(save_figure(figure, Path(directory) / f"{prefix}{name}.png"), caption)
                for figure, name, caption in drawn]
-    return Aggregates(interval_table(intervals), improvement_table(improvements), figures)
+    return Aggregates(interval_table(intervals, tasks=tasks), improvement_table(improvements, tasks=tasks), figures)

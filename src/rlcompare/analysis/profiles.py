@@ -106,11 +106,12 @@ def _shown(row, digits: int) -> str:
     return "no data" if np.isnan(row.value) else Estimate(row.value, row.low, row.high).format(digits)
 
 
-def interval_table(estimates: pd.DataFrame, digits: int = 2) -> pd.DataFrame:
-    """:func:`interval_estimates` as a report shows it: one row per method, each metric as ``value [low, high]``."""
+def interval_table(estimates: pd.DataFrame, digits: int = 2, tasks: str = "tasks") -> pd.DataFrame:
+    """:func:`interval_estimates` as a report shows it: one row per method, each metric as ``value [low, high]``
+    (``tasks``: what the column of the number of tasks is called)."""
     rows = {}
     for row in estimates.itertuples():
-        entry = rows.setdefault(row.method, {"method": row.method, "tasks": row.tasks, "runs per task": row.runs})
+        entry = rows.setdefault(row.method, {"method": row.method, tasks: row.tasks, f"runs per {tasks}": row.runs})
         entry[f"{row.metric} [95% CI]"] = _shown(row, digits)
     return pd.DataFrame(list(rows.values()))
 
@@ -164,9 +165,9 @@ def improvement_estimates(scores: Mapping[str, np.ndarray], pairs: Sequence[tupl
     return pd.DataFrame(rows, columns=["X", "Y", "value", "low", "high", "tasks"])
 
 
-def improvement_table(estimates: pd.DataFrame, digits: int = 2) -> pd.DataFrame:
+def improvement_table(estimates: pd.DataFrame, digits: int = 2, tasks: str = "tasks") -> pd.DataFrame:
     """:func:`improvement_estimates` as a report shows it: ``P(X > Y) [95% CI]`` per pair."""
-    return pd.DataFrame({"X": estimates["X"], "Y": estimates["Y"], "tasks": estimates["tasks"],
+    return pd.DataFrame({"X": estimates["X"], "Y": estimates["Y"], tasks: estimates["tasks"],
                          "P(X > Y) [95% CI]": [_shown(row, digits) for row in estimates.itertuples()]})
 
 

@@ -382,8 +382,8 @@ def aggregate_section(deep: dict[str, DeepResults], tables: Path, figures: Path)
         return Section(title, ["The aggregates need two or more methods run on two or more environments alike."])
     drawn = draw_aggregates(across.scores, figures, xlabel="normalised score", tasks="environments",
                             curves=across.curves, x=across.x, curve_xlabel=across.xlabel)
-    write_table(drawn.intervals, tables, "deep_aggregates")
-    write_table(drawn.improvements, tables, "deep_improvement")
+    files = [write_table(drawn.intervals, tables, "deep_aggregates"),
+             write_table(drawn.improvements, tables, "deep_improvement")]
     seeds = next(iter(across.scores.values())).shape[1]
     return Section(title, [
         f"The deep methods over {len(across.envs)} environments ({', '.join(across.envs)}) x {seeds} seeds, as "
@@ -398,8 +398,8 @@ def aggregate_section(deep: dict[str, DeepResults], tables: Path, figures: Path)
         "environment steps. "
         + (f"Sample efficiency: the IQM at each evaluation round, against the {across.xlabel}." if across.curves else
            "No sample-efficiency curves: the trainings were evaluated at different shares of their steps.")],
-        [("Aggregates of normalised final returns", drawn.intervals),
-         ("Probability of improvement", drawn.improvements)], drawn.figures)
+        [("Aggregates of normalised final returns", drawn.intervals, files[0]),
+         ("Probability of improvement", drawn.improvements, files[1])], drawn.figures)
 
 
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:

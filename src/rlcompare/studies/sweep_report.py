@@ -217,8 +217,8 @@ def aggregate_section(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: li
         curves = by_method({env: {label: rounds[env][label] for label in scores} for env in shared}, scales)
     drawn = draw_aggregates(scores, figures_dir, tasks="environments", curves=curves, x=xs[0],
                             curve_xlabel="environment steps" if engine == "deep" else "episodes")
-    write_table(drawn.intervals, tables_dir, "aggregates")
-    write_table(drawn.improvements, tables_dir, "improvement")
+    files = [write_table(drawn.intervals, tables_dir, "aggregates"),
+             write_table(drawn.improvements, tables_dir, "improvement")]
     return Section(title, [
         f"{len(scores)} configurations over {len(shared)} environments ({', '.join(shared)}), each configuration "
         "named by its swept values but the environment, as rliable defines its aggregates (Agarwal et al. 2021, "
@@ -234,8 +234,8 @@ def aggregate_section(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: li
            if left_out else "")
         + (f"Left out, one configuration alone: {', '.join(env for env in envs if env not in shared)}."
            if len(shared) < len(envs) else "")],
-        [("Aggregates of normalised scores", drawn.intervals), ("Probability of improvement", drawn.improvements)],
-        drawn.figures)
+        [("Aggregates of normalised scores", drawn.intervals, files[0]),
+         ("Probability of improvement", drawn.improvements, files[1])], drawn.figures)
 
 
 def build_sweep_report(root: Path, group_by: tuple[str, ...] = ()) -> tuple[Path, list[str]]:
