@@ -13,6 +13,7 @@ import typer.main
 from typer.testing import CliRunner
 
 from rlcompare import ExperimentConfig, Results, cli
+from rlcompare.cli.config_options import plain
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import field_docs
 
@@ -72,7 +73,8 @@ def test_run_help_explains_options() -> None:
 
 def test_every_configuration_field_is_an_option_whose_help_is_its_docstring() -> None:
     """One place per fact: ``run`` takes each field as an option named after it, with the field's default and its
-    docstring as help (then how the command line gives it, where that differs from what the field holds)."""
+    docstring as help, in plain words (then how the command line gives it, where that differs from what the field
+    holds)."""
     options = {param.opts[0]: param for param in typer.main.get_command(cli.app).commands["run"].params}
     docs = field_docs()
     assert docs["alpha"] == "Step size α, in (0, 1]."
@@ -83,10 +85,10 @@ def test_every_configuration_field_is_an_option_whose_help_is_its_docstring() ->
         if field.name == "algorithm":  # the registry's methods, and the options each reads
             assert option.help == cli.ALGORITHM_HELP
         elif field.name in forms:
-            assert option.help.startswith(docs[field.name] + " Given as ")
+            assert option.help.startswith(plain(docs[field.name]) + " Given as ")
             assert option.default == forms[field.name]
         else:
-            assert (option.help, option.default) == (docs[field.name], field.default), field.name
+            assert (option.help, option.default) == (plain(docs[field.name]), field.default), field.name
     assert sorted(options) == ["--first-seed", "--force", "--out"]
 
 
@@ -95,9 +97,15 @@ def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.Monkey
 
     measured = [benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0),
                 benchmark.Measurement("sarsa (grid)", 1, 5000, 0.05)]
-    monkeypatch.setattr(benchmark, "run_benchmark", lambda: measured)
+    def run_benchmark(report=lambda m: None):
+        for measurement in measured:
+            report(measurement)
+        return measured
+
+    monkeypatch.setattr(benchmark, "run_benchmark", run_benchmark)
     result = invoke("bench", "--no-environments")
     assert result.exit_code == 0, result.output
+    assert "sarsa (grid), 1 thread: 100,000 steps/s" in result.output  # each measurement said as it is taken
     assert "Every algorithm on MountainCar-v0" in result.output
     for cell in ("100,000", "100x", "1.00x"):  # steps/s, against Gymnasium's loop, against 1 thread
         assert cell in result.output

@@ -93,6 +93,32 @@ _FORMS: dict[str, tuple[Any, Any, str]] = {
 default, and what its help adds to the field's docstring (:func:`_config_from` reads them)."""
 _HELP = {"algorithm": ALGORITHM_HELP}
 """Help in place of a field's docstring: every method of the registry and the options it reads."""
+PLAIN_WORDS = {
+    " (DiscretizeObservation(env, bins))": "",
+    "None: the environment's default (": "Default: the environment's (",
+    "; None: the environment's defaults (its observation box, with chosen bounds where the box is unbounded: "
+    "docs/environments.md)": ". Default: the environment's observation bounds, with chosen ones where those are "
+                             "infinite (docs/environments.md)",
+    "None for the behaviour's ε (on-policy), 0 for greedy": "by default the behaviour's ε (on-policy), 0 for greedy",
+    "SARSA's box, Algorithm 2": "as SARSA does, Algorithm 2",
+    "Q-Learning's box, Algorithm 1": "as Q-Learning does, Algorithm 1",
+    "None: the method's own box (drawn_next).": "Default: each method's own order.",
+    "Only the one-step learners have it (rlcompare.algorithms.registry.Method.one_step; docs/why.md)":
+        "Only the one-step learners take it (docs/why.md)",
+    "with Discrete actions and Discrete or Box observations": "whose actions are a finite set and whose observations "
+                                                              "are a state's number or an array of numbers",
+    "(old Gym done)": "(as the old Gym's done did)",
+}
+"""Words of the configuration's docstrings said plainly in the command line's help, which is read by people who
+type options, not Python: no None, no class or attribute names, no Gymnasium space types (a test checks that each
+phrase is still in a docstring)."""
+
+
+def plain(text: str) -> str:
+    """A field's docstring in the words of :data:`PLAIN_WORDS`."""
+    for phrase, words in PLAIN_WORDS.items():
+        text = text.replace(phrase, words)
+    return text
 
 
 def _field_options() -> list[inspect.Parameter]:
@@ -103,7 +129,7 @@ def _field_options() -> list[inspect.Parameter]:
     options = []
     for field in dataclasses.fields(ExperimentConfig):
         kind, default, how = _FORMS.get(field.name, (types[field.name], field.default, ""))
-        text = _HELP.get(field.name) or " ".join(part for part in (docs.get(field.name, ""), how) if part)
+        text = _HELP.get(field.name) or " ".join(part for part in (plain(docs.get(field.name, "")), how) if part)
         options.append(inspect.Parameter(field.name, inspect.Parameter.KEYWORD_ONLY, default=default,
                                          annotation=Annotated[kind, typer.Option(option_flag(field.name), help=text)]))
         if field.name == "seeds":

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
+import textwrap
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 import typer
+from rich import box
 from rich.console import Console
+from rich.measure import Measurement
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 from rich.text import Text
@@ -21,9 +24,12 @@ from rlcompare.experiment.store import StoreError
 from rlcompare.studies.interface import UI, Advance, Report
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from rlcompare.experiment.benchmark import BenchTable
 
-console = Console(width=None if Console().is_terminal else 120)
+console = Console(width=None if Console().is_terminal or os.environ.get("COLUMNS", "").isdigit() else 120)
+"""Everything but errors: a terminal's own width, or COLUMNS where it is set; in a log, 120 columns."""
 
 
 def print_error(message: str, details: tuple[str, ...] = ()) -> None:
@@ -104,13 +110,19 @@ def announce_compiling() -> None:
 
     if holds_nothing_yet():
         console.print("Compiling: the first run of each method on each environment and features compiles its "
-                      "training loop (10-20 s on two cores); later runs load it.")
+                      "training loop, once on this machine (seconds each: each configuration's line below says how "
+                      "long); later runs load it.")
+
+
+def plural(n: int, noun: str) -> str:
+    """``1 seed``, ``30 seeds``, ``5,000 episodes``."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
 
 
 def done_line(name: str, results: Any, reused: bool) -> str:
     """What a finished configuration took: its seeds (and episodes), and its time or that it was loaded."""
     episodes = getattr(results.config, "episodes", None)
-    size = f"{len(results.seeds)} seeds" + (f" x {episodes} episodes" if episodes else "")
+    size = plural(len(results.seeds), "seed") + (f" x {plural(episodes, 'episode')}" if episodes else "")
     if reused:
         return f"{name:<24} {size}: loaded (already complete)"
     timings = results.meta.get("timings", {})
@@ -119,25 +131,77 @@ def done_line(name: str, results: Any, reused: bool) -> str:
     return f"{name:<24} {size}: {timings.get('wall_seconds', 0):.1f} s{note}"
 
 
+def rounded_steps_line(name: str, results: Any) -> str | None:
+    """Where a deep training ran other than the environment steps it was given (each method trains whole batches
+    of steps in each evaluation round): the number given and the number trained, in one line; else None."""
+    given = (getattr(results.config, "hyperparameters", None) or {}).get("total_steps")
+    trained = results.meta.get("timings", {}).get("training_steps")
+    if not isinstance(given, int) or not isinstance(trained, int) or given == trained:
+        return None
+    return (f"{name}: {trained:,} environment steps per seed, not the {given:,} given: the method trains whole "
+            "batches of steps in each evaluation round")
+
+
+def fitting_table(title: str, columns: Any, rows: list[tuple[str, ...]], caption: str = "") -> Table:
+    """A table that fits the console, with light rules; the first column (the rows' names) left, the others right.
+    Where its rows do not fit on one line each, a number's interval goes under it and a header wraps to its
+    column's widest cell; then cells wrap at spaces (and fold a word longer than its column) instead of being
+    cut."""
+    table = _table(title, columns, rows, caption)
+    if Measurement.get(console, console.options.update_width(10_000), table).maximum <= console.width:
+        return table
+    cells = [tuple(cell.replace(" [", "\n[") for cell in row) for row in rows]
+    headers = []
+    for index, column in enumerate(map(str, columns)):
+        widest = max((len(line) for row in cells for line in row[index].splitlines()), default=0)
+        longest_word = max((len(word) for word in column.split()), default=0)
+        headers.append("\n".join(textwrap.wrap(column, max(widest, longest_word))) or column)
+    return _table(title, headers, cells, caption)
+
+
+def _table(title: str, columns: Any, rows: list[tuple[str, ...]], caption: str) -> Table:
+    table = Table(title=title, caption=caption or None, box=box.SIMPLE_HEAD, collapse_padding=True,
+                  pad_edge=False, title_justify="left", caption_justify="left")
+    for index, column in enumerate(columns):
+        table.add_column(str(column), justify="right" if index else "left", overflow="fold")
+    for row in rows:
+        table.add_row(*row)
+    return table
+
+
 def print_frame(frame: pd.DataFrame, title: str, caption: str = "") -> None:
-    table = Table(title=title, caption=caption or None)
-    for column in frame.columns:
-        table.add_column(str(column), justify="left" if column == frame.columns[0] else "right", no_wrap=True)
-    for row in frame.itertuples(index=False):
-        table.add_row(*(str(value) for value in row))
-    console.print(table)
+    rows = [tuple(str(value) for value in row) for row in frame.itertuples(index=False)]
+    console.print(fitting_table(title, frame.columns, rows, caption))
 
 
 def print_bench(table: BenchTable) -> None:
     """A benchmark's table: its label column left, its numbers right; then its notes."""
-    shown = Table(title=table.title)
-    for index, column in enumerate(table.columns):
-        shown.add_column(column, justify="right" if index else "left")
-    for row in table.rows:
-        shown.add_row(*row)
-    console.print(shown)
+    console.print(fitting_table(table.title, table.columns, table.rows))
     for note in table.notes:
         console.print(Text(note, style="yellow"))
+
+
+class MeasurementLines:
+    """``with MeasurementLines(what) as say``: a line saying what is measured, a spinner while it runs, and
+    ``say(text)`` prints each measurement as it is taken."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self.count = 0
+
+    def __enter__(self) -> Callable[[str], None]:
+        console.print(f"Measuring {self.what}:", highlight=False)
+        self.status = console.status(f"Measuring {self.what}")
+        self.status.__enter__()
+        return self.say
+
+    def say(self, text: str) -> None:
+        self.count += 1
+        console.print(Text(f"  {text}"), highlight=False)
+        self.status.update(f"Measuring {self.what}: {self.count} done, next one running")
+
+    def __exit__(self, *exc: Any) -> None:
+        self.status.__exit__(*exc)
 
 
 def print_report(report: Report) -> None:
@@ -173,6 +237,9 @@ class ConsoleUI(UI):
 
     def done(self, name: str, results: Any, reused: bool) -> None:
         self._console().print(done_line(name, results, reused), highlight=False)
+        rounded = rounded_steps_line(name, results)
+        if rounded:
+            self._console().print(Text(rounded, style="yellow"), highlight=False)
 
     def say(self, text: str) -> None:
         self._console().print(Text(text), highlight=False)

@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Annotated, Any, get_type_hints
 
 import typer
-from typer.core import TyperGroup
 
 from rlcompare.cli.console import (
     ConsoleUI,
@@ -25,6 +24,7 @@ from rlcompare.cli.console import (
     out_path,
     print_report,
 )
+from rlcompare.cli.face import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ConfigError, field_docs
 from rlcompare.studies.interface import Options
@@ -129,7 +129,7 @@ def default_study(ctx: typer.Context, **values: Any) -> None:
     one_line_errors(reproduce_study)(STUDIES[DEFAULT_STUDY], values)
 
 
-class StudyGroup(TyperGroup):
+class StudyGroup(PlainGroup):
     """The ``reproduce`` group: a name that is not a study's is a usage error listing the studies."""
 
     def resolve_command(self, ctx: typer.Context, args: list[str]) -> Any:
@@ -143,7 +143,8 @@ def reproduce_app() -> typer.Typer:
     """The ``reproduce`` group: the paper's options on the group itself, then a subcommand per study."""
     app = typer.Typer(help="Reproduce a study: train what its directory lacks (configurations already complete "
                            "in OUT are loaded, not trained again), then build its report. Without a study's name, "
-                           "the paper, whose options are below.", rich_markup_mode="rich", cls=StudyGroup)
+                           "the paper, whose options are below.", short_help=SUMMARIES["reproduce"],
+                      rich_markup_mode="rich", cls=StudyGroup)
     list_option = Annotated[bool, typer.Option("--list", help="List the studies and exit.")]
 
     def callback(ctx: typer.Context, **values: Any) -> None:
@@ -156,5 +157,5 @@ def reproduce_app() -> typer.Typer:
     app.callback(invoke_without_command=True)(callback)
     for name, study in STUDIES.items():
         command = study_command(study)
-        app.command(name, help=command.__doc__)(command)
+        app.command(name, help=command.__doc__, cls=PlainCommand)(command)
     return app

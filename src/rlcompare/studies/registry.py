@@ -72,7 +72,9 @@ class DeepOptions(Seeded):
     seeds: int = option(10, minimum=1, spellings=("--runs",))
     """Number of seeds; the seeds are first-seed, first-seed + 1, ..."""
     steps: int | None = option(None, minimum=1)
-    """Environment steps of every deep training, in place of each preset's (for a quick look)."""
+    """Environment steps of every deep training, in place of each preset's (for a quick look). Each method trains
+    whole batches of steps in every evaluation round, so fewer or more than given where they do not divide it;
+    each training's line then says how many."""
     episodes: int = option(5000, minimum=1)
     """Training episodes per seed of the tabular pair."""
     methods: str | None = None
@@ -94,10 +96,13 @@ class MinAtarOptions(Seeded):
     games: str | None = None
     """Comma-separated games (asterix, breakout, freeway, seaquest, space_invaders). Default: the budget's."""
     protocol: str = "minatar"
-    """minatar (the MinAtar paper's: sticky actions 0.1, all 6 actions, no time limit) or gymnax (PQN's: no
-    sticky actions, minimal action sets, gymnax's limits)."""
+    """minatar (the MinAtar paper's: sticky actions, each step repeating the last action with probability 0.1;
+    all 6 actions; no time limit) or gymnax (PQN's: no sticky actions, only the actions each game uses, gymnax's
+    time limits)."""
     steps: int | None = option(None, minimum=1)
-    """Environment steps of every training, in place of the budget's."""
+    """Environment steps of every training, in place of the budget's. Each method trains whole batches of steps in
+    every evaluation round, so fewer or more than given where they do not divide it; each training's line then
+    says how many."""
     methods: str = "pqn_sarsa_lambda,pqn_q_lambda"
     """Comma-separated deep methods, each with its MinAtar preset: the paper's pair (the default) and any of
     pqn_expected_sarsa_lambda, dqn, double_dqn, ppo; 'all' for every one."""
@@ -122,7 +127,8 @@ class MinAtarOptions(Seeded):
 @dataclass(frozen=True)
 class SensitivityOptions(Options):
     seeds: int = option(20, minimum=1, spellings=("--runs",))
-    """Number of seeds, from the study's sweep: SeedSequence(0).spawn(N)."""
+    """Number of seeds; the study's sweep derives them from one root seed, so the same number gives the same
+    seeds."""
     episodes: int = option(1500, minimum=1)
     """Training episodes per seed."""
     grid: tuple[str, ...] = ()

@@ -1,0 +1,265 @@
+"""The ``rlcompare`` app with every command: parse, call one library function, print.
+
+Its top-level help is :mod:`rlcompare.cli.face`'s, which answers ``rlcompare --help`` without importing this
+module.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+from rich.text import Text
+
+from rlcompare.cli.config_options import ALGORITHM_HELP, config_options
+from rlcompare.cli.console import (
+    ConsoleUI,
+    MeasurementLines,
+    announce_compiling,
+    check_out,
+    console,
+    done_line,
+    fail,
+    one_line_errors,
+    out_path,
+    plural,
+    print_bench,
+    print_error,
+    print_frame,
+    print_report,
+    progress_bars,
+)
+from rlcompare.cli.face import SUMMARIES, PlainCommand, new_app
+from rlcompare.cli.reproduce import FORCE_HELP, reproduce_app
+from rlcompare.experiment import store
+from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.studies.registry import STUDIES
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["ALGORITHM_HELP", "app", "main"]
+
+app = new_app()
+app.add_typer(reproduce_app(), name="reproduce", short_help=SUMMARIES["reproduce"])
+Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
+
+
+def progress_label(config: ExperimentConfig) -> str:
+    """A configuration's name, and how its environment is stepped when that is at Python speed."""
+    if config.environment.is_ported:
+        return config.name
+    return f"{config.name} ({config.env} through Gymnasium's API: Python speed)"
+
+
+@app.command(short_help=SUMMARIES["run"], cls=PlainCommand)
+@one_line_errors
+@config_options
+def run(
+    config: ExperimentConfig,
+    out: Annotated[str | None, typer.Option(help="Run directory to write (new, empty, or a run directory "
+                                                 "rlcompare wrote). Default: runs/run.", show_default=False)] = None,
+    force: Force = False,
+) -> None:
+    """Train one configuration over many seeds and write its run directory."""
+    from rlcompare.experiment.runner import run as run_experiment
+    from rlcompare.studies.paper import summary
+
+    out_dir = out_path(out, Path("runs/run"))
+    check_out(out_dir, store.RUN, force)
+    if not config.environment.is_ported:
+        console.print(progress_label(config))
+    announce_compiling()
+    with store.output_directory(out_dir, store.RUN, force=force), progress_bars() as progress:
+        task = progress.add_task(progress_label(config), total=config.episodes)
+        results = run_experiment(config, out=out_dir, progress=lambda n: progress.advance(task, n))
+    console.print(done_line(config.name, results, reused=False), highlight=False)
+    print_frame(*summary([results], paper=False))
+    console.print(f"Run directory: {out_dir}")
+
+
+@app.command(short_help=SUMMARIES["sweep"], cls=PlainCommand)
+@one_line_errors
+def sweep(
+    sweep_file: Annotated[Path, typer.Argument(
+        metavar="SWEEP_FILE", help="A sweep file (TOML); see examples/sweep.toml, or examples/sweep-deep.toml for "
+                                   "deep configurations.")],
+    out: Annotated[str | None, typer.Option(
+        help="The sweep's store (new, empty, or a sweep store rlcompare wrote). Default: runs/sweeps/NAME.",
+        show_default=False)] = None,
+    backend: Annotated[str, typer.Option(help="local (this machine's cores) or ray (a Ray cluster).")] = "local",
+    workers: Annotated[int | None, typer.Option(help="Local backend: trials at once. Default: every core.")] = None,
+    address: Annotated[str, typer.Option(help="Ray backend: 'auto' (the cluster 'ray start' began here) or "
+                                              "HOST:PORT.")] = "auto",
+    group_by: Annotated[list[str] | None, typer.Option(
+        help="Also write the report's table grouped by this swept key; repeat the option.")] = None,
+    report_: Annotated[bool, typer.Option("--report/--no-report", help="Build report.html at the end.")] = True,
+    force: Force = False,
+) -> None:
+    """Run every configuration of a sweep over its seeds; finished trials in OUT are kept, the rest run."""
+    from rlcompare.experiment.backends import BACKENDS
+    from rlcompare.experiment.sweep import SweepError, load_sweep
+    from rlcompare.experiment.sweep_store import run_sweep
+    from rlcompare.studies.interface import run_trials
+
+    try:
+        plan = load_sweep(sweep_file)
+    except SweepError as error:
+        print_error(f"{error.source}: every problem of the sweep file", tuple(error.problems))
+        raise typer.Exit(2) from None
+    if backend not in BACKENDS:
+        raise typer.BadParameter(f"got {backend!r}; allowed: {', '.join(BACKENDS)}", param_hint="'--backend'")
+    if workers is not None and workers < 1:
+        raise typer.BadParameter(f"got {workers}; allowed: an integer >= 1", param_hint="'--workers'")
+    unknown = [key for key in group_by or [] if key not in plan.swept]
+    if unknown:
+        raise typer.BadParameter(f"got {unknown[0]!r}; allowed: a swept key ({', '.join(plan.swept) or 'none'})",
+                                 param_hint="'--group-by'")
+    out_dir = out_path(out, Path("runs") / "sweeps" / plan.name)
+    check_out(out_dir, store.SWEEP, force)
+    finished, ran = run_trials(
+        plan, backend, workers, address, f"on the {backend} backend; store {out_dir}", ConsoleUI(),
+        lambda executor, progress: run_sweep(plan, sweep_file.read_text(), out_dir, executor, progress=progress,
+                                             force=force))
+    console.print(f"{ran} trials run, {finished} already finished")
+    if report_:
+        _sweep_report(out_dir, tuple(group_by or ()))
+
+
+@app.command(short_help=SUMMARIES["report"], cls=PlainCommand)
+@one_line_errors
+def report(
+    study_dir: Annotated[Path, typer.Argument(
+        metavar="STUDY_DIR", help="A study directory written by reproduce, a sweep's store, or one run directory "
+                                  "(written by run, or one configuration of a study).")],
+    videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents (studies that draw them).")
+                      ] = True,
+    group_by: Annotated[list[str] | None, typer.Option(
+        help="A sweep: also write its table grouped by this swept key; repeat the option.")] = None,
+) -> None:
+    """Rebuild the tables, verdicts, figures, videos and report.html of a study or a sweep, without training. Given
+    one run directory: its results over seeds (and the study it belongs to, if any)."""
+    from rlcompare.cli.reproduce import load_runner
+
+    allowed = "a study directory written by 'rlcompare reproduce', a sweep's store, or a run directory"
+    if not study_dir.is_dir():
+        raise typer.BadParameter(f"{study_dir} is not a directory; allowed: {allowed}", param_hint="'STUDY_DIR'")
+    owner = store.owner_of(study_dir)
+    if owner == store.SWEEP:
+        _sweep_report(study_dir, tuple(group_by or ()))
+    elif owner == store.RUN:
+        _run_report(study_dir)
+    elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
+        print_report(load_runner(STUDIES[owner.name]).report(study_dir, ConsoleUI(), videos=videos))
+    else:
+        what = f"holds {owner}" if owner is not None else "was not written by rlcompare (it holds no .rlcompare.json)"
+        raise typer.BadParameter(f"{study_dir} {what}; allowed: {allowed}", param_hint="'STUDY_DIR'")
+
+
+def _run_report(run_dir: Path) -> None:
+    """One run directory: its results over seeds, checked on load; and the study it is a configuration of."""
+    from rlcompare.experiment.engines import load_run
+
+    with console.status(f"Loading {run_dir}"):
+        results = load_run(run_dir)
+        shown = run_summary(results)
+    print_frame(*shown)
+    console.print(f"Run directory: {run_dir} ({results.config.name}, {plural(len(results.seeds), 'seed')})",
+                  highlight=False)
+    try:
+        parent = store.owner_of(run_dir.resolve().parent)
+    except store.StoreError:
+        parent = None
+    if parent is not None and parent.kind == "study":
+        console.print(f"It is one configuration of {parent}: 'rlcompare report {run_dir.resolve().parent}' builds "
+                      "that study's report.", highlight=False)
+
+
+def run_summary(results: Any) -> tuple[pd.DataFrame, str, str]:
+    """A run's table: its mean behaviour and greedy return over seeds with 95% intervals, as ``run`` prints
+    (a deep run: the greedy return of its last evaluation round)."""
+    from rlcompare.experiment.results import Results
+    from rlcompare.studies.paper import summary
+
+    if isinstance(results, Results):
+        return summary([results], paper=False)
+    import numpy as np
+
+    from rlcompare.analysis.metrics import returns_per_seed
+    from rlcompare.analysis.tables import table_ii
+
+    seeds = list(results.seeds)
+    training = results.episodes.groupby("seed", sort=False)["return"]
+    rounds = results.evaluations.groupby(["seed", "round"])["return"].mean().unstack("round").loc[seeds]
+    metrics = returns_per_seed(tuple(seeds), [training.get_group(seed).to_numpy() for seed in seeds],
+                               rounds.to_numpy())
+    frame = table_ii({results.config.name: metrics.assign(greedy_success=np.nan)}, {})
+    return (frame[["configuration", "behaviour mean", "greedy mean"]],
+            "Mean return over seeds [95% bootstrap interval]",
+            "behaviour: ε-greedy return averaged over all training episodes; greedy: return of the final network's "
+            "greedy policy")
+
+
+def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
+    from rlcompare.studies.sweep_report import build_sweep_report
+
+    with console.status("Building the sweep's report"):
+        path, problems = build_sweep_report(root, group_by)
+    for problem in problems:
+        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
+    console.print(f"Report: {path}")
+
+
+@app.command(short_help=SUMMARIES["bench"], cls=PlainCommand)
+def bench(
+    environments: Annotated[bool, typer.Option(help="Also measure every ported environment against its own "
+                                                    "Gymnasium loop and through the adapter.")] = True,
+    sweeps: Annotated[bool, typer.Option(help="Only measure sweeps: trials per second of short trials on the "
+                                              "local backend (1 and 2 workers) and on Ray.")] = False,
+    address: Annotated[str | None, typer.Option(help="With --sweeps: the Ray cluster (default: a new local Ray "
+                                                     "instance with 2 CPUs).")] = None,
+    deep: Annotated[bool, typer.Option(help="Only measure the deep engine, beside Stable-Baselines3 where the "
+                                            "'bench' extra is installed.")] = False,
+    to_score: Annotated[bool, typer.Option(help="With --deep: also the wall time to a greedy return of 475 on "
+                                                "CartPole, ours beside Stable-Baselines3 (several minutes).")] = False,
+) -> None:
+    """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
+    from rlcompare.experiment import benchmark
+    from rlcompare.experiment.backends import BackendError
+
+    if deep:
+        try:
+            from rlcompare.deep.bench import deep_table, minatar_table, score_table
+        except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
+            fail(str(error))
+        with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):
+            print_bench(deep_table())
+            print_bench(minatar_table())
+            if to_score:
+                print_bench(score_table())
+        return
+    if sweeps:
+        try:
+            with console.status("Measuring sweeps of 200 short trials: the local backend with 1 and 2 workers, "
+                                "then Ray"):
+                print_bench(benchmark.sweep_benchmark(address))
+        except BackendError as error:
+            fail(str(error))
+        return
+    with MeasurementLines("every algorithm on MountainCar-v0, on 1 and all threads, after a plain Gymnasium "
+                          "loop") as say:
+        measured = benchmark.run_benchmark(
+            report=lambda m: say(f"{m.label}, {plural(m.threads, 'thread')}: {m.steps_per_second:,.0f} steps/s"))
+    print_bench(benchmark.kernel_table(measured))
+    if environments:
+        with MeasurementLines("each ported environment: Gymnasium's loop, the port, the adapter") as say:
+            ports = benchmark.run_port_benchmark(report=lambda m: say(
+                f"{m.env}: Gymnasium loop {m.gymnasium.steps_per_second:,.0f}, port "
+                f"{max(x.steps_per_second for x in m.port):,.0f}, adapter {m.adapter.steps_per_second:,.0f} "
+                "steps/s"))
+        print_bench(benchmark.port_table(ports))
+
+
+def main() -> None:
+    app()
