@@ -26,13 +26,13 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots, stats
+from rlcompare.analysis.aggregate_plots import draw_aggregates
 from rlcompare.analysis.compare import Paired, compare_paired, comparison_label
 from rlcompare.analysis.findings import gap_and_interval
 from rlcompare.analysis.minatar_video import MAX_STEPS, render_stages
-from rlcompare.analysis.profiles import improvement_interval, profile_band, stratified_interval
+from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.deep import float64
-from rlcompare.deep.envs import jax_env
 from rlcompare.deep.methods import DEEP_METHODS, deep_method
 from rlcompare.deep.rollout import evaluate
 from rlcompare.deep.run import DeepConfig, DeepResults, merge_seeds, params_template
@@ -63,8 +63,6 @@ as no difference: declared here before any run."""
 OVERALL_MARGIN = 0.05
 """Across games, differences of mean normalised score smaller than a twentieth of the gap between the random
 policy and the best method here count as no difference: declared before any run."""
-RANDOM_EPISODES = 200
-"""Episodes of the uniformly random policy per game, the floor of the normalised scores."""
 EVAL_EPSILON = 0.05
 """DQN's evaluation protocol (Mnih et al. 2015): ε-greedy with ε = 0.05, beside the greedy evaluation (ε = 0)."""
 EPSILON_EPISODES = 8
@@ -199,21 +197,6 @@ def final_returns(results: DeepResults) -> np.ndarray:
     return deep.eval_curves(results)[1][:, -1]
 
 
-def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0) -> np.ndarray:
-    """Returns of the uniformly random policy in the port, under the environment's protocol."""
-    env = jax_env(env_name)
-
-    def no_op(params: None, observations: jax.Array) -> jax.Array:
-        return jnp.zeros(observations.shape[0], jnp.int32)
-
-    @float64
-    def play() -> np.ndarray:
-        return np.asarray(jax.jit(lambda key: evaluate(env, no_op, None, key, episodes, epsilon=1.0)[0])(
-            jax.random.key(seed)))
-
-    return play()
-
-
 @float64
 def epsilon_returns(results: DeepResults, epsilon: float = EVAL_EPSILON, episodes: int = EPSILON_EPISODES
                     ) -> np.ndarray:
@@ -240,54 +223,30 @@ def summary_table(runs: dict[str, DeepResults], floors: dict[str, float]) -> pd.
     return pd.DataFrame(rows)
 
 
+def per_game(runs: dict[str, DeepResults], values: Callable[[DeepResults], np.ndarray]
+             ) -> dict[str, dict[str, np.ndarray]]:
+    """``values`` of every training, by environment and method."""
+    found: dict[str, dict[str, np.ndarray]] = {}
+    for results in runs.values():
+        found.setdefault(results.config.env, {})[results.config.algorithm] = values(results)
+    return found
+
+
 def normalised(runs: dict[str, DeepResults], floors: dict[str, float]) -> dict[str, np.ndarray]:
     """Per method, ``(games, seeds)`` final returns scaled so that the random policy is 0 and the best method's
-    mean here is 1, game by game."""
-    by_game: dict[str, dict[str, np.ndarray]] = {}
-    for results in runs.values():
-        by_game.setdefault(results.config.env, {})[results.config.algorithm] = final_returns(results)
-    scores: dict[str, list[np.ndarray]] = {}
-    for env, methods in by_game.items():
-        best = max(values.mean() for values in methods.values())
-        scale = best - floors[env] if best > floors[env] else 1.0
-        for method, values in methods.items():
-            scores.setdefault(method, []).append((values - floors[env]) / scale)
-    return {method: np.stack(values) for method, values in scores.items()}
+    mean here is 1, game by game (:func:`~rlcompare.analysis.profiles.score_scales`)."""
+    finals = per_game(runs, final_returns)
+    return by_method(finals, score_scales(finals, floors))
 
 
-def across_games_table(scores: dict[str, np.ndarray]) -> pd.DataFrame:
-    """IQM over every (game, seed) score with a stratified bootstrap interval (rliable's IQM, Agarwal et al.
-    2021)."""
-    return pd.DataFrame([{"method": DEEP_METHODS[method].label, "games": values.shape[0],
-                          "IQM of normalised scores [95% CI]": stratified_interval(values).format(2)}
-                         for method, values in scores.items()])
+def normalised_curves(runs: dict[str, DeepResults], floors: dict[str, float]) -> dict[str, np.ndarray]:
+    """Per method, ``(games, seeds, rounds)`` greedy curves on the scales of :func:`normalised`."""
+    scales = score_scales(per_game(runs, final_returns), floors)
+    return by_method(per_game(runs, lambda results: deep.eval_curves(results)[1]), scales)
 
 
-def improvement_table(scores: dict[str, np.ndarray]) -> pd.DataFrame:
-    """P(on > off) over the games: the chance that a run of the on-policy target beats one of the off-policy
-    target on a game, averaged over the games, with a stratified bootstrap interval (Agarwal et al. 2021)."""
-    on, off = PAIR
-    if on not in scores or off not in scores:
-        return pd.DataFrame()
-    return pd.DataFrame([{"on-policy": DEEP_METHODS[on].label, "off-policy": DEEP_METHODS[off].label,
-                          "games": scores[on].shape[0],
-                          "P(on > off) [95% CI]": improvement_interval(scores[on], scores[off]).format(2)}])
-
-
-def profile_figure(scores: dict[str, np.ndarray]) -> Figure:
-    """Performance profiles: the fraction of runs, over every game, whose normalised score is above each
-    threshold, with a 95% stratified bootstrap band (Agarwal et al. 2021, Figure 5)."""
-    thresholds = np.linspace(0.0, 1.5, 61)
-    figure = Figure(figsize=(6, 4))
-    ax = figure.subplots()
-    for method, values in scores.items():
-        profile, low, high = profile_band(values, thresholds)
-        line, = ax.plot(thresholds, profile, label=DEEP_METHODS[method].label)
-        ax.fill_between(thresholds, low, high, color=line.get_color(), alpha=0.2)
-    ax.set_xlabel("normalised score τ (random 0, best method here 1)")
-    ax.set_ylabel("fraction of runs with score > τ")
-    ax.legend()
-    return figure
+def labelled(scores: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    return {DEEP_METHODS[method].label.removesuffix(", network"): values for method, values in scores.items()}
 
 
 OVERALL = "overall (normalised)"
@@ -355,8 +314,8 @@ def difference_figure(runs: dict[str, DeepResults], games: list[str]) -> Figure 
     for ax, (game, (on, off)) in zip(axes, found.items(), strict=True):
         plots.plot_paired_differences(ax, {game: on - off}, {game: f"{game}\n{len(on)} seeds"})
         ax.set_ylabel("SARSA(λ) - Q(λ), final greedy return")
-    figure.suptitle("SARSA(λ) minus Q(λ) on the same seeds: each dot one seed, the bar the mean with its 95% BCa "
-                    "interval")
+    figure.suptitle("SARSA(λ) minus Q(λ) on the same seeds:\neach dot one seed, the bar the mean with its 95% "
+                    "BCa interval")
     return figure
 
 
@@ -390,24 +349,25 @@ def _build_report(out: Path, videos: bool) -> Report:
     runs, _, problems = deep.load_runs(out)
     tables, figures = out / "tables", out / "figures"
     envs = sorted({r.config.env for r in runs.values()})
-    floors = {env: float(random_returns(env).mean()) for env in envs}
+    floors = {env: float(deep.random_returns(env).mean()) for env in envs}
     games = [g for g in minatar.GAMES if any(game_of(r) == g for r in runs.values())]
     summary = summary_table(runs, floors)
     scores = normalised(runs, floors)
-    across = across_games_table(scores)
-    improvement = improvement_table(scores)
     compared = comparisons(runs, games, scores)
     verdicts = verdict_table(compared)
+    aggregates = draw_aggregates(
+        labelled(scores), figures, tasks="games", curves=labelled(normalised_curves(runs, floors)),
+        x=next(iter(runs.values())).evaluations["after_step"].unique(), curve_xlabel="environment steps",
+        prefix="across-games-") if len(games) > 1 and len(scores) > 1 else None
     files = {name: write_table(frame, tables, name) for name, frame in (
-        ("minatar_summary", summary), ("minatar_across_games", across), ("minatar_improvement", improvement),
-        ("minatar_verdicts", verdicts))}
+        ("minatar_summary", summary), ("minatar_verdicts", verdicts),
+        *((("minatar_aggregates", aggregates.intervals), ("minatar_improvement", aggregates.improvements))
+          if aggregates else ()))}
     curve_figures = []
     for env in envs:
         path = figures / f"curves-{env.replace('/', '_')}.png"
         curve_figures.append((save_figure(deep.curves_figure(runs, env, "steps"), path),
                               f"{env}: greedy return against environment steps (mean over seeds, 95% band)"))
-    profile = [(save_figure(profile_figure(scores), figures / "performance-profiles.png"),
-                "Performance profiles over every game and seed (95% stratified bootstrap band)")] if scores else []
     steps = {r.config.method_config().total_steps for r in runs.values()}
     budget = budget_words(max(steps, default=0))
     protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
@@ -430,15 +390,18 @@ def _build_report(out: Path, videos: bool) -> Report:
         Section("Every game", [
             f"Final greedy (ε = 0): each seed's mean return in the last evaluation round of training, in the port. "
             f"At ε = {EVAL_EPSILON:g} (DQN's protocol): the same final network acting ε-greedily, {EPSILON_EPISODES} "
-            f"episodes a seed played when this report was drawn. Random: the mean of {RANDOM_EPISODES} episodes of "
-            "a uniformly random policy under the same protocol."],
+            f"episodes a seed played when this report was drawn. Random: the mean of {deep.RANDOM_EPISODES} "
+            "episodes of a uniformly random policy under the same protocol."],
             [("Summary", summary, files["minatar_summary"])]),
         Section("Across games", [
-            "Scores normalised game by game between the random policy (0) and the best method's mean here (1); "
-            "IQM over every game and seed with a stratified bootstrap interval (Agarwal et al. 2021). The MinAtar "
-            "paper's DQN scores are not used as the upper anchor: rlcompare has no citable table of them."],
-            [("IQM of normalised final returns", across, files["minatar_across_games"]),
-             ("Probability of improvement", improvement, files["minatar_improvement"])], profile),
+            "Scores normalised game by game between the random policy (0) and the best method's mean here (1), "
+            "pooled over the games as rliable does (Agarwal et al. 2021): interval estimates, the probability of "
+            "improvement, performance profiles and sample-efficiency curves, with 95% stratified bootstrap "
+            "intervals. The MinAtar paper's DQN scores are not used as the upper anchor: rlcompare has no citable "
+            "table of them." if aggregates else "Across games: needs two or more games and methods."],
+            [("Interval estimates of normalised final returns", aggregates.intervals, files["minatar_aggregates"]),
+             ("Probability of improvement", aggregates.improvements, files["minatar_improvement"])]
+            if aggregates else [], aggregates.figures if aggregates else []),
         Section("Learning curves", figures=curve_figures),
         Section("The agents at three stages of learning", [
             "Each training's first seed, its networks after a tenth and half of the training and at its end, playing "
