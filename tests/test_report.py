@@ -320,3 +320,24 @@ def test_a_time_to_converge_around_the_end_of_the_decay_is_flagged_as_the_schedu
     assert len(notes) == 1
     assert notes[0].startswith("sarsa-decay: ε reaches 0 at episode 2500, inside its time to converge 2500 [")
     assert notes[0].endswith("From there SARSA's target is Q-Learning's.")
+
+
+def test_the_paper_report_draws_rliable_s_aggregates_of_the_four_learners(study_copy: Path) -> None:
+    from rlcompare.studies.paper_report import load_study, paper_aggregates
+
+    runs, _ = load_study(study_copy)
+    aggregates = paper_aggregates(runs, study_copy / "figures")
+    assert aggregates is not None
+    means = {row["method"]: float(row["mean [95% CI]"].split()[0]) for _, row in aggregates.intervals.iterrows()}
+    assert len(means) == 4
+    assert max(means.values()) == 1.0  # the best learner's mean is the upper anchor, by construction
+    best = max(runs[n].records.returns.mean() for n in CONFIGURATIONS if n != "random")
+    floor = runs["random"].records.returns.mean()
+    worst = min(runs[n].records.returns.mean() for n in CONFIGURATIONS if n != "random")
+    assert min(means.values()) == pytest.approx(round((worst - floor) / (best - floor), 2), abs=0.006)
+    assert len(aggregates.improvements) == 4 * 3  # every ordered pair of the four
+    assert [Path(path).name for path, _ in aggregates.figures] == [
+        "aggregate-intervals.png", "probability-of-improvement.png", "performance-profiles.png",
+        "sample-efficiency.png"]
+    runs.pop("random")
+    assert paper_aggregates(runs, study_copy / "figures") is None  # no floor without the random baseline

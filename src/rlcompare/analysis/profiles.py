@@ -111,7 +111,7 @@ def interval_table(estimates: pd.DataFrame, digits: int = 2, tasks: str = "tasks
     (``tasks``: what the column of the number of tasks is called)."""
     rows = {}
     for row in estimates.itertuples():
-        entry = rows.setdefault(row.method, {"method": row.method, tasks: row.tasks, f"runs per {tasks}": row.runs})
+        entry = rows.setdefault(row.method, {"method": row.method, tasks: row.tasks, "runs each": row.runs})
         entry[f"{row.metric} [95% CI]"] = _shown(row, digits)
     return pd.DataFrame(list(rows.values()))
 

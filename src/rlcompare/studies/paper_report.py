@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rlcompare.analysis.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import has_start_region
 from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
+from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA, interval
 from rlcompare.analysis.tables import (
@@ -154,6 +156,30 @@ def _video_plan(study_dir: Path, runs: dict[str, Results], video_seed: int | Non
     return plan
 
 
+AGGREGATE_POINTS = 50
+"""Points of the sample-efficiency curves: training cut into this many equal spans of episodes."""
+
+
+def paper_aggregates(runs: dict[str, Results], figures_dir: Path) -> Aggregates | None:
+    """rliable's aggregates of the paper's four learners on the one task, Mountain Car (Agarwal et al. 2021): each
+    seed's behaviour return normalised between the random baseline's mean (0) and the best learner's mean (1),
+    and its learning curve on the same scale, averaged over :data:`AGGREGATE_POINTS` spans of episodes."""
+    learners = [name for name in CONFIGURATIONS if name != "random" and name in runs]
+    if "random" not in runs or len(learners) < 2:
+        return None
+    finals = {"Mountain Car": {label(runs[n]): runs[n].records.returns.mean(axis=1) for n in learners}}
+    scales = score_scales(finals, {"Mountain Car": float(runs["random"].records.returns.mean())})
+    episodes = runs[learners[0]].config.episodes
+    points = min(AGGREGATE_POINTS, episodes)
+    spans = np.array_split(np.arange(episodes), points)
+    curves = {"Mountain Car": {label(runs[n]): np.stack([runs[n].records.returns[:, span].mean(axis=1)
+                                                         for span in spans], axis=1) for n in learners}}
+    return draw_aggregates(by_method(finals, scales), figures_dir, xlabel="normalised return while learning",
+                           tasks="task", curves=by_method(curves, scales),
+                           x=np.array([span[-1] + 1 for span in spans]), curve_xlabel="episode",
+                           prefix="")
+
+
 def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> Report:
     started = time.perf_counter()
     runs, problems = load_study(study_dir)
@@ -192,6 +218,9 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     split = decomposition(runs)
     if not split.empty:
         tables["decomposition"] = formatted(split)
+    aggregates = paper_aggregates(runs, figures_dir)
+    if aggregates is not None:
+        tables["aggregates"], tables["improvement"] = aggregates.intervals, aggregates.improvements
     files = {name: write_table(frame, tables_dir, name) for name, frame in tables.items()}
     findings = paper_findings(claims, judgement.verdicts, metrics, why_findings(split) if not split.empty else None)
     seconds["tables and verdicts"] = time.perf_counter() - started
@@ -234,7 +263,8 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
                       "and its 95% interval")] if pictured is not None else []
     sections = [Section("The answer", [*answer, *brief], figures=answer_figure),
                 Section("What the answer rests on", [*findings[len(answer):], BEHAVIOUR_AND_GREEDY]),
-                *_sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells)]
+                *_sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells,
+                           aggregates.figures if aggregates is not None else [])]
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
@@ -334,7 +364,8 @@ ORDER_TEXT = (
     "mean over seeds with 95% BCa intervals. `rlcompare reproduce why` adds Expected SARSA's expectation target.")
 
 
-def _sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells) -> list[Section]:
+def _sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells,
+              aggregate_figures) -> list[Section]:
     c = first.config
     setting = pd.DataFrame({
         "setting": ["environment", "grid", "α", "γ", "episode limit", "ε constant", "ε decay", "episodes",
@@ -359,6 +390,14 @@ def _sections(first, runs, metrics, tables, files, curve_figures, explanation_fi
                 tables=[("Verdicts", tables["verdicts"], files["verdicts"]),
                         ("Convergence verdicts under each rule", tables["verdict_rules"], files["verdict_rules"])]),
         Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),
+        *([Section("The four learners as rliable draws them", [
+            "Each seed's return while learning, normalised between the random baseline's mean (0) and the best "
+            "learner's mean (1), on the one task (Mountain Car): interval estimates of the median, IQM, mean and "
+            "optimality gap, the probability that a seed of one learner beats a seed of another, performance "
+            "profiles and IQM learning curves, with 95% stratified bootstrap intervals (Agarwal et al. 2021)."],
+            tables=[("Interval estimates", tables["aggregates"], files["aggregates"]),
+                    ("Probability of improvement", tables["improvement"], files["improvement"])],
+            figures=aggregate_figures)] if aggregate_figures else []),
         *([Section("Why: the target against the order of choosing A'", [ORDER_TEXT],
                    tables=[("SARSA minus Q-Learning, decomposed", tables["decomposition"],
                              files["decomposition"])])]
