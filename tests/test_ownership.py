@@ -191,10 +191,12 @@ def test_an_empty_or_overlong_out_is_one_clear_error(out: str, tmp_path: Path, m
     assert list(tmp_path.iterdir()) == []
 
 
-def test_report_on_a_run_directory_or_a_plain_directory_is_refused(study: Path, tmp_path: Path) -> None:
+def test_report_on_a_run_directory_writes_nothing_and_on_a_plain_directory_is_refused(study: Path,
+                                                                                     tmp_path: Path) -> None:
+    before = snapshot(study / "sarsa-decay")
     result = invoke("report", str(study / "sarsa-decay"))
-    one_clear_line(result)
-    assert "a run directory" in result.output
+    assert result.exit_code == 0, result.output  # a run's results are shown, its directory left as it is
+    assert snapshot(study / "sarsa-decay") == before
     (tmp_path / "plain").mkdir()
     result = invoke("report", str(tmp_path / "plain"))
     one_clear_line(result)
