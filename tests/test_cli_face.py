@@ -209,7 +209,7 @@ def deep_results(given: int | None, trained: int) -> SimpleNamespace:
 def test_steps_a_training_rounded_are_said_with_the_number_trained(capsys: pytest.CaptureFixture[str]) -> None:
     line = console_module.rounded_steps_line("pqn_q_lambda-CartPole-v1", deep_results(50_000, 40_960))
     assert line is not None
-    assert "40,960 environment steps per seed, not the 50,000 given" in line
+    assert "40,960 steps per seed, not the 50,000 given" in line
     assert console_module.rounded_steps_line("x", deep_results(40_960, 40_960)) is None
     assert console_module.rounded_steps_line("x", deep_results(None, 40_960)) is None  # the preset's: not given
     assert console_module.rounded_steps_line("x", SimpleNamespace(config=TINY, meta={"timings": {}})) is None

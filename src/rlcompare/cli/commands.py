@@ -15,12 +15,12 @@ from rich.text import Text
 from rlcompare.cli.config_options import ALGORITHM_HELP, config_options
 from rlcompare.cli.console import (
     ConsoleUI,
-    MeasurementLines,
     announce_compiling,
     check_out,
     console,
     done_line,
     fail,
+    measurement_lines,
     one_line_errors,
     out_path,
     plural,
@@ -39,7 +39,7 @@ from rlcompare.studies.registry import STUDIES
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["ALGORITHM_HELP", "app", "main"]
+__all__ = ["ALGORITHM_HELP", "app"]
 
 app = new_app()
 app.add_typer(reproduce_app(), name="reproduce", short_help=SUMMARIES["reproduce"])
@@ -247,19 +247,15 @@ def bench(
         except BackendError as error:
             fail(str(error))
         return
-    with MeasurementLines("every algorithm on MountainCar-v0, on 1 and all threads, after a plain Gymnasium "
-                          "loop") as say:
+    with measurement_lines("every algorithm on MountainCar-v0, on 1 and all threads, after a plain Gymnasium "
+                           "loop") as say:
         measured = benchmark.run_benchmark(
             report=lambda m: say(f"{m.label}, {plural(m.threads, 'thread')}: {m.steps_per_second:,.0f} steps/s"))
     print_bench(benchmark.kernel_table(measured))
     if environments:
-        with MeasurementLines("each ported environment: Gymnasium's loop, the port, the adapter") as say:
+        with measurement_lines("each ported environment: Gymnasium's loop, the port, the adapter") as say:
             ports = benchmark.run_port_benchmark(report=lambda m: say(
                 f"{m.env}: Gymnasium loop {m.gymnasium.steps_per_second:,.0f}, port "
                 f"{max(x.steps_per_second for x in m.port):,.0f}, adapter {m.adapter.steps_per_second:,.0f} "
                 "steps/s"))
         print_bench(benchmark.port_table(ports))
-
-
-def main() -> None:
-    app()

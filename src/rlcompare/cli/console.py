@@ -138,8 +138,7 @@ def rounded_steps_line(name: str, results: Any) -> str | None:
     trained = results.meta.get("timings", {}).get("training_steps")
     if not isinstance(given, int) or not isinstance(trained, int) or given == trained:
         return None
-    return (f"{name}: {trained:,} environment steps per seed, not the {given:,} given: the method trains whole "
-            "batches of steps in each evaluation round")
+    return f"{name}: {trained:,} steps per seed, not the {given:,} given (whole batches per evaluation round)"
 
 
 def fitting_table(title: str, columns: Any, rows: list[tuple[str, ...]], caption: str = "") -> Table:
@@ -181,27 +180,21 @@ def print_bench(table: BenchTable) -> None:
         console.print(Text(note, style="yellow"))
 
 
-class MeasurementLines:
-    """``with MeasurementLines(what) as say``: a line saying what is measured, a spinner while it runs, and
+@contextlib.contextmanager
+def measurement_lines(what: str) -> Iterator[Callable[[str], None]]:
+    """``with measurement_lines(what) as say``: a line saying what is measured, a spinner while it runs, and
     ``say(text)`` prints each measurement as it is taken."""
+    console.print(f"Measuring {what}:", highlight=False)
+    with console.status(f"Measuring {what}") as status:
+        done = 0
 
-    def __init__(self, what: str) -> None:
-        self.what = what
-        self.count = 0
+        def say(text: str) -> None:
+            nonlocal done
+            done += 1
+            console.print(Text(f"  {text}"), highlight=False)
+            status.update(f"Measuring {what}: {done} done, the next one running")
 
-    def __enter__(self) -> Callable[[str], None]:
-        console.print(f"Measuring {self.what}:", highlight=False)
-        self.status = console.status(f"Measuring {self.what}")
-        self.status.__enter__()
-        return self.say
-
-    def say(self, text: str) -> None:
-        self.count += 1
-        console.print(Text(f"  {text}"), highlight=False)
-        self.status.update(f"Measuring {self.what}: {self.count} done, next one running")
-
-    def __exit__(self, *exc: Any) -> None:
-        self.status.__exit__(*exc)
+        yield say
 
 
 def print_report(report: Report) -> None:
