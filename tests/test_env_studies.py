@@ -38,7 +38,8 @@ def test_cartpole_study_runs_the_papers_grid_and_reports_it_without_the_papers_n
     assert sorted(p.name for p in (out / "figures").iterdir()) == sorted(
         f"{name}.png" for name in ("fig3-random", "fig4-q_learning-constant", "fig5-sarsa-constant",
                                    "fig6-constant", "fig7-q_learning-decay", "fig8-sarsa-decay", "fig9-decay",
-                                   "decomposition"))
+                                   "decomposition", "paired-differences", "aggregate-intervals",
+                                   "probability-of-improvement", "performance-profiles", "sample-efficiency"))
     # CartPole is solved by balancing to the limit, not by terminating: greedy success counts those episodes.
     sarsa = Results.load(out / "sarsa-decay")
     balanced = (~sarsa.records.eval_terminated[:, -1]) & (sarsa.records.eval_lengths[:, -1] == 500)

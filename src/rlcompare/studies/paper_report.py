@@ -161,23 +161,22 @@ AGGREGATE_POINTS = 50
 
 
 def paper_aggregates(runs: dict[str, Results], figures_dir: Path) -> Aggregates | None:
-    """rliable's aggregates of the paper's four learners on the one task, Mountain Car (Agarwal et al. 2021): each
-    seed's behaviour return normalised between the random baseline's mean (0) and the best learner's mean (1),
-    and its learning curve on the same scale, averaged over :data:`AGGREGATE_POINTS` spans of episodes."""
+    """rliable's aggregates of the paper's four learners on its one task (Agarwal et al. 2021): each seed's
+    behaviour return normalised between the random baseline's mean (0) and the best learner's mean (1), and its
+    learning curve on the same scale, averaged over :data:`AGGREGATE_POINTS` spans of episodes."""
     learners = [name for name in CONFIGURATIONS if name != "random" and name in runs]
     if "random" not in runs or len(learners) < 2:
         return None
-    finals = {"Mountain Car": {label(runs[n]): runs[n].records.returns.mean(axis=1) for n in learners}}
-    scales = score_scales(finals, {"Mountain Car": float(runs["random"].records.returns.mean())})
+    task = runs["random"].config.env
+    finals = {task: {label(runs[n]): runs[n].records.returns.mean(axis=1) for n in learners}}
+    scales = score_scales(finals, {task: float(runs["random"].records.returns.mean())})
     episodes = runs[learners[0]].config.episodes
-    points = min(AGGREGATE_POINTS, episodes)
-    spans = np.array_split(np.arange(episodes), points)
-    curves = {"Mountain Car": {label(runs[n]): np.stack([runs[n].records.returns[:, span].mean(axis=1)
-                                                         for span in spans], axis=1) for n in learners}}
+    spans = np.array_split(np.arange(episodes), min(AGGREGATE_POINTS, episodes))
+    curves = {task: {label(runs[n]): np.stack([runs[n].records.returns[:, span].mean(axis=1) for span in spans],
+                                                axis=1) for n in learners}}
     return draw_aggregates(by_method(finals, scales), figures_dir, xlabel="normalised return while learning",
                            tasks="task", curves=by_method(curves, scales),
-                           x=np.array([span[-1] + 1 for span in spans]), curve_xlabel="episode",
-                           prefix="")
+                           x=np.array([span[-1] + 1 for span in spans]), curve_xlabel="episode")
 
 
 def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> Report:
@@ -392,8 +391,8 @@ def _sections(first, runs, metrics, tables, files, curve_figures, explanation_fi
         Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),
         *([Section("The four learners as rliable draws them", [
             "Each seed's return while learning, normalised between the random baseline's mean (0) and the best "
-            "learner's mean (1), on the one task (Mountain Car): interval estimates of the median, IQM, mean and "
-            "optimality gap, the probability that a seed of one learner beats a seed of another, performance "
+            f"learner's mean (1), on the one task ({first.config.env}): interval estimates of the median, IQM, mean "
+            "and optimality gap, the probability that a seed of one learner beats a seed of another, performance "
             "profiles and IQM learning curves, with 95% stratified bootstrap intervals (Agarwal et al. 2021)."],
             tables=[("Interval estimates", tables["aggregates"], files["aggregates"]),
                     ("Probability of improvement", tables["improvement"], files["improvement"])],
