@@ -174,7 +174,7 @@ def test_a_wide_table_wraps_instead_of_being_cut(width: int, monkeypatch: pytest
 
     from rlcompare.experiment.benchmark import Measurement, kernel_table
 
-    monkeypatch.setattr(console_module.console, "width", width)
+    monkeypatch.setenv("COLUMNS", str(width))  # the console reads it at each print
     names = ["q_learning-constant-before_update", "double_expected_sarsa-constant", "random"]
     frame = pd.DataFrame([(name, "-176.3 [-180.1, -172.5]", "-1000.0 [-1000.0, -1000.0]", "93%", "-262")
                           for name in names],
@@ -198,7 +198,7 @@ def test_the_compile_notice_promises_no_time_it_cannot_keep(monkeypatch: pytest.
     from rlcompare import _numba_cache
 
     monkeypatch.setattr(_numba_cache, "holds_nothing_yet", lambda: True)
-    monkeypatch.setattr(console_module.console, "width", 200)
+    monkeypatch.setenv("COLUMNS", "200")
     console_module.announce_compiling()
     said = capsys.readouterr().out
     assert "Compiling" in said

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 from rich import box
-from rich.console import Console
+from rich.console import Console, ConsoleDimensions
 from rich.measure import Measurement
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
@@ -28,8 +28,30 @@ if TYPE_CHECKING:
 
     from rlcompare.experiment.benchmark import BenchTable
 
-console = Console(width=None if Console().is_terminal or os.environ.get("COLUMNS", "").isdigit() else 120)
-"""Everything but errors: a terminal's own width, or COLUMNS where it is set; in a log, 120 columns."""
+class _Console(Console):
+    """rich's console, its width read at each print: a width given to it, else COLUMNS where it is set, else a
+    terminal's own width, else (a log, a pipe) 120 columns. rich reads COLUMNS once, when the console is made,
+    before a test or a caller has set it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._width = None
+
+    @property
+    def size(self) -> ConsoleDimensions:
+        measured = Console.size.fget(self)
+        columns = os.environ.get("COLUMNS", "")
+        if self._width is not None or (self.is_terminal and not columns.isdigit()):
+            return measured
+        return ConsoleDimensions(int(columns) if columns.isdigit() else 120, measured.height)
+
+    @size.setter
+    def size(self, new_size: tuple[int, int]) -> None:
+        Console.size.fset(self, new_size)
+
+
+console = _Console()
+"""Everything but errors."""
 
 
 def print_error(message: str, details: tuple[str, ...] = ()) -> None:
