@@ -245,8 +245,13 @@ def normalised_curves(runs: dict[str, DeepResults], floors: dict[str, float]) ->
     return by_method(per_game(runs, lambda results: deep.eval_curves(results)[1]), scales)
 
 
+def short_label(method: str) -> str:
+    """``SARSA(λ)`` for ``SARSA(λ), network``: every method here has a network."""
+    return DEEP_METHODS[method].label.removesuffix(", network")
+
+
 def labelled(scores: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    return {DEEP_METHODS[method].label.removesuffix(", network"): values for method, values in scores.items()}
+    return {short_label(method): values for method, values in scores.items()}
 
 
 OVERALL = "overall (normalised)"
@@ -288,7 +293,7 @@ def verdict_table(compared: dict[str, tuple[Paired, float, str]]) -> pd.DataFram
 
 def answer(compared: dict[str, tuple[Paired, float, str]], seeds: int) -> list[str]:
     """The answer in plain words: a sentence for the games, one for the overall comparison."""
-    on, off = (DEEP_METHODS[m].label.removesuffix(", network") for m in PAIR)
+    on, off = (short_label(m) for m in PAIR)
     games = []
     for game, (paired, _, label) in compared.items():
         if game != OVERALL:
