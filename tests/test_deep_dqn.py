@@ -14,7 +14,7 @@ import numpy as np  # noqa: E402
 
 from rlcompare.deep import dqn  # noqa: E402
 from rlcompare.deep.envs import CARTPOLE  # noqa: E402
-from rlcompare.envs import minatar  # noqa: E402
+from rlcompare.envs import atari, minatar  # noqa: E402
 from rlcompare.experiment.config import ConfigError  # noqa: E402
 
 # --- the target and the loss, by hand ---
@@ -136,9 +136,11 @@ def test_same_key_same_training(cartpole_runs: tuple) -> None:
 
 def test_presets_are_the_zoos_and_the_default_changes_only_the_network() -> None:
     zoo, default = dqn.PRESETS["zoo"], dqn.PRESETS["default"]
-    classic = {env: config for env, config in default.items() if env not in minatar.NAMES}
-    assert set(zoo) == set(classic) == {"CartPole-v1", "MountainCar-v0", "Acrobot-v1"}
-    assert set(default) - set(classic) == set(minatar.NAMES)  # the MinAtar paper's (tests/test_minatar_dqn.py)
+    classic = {env: config for env, config in default.items() if env not in minatar.NAMES and env not in atari.NAMES}
+    assert set(classic) == {"CartPole-v1", "MountainCar-v0", "Acrobot-v1"}
+    assert set(zoo) == set(classic) | set(atari.NAMES)
+    assert set(default) - set(classic) == set(minatar.NAMES) | set(atari.NAMES)  # tests/test_minatar_dqn.py
+    assert all(zoo[env] == default[env] == dqn.ATARI for env in atari.NAMES)  # the zoo's atari entry
     assert zoo["CartPole-v1"].hidden == (256, 256)
     assert zoo["CartPole-v1"].gradient_steps == 128
     for env, config in classic.items():

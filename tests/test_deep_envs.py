@@ -17,11 +17,11 @@ import jax
 import jax.numpy as jnp
 
 from rlcompare.deep.envs import DeepEnv, EnvState, jax_env, jax_env_names, step_autoreset
-from rlcompare.envs import acrobot, cartpole, minatar, mountain_car
+from rlcompare.envs import acrobot, atari, cartpole, minatar, mountain_car
 
-NAMES = [name for name in jax_env_names() if name not in minatar.NAMES]
+NAMES = [name for name in jax_env_names() if name not in minatar.NAMES and name not in atari.NAMES]
 """Gymnasium's classic control, ported (MinAtar's games are checked against their reference in
-tests/test_minatar_games.py)."""
+tests/test_minatar_games.py, Atari's against ALE's own loop in tests/test_atari.py)."""
 TRANSITIONS = 3000
 """Per environment, from Gymnasium's own episodes."""
 ENVS_SIDE_BY_SIDE, SCANNED_STEPS = 4, 600

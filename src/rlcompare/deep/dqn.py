@@ -36,9 +36,10 @@ import numpy as np
 import optax
 
 from rlcompare.deep import rollout
-from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
+from rlcompare.deep.atari import NatureCNN, is_frames
+from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import MLP, ConvNet, is_image
-from rlcompare.envs import minatar
+from rlcompare.envs import atari, minatar
 from rlcompare.experiment.config import ConfigError
 
 Params = Any
@@ -181,9 +182,17 @@ random steps, then ε from 1 to ``END_EPSILON`` 0.1 over ``FIRST_N_FRAMES`` 100,
 gradient clipping; MinAtar's network (a 3 x 3 convolution of 16, a dense layer of 128). Double DQN takes the same
 settings (van Hasselt et al. 2016 keep DQN's); MinAtar's paper ran only DQN."""
 
+ATARI = DQNConfig(total_steps=10_000_000, buffer_size=100_000, learning_rate=1e-4, batch_size=32,
+                  learning_starts=100_000, target_update_interval=1_000, train_freq=4, gradient_steps=1,
+                  decay_fraction=0.1, epsilon_end=0.01, hidden=(512,))
+"""Atari: rl-baselines3-zoo's ``atari`` entry of ``hyperparams/dqn.yml`` (10 M steps, replay 100,000, Adam at 1e-4,
+batch 32, 100,000 random steps first, target every 1,000, a gradient step every 4, ε 1 -> 0.01 over the first
+tenth; SB3's Huber loss and gradients clipped at 10) with Mnih et al. (2015)'s network, learning from the score's
+sign as SB3's Atari wrapper does."""
+
 PRESETS = {"default": {**{env: small(config) for env, config in _ZOO_SETTINGS.items()},
-                       **dict.fromkeys(minatar.NAMES, MINATAR)},
-           "zoo": _ZOO_SETTINGS}
+                       **dict.fromkeys(minatar.NAMES, MINATAR), **dict.fromkeys(atari.NAMES, ATARI)},
+           "zoo": {**_ZOO_SETTINGS, **dict.fromkeys(atari.NAMES, ATARI)}}
 """Preset name -> environment -> config, with ``double=False`` (the registry fixes it per method). ``zoo``: the
 zoo's DQN settings (:data:`ZOO`), SB3's defaults elsewhere (``exploration_initial_eps`` 1.0, ``max_grad_norm``
 10); ``default``: the same on a 2 x 64 network, which trains many seeds in minutes on a CPU, and on every MinAtar
@@ -279,9 +288,12 @@ def epsilon(config: DQNConfig, steps: jax.Array) -> jax.Array:
     return (config.epsilon_start + progress * (config.epsilon_end - config.epsilon_start)).astype(jnp.float32)
 
 
-def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet:
+def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
     """The Q-network: ``observations -> (..., n_actions)`` Q-values (flax's default initialisation): an MLP of
-    ``hidden``, or for images MinAtar's network without LayerNorm (a 3 x 3 convolution of 16, then ``hidden``)."""
+    ``hidden``, or for images MinAtar's network without LayerNorm (a 3 x 3 convolution of 16, then ``hidden``), or
+    for Atari's frames Mnih et al.'s (2015)."""
+    if is_frames(env.observation_shape):
+        return NatureCNN(env.n_actions, hidden=config.hidden)
     if is_image(env.observation_shape):
         return ConvNet(env.n_actions, hidden=config.hidden, layer_norm=False)
     return MLP(hidden=config.hidden, outputs=env.n_actions)
@@ -377,8 +389,8 @@ def init_runner(config: DQNConfig, env: DeepEnv, key: jax.Array) -> Runner:
     """A fresh network (the target a copy of it), an empty buffer and ``n_envs`` started environments."""
     net_key, env_key = jax.random.split(key)
     params = network(config, env).init(net_key, jnp.zeros((1, *env.observation_shape), jnp.float32))
-    env_state = jax.vmap(env.reset)(jax.random.split(env_key, config.n_envs))
-    observations = jax.vmap(env.observe)(env_state)
+    env_state = reset_all(env, jax.random.split(env_key, config.n_envs))
+    observations = observe_all(env, env_state)
     buffer = buffer_init(config.buffer_size, observations.shape[1:], observations.dtype)
     return Runner(params, params, optimizer(config).init(params), buffer, env_state, observations,
                   rollout.Episodes.start(config.n_envs), jnp.zeros((), jnp.int64))
@@ -388,7 +400,6 @@ def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Arra
     """``(runner, key) -> (runner, finished)``: one step of every environment, stored in the buffer. Actions are
     uniform before ``learning_starts`` steps, then ε-greedy (each environment draws its own explore coin)."""
     greedy = act(config, env)
-    step_all = jax.vmap(lambda state, action, key: step_autoreset(env, state, action, key))
 
     def collect(runner: Runner, key: jax.Array) -> tuple[Runner, rollout.Finished]:
         coin_key, action_key, reset_key = jax.random.split(key, 3)
@@ -396,8 +407,8 @@ def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Arra
         explore = ((runner.steps < config.learning_starts)
                    | (jax.random.uniform(coin_key, (config.n_envs,)) < epsilon(config, runner.steps)))
         actions = jnp.where(explore, uniform, greedy(runner.params, runner.observations))
-        step = step_all(runner.env_state, actions, jax.random.split(reset_key, config.n_envs))
-        buffer = buffer_add(runner.buffer, Transitions(runner.observations, actions, step.reward,
+        step = step_autoreset_all(env, runner.env_state, actions, jax.random.split(reset_key, config.n_envs))
+        buffer = buffer_add(runner.buffer, Transitions(runner.observations, actions, learning_reward(env, step.reward),
                                                        step.last_observation, step.terminated))
         episodes, finished = rollout.track(runner.episodes, step.reward, step.terminated, step.truncated)
         return runner._replace(buffer=buffer, env_state=step.state, observations=step.observation,

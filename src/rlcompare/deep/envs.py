@@ -32,7 +32,7 @@ import gymnasium as gym
 import jax
 import jax.numpy as jnp
 
-from rlcompare.envs import acrobot, cartpole, minatar, mountain_car
+from rlcompare.envs import acrobot, atari, cartpole, minatar, mountain_car
 from rlcompare.envs.registry import PORTS, environment
 from rlcompare.experiment.config import ConfigError
 
@@ -102,6 +102,44 @@ def step_autoreset(env: DeepEnv, state: EnvState, action: jax.Array, key: jax.Ar
     state = jax.tree.map(lambda new, old: jnp.where(done, new, old), fresh, state)
     return Step(state, env.observe(state), last_observation, reward, terminated, truncated)
 
+
+
+# --- Many environments at once: vmapped, or stepped together by the host where the environment is batched ---
+
+def is_batched(env: object) -> bool:
+    """Stepped all at once outside JAX (an emulator: :class:`rlcompare.deep.atari.AtariEnv`), not vmapped."""
+    return getattr(env, "batched", False)
+
+
+def reset_all(env: DeepEnv, keys: jax.Array, role: str = "training") -> EnvState:
+    """``len(keys)`` environments started; ``role`` (training, evaluation) keeps a batched environment's games
+    for one use apart from another's."""
+    return env.reset_batch(keys, role) if is_batched(env) else jax.vmap(env.reset)(keys)
+
+
+def observe_all(env: DeepEnv, states: EnvState) -> jax.Array:
+    return env.observe_batch(states) if is_batched(env) else jax.vmap(env.observe)(states)
+
+
+def step_all(env: DeepEnv, states: EnvState, actions: jax.Array, keys: jax.Array, role: str = "training"
+             ) -> tuple[EnvState, jax.Array, jax.Array, jax.Array]:
+    """One step of each environment (its ``step``): ``(states, rewards, terminated, truncated)``."""
+    if is_batched(env):
+        return env.step_batch(states, actions, keys, role)
+    return jax.vmap(env.step)(states, actions, keys)
+
+
+def step_autoreset_all(env: DeepEnv, states: EnvState, actions: jax.Array, keys: jax.Array) -> Step:
+    """:func:`step_autoreset` of each environment, one key each."""
+    if is_batched(env):
+        return env.step_autoreset_batch(states, actions, keys)
+    return jax.vmap(step_autoreset, in_axes=(None, 0, 0, 0))(env, states, actions, keys)
+
+
+def learning_reward(env: DeepEnv, reward: jax.Array) -> jax.Array:
+    """The reward a method learns from: the environment's own, or what its protocol makes of it (Atari's sign)."""
+    transform = getattr(env, "learning_reward", None)
+    return reward if transform is None else transform(reward)
 
 # --- Float64 arithmetic as NumPy rounds it, under XLA ---
 
@@ -258,7 +296,7 @@ ACROBOT = _port("Acrobot-v1", _acrobot_start, _acrobot_dynamics, _acrobot_observ
 
 def jax_env_names() -> tuple[str, ...]:
     """The environments the deep engine steps: those whose registry entry names a JAX port."""
-    return tuple(name for name in (*PORTS, *minatar.NAMES) if environment(name).jax_port)
+    return tuple(name for name in (*PORTS, *minatar.NAMES, *atari.NAMES) if environment(name).jax_port)
 
 
 def jax_env(name: str) -> DeepEnv:

@@ -35,10 +35,11 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
+from rlcompare.deep.atari import NatureTorso, is_frames
+from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import ACTIVATIONS, Conv3x3, is_image
 from rlcompare.deep.rollout import Act, Episodes, Finished, TrainOutput, track, train_in_rounds
-from rlcompare.envs import minatar
+from rlcompare.envs import atari, minatar
 from rlcompare.experiment.config import ConfigError
 
 NORMALIZE_EPSILON = 1e-8
@@ -191,6 +192,14 @@ done, SB3's progress the steps after this rollout); advantages are normalised wi
 factor √(1024/1023)); a time-limit cut (gymnax's protocol) bootstraps from V(last observation), where purejaxrl's
 auto-reset treats it as termination; no observation normalisation (booleans)."""
 
+ATARI = PPOConfig(n_envs=8, n_steps=128, batch_size=256, n_epochs=4, learning_rate=2.5e-4, anneal_lr=True,
+                  clip_range=0.1, anneal_clip_range=True, ent_coef=0.01, vf_coef=0.5, hidden=(512,), activation="relu",
+                  total_steps=10_000_000)
+"""Atari: rl-baselines3-zoo's ``atari`` entry of ``hyperparams/ppo.yml`` (8 environments x 128 steps, 4 epochs of
+minibatches of 256, Adam at 2.5e-4 and clip 0.1 both decayed linearly, entropy 0.01, value 0.5, 10 M steps), on
+SB3's ``CnnPolicy``: one network of Mnih et al. (2015) shared by the policy and the value (orthogonal √2), heads
+orthogonal 0.01 and 1; it learns from the score's sign, as SB3's Atari wrapper does."""
+
 ZOO: dict[str, PPOConfig] = {
     "CartPole-v1": PPOConfig(n_envs=8, n_steps=32, batch_size=256, gae_lambda=0.8, gamma=0.98, n_epochs=20,
                              ent_coef=0.0, learning_rate=1e-3, anneal_lr=True, clip_range=0.2,
@@ -200,6 +209,7 @@ ZOO: dict[str, PPOConfig] = {
     "MountainCar-v0": PPOConfig(n_envs=16, n_steps=16, gae_lambda=0.98, gamma=0.99, n_epochs=4, ent_coef=0.0,
                                 normalize_observations=True, normalize_rewards=True, total_steps=1_000_000),
     **dict.fromkeys(minatar.NAMES, MINATAR),
+    **dict.fromkeys(atari.NAMES, ATARI),
 }
 """Environment -> rl-baselines3-zoo's tuned PPO settings, ``hyperparams/ppo.yml`` (DLR-RM/rl-baselines3-zoo at
 22e3ff2, 2026-04): ``lin_x`` is ``x`` with the matching ``anneal_*``; ``normalize: true`` is ``VecNormalize`` of
@@ -294,9 +304,44 @@ class ActorCritic(nn.Module):
         return self.critic(observation)[..., 0]
 
 
-def network(config: PPOConfig, env: DeepEnv) -> ActorCritic:
-    """The flax module whose variables are :attr:`PolicyParams.network`: MLPs, or for images (MinAtar) MinAtar's
-    convolution before each."""
+class SharedActorCritic(nn.Module):
+    """SB3's ``CnnPolicy`` on Atari: one network of Mnih et al. (2015) (orthogonal √2, zero biases) feeds a policy
+    head (orthogonal 0.01) and a value head (orthogonal 1), as :class:`ActorCritic` is called."""
+
+    hidden: Sequence[int]
+    n_actions: int
+
+    def setup(self) -> None:
+        self.torso = NatureTorso(self.hidden, kernel_init=kernel_orthogonal(np.sqrt(2.0)))
+        self.policy_head = nn.Dense(self.n_actions, kernel_init=orthogonal(0.01), param_dtype=jnp.float32)
+        self.value_head = nn.Dense(1, kernel_init=orthogonal(1.0), param_dtype=jnp.float32)
+
+    def __call__(self, observation: jax.Array) -> tuple[jax.Array, jax.Array]:
+        features = self.torso(observation)
+        return self.policy_head(features), self.value_head(features)[..., 0]
+
+    def logits(self, observation: jax.Array) -> jax.Array:
+        return self.policy_head(self.torso(observation))
+
+    def value(self, observation: jax.Array) -> jax.Array:
+        return self.value_head(self.torso(observation))[..., 0]
+
+
+def kernel_orthogonal(scale: float) -> nn.initializers.Initializer:
+    """:func:`orthogonal` for a kernel of any rank, as flax's and torch's take it: a matrix of its inputs (all axes
+    but the last) by its outputs."""
+
+    def init(key: jax.Array, shape: Sequence[int], dtype: Any = jnp.float32) -> jax.Array:
+        return orthogonal(scale)(key, (int(np.prod(shape[:-1])), shape[-1]), dtype).reshape(shape)
+
+    return init
+
+
+def network(config: PPOConfig, env: DeepEnv) -> ActorCritic | SharedActorCritic:
+    """The flax module whose variables are :attr:`PolicyParams.network`: MLPs, for MinAtar's images MinAtar's
+    convolution before each, for Atari's one network of Mnih et al. shared by both heads."""
+    if is_frames(env.observation_shape):
+        return SharedActorCritic(config.hidden, env.n_actions)
     channels = CONV_CHANNELS if is_image(env.observation_shape) else 0
     return ActorCritic(config.hidden, env.n_actions, config.activation, channels)
 
@@ -366,7 +411,7 @@ def act(config: PPOConfig, env: DeepEnv) -> Act:
     module = network(config, env)
 
     def greedy(params: PolicyParams, observation: jax.Array) -> jax.Array:
-        logits = module.apply(params.network, _observe(config, params, observation), method=ActorCritic.logits)
+        logits = module.apply(params.network, _observe(config, params, observation), method="logits")
         return jnp.argmax(logits, axis=-1)
 
     return greedy
@@ -524,11 +569,11 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
         action_key, reset_key = jax.random.split(key)
         logits, value = module.apply(runner.params.network, runner.observation)
         action = jax.random.categorical(action_key, logits)
-        out = jax.vmap(step_autoreset, in_axes=(None, 0, 0, 0))(
-            env, runner.env_state, action, jax.random.split(reset_key, config.n_envs))
+        out = step_autoreset_all(env, runner.env_state, action, jax.random.split(reset_key, config.n_envs))
         episodes, finished = track(runner.episodes, out.reward, out.terminated, out.truncated)
         done = out.terminated | out.truncated
-        params, reward_stats, discounted, reward = runner.params, runner.rewards, runner.discounted, out.reward
+        params, reward_stats, discounted = runner.params, runner.rewards, runner.discounted
+        reward = learning_reward(env, out.reward)
         if config.normalize_observations:
             params = params._replace(observations=update_running(params.observations, out.observation))
         if config.normalize_rewards:
@@ -560,7 +605,7 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
     def update(runner: Runner, key: jax.Array) -> tuple[Runner, Finished]:
         rollout_key, epochs_key = jax.random.split(key)
         runner, (transitions, finished) = jax.lax.scan(step, runner, jax.random.split(rollout_key, config.n_steps))
-        next_values = module.apply(runner.params.network, transitions.last_observation, method=ActorCritic.value)
+        next_values = module.apply(runner.params.network, transitions.last_observation, method="value")
         advantages = gae(transitions.reward, transitions.value, next_values, transitions.terminated,
                          transitions.done, config.gamma, config.gae_lambda)
         flat = jax.tree.map(lambda x: x.reshape(config.batch, *x.shape[2:]),
@@ -581,8 +626,8 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
     def train(key: jax.Array) -> TrainOutput:
         init_key, reset_key, train_key = jax.random.split(key, 3)
         params = init_params(config, env, init_key)
-        env_state = jax.vmap(env.reset)(jax.random.split(reset_key, config.n_envs))
-        observation = jax.vmap(env.observe)(env_state)
+        env_state = reset_all(env, jax.random.split(reset_key, config.n_envs))
+        observation = observe_all(env, env_state)
         if config.normalize_observations:
             params = params._replace(observations=update_running(params.observations, observation))
         runner = Runner(params, tx.init(params.network), RunningMeanStd.start(()),

@@ -32,10 +32,11 @@ import optax
 from flax.training.train_state import TrainState
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
-from rlcompare.deep.envs import DeepEnv, EnvState, step_autoreset
+from rlcompare.deep.atari import NatureCNN, is_frames
+from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import MLP, ConvNet, is_image
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
-from rlcompare.envs import acrobot, minatar, mountain_car
+from rlcompare.envs import acrobot, atari, minatar, mountain_car
 from rlcompare.experiment.config import ConfigError
 
 TARGETS = ("max", "sample", "expected")
@@ -124,11 +125,15 @@ _SMALL = PQNConfig(total_steps=500_000, n_envs=16, n_steps=128, n_epochs=4, n_mi
                    learning_rate=1e-3)
 _MINATAR = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=32,
                      learning_rate=5e-4, lam=0.65, decay_fraction=0.1, reward_scale=1.0, hidden=(128,))
+_ATARI = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=32,
+                   learning_rate=2.5e-4, anneal_lr=False, lam=0.65, epsilon_end=0.001, decay_fraction=0.1,
+                   reward_scale=1.0, hidden=(512,))
 PRESETS = {"default": {
     "CartPole-v1": _SMALL,
     "Acrobot-v1": _SMALL,
     "MountainCar-v0": dataclasses.replace(_SMALL, total_steps=1_000_000, scale_observations=True),
     **dict.fromkeys(minatar.NAMES, _MINATAR),
+    **dict.fromkeys(atari.NAMES, _ATARI),
 }}
 """Preset name -> environment -> config. ``default``: the shape the speed target is set on (16 environments x 128
 steps, 4 epochs x 4 minibatches, 2 x 64 LayerNorm MLP), with purejaxql's CartPole settings otherwise
@@ -136,7 +141,10 @@ steps, 4 epochs x 4 minibatches, 2 x 64 LayerNorm MLP), with purejaxql's CartPol
 first fifth) but ε ending at 0.05, a step size of 1e-3 for the smaller batches, and twice the steps on
 Mountain Car, whose observations are scaled onto [-1, 1]. MinAtar: purejaxql's ``pqn_minatar.yaml`` (128 environments
 x 32 steps, 2 epochs x 32 minibatches, RAdam at 5e-4 decayed linearly, λ 0.65, ε 1 -> 0.05 over the first tenth,
-rewards unscaled, 10 M steps) with MinAtar's network, LayerNorm after the convolution and the dense layer of 128."""
+rewards unscaled, 10 M steps) with MinAtar's network, LayerNorm after the convolution and the dense layer of 128.
+Atari: purejaxql's ``pqn_atari.yaml`` (128 environments x 32 steps, 2 epochs x 32 minibatches, RAdam at 2.5e-4 not
+decayed, λ 0.65, ε 1 -> 0.001 over the first tenth, 10 M steps) with Mnih et al.'s network, LayerNorm after each
+layer; it learns from the score's sign, as there."""
 
 
 class Rollout(NamedTuple):
@@ -161,8 +169,10 @@ class Runner(NamedTuple):
     update: jax.Array
 
 
-def network(config: PQNConfig, env: DeepEnv) -> MLP | ConvNet:
-    """A LayerNorm MLP, or MinAtar's convolutional network with LayerNorm for images."""
+def network(config: PQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
+    """A LayerNorm MLP, or for images MinAtar's or Mnih et al.'s convolutional network, with LayerNorm."""
+    if is_frames(env.observation_shape):
+        return NatureCNN(env.n_actions, hidden=config.hidden, layer_norm=True)
     if is_image(env.observation_shape):
         return ConvNet(env.n_actions, hidden=config.hidden, layer_norm=True)
     box = OBSERVATION_BOXES.get(env.name) if config.scale_observations else None
@@ -253,8 +263,7 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
         def one_step(carry: tuple, step_key: jax.Array) -> tuple[tuple, tuple]:
             env_state, observation, action, episodes = carry
             draw_key, reset_key = jax.random.split(step_key)
-            step = jax.vmap(step_autoreset, in_axes=(None, 0, 0, 0))(env, env_state, action,
-                                                                      jax.random.split(reset_key, config.n_envs))
+            step = step_autoreset_all(env, env_state, action, jax.random.split(reset_key, config.n_envs))
             episodes, finished = track(episodes, step.reward, step.terminated, step.truncated)
             next_action = epsilon_greedy(draw_key, net.apply(params, step.observation), epsilon)
             transition = (observation, action, step.reward, step.terminated, step.truncated, step.last_observation)
@@ -275,7 +284,7 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
         drawn = epsilon_greedy(key, q_next, epsilon)
         values = bootstrap_values(config.target, q_next, sarsa_actions(rollout.actions, done, drawn, carried),
                                   epsilon)
-        rewards = config.reward_scale * rollout.rewards.astype(jnp.float32)
+        rewards = config.reward_scale * learning_reward(env, rollout.rewards).astype(jnp.float32)
         return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, config.gamma, config.lam)
 
     def loss(params: dict, observations: jax.Array, actions: jax.Array, returns: jax.Array) -> jax.Array:
@@ -314,8 +323,8 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
         init_key, reset_key, action_key = jax.random.split(key, 3)
         params = net.init(init_key, jnp.zeros((1, *env.observation_shape), jnp.float32))
         train_state = TrainState.create(apply_fn=net.apply, params=params, tx=optimiser)
-        env_state = jax.vmap(env.reset)(jax.random.split(reset_key, config.n_envs))
-        observation = jax.vmap(env.observe)(env_state)
+        env_state = reset_all(env, jax.random.split(reset_key, config.n_envs))
+        observation = observe_all(env, env_state)
         first_action = epsilon_greedy(action_key, net.apply(params, observation), epsilon_at(0))
         return Runner(train_state, env_state, observation, first_action, Episodes.start(config.n_envs),
                       jnp.zeros((), jnp.int32))

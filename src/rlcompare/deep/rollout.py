@@ -9,7 +9,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import DeepEnv
+from rlcompare.deep.envs import DeepEnv, observe_all, reset_all, step_all
 
 Params = Any
 Act = Callable[[Params, jax.Array], jax.Array]
@@ -88,7 +88,7 @@ def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: i
     ``(returns, lengths, terminated)``, each ``(episodes,)``. The environments' own draws come from ``key``
     folded with 1 and the step. With ``epsilon``, each action is uniformly random with that chance (DQN's
     evaluation takes 0.05; 1 is the uniformly random policy)."""
-    states = jax.vmap(env.reset)(jax.random.split(key, episodes))
+    states = reset_all(env, jax.random.split(key, episodes), role="evaluation")
     step_key = jax.random.fold_in(key, 1)
     limit = evaluation_limit(env)
 
@@ -98,13 +98,13 @@ def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: i
 
     def one_step(carry: tuple) -> tuple:
         t, state, running, returns, lengths, terminated = carry
-        action = act(params, jax.vmap(env.observe)(state))
+        action = act(params, observe_all(env, state))
         keys = jax.random.split(jax.random.fold_in(step_key, t), episodes)
         if epsilon > 0.0:
             explore_key, action_key = jax.random.split(jax.random.fold_in(key, 2 + t))
             random_actions = jax.random.randint(action_key, (episodes,), 0, env.n_actions)
             action = jnp.where(jax.random.uniform(explore_key, (episodes,)) < epsilon, random_actions, action)
-        state, reward, term, trunc = jax.vmap(env.step)(state, action, keys)
+        state, reward, term, trunc = step_all(env, state, action, keys, role="evaluation")
         returns = returns + jnp.where(running, reward, 0.0).astype(jnp.float32)
         lengths = lengths + running.astype(jnp.int32)
         terminated = terminated | (running & term)

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.deep import float64, rollout, use_compilation_cache
-from rlcompare.deep.envs import DeepEnv, jax_env
+from rlcompare.deep.envs import DeepEnv, is_batched, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.experiment import rundir, store
@@ -46,7 +46,8 @@ class DeepConfig:
     """A deep method: ``pqn_q_lambda``, ``pqn_sarsa_lambda``, ``pqn_expected_sarsa_lambda``, ``dqn``,
     ``double_dqn`` or ``ppo`` (``docs/deep.md``)."""
     env: str = "CartPole-v1"
-    """``CartPole-v1``, ``Acrobot-v1`` or ``MountainCar-v0``, at Gymnasium's registered limits."""
+    """``CartPole-v1``, ``Acrobot-v1`` or ``MountainCar-v0`` at Gymnasium's registered limits, a MinAtar game, or an
+    Atari game (``Breakout-Atari``: ``vmap_width`` 1)."""
     preset: str = "default"
     """A named set of the method's hyperparameters (``docs/deep.md``)."""
     hyperparameters: dict[str, Any] = field(default_factory=dict)
@@ -70,6 +71,9 @@ class DeepConfig:
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ConfigError(name, value, "a positive integer")
+        if is_batched(self.environment) and self.vmap_width != 1:
+            raise ConfigError("vmap_width", self.vmap_width,
+                              "1 for an Atari game (its emulator plays one seed's games at a time)")
         if not isinstance(self.hyperparameters, dict):
             raise ConfigError("hyperparameters", self.hyperparameters, "a table of field names and values")
         object.__setattr__(self, "seeds", tuple(self.seeds))
@@ -303,7 +307,10 @@ def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: 
                      width: int) -> Callable[[jax.Array], TrainOutput]:
     """The jitted, vmapped training of ``width`` seeds, lowered and compiled for ``width`` keys; kept for the
     process (``cache_info()`` counts the runs that found it)."""
-    train = deep_method(algorithm).module.make_train(method_config, jax_env(env), eval_rounds, eval_episodes)
+    environment = jax_env(env)
+    train = deep_method(algorithm).module.make_train(method_config, environment, eval_rounds, eval_episodes)
+    if is_batched(environment):  # one seed, its emulator's callbacks outside any vmap
+        return jax.jit(lambda keys: jax.tree.map(lambda x: x[None], train(keys[0]))).lower(seed_keys((0,))).compile()
     return jax.jit(jax.vmap(train)).lower(seed_keys((0,) * width)).compile()
 
 

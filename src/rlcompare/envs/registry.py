@@ -34,7 +34,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rlcompare.envs import acrobot, cartpole, discretize, features, gymnasium_env, minatar, mountain_car, table, tiles
+from rlcompare.envs import (
+    acrobot,
+    atari,
+    cartpole,
+    discretize,
+    features,
+    gymnasium_env,
+    minatar,
+    mountain_car,
+    table,
+    tiles,
+)
 from rlcompare.envs.mountain_car_picture import MountainCarPainter
 from rlcompare.envs.table import TableEnv, from_gymnasium
 
@@ -155,6 +166,16 @@ def _minatar(name: str) -> Environment:
                        observation_shape=shape, tabular=False)
 
 
+def _atari(name: str) -> Environment:
+    """An Atari 2600 game under Machado et al.'s protocol (:mod:`rlcompare.envs.atari`), through ale-py."""
+    shape = atari.PROTOCOL.observation_shape
+    size = int(np.prod(shape))
+    return Environment(name, None, len(atari.ACTION_NAMES), 0, np.zeros(size), np.full(size, 255.0),
+                       atari.PROTOCOL.max_steps, 1, "positive_return", action_names=atari.ACTION_NAMES,
+                       endings=("game over", "out of time"), jax_port="rlcompare.deep.atari:atari_env",
+                       observation_shape=shape, tabular=False)
+
+
 _PORTED = {
     "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300,
                                             jax_port="rlcompare.deep.envs:MOUNTAIN_CAR"),
@@ -184,6 +205,8 @@ def environment(name: str, adapter: bool = False) -> Environment:
         return _PORTED[name]()
     if name in minatar.NAMES:
         return _minatar(name)
+    if name in atari.NAMES:
+        return _atari(name)
     if name in TABLE_ENVIRONMENTS:
         tabled = table_of(name)
         limit, success, bench_episodes = _TABLE_DEFAULTS[name]

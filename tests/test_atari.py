@@ -1,0 +1,154 @@
+"""Atari 2600 through ale-py at a tiny scale: the games stepped from inside a jitted program equal ALE's own vector
+environment stepped from Python (observations, rewards, episode ends, the last observation of an episode, the
+resets), every deep method trains on one and gives the same bits twice, and what the engine cannot do is refused
+with one line."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+ale_py = pytest.importorskip("ale_py")
+
+import jax.numpy as jnp  # noqa: E402
+
+from rlcompare.deep import dqn, ppo, pqn  # noqa: E402
+from rlcompare.deep.atari import AtariEnv, NatureCNN, atari_env, reset_seed  # noqa: E402
+from rlcompare.deep.envs import jax_env, jax_env_names, learning_reward  # noqa: E402
+from rlcompare.deep.run import DeepConfig  # noqa: E402
+from rlcompare.envs import atari  # noqa: E402
+from rlcompare.envs.registry import environment  # noqa: E402
+from rlcompare.experiment.config import ConfigError  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+SHORT = dataclasses.replace(atari.PROTOCOL, max_frames=600)
+"""Episodes cut after 150 steps, so that a short test sees both ends of an episode."""
+BREAKOUT = AtariEnv("Breakout-Atari", "breakout", SHORT)
+GAMES, STEPS = 4, 400
+
+
+def _rollout_in_jax(env: AtariEnv, key: jax.Array, actions: np.ndarray) -> tuple:
+    def play(key: jax.Array, actions: jax.Array) -> tuple:
+        start = env.reset_batch(jax.random.split(key, GAMES))
+
+        def one_step(state: jax.Array, action: jax.Array) -> tuple:
+            step = env.step_autoreset_batch(state, action, None)
+            return step.state, (step.observation, step.last_observation, step.reward, step.terminated,
+                                step.truncated)
+
+        return start, jax.lax.scan(one_step, start, actions)[1]
+
+    return jax.device_get(jax.jit(play)(key, jnp.asarray(actions)))
+
+
+def _rollout_in_python(env: AtariEnv, seed: int, actions: np.ndarray) -> tuple:
+    p = env.protocol
+    library = ale_py.AtariVectorEnv(env.rom, GAMES, repeat_action_probability=p.sticky_action_prob,
+                                    full_action_space=True, max_num_frames_per_episode=p.max_frames, noop_max=0,
+                                    use_fire_reset=False, reward_clipping=False, autoreset_mode="SameStep")
+    first, _ = library.reset(seed=seed)
+    observations, lasts, rewards, terminated, truncated = [], [], [], [], []
+    for action in actions:
+        observation, reward, term, trunc, info = library.step(action)
+        last = observation.copy()
+        for game in np.flatnonzero(term | trunc):
+            last[game] = info["final_obs"][game]
+        for kept, value in ((observations, observation), (lasts, last), (rewards, reward), (terminated, term),
+                            (truncated, trunc)):
+            kept.append(value)
+    library.close()
+    to_hwc = (0, 1, 3, 4, 2)  # (steps, games, stack, 84, 84) -> (steps, games, 84, 84, stack)
+    return (first.transpose(0, 2, 3, 1), (np.stack(observations).transpose(to_hwc), np.stack(lasts).transpose(to_hwc),
+                                          np.stack(rewards), np.stack(terminated), np.stack(truncated)))
+
+
+def test_games_stepped_inside_jax_equal_the_library_stepped_from_python() -> None:
+    key = jax.random.key(3)
+    actions = np.random.default_rng(0).integers(0, 18, size=(STEPS, GAMES)).astype(np.int32)
+    start, (observations, lasts, rewards, terminated, truncated) = _rollout_in_jax(BREAKOUT, key, actions)
+    seed = int(reset_seed(jax.random.split(key, GAMES)))
+    reference_start, reference = _rollout_in_python(BREAKOUT, seed, actions)
+    np.testing.assert_array_equal(start, reference_start)
+    np.testing.assert_array_equal(observations, reference[0])
+    np.testing.assert_array_equal(lasts, reference[1])
+    np.testing.assert_array_equal(rewards, reference[2])
+    np.testing.assert_array_equal(terminated, reference[3])
+    np.testing.assert_array_equal(truncated, reference[4])
+    # the rollout saw what it is meant to check: points scored, games lost, games cut at the limit, and the
+    # last observation of an ended episode differing from the next one's start
+    assert rewards.sum() > 0
+    assert terminated.any()
+    assert truncated.any()
+    ended = terminated | truncated
+    assert (lasts[ended] != observations[ended]).any()
+    assert (lasts[~ended] == observations[~ended]).all()
+    assert observations.dtype == np.uint8
+    assert observations.shape[2:] == (84, 84, 4)
+
+
+def test_the_registry_lists_each_game_under_the_protocol() -> None:
+    entry = environment("Pong-Atari")
+    assert entry.observation_shape == (84, 84, 4)
+    assert entry.n_actions == 18
+    assert not entry.tabular
+    assert entry.max_steps == 27_000
+    assert entry.action_names[1] == "fire"
+    assert set(atari.NAMES) <= set(jax_env_names())
+    assert jax_env("Breakout-Atari") == atari_env("Breakout-Atari")
+
+
+def test_the_methods_learn_from_the_sign_of_the_score_and_record_the_score() -> None:
+    reward = jnp.asarray([0.0, 1.0, 4.0, -7.0])
+    np.testing.assert_array_equal(learning_reward(BREAKOUT, reward), [0.0, 1.0, 1.0, -1.0])
+    np.testing.assert_array_equal(learning_reward(jax_env("CartPole-v1"), reward), reward)
+
+
+def test_mnih_network_has_its_layers_and_reads_uint8_frames() -> None:
+    net = NatureCNN(18)
+    frames = jnp.zeros((2, 84, 84, 4), jnp.uint8)
+    params = net.init(jax.random.key(0), frames)
+    kernels = [leaf.shape for path, leaf in jax.tree_util.tree_flatten_with_path(params)[0]
+               if "kernel" in jax.tree_util.keystr(path)]
+    assert sorted(kernels) == sorted([(8, 8, 4, 32), (4, 4, 32, 64), (3, 3, 64, 64), (7 * 7 * 64, 512), (512, 18)])
+    assert net.apply(params, frames).shape == (2, 18)
+
+
+TINY = {
+    "pqn": (pqn, dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], total_steps=2 * 4 * 16, n_envs=4,
+                                      n_steps=16, n_minibatches=2, hidden=(32,))),
+    "dqn": (dqn, dataclasses.replace(dqn.ATARI, total_steps=2 * 48, n_envs=2, buffer_size=200, learning_starts=32,
+                                      batch_size=8, hidden=(32,))),
+    "ppo": (ppo, dataclasses.replace(ppo.ATARI, total_steps=2 * 4 * 16, n_envs=4, n_steps=16, batch_size=32,
+                                      n_epochs=1, hidden=(32,))),
+}
+
+
+@pytest.mark.parametrize("method", list(TINY))
+def test_each_method_trains_on_a_game_and_gives_the_same_bits_twice(method: str) -> None:
+    module, config = TINY[method]
+    with jax.enable_x64(True):
+        train = jax.jit(module.make_train(config, BREAKOUT, rounds=2, eval_episodes=2))
+        first = jax.device_get(train(jax.random.key(0)))
+        second = jax.device_get(train(jax.random.key(0)))
+        other = jax.device_get(train(jax.random.key(1)))
+    for a, b in zip(jax.tree.leaves(first), jax.tree.leaves(second), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert any(not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(first.params), jax.tree.leaves(other.params),
+                                                        strict=True))
+    assert first.eval_returns.shape == (2, 2)
+    # every evaluation episode ended, by the game or at the protocol's limit
+    assert (first.eval_lengths <= SHORT.max_steps).all()
+    assert (first.eval_lengths > 0).all()
+
+
+def test_several_seeds_side_by_side_are_refused_naming_the_field() -> None:
+    with pytest.raises(ConfigError, match="vmap_width") as refused:
+        DeepConfig(algorithm="pqn_q_lambda", env="Breakout-Atari", seeds=(0, 1), vmap_width=2)
+    assert "Atari" in str(refused.value)
+    with pytest.raises(ConfigError, match="env") as unknown:
+        DeepConfig(algorithm="pqn_q_lambda", env="Tetris-Atari", vmap_width=1)
+    assert "Breakout-Atari" in str(unknown.value)
