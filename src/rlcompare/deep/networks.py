@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 ACTIVATIONS = {"relu": nn.relu, "tanh": nn.tanh}
 
@@ -41,11 +42,16 @@ class MLP(nn.Module):
 
 def patches_3x3(x: jax.Array) -> jax.Array:
     """``(..., H, W, C) -> (..., H - 2, W - 2, 9 C)``: every 3 x 3 window of an image, its values ordered by channel,
-    then row, then column (``lax.conv_general_dilated_patches``)."""
-    leading, image = x.shape[:-3], x.shape[-3:]
-    patches = jax.lax.conv_general_dilated_patches(x.reshape(-1, *image), (3, 3), (1, 1), "VALID",
-                                                   dimension_numbers=("NHWC", "OIHW", "NHWC"))
-    return patches.reshape(*leading, *patches.shape[1:])
+    then row, then column, in ``x``'s dtype: the values of ``lax.conv_general_dilated_patches`` in its order
+    (``tests/test_deep_networks.py``), taken by one gather, several times faster on a CPU than that one-hot
+    convolution, and faster than stacking nine shifted slices (which XLA:CPU then interleaves): PQN and PPO on
+    MinAtar take about a quarter more steps per second, the same bits."""
+    height, width, depth = x.shape[-3:]
+    cells = np.arange(height * width * depth).reshape(height, width, depth)
+    index = np.stack([cells[row:row + height - 2, column:column + width - 2] for row in range(3)
+                      for column in range(3)], axis=-1)  # (H - 2, W - 2, C, 9): flat positions in the image
+    return jnp.take(x.reshape(*x.shape[:-3], -1), index.reshape(height - 2, width - 2, 9 * depth), axis=-1,
+                    mode="clip")
 
 
 class Conv3x3(nn.Module):
