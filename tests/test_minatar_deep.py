@@ -71,3 +71,20 @@ def test_the_tabular_engine_refuses_an_image_environment_in_one_line():
     with pytest.raises(ConfigError) as unknown:
         DeepConfig(env="MinAtar/Pong-v0")
     assert "MinAtar/Breakout-v0" in str(unknown.value)
+
+
+def test_one_game_object_serves_two_traces():
+    """gymnax's game is built outside the first trace that asks for it, so the second trace does not meet the
+    first one's leaked tracers (``UnexpectedTracerError``)."""
+    from rlcompare.deep.minatar import minatar_env
+
+    env = minatar_env("Breakout-MinAtar")
+
+    def play(key: jax.Array) -> jax.Array:
+        state, *_ = env.step(env.reset(key), jnp.int32(1), key)
+        return env.observe(state)
+
+    keys = jax.random.split(jax.random.key(0), 3)
+    first = jax.jit(jax.vmap(play))(keys)
+    second = jax.jit(play)(keys[0])
+    np.testing.assert_array_equal(first[0], second)

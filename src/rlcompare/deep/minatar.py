@@ -90,11 +90,15 @@ class MinAtarEnv:
 
     @functools.cached_property
     def _env(self) -> Any:
-        return GYMNAX_CLASSES[self.game.module_name](use_minimal_action_set=False)
+        """gymnax's game, built outside any trace: its constructor makes arrays, which, made first inside a jitted
+        function, would be that trace's tracers, cached here and leaked into the next trace."""
+        with jax.ensure_compile_time_eval():
+            return GYMNAX_CLASSES[self.game.module_name](use_minimal_action_set=False)
 
     @functools.cached_property
     def _params(self) -> Any:
-        return self._env.default_params
+        with jax.ensure_compile_time_eval():
+            return self._env.default_params
 
     @property
     def actions(self) -> tuple[int, ...]:
