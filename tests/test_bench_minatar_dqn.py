@@ -1,7 +1,6 @@
-"""DQN on MinAtar as ``rlcompare bench --deep`` times it: our Q-network computed with gathered 3 x 3 windows is the
-network's own function bit for bit, the seeds trained side by side under ``vmap`` train as each alone does, and
-Stable-Baselines3's counterpart (the ``bench`` extra) has the same network: our weights carried into it give our
-Q-values."""
+"""DQN on MinAtar as ``rlcompare bench --deep`` times it: the seeds trained side by side under ``vmap`` train as each
+alone does, and Stable-Baselines3's counterpart (the ``bench`` extra) has the same network: our weights carried
+into it give our Q-values."""
 
 from __future__ import annotations
 
@@ -17,29 +16,8 @@ import jax.numpy as jnp  # noqa: E402
 
 from rlcompare.deep import dqn  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
-from rlcompare.deep.networks import patches_3x3  # noqa: E402
 
 ENV = "Breakout-MinAtar"
-
-
-@pytest.mark.parametrize("shape", [(5, 10, 10, 4), (10, 10, 7), (2, 3, 6, 9, 2)])
-def test_gathered_windows_are_the_patches(shape: tuple[int, ...]) -> None:
-    x = jax.random.normal(jax.random.key(0), shape)
-    np.testing.assert_array_equal(dqn.windows_3x3(x), patches_3x3(x))
-
-
-@pytest.mark.parametrize("env_name", [ENV, "MinAtar/SpaceInvaders-v0"])
-@pytest.mark.parametrize("hidden", [(128,), (5, 7)])
-def test_q_values_are_the_networks_bit_for_bit(env_name: str, hidden: tuple[int, ...]) -> None:
-    env = jax_env(env_name)
-    config = dataclasses.replace(dqn.MINATAR, hidden=hidden)
-    net = dqn.network(config, env)
-    params = net.init(jax.random.key(1), jnp.zeros((1, *env.observation_shape)))
-    for leading in [(32,), (1,), (), (2, 3)]:
-        images = jax.random.bernoulli(jax.random.key(2), 0.3, (*leading, *env.observation_shape))
-        ours = jax.jit(dqn.q_values(config, env))(params, images)
-        assert ours.shape == (*leading, env.n_actions)
-        np.testing.assert_array_equal(ours, jax.jit(net.apply)(params, images))
 
 
 def test_seeds_side_by_side_train_as_each_alone_across_learning_starts() -> None:

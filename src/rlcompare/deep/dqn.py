@@ -32,7 +32,6 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import optax
 
 from rlcompare.deep import rollout
@@ -300,48 +299,8 @@ def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
 
 
 def q_values(config: DQNConfig, env: DeepEnv) -> Apply:
-    """``(params, observations) -> Q-values`` of :func:`network`, its parameters as its ``init`` makes them: for
-    images the same function, bit for bit, with the convolution's 3 x 3 windows gathered
-    (:func:`_conv_net_apply`); otherwise the network's own ``apply``."""
-    net = network(config, env)
-    return _conv_net_apply(net) if isinstance(net, ConvNet) else net.apply
-
-
-def windows_3x3(x: jax.Array) -> jax.Array:
-    """:func:`~rlcompare.deep.networks.patches_3x3` as one gather: ``(..., H, W, C) -> (..., H - 2, W - 2, 9 C)``,
-    the same values in the same order (channel, then row, then column), in ``x``'s dtype. On a CPU that is several
-    times faster than ``lax.conv_general_dilated_patches`` (a convolution with a one-hot kernel), and faster than
-    stacking nine shifted slices (which XLA:CPU then interleaves)."""
-    height, width, depth = x.shape[-3:]
-    cells = np.arange(height * width * depth).reshape(height, width, depth)
-    index = np.stack([cells[row:row + height - 2, column:column + width - 2] for row in range(3)
-                      for column in range(3)], axis=-1)  # (H - 2, W - 2, C, 9): flat positions in the image
-    return jnp.take(x.reshape(*x.shape[:-3], -1), index.reshape(height - 2, width - 2, 9 * depth), axis=-1,
-                    mode="clip")
-
-
-def _dense(layer: Params, x: jax.Array) -> jax.Array:
-    """flax's ``nn.Dense`` on float32 inputs, as it computes it: a dot over the last axis, then the bias."""
-    y = jax.lax.dot_general(x, layer["kernel"], (((x.ndim - 1,), (0,)), ((), ())))
-    return y + jnp.reshape(layer["bias"], (1,) * (y.ndim - 1) + (-1,))
-
-
-def _conv_net_apply(net: ConvNet) -> Apply:
-    """``net.apply`` (a :class:`ConvNet` without LayerNorm) computed from its parameters with :func:`windows_3x3`
-    for the convolution's windows: every other operation is the module's own, so the Q-values are the same bits
-    (``tests/test_bench_minatar_dqn.py``)."""
-    if net.layer_norm:
-        raise ValueError("DQN's MinAtar network has no LayerNorm")
-
-    def apply(params: Params, observations: jax.Array) -> jax.Array:
-        layers = params["params"]
-        x = jax.nn.relu(_dense(layers["Conv3x3_0"]["Dense_0"], windows_3x3(observations).astype(jnp.float32)))
-        x = x.reshape(*x.shape[:-3], -1)
-        for index in range(len(net.hidden)):
-            x = jax.nn.relu(_dense(layers[f"Dense_{index}"], x))
-        return _dense(layers[f"Dense_{len(net.hidden)}"], x)
-
-    return apply
+    """``(params, observations) -> Q-values`` of :func:`network`."""
+    return network(config, env).apply
 
 
 def act(config: DQNConfig, env: DeepEnv) -> rollout.Act:
