@@ -12,6 +12,7 @@ from the training's key, so a seed's training is the same each time it runs.
 
 from __future__ import annotations
 
+import atexit
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,6 +29,13 @@ from rlcompare.envs.atari import ACTION_NAMES, PROTOCOL, Protocol
 ROLES = ("training", "evaluation")
 _EMULATORS: dict[tuple, object] = {}
 """One ``AtariVectorEnv`` per (environment, role, number of games), made at its first reset."""
+
+
+@atexit.register
+def close_emulators() -> None:
+    """Stop every emulator's threads and free it (one left to the interpreter's end makes nanobind warn)."""
+    while _EMULATORS:
+        _EMULATORS.popitem()[1].close()
 
 
 @dataclass(frozen=True)
