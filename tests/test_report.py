@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from rlcompare import cli
 from rlcompare.analysis.convergence import RULES
 from rlcompare.analysis.stats import VERDICTS, interval
-from rlcompare.analysis.tables import COLUMNS, Claim, judge, per_seed_metrics
+from rlcompare.analysis.tables import COLUMNS, Claim, is_fragile, judge, per_seed_metrics
 from rlcompare.engine.state import Records
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ExperimentConfig
@@ -69,7 +69,7 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert list(rules["claim"]) == [c.text for c in CLAIMS if c.metric == "convergence_episode"]
     behaviour_rules = [r.name for r in RULES if r.curve == "behaviour"]
     assert [name for name in rules.columns if name.startswith("band")] == behaviour_rules
-    fragile = [len({str(v).removesuffix(" (fragile)") for v in row}) > 1
+    fragile = [is_fragile([str(v).removesuffix(" (fragile)") for v in row])
                for row in rules.drop(columns="claim").to_numpy()]
     assert list(rules["verdict"].str.endswith("(fragile)")) == fragile
     for file_name, _, _ in FIGURES:

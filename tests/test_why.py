@@ -148,7 +148,7 @@ def test_the_opening_says_the_gaps_in_words_with_the_labels():
     assert more_or_less(Estimate(14.2, -19.8, 88.0)) == "14.2 more (95% interval 19.8 less to 88.0 more)"
     assert more_or_less(Estimate(-250.0, -600.0, -120.0)) == "250 less (95% interval 120 to 600)"
     assert tally(verdicts) == ("Of the paper's 5 claims tested here: 3 supported, 2 not resolved; "
-                               "1 of them fragile (the label changes with the convergence rule).")
+                               "1 of them fragile (another convergence rule decides it the other way).")
 
 
 def test_reproduce_why_through_the_cli_then_report_rebuilds_it(tmp_path):

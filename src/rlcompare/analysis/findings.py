@@ -108,7 +108,7 @@ def tally(verdicts: pd.DataFrame) -> str:
              if counts[label]]
     fragile = int(verdicts["fragile"].sum())
     return (f"Of the paper's {len(verdicts)} claims tested here: {', '.join(parts)}"
-            + (f"; {fragile} of them fragile (the label changes with the convergence rule)." if fragile else "."))
+            + (f"; {fragile} of them fragile (another convergence rule decides it the other way)." if fragile else "."))
 
 
 def paper_findings(claims: list[Claim], verdicts: pd.DataFrame, metrics: dict[str, pd.DataFrame],

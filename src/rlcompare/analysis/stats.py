@@ -369,6 +369,17 @@ class NoiseFloor(NamedTuple):
         return f"gap {self.gap:.{digits}g} {'<' if self.below else '>='} spread {self.spread:.{digits}g}"
 
 
+def holm_factors(p_values: Iterable[float]) -> np.ndarray:
+    """What Holm's procedure multiplies each p-value by before the running maximum: ``m - j + 1`` for the ``j``-th
+    smallest of the ``m`` tested (NaN where nothing was tested), so ``holm(p) >= p * factor`` for each."""
+    p = np.asarray(list(p_values), dtype=np.float64)
+    finite = np.flatnonzero(~np.isnan(p))
+    order = finite[np.argsort(p[finite], kind="stable")]
+    factors = np.full(p.shape, np.nan)
+    factors[order] = order.size - np.arange(order.size)
+    return factors
+
+
 def noise_floor(values: np.ndarray) -> NoiseFloor:
     """Whether the best of several options stands out from the noise, e.g. greedy actions from Q-values.
 
@@ -385,6 +396,23 @@ def noise_floor(values: np.ndarray) -> NoiseFloor:
     gap = float(np.mean(ordered[:, -1] - ordered[:, -2]))
     spread = float(np.mean(values.std(axis=0, ddof=1))) if values.shape[0] > 1 else np.nan
     return NoiseFloor(gap, spread)
+
+
+def worst_case_sign_p(values: np.ndarray, bound: float, side: int, up: np.ndarray, down: np.ndarray) -> float:
+    """One-sided sign test p-value that the median of ``values`` lies on ``side`` of ``bound`` (-1 below, +1
+    above), each censored value put at its worst for that conclusion: one that could only be larger (``up``, e.g.
+    a run that never converged, counted at the last episode) above the bound when the median is claimed below,
+    one that could only be smaller (``down``) below it when the median is claimed above. The test reads only on
+    which side of the bound each value lies, so it holds whatever the censored values truly are; values on the
+    bound are left out (Dixon and Mood 1946)."""
+    if side not in (1, -1):
+        raise ValueError(f"side must be +1 or -1, got {side!r}")
+    d = np.sign(np.asarray(values, dtype=np.float64) - bound)
+    d = np.where(np.asarray(up if side < 0 else down, dtype=bool), -side, d)
+    decided = d[d != 0]
+    if decided.size == 0:
+        return 1.0
+    return float(stats.binomtest(int(np.sum(decided == side)), decided.size, 0.5, alternative="greater").pvalue)
 
 
 def robust_to_censoring(side: int, bias: Iterable[int]) -> bool:

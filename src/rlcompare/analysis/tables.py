@@ -11,7 +11,7 @@ they disagree (``docs/why.md``, "Verdicts").
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import partial
 from typing import NamedTuple
@@ -33,6 +33,7 @@ from rlcompare.analysis.explain import final_first_action_shares, has_start_regi
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.stats import (
     ALPHA,
+    CONTRADICTED,
     NO_DATA,
     NOT_RESOLVED,
     SUPPORTED,
@@ -41,6 +42,7 @@ from rlcompare.analysis.stats import (
     Verdict,
     equivalence_verdict,
     holm,
+    holm_factors,
     interval,
     noise_floor,
     paired_difference,
@@ -50,6 +52,7 @@ from rlcompare.analysis.stats import (
     robust_to_censoring,
     tost,
     verdict,
+    worst_case_sign_p,
 )
 from rlcompare.envs.discretize import make_grid
 from rlcompare.envs.features import grid_bounds
@@ -234,6 +237,9 @@ class _Outcome(NamedTuple):
     decide: Callable[[float], tuple[Verdict, int]]
     bias: frozenset[int] = frozenset()
     no_data: str = ""
+    worst_case: Callable[[int], float] | None = None
+    """``side -> p``: the claim's conclusion on that side tested with every censored seed at its worst
+    (:func:`censored_at_worst`); None where nothing was censored."""
 
 
 def _configurations(claim: Claim) -> list[str]:
@@ -269,6 +275,23 @@ def _censoring(claim: Claim, a: np.ndarray, b: np.ndarray) -> tuple[frozenset[in
     return bias, text, ""
 
 
+def censored_at_worst(values: np.ndarray, lower: float, upper: float, up: np.ndarray, down: np.ndarray
+                      ) -> Callable[[int], float]:
+    """``side -> p``: the sign test (:func:`~rlcompare.analysis.stats.worst_case_sign_p`) of a conclusion that puts
+    the claim's per-seed quantity below ``lower`` (side -1), above ``upper`` (+1) or inside both (0), with every
+    censored seed on the side that would overturn it. ``up``/``down``: the seeds whose value censoring can only
+    have lowered/raised."""
+
+    def p(side: int) -> float:
+        if side < 0:
+            return worst_case_sign_p(values, lower, -1, up, down)
+        if side > 0:
+            return worst_case_sign_p(values, upper, 1, up, down)
+        return max(worst_case_sign_p(values, lower, 1, up, down), worst_case_sign_p(values, upper, -1, up, down))
+
+    return p
+
+
 def _direction(difference, p_value: float, sign: int) -> tuple[Verdict, int]:
     label = verdict(difference, p_value, sign)
     return label, (sign if label == SUPPORTED else -sign)
@@ -297,6 +320,7 @@ def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> _Out
     """The claim's test on the seeds (a never-converged run counts at the last episode, ``episodes``)."""
     a, b = _paired(metrics, claim)
     bias, censored, no_data = _censoring(claim, a, b)
+    never_a, never_b = np.isnan(a), np.isnan(b)
     if claim.metric == CONVERGENCE:
         a, b = np.nan_to_num(a, nan=episodes), np.nan_to_num(b, nan=episodes)
     row: dict[str, object] = {"claim": claim.text, "metric": claim.metric, "SARSA": float(np.mean(a)),
@@ -306,13 +330,21 @@ def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> _Out
     if claim.kind == "direction":
         paired = compare_paired(a, b)
         better = paired.improvement if claim.sign > 0 else probability_of_improvement(b, a)
+        worst = censored_at_worst(a - b, 0.0, 0.0, never_a, never_b) if bias else None
         return _Outcome(row | {"estimate": _fmt(paired.difference, 2),
                                "P(claim holds for a random pair)": _fmt(better, 2)},
-                        paired.p_value, partial(_direction, paired.difference, sign=claim.sign), bias)
-    if claim.kind in ("ratio", "same"):
-        test = ratio_tost(b, a, claim.value, RATIO_FACTOR) if claim.kind == "ratio" else tost(a - b, -claim.value,
-                                                                                            claim.value)
-        return _Outcome(row | {"estimate": _fmt(test.estimate, 2)}, test.p, partial(_equivalence, test), bias)
+                        paired.p_value, partial(_direction, paired.difference, sign=claim.sign), bias,
+                        worst_case=worst)
+    if claim.kind == "ratio":
+        test = ratio_tost(b, a, claim.value, RATIO_FACTOR)
+        worst = censored_at_worst(np.log(b / a), np.log(test.lower), np.log(test.upper), never_b, never_a)
+        return _Outcome(row | {"estimate": _fmt(test.estimate, 2)}, test.p, partial(_equivalence, test), bias,
+                        worst_case=worst if bias else None)
+    if claim.kind == "same":
+        test = tost(a - b, -claim.value, claim.value)
+        worst = censored_at_worst(a - b, -claim.value, claim.value, never_a, never_b)
+        return _Outcome(row | {"estimate": _fmt(test.estimate, 2)}, test.p, partial(_equivalence, test), bias,
+                        worst_case=worst if bias else None)
     values = a if claim.method == "sarsa" else b
     reference = np.full_like(values, claim.value)
     shift = paired_difference(values, reference)
@@ -320,9 +352,11 @@ def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> _Out
                     partial(_direction, shift, sign=claim.sign))
 
 
-def _label(claim: Claim, outcome: _Outcome, p_adjusted: float,
+def _label(claim: Claim, outcome: _Outcome, p_adjusted: float, holm_factor: float,
            floors: dict[str, NoiseFloor]) -> tuple[Verdict, str, str]:
-    """The claim's label, the noise floor it was read against, and a note on what decided it."""
+    """The claim's label, the noise floor it was read against, and a note on what decided it. A label read from
+    censored values that censoring could overturn stands only if the sign test with every censored seed at its
+    worst rejects too, at the claim's place in Holm's family (its p-value times ``holm_factor``)."""
     label, side = outcome.decide(p_adjusted)
     floor = [(name, floors[name]) for name in _configurations(claim) if claim.floor and name in floors]
     floor_text = "; ".join(f"{name}: {f.format()}" for name, f in floor)
@@ -332,14 +366,21 @@ def _label(claim: Claim, outcome: _Outcome, p_adjusted: float,
     if below:
         return UNDECIDABLE, floor_text, f"below the noise floor in {', '.join(below)}: more seeds will not settle it"
     if label != NOT_RESOLVED and not robust_to_censoring(side, outcome.bias):
-        return NOT_RESOLVED, floor_text, f"{label} from censored values: seeds that never converged could overturn it"
+        worst = max(p_adjusted, min(1.0, holm_factor * outcome.worst_case(side)))
+        if not worst < ALPHA:
+            return (NOT_RESOLVED, floor_text,
+                    f"{label} from censored values: seeds that never converged could overturn it")
+        return label, floor_text, (f"{label} whatever the never-converged seeds' true times: the sign test with "
+                                   f"each at its worst gives p (Holm) {worst:.2g}")
     return label, floor_text, ""
 
 
 def _labels(claims: list[Claim], outcomes: list[_Outcome], floors: dict[str, NoiseFloor]
             ) -> tuple[np.ndarray, list[tuple[Verdict, str, str]]]:
-    adjusted = holm([o.p for o in outcomes])
-    return adjusted, [_label(c, o, p, floors) for c, o, p in zip(claims, outcomes, adjusted, strict=True)]
+    p_values = [o.p for o in outcomes]
+    adjusted, factors = holm(p_values), holm_factors(p_values)
+    return adjusted, [_label(c, o, p, factor, floors)
+                      for c, o, p, factor in zip(claims, outcomes, adjusted, factors, strict=True)]
 
 
 def _under_rule(metrics: dict[str, pd.DataFrame], rules: dict[str, pd.DataFrame], rule: str
@@ -351,6 +392,29 @@ def _under_rule(metrics: dict[str, pd.DataFrame], rules: dict[str, pd.DataFrame]
             episodes = by_rule.set_index("seed")[rule]
             replaced[name] = metrics[name].assign(**{CONVERGENCE: metrics[name]["seed"].map(episodes).to_numpy()})
     return replaced
+
+
+DECIDED = (SUPPORTED, CONTRADICTED)
+
+
+def is_fragile(labels: Iterable[Verdict]) -> bool:
+    """Whether a claim's labels under reasonable definitions of its quantity (the convergence rules) disagree: two
+    of them decide it opposite ways. A definition under which the data cannot decide (not resolved, no data)
+    adds no evidence either way, and is listed beside the label (:func:`labels_by_definition`) but does not make
+    it fragile."""
+    return len({label for label in labels if label in DECIDED}) > 1
+
+
+def labels_by_definition(labels: dict[str, Verdict]) -> str:
+    """Which definitions give which label, the most common first: ``supported under band 5%, window 50 and
+    band 5%, window 100; not resolved under greedy curve, band 5%, window 100``; empty where all agree."""
+    groups: dict[Verdict, list[str]] = {}
+    for definition, label in labels.items():
+        groups.setdefault(label, []).append(definition)
+    if len(groups) < 2:
+        return ""
+    ordered = sorted(groups.items(), key=lambda item: -len(item[1]))
+    return "; ".join(f"{label} under {' and '.join(names)}" for label, names in ordered)
 
 
 class Judgement(NamedTuple):
@@ -387,10 +451,14 @@ def judge_by_rule(claims: list[Claim], metrics: dict[str, pd.DataFrame], episode
     rows = []
     for i, (outcome, p_adjusted, (label, floor_text, note)) in enumerate(zip(outcomes, adjusted, labels,
                                                                              strict=True)):
-        fragile = bool(by_rule) and i in convergence_claims and len({label, *(v[i] for v in by_rule.values())}) > 1
+        under = {name: by_rule[name][i] for name in names} if i in convergence_claims else {}
+        fragile = is_fragile([label, *under.values()])
+        listing = labels_by_definition(under)
         rows.append(outcome.row | {"p": outcome.p, "p (Holm)": p_adjusted,
                                    "verdict": label + (FRAGILE if fragile else ""), "fragile": fragile,
-                                   "noise floor": floor_text, "note": note})
+                                   "noise floor": floor_text,
+                                   "note": "; ".join(part for part in (note, listing and f"by rule: {listing}")
+                                                     if part)})
     table = pd.DataFrame(rows, columns=COLUMNS)
     rule_table = pd.DataFrame([{"claim": claims[i].text, "verdict": table["verdict"].iloc[i]}
                                | {name: by_rule[name][i] for name in names} for i in convergence_claims],

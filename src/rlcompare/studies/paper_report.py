@@ -339,8 +339,9 @@ def _verdict_text() -> list[str]:
         f"All claims of this table form one family, corrected with Holm's step-down procedure (Holm 1979) at "
         f"family-wise α = {ALPHA:g}: p is each test's own p-value, p (Holm) the adjusted one, and the labels read "
         "p (Holm). A seed that never converged counts at the last episode, a lower bound on its time: a label such "
-        "a value could overturn is not resolved, and a ratio with no converged seed on one side has no data; the "
-        "censored column counts them.",
+        "a value could overturn stands only if the sign test, with every such seed at its worst (an infinite "
+        "time), rejects too at the claim's place in Holm's family (the note then says so), else it is not "
+        "resolved; a ratio with no converged seed on one side has no data. The censored column counts them.",
         "The first-action claims (Mountain Car) read which action the final greedy policy takes in the start "
         "region. The noise floor compares the gap between the best and second-best mean action value in those "
         "cells with the seed-to-seed standard deviation of the action values; a gap below that spread is "
@@ -349,8 +350,9 @@ def _verdict_text() -> list[str]:
         f"of {windows} episodes on the behaviour returns, and the {DEFAULT_RULE.tolerance:.0%} band on the greedy "
         "curve (the mean greedy-evaluation return of each round, smoothed over the rounds of "
         f"{DEFAULT_RULE.window} episodes, its rounds converted back to episodes). Each rule recomputes the whole "
-        "family. A verdict whose label changes with the rule is marked fragile: the conclusion then rests on the "
-        "choice of rule, not on the runs alone; the second table gives the label under each rule.",
+        "family. A verdict that two rules decide opposite ways is marked fragile: the conclusion then rests on the "
+        "choice of rule, not on the runs alone. A rule under which the data cannot decide is named in the row's "
+        "note; the second table gives the label under each rule.",
     ]
 
 
