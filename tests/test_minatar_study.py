@@ -292,3 +292,157 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
     assert "; on-policy better); on Asterix " in games
     assert overall.startswith(f"Over the games, in scores normalised between the random policy (0) and the best "
                               f"method here (1), SARSA(λ) scores {by_hand:.1f} more (95% interval")
+
+
+# --- the same question on tables and on classic control, beside the study's own verdicts ---------------------
+
+@pytest.fixture(scope="module")
+def other_studies(tmp_path_factory):
+    """The paper's tabular study and the deep study at a tiny size, each made by its own command (about 25 s)."""
+    root = tmp_path_factory.mktemp("others")
+    for arguments, name in ((["reproduce", "--seeds", "3", "--episodes", "30", "--no-videos"], "paper"),
+                            (["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50",
+                              "--methods", "pqn_q_lambda,pqn_sarsa_lambda", "--envs", "CartPole-v1"], "deep")):
+        result = CliRunner().invoke(app, [*arguments, "--out", str(root / name)])
+        assert result.exit_code == 0, result.output
+    return root
+
+
+def _copied(source, target):
+    import shutil
+
+    return shutil.copytree(source, target, ignore=shutil.ignore_patterns(".rlcompare.lock"))
+
+
+def _verdicts(directory, name):
+    return pd.read_csv(directory / "tables" / name, dtype=str, keep_default_na=False)
+
+
+def _rows_of(table, study):
+    return table[table["study"].str.startswith(study)]
+
+
+def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other_studies, tmp_path):
+    import html
+
+    from rlcompare.studies import minatar as minatar_study
+    from rlcompare.studies.same_question import CAPTION
+
+    out = _copied(study[0], tmp_path / "minatar")
+    for name in ("paper", "deep"):
+        _copied(other_studies / name, tmp_path / name)
+    minatar_study.report(out, videos=False)
+    table = pd.read_csv(out / "tables" / "minatar_same_question.csv", dtype=str, keep_default_na=False)
+    assert table["study"].tolist()[0] == "minatar (this study)"  # its own rows first
+    own, paper, deep = (_rows_of(table, s) for s in ("minatar", "paper", "deep"))
+    assert own["verdict"].tolist() == _verdicts(out, "minatar_verdicts.csv")["verdict"].tolist() != []
+    written = _verdicts(tmp_path / "paper", "verdicts.csv")
+    assert len(written) == 9
+    assert paper[["claim", "verdict"]].to_numpy().tolist() == written[["claim", "verdict"]].to_numpy().tolist()
+    assert set(paper["environment"]) == {"MountainCar-v0"}
+    written = _verdicts(tmp_path / "deep", "deep_verdicts.csv")
+    assert len(written) == 3
+    assert (deep[["environment", "metric", "estimate", "verdict"]].to_numpy().tolist()
+            == written[["env", "metric", "on - off (mean, 95% CI)", "verdict"]].to_numpy().tolist())
+    page = html.unescape((out / "report.html").read_text())
+    assert page.index("Verdicts") < page.index(">The same question on tables and on classic control</h2>")
+    assert CAPTION in page
+    assert "corrects its own claims separately" in CAPTION
+    assert (f"Beside this study: the paper study's 9 verdicts ({tmp_path / 'paper' / 'tables' / 'verdicts.csv'}); "
+            f"the deep study's 3 verdicts ({tmp_path / 'deep' / 'tables' / 'deep_verdicts.csv'}).") in page
+
+
+def test_without_the_other_studies_the_report_says_how_to_make_them(study):
+    import html
+
+    out, _ = study
+    page = " ".join(html.unescape((out / "report.html").read_text()).split())
+    parent = out.parent
+    assert (f"Beside this study: the paper study is absent ('rlcompare reproduce --out {parent / 'paper'}' makes "
+            f"it); the deep study is absent ('rlcompare reproduce deep --out {parent / 'deep'}' makes it).") in page
+    table = pd.read_csv(out / "tables" / "minatar_same_question.csv")
+    assert set(table["study"]) == {"minatar (this study)"}
+
+
+def _no_marker(directory):
+    (directory / ".rlcompare.json").unlink()
+
+
+def _verdicts_unlisted(directory):
+    import json
+
+    marker = directory / ".rlcompare.json"
+    data = json.loads(marker.read_text())
+    data["outputs"].remove("tables/deep_verdicts.csv")
+    marker.write_text(json.dumps(data))
+
+
+TABLES = {"paper": "tables/verdicts.csv", "deep": "tables/deep_verdicts.csv"}
+
+
+@pytest.mark.parametrize(("name", "made_from", "change", "said"), [
+    ("paper", "deep", None, "is not the paper study's (it holds the deep study): not read"),
+    ("deep", "paper", None, "is not the deep study's (it holds the paper study): not read"),
+    ("paper", "paper", _no_marker, "is not the paper study's (rlcompare wrote no marker there): not read"),
+    ("deep", "deep", _verdicts_unlisted, "has no verdict table rlcompare wrote"),
+])
+def test_a_directory_that_is_not_the_study_s_is_not_read(other_studies, tmp_path, name, made_from, change, said):
+    from rlcompare.studies.same_question import COLUMNS, beside
+
+    other = "deep" if name == "paper" else "paper"
+    _copied(other_studies / other, tmp_path / other)
+    directory = _copied(other_studies / made_from, tmp_path / name)
+    # the study's own verdicts, well formed, where its reader looks: a reader that did not check would list them
+    (directory / TABLES[name]).write_bytes((other_studies / name / TABLES[name]).read_bytes())
+    if change is not None:
+        change(directory)
+    found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS))
+    assert _rows_of(found.table, name).empty
+    assert len(_rows_of(found.table, other)) == len(pd.read_csv(other_studies / other / TABLES[other])) > 0
+    assert said in found.sentence
+    assert str(directory) in found.sentence
+    assert found.malformed == []
+
+
+@pytest.mark.parametrize("content", [b"\x00\xff\xfe\"unterminated\n", b"env,engine\nCartPole-v1,network\n",
+                                     b"env,engine,metric,\"on - off (mean, 95% CI)\",p (Holm),verdict\n"
+                                     b"CartPole-v1,network,final greedy return,\"1.0 [0.0, 2.0]\",0.5,\n"],
+                         ids=["not a table", "columns missing", "a row without a verdict"])
+def test_a_malformed_verdict_file_is_one_line_naming_it_not_a_crash(other_studies, tmp_path, content):
+    from rlcompare.studies.same_question import COLUMNS, beside
+
+    for name in ("paper", "deep"):
+        _copied(other_studies / name, tmp_path / name)
+    path = tmp_path / "deep" / "tables" / "deep_verdicts.csv"
+    path.write_bytes(content)
+    found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS))
+    assert _rows_of(found.table, "deep").empty
+    assert len(_rows_of(found.table, "paper")) == 9
+    assert len(found.malformed) == 1
+    assert found.malformed[0].startswith(f"{path}: malformed (")
+    assert "the deep study's verdict file could not be read" in found.sentence
+
+
+def test_an_empty_verdict_table_is_read_as_no_rows(other_studies, tmp_path):
+    """A deep study run without the pair writes a table with no rows: read as none, not as malformed."""
+    from rlcompare.studies.same_question import COLUMNS, beside
+
+    _copied(other_studies / "deep", tmp_path / "deep")
+    (tmp_path / "deep" / "tables" / "deep_verdicts.csv").write_text(pd.DataFrame([]).to_csv(index=False))
+    found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS))
+    assert found.table.empty
+    assert found.malformed == []
+    assert f"the deep study's 0 verdicts ({tmp_path / 'deep' / 'tables' / 'deep_verdicts.csv'})" in found.sentence
+
+
+def test_the_other_studies_can_be_named_where_they_are(other_studies, tmp_path):
+    from rlcompare.studies import minatar as minatar_study
+    from rlcompare.studies.same_question import COLUMNS, beside
+
+    found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS),
+                   {"paper": other_studies / "paper", "deep": str(other_studies / "deep")})
+    assert (len(_rows_of(found.table, "paper")), len(_rows_of(found.table, "deep"))) == (9, 3)
+    alone = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS), {"deep": other_studies / "deep"})
+    assert (len(_rows_of(alone.table, "paper")), len(_rows_of(alone.table, "deep"))) == (0, 3)
+    with pytest.raises(ValueError, match="beside: got 'cartpole'; allowed: paper, deep"):
+        minatar_study.report(tmp_path / "minatar", beside={"cartpole": other_studies / "paper"})

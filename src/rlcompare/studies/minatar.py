@@ -7,7 +7,9 @@ Expected SARSA(λ) with their MinAtar presets. The report draws greedy learning 
 tabulates each game's final return (greedy, and at ε = 0.05 as DQN's protocol; mean and IQM with 95% intervals)
 beside a uniformly random policy's, gives the across-game IQM of scores normalised between random and the best
 method here, performance profiles and the probability of improvement, judges "on-policy against off-policy target"
-per game, Holm-corrected over the games, and shows each method's agent at three stages of learning in every game.
+per game, Holm-corrected over the games, sets those verdicts beside the ones the paper's tabular study and the deep
+study wrote for the same question (:mod:`rlcompare.studies.same_question`), and shows each method's agent at three
+stages of learning in every game.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from rlcompare.experiment import engines, store
 from rlcompare.experiment.backends import make_backend
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.experiment.sweep import Trial
-from rlcompare.studies import deep
+from rlcompare.studies import deep, same_question
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.registry import MinAtarOptions
 
@@ -291,6 +293,28 @@ def verdict_table(compared: dict[str, tuple[Paired, float, str]]) -> pd.DataFram
     } for game, (paired, p, label) in compared.items()])
 
 
+def same_question_rows(compared: dict[str, tuple[Paired, float, str]]) -> pd.DataFrame:
+    """:func:`comparisons` in the columns of the table set beside the other studies' verdicts
+    (:mod:`rlcompare.studies.same_question`)."""
+    return pd.DataFrame([{
+        "study": "minatar (this study)", "environment": f"MinAtar, {'over the games' if game == OVERALL else game}",
+        "engine: on- vs off-policy": "network (CNN): SARSA(λ) vs Q(λ), PQN-style",
+        "metric": "normalised final greedy return" if game == OVERALL else "final greedy return",
+        "claim": same_question.TWO_SIDED, "estimate": paired.difference.format(2),
+        "estimate of": "on - off, mean [95% CI]", "p (Holm)": p, "verdict": label,
+    } for game, (paired, p, label) in compared.items()], columns=same_question.COLUMNS)
+
+
+SAME_QUESTION = (
+    "The verdicts above beside those the paper's tabular study (Mountain Car) and the deep study (classic control, "
+    "with a network and in a table) wrote in their own verdict tables, read as written: nothing is recomputed. The "
+    "paper's rows are its claims (a direction, a sameness or \"about R times\", labelled supported, contradicted, "
+    "not resolved, undecidable here or no data), the others' two-sided comparisons labelled by the better target. "
+    "Each study Holm-corrects its own claims (the paper study its claims, the deep study its whole table, this one "
+    "its games and the overall row), so each label is read within its own study's family: the rows are not one "
+    "family.")
+
+
 def answer(compared: dict[str, tuple[Paired, float, str]], seeds: int) -> list[str]:
     """The answer in plain words: a sentence for the games, one for the overall comparison."""
     on, off = (short_label(m) for m in PAIR)
@@ -343,14 +367,17 @@ def video_cells(runs: dict[str, DeepResults], videos: Path) -> list[tuple[str, s
     return cells
 
 
-def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True,
+           beside: dict[str, Path | str] | None = None) -> Report:
     """Tables, verdicts, figures, videos and ``report.html`` of a MinAtar study directory, from its run
-    directories."""
+    directories; the paper's and the deep study's verdicts beside its own, read from ``beside`` (by study name:
+    ``paper``, ``deep``) or from the study directories of those names beside ``out``."""
+    siblings = same_question.sibling_dirs(Path(out), beside)
     with store.rewriting(Path(out), "study"):
-        return _build_report(Path(out), videos)
+        return _build_report(Path(out), videos, siblings)
 
 
-def _build_report(out: Path, videos: bool) -> Report:
+def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
     runs, _, problems = deep.load_runs(out)
     tables, figures = out / "tables", out / "figures"
     envs = sorted({r.config.env for r in runs.values()})
@@ -360,12 +387,13 @@ def _build_report(out: Path, videos: bool) -> Report:
     scores = normalised(runs, floors)
     compared = comparisons(runs, games, scores)
     verdicts = verdict_table(compared)
+    elsewhere = same_question.beside(out, same_question_rows(compared), siblings)
     aggregates = draw_aggregates(
         labelled(scores), figures, tasks="games", curves=labelled(normalised_curves(runs, floors)),
         x=next(iter(runs.values())).evaluations["after_step"].unique(), curve_xlabel="environment steps",
         prefix="across-games-") if len(games) > 1 and len(scores) > 1 else None
     files = {name: write_table(frame, tables, name) for name, frame in (
-        ("minatar_summary", summary), ("minatar_verdicts", verdicts),
+        ("minatar_summary", summary), ("minatar_verdicts", verdicts), ("minatar_same_question", elsewhere.table),
         *((("minatar_aggregates", aggregates.intervals), ("minatar_improvement", aggregates.improvements))
           if aggregates else ()))}
     curve_figures = []
@@ -392,6 +420,8 @@ def _build_report(out: Path, videos: bool) -> Report:
             f"the games; random 0, the best method here 1). p-values Holm-adjusted over the games and the overall "
             f"row; with {seeds} seeds the signed-rank test cannot give a p below "
             f"{smallest_p(seeds):.3g}."], [("Verdicts", verdicts, files["minatar_verdicts"])]),
+        Section("The same question on tables and on classic control", [SAME_QUESTION, *elsewhere.paragraphs],
+                [(same_question.CAPTION, elsewhere.table, files["minatar_same_question"])]),
         Section("Every game", [
             f"Final greedy (ε = 0): each seed's mean return in the last evaluation round of training, in the port. "
             f"At ε = {EVAL_EPSILON:g} (DQN's protocol): the same final network acting ε-greedily, {EPSILON_EPISODES} "
