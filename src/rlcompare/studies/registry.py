@@ -133,8 +133,10 @@ class SensitivityOptions(Options):
     """Training episodes per seed."""
     grid: tuple[str, ...] = ()
     """The values of one axis of the grid, KEY=V1,V2,... with KEY alpha, gamma, epsilon_end or
-    truncation_as_terminal; repeat the option. Default: alpha=0.01,0.05,0.1,0.2,0.5 gamma=0.9,0.99,1
-    epsilon_end=0,0.01,0.05 truncation_as_terminal=false,true."""
+    truncation_as_terminal (the cross, ε decaying from 1 to epsilon_end) or epsilon (the constant ε values of the
+    schedule block, crossed with gamma at α = 0.05, time limit terminal); repeat the option. Default:
+    alpha=0.01,0.05,0.1,0.2,0.5 gamma=0.9,0.99,1 epsilon_end=0,0.01,0.05 truncation_as_terminal=false,true
+    epsilon=0.1,0.25,0.5."""
     workers: int | None = option(None, minimum=1)
     """Trials at once on this machine. Default: every core."""
     address: str | None = None
