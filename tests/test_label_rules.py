@@ -152,3 +152,21 @@ def test_a_ratio_far_from_the_claim_is_contradicted_under_every_definition_that_
     row = judge_by_rule([four], main, 5000, rules=frames).verdicts.iloc[0]
     assert row["verdict"] == NOT_RESOLVED
     assert "could overturn it" in row["note"]
+
+
+@pytest.mark.parametrize(("seeds", "spread", "margin_value", "underpowered_note"), [
+    (30, 1.0, 1.0, False),    # 30 seeds prove about ±0.5 at spread 1: a margin of 1 is within reach
+    (5, 1.0, 1.0, True),      # 5 seeds prove about ±1.8: "supported" is out of reach
+    (30, 30.0, 20.0, False),  # "the same solution" at 30 seeds would need a spread under about 36
+    (30, 1250.0, 500.0, True),  # the paper's "similar time frame": ±500 needs about ±690
+])
+def test_a_margin_the_seeds_cannot_prove_is_named_underpowered(seeds: int, spread: float, margin_value: float,
+                                                                 underpowered_note: bool) -> None:
+    from rlcompare.analysis.tables import underpowered
+
+    differences = np.random.default_rng(0).standard_normal(seeds)
+    differences = (differences - differences.mean()) / differences.std(ddof=1) * spread  # exactly that spread
+    note = underpowered(differences, margin_value)
+    assert bool(note) is underpowered_note
+    if note:
+        assert note.startswith(f"underpowered for its margin: {seeds} seeds prove ±")

@@ -9,10 +9,12 @@ judged by.
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from typing import NamedTuple
 
 import numpy as np
 
+from rlcompare.analysis.margins import detectable_difference
 from rlcompare.analysis.stats import (
     _NAN,
     ALPHA,
@@ -24,6 +26,7 @@ from rlcompare.analysis.stats import (
     Estimate,
     _per_seed,
     equivalence_verdict,
+    holm,
     paired_difference,
     probability_of_improvement,
     rank_test,
@@ -47,6 +50,8 @@ class Paired(NamedTuple):
     seeds: int
     equivalence: Equivalence | None = None
     """TOST of A - B within the declared ±margin; None where no margin is declared."""
+    spread: float = np.nan
+    """Standard deviation of A - B over seeds (``ddof=1``): what the power of the comparison reads."""
 
 
 def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *, improvement: bool = True
@@ -59,20 +64,57 @@ def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *,
     return Paired(float(np.mean(a)), float(np.mean(b)), paired_difference(a, b),
                   rank_test(a, b) if finite else np.nan,
                   probability_of_improvement(a, b) if improvement else _NAN, int(a.size),
-                  None if margin is None else tost(a - b, -margin, margin))
+                  None if margin is None else tost(a - b, -margin, margin),
+                  float(np.std(a - b, ddof=1)) if a.size > 1 and finite else np.nan)
 
 
 def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, str],
-                     equivalence: Equivalence | None = None, level: float = ALPHA) -> str:
+                     equivalence: Equivalence | None = None, level: float = ALPHA,
+                     p_equivalence: float | None = None) -> str:
     """What A against B found, in the one vocabulary: "A better" / "B better" where :func:`verdict` supports or
     contradicts "A - B > 0" (``difference``) at ``p_adjusted``; else "equivalent (within ±m)" where a margin was
-    declared and :func:`equivalence_verdict` supports ``equivalence``; "no data" without an estimate; "not
-    resolved" otherwise."""
+    declared and :func:`equivalence_verdict` supports ``equivalence`` at ``p_equivalence`` (its p-value adjusted in
+    the same family as ``p_adjusted``: :func:`judge_family`); "no data" without an estimate; "not resolved"
+    otherwise."""
     direction = verdict(difference, p_adjusted, +1, level)
     if direction in (SUPPORTED, CONTRADICTED):
         return f"{names[0] if direction == SUPPORTED else names[1]} better"
     if direction == NO_DATA:
         return NO_DATA
-    if equivalence is not None and equivalence_verdict(equivalence, level=level) == SUPPORTED:
+    if equivalence is not None and equivalence_verdict(equivalence, p_equivalence, level) == SUPPORTED:
         return f"equivalent (within ±{equivalence.upper:g})"
     return NOT_RESOLVED
+
+
+class Judged(NamedTuple):
+    """One comparison of a family, judged."""
+
+    paired: Paired
+    p: float
+    """Holm-adjusted p of the direction (Wilcoxon)."""
+    p_equivalence: float
+    """Holm-adjusted p of the equivalence (TOST within the margin); NaN where no margin was declared."""
+    label: str
+    detectable: float
+    """The smallest true difference a paired t test at the family's strictest Holm step (α over the family's
+    size) finds four times in five over these seeds (:func:`~rlcompare.analysis.margins.detectable_difference`)."""
+
+
+def judge_family(found: dict[Hashable, Paired], names: tuple[str, str], level: float = ALPHA
+                 ) -> dict[Hashable, Judged]:
+    """Every comparison of a report as one family: each one's direction test and, where a margin was declared,
+    its equivalence test, all Holm-adjusted together (Holm 1979), so that "A better" and "equivalent" share one
+    family-wise error rate; each labelled by :func:`comparison_label`, with the difference its seeds could detect."""
+    keys = list(found)
+    directions = [found[k].p_value for k in keys]
+    equivalences = [np.nan if found[k].equivalence is None else found[k].equivalence.p_equivalent for k in keys]
+    adjusted = holm([*directions, *equivalences])
+    size = int(np.sum(~np.isnan([*directions, *equivalences])))
+    strictest = level / max(size, 1)
+    judged = {}
+    for i, key in enumerate(keys):
+        paired, p, p_equivalence = found[key], adjusted[i], adjusted[len(keys) + i]
+        label = comparison_label(paired.difference, p, names, paired.equivalence, level, p_equivalence)
+        judged[key] = Judged(paired, p, p_equivalence, label, detectable_difference(paired.spread, paired.seeds,
+                                                                                    strictest))
+    return judged

@@ -30,6 +30,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import label as method_label
+from rlcompare.analysis.margins import margin
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import (
     ALPHA,
@@ -65,9 +66,9 @@ BLOCK_BYTES = 32 * 2**20
 BOOTSTRAP_RUNS = 500
 """Intervals over more runs than this are Student t intervals (:func:`mean_interval`), fewer the bootstrap's."""
 
-NONINFERIORITY_MARGIN = 1.0
+NONINFERIORITY_MARGIN = margin("book 6.3", "Expected SARSA at least as good as SARSA")
 """Expected SARSA is 'at least as good' as SARSA where its mean return per episode is above SARSA's minus this."""
-COLLAPSE_MARGIN = 5.0
+COLLAPSE_MARGIN = margin("book 6.3", "an asymptote collapses")
 """An asymptote 'collapses' from α = 0.1 to α = 1.0 when it falls by more than this (return per episode)."""
 
 RUNS_FILE = "runs.parquet"

@@ -26,11 +26,12 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis import stats
 from rlcompare.analysis.aggregate_plots import draw_aggregates
-from rlcompare.analysis.compare import Paired, compare_paired, comparison_label
+from rlcompare.analysis.compare import Paired, compare_paired, judge_family
+from rlcompare.analysis.margins import margin
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.plots import plot_return_curves
 from rlcompare.analysis.profiles import by_method, score_scales
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.analysis.report import Section, plain_number, save_figure, write_report, write_table
 from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.deep import float64
 from rlcompare.deep.agent import gymnasium_returns
@@ -55,9 +56,10 @@ GOAL = {"CartPole-v1": 490.0, "Acrobot-v1": -85.0, "MountainCar-v0": -115.0}
 """The greedy return in Gymnasium's own environment that the study sets out to reach with the best method."""
 GYMNASIUM_EPISODES = 10
 """Episodes of each seed's final greedy policy in Gymnasium's own environment, from the same start states."""
-MARGIN = {"CartPole-v1": 25.0, "Acrobot-v1": 25.0, "MountainCar-v0": 10.0}
-"""Differences of mean return smaller than this count as no difference (5% of each environment's return range),
-declared here before any run."""
+MARGIN = {env: margin("deep", f"{env} (final greedy return)")
+          for env in ("CartPole-v1", "Acrobot-v1", "MountainCar-v0")}
+"""Differences of mean return smaller than this count as no difference (5% of each environment's return range,
+:data:`rlcompare.analysis.margins.MARGINS`), declared before any run."""
 TABULAR_EPISODES = DeepOptions.episodes
 RANDOM_EPISODES = 200
 """Episodes of the uniformly random policy per environment, in the port: the floor (0) of the normalised scores."""
@@ -264,14 +266,15 @@ def comparisons(deep: dict[str, DeepResults], tabular: dict[str, Results]) -> li
 
 
 def verdict_table(found: list[Comparison]) -> pd.DataFrame:
-    """One row per comparison, p-values Holm-adjusted over all of them (one family of claims)."""
-    adjusted = stats.holm(c.paired.p_value for c in found)
+    """One row per comparison, all of them one family (:func:`judge_family`: directions and equivalences
+    Holm-adjusted together), with the difference each row's seeds could detect."""
+    judged = judge_family({i: c.paired for i, c in enumerate(found)}, ("on-policy", "off-policy"))
     return pd.DataFrame([{
         "env": c.env, "engine": c.engine, "metric": METRIC_NAMES[c.metric],
         "on - off (mean, 95% CI)": c.paired.difference.format(1), "P(on > off)": c.paired.improvement.format(2),
-        "p (Holm)": p, "verdict": comparison_label(c.paired.difference, p, ("on-policy", "off-policy"),
-                                                                  c.paired.equivalence),
-    } for c, p in zip(found, adjusted, strict=True)])
+        "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence, "detectable (80% power)": plain_number(j.detectable),
+        "verdict": j.label,
+    } for c, j in zip(found, judged.values(), strict=True)])
 
 
 def anchor_table(deep: dict[str, DeepResults], gymnasium: dict[str, np.ndarray]) -> pd.DataFrame:

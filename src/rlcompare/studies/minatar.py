@@ -29,11 +29,12 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots, stats
 from rlcompare.analysis.aggregate_plots import draw_aggregates
-from rlcompare.analysis.compare import Paired, compare_paired, comparison_label
+from rlcompare.analysis.compare import Judged, compare_paired, judge_family
 from rlcompare.analysis.findings import gap_and_interval
+from rlcompare.analysis.margins import margin
 from rlcompare.analysis.minatar_video import MAX_STEPS, render_stages
 from rlcompare.analysis.profiles import by_method, score_scales
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.analysis.report import Section, plain_number, save_figure, write_report, write_table
 from rlcompare.deep import float64
 from rlcompare.deep.methods import DEEP_METHODS, deep_method
 from rlcompare.deep.rollout import evaluate
@@ -59,12 +60,12 @@ BUDGETS = {
 default 8 seeds, a short look that says so in its report (at 5 seeds and 400,000 steps every game was already far
 above random, and no verdict could be reached: see :func:`smallest_p`); ``paper``: the MinAtar paper's 5 M
 frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
-MARGIN = 1.0
+MARGIN = margin("minatar", "a game (final greedy return)")
 """Differences of mean return smaller than one reward (one brick, alien, treasure or crossing per episode) count
-as no difference: declared here before any run."""
-OVERALL_MARGIN = 0.05
+as no difference (:data:`rlcompare.analysis.margins.MARGINS`), declared before any run."""
+OVERALL_MARGIN = margin("minatar", "over the games (normalised score)")
 """Across games, differences of mean normalised score smaller than a twentieth of the gap between the random
-policy and the best method here count as no difference: declared before any run."""
+policy and the best method count as no difference."""
 EVAL_EPSILON = 0.05
 """DQN's evaluation protocol (Mnih et al. 2015): ε-greedy with ε = 0.05, beside the greedy evaluation (ε = 0)."""
 EPSILON_EPISODES = 8
@@ -271,38 +272,36 @@ def paired_finals(runs: dict[str, DeepResults], games: list[str]) -> dict[str, t
 
 
 def comparisons(runs: dict[str, DeepResults], games: list[str], scores: dict[str, np.ndarray]
-                ) -> dict[str, tuple[Paired, float, str]]:
+                ) -> dict[str, Judged]:
     """SARSA(λ) against Q(λ) per game on paired seeds (final greedy return) and, over two or more games, overall
-    (each seed's normalised score averaged over the games): each comparison, its Holm-adjusted p (the games and
-    the overall row together) and its label."""
+    (each seed's normalised score averaged over the games), judged as one family (:func:`judge_family`: the games'
+    and the overall row's directions and equivalences Holm-adjusted together)."""
     found = {game: compare_paired(on, off, MARGIN) for game, (on, off) in paired_finals(runs, games).items()}
     on, off = (scores.get(method) for method in PAIR)
     if len(found) > 1 and on is not None and off is not None and on.shape == off.shape:
         found[OVERALL] = compare_paired(on.mean(axis=0), off.mean(axis=0), OVERALL_MARGIN)
-    adjusted = stats.holm(paired.p_value for paired in found.values())
-    return {game: (paired, p, comparison_label(paired.difference, p, ("on-policy", "off-policy"),
-                                               paired.equivalence))
-            for (game, paired), p in zip(found.items(), adjusted, strict=True)}
+    return judge_family(found, ("on-policy", "off-policy"))
 
 
-def verdict_table(compared: dict[str, tuple[Paired, float, str]]) -> pd.DataFrame:
-    """:func:`comparisons` as a table."""
+def verdict_table(compared: dict[str, Judged]) -> pd.DataFrame:
+    """:func:`comparisons` as a table, with the difference each row's seeds could detect."""
     return pd.DataFrame([{
-        "game": game, "on - off (mean, 95% CI)": paired.difference.format(2),
-        "P(on > off)": paired.improvement.format(2), "p (Holm)": p, "verdict": label,
-    } for game, (paired, p, label) in compared.items()])
+        "game": game, "on - off (mean, 95% CI)": j.paired.difference.format(2),
+        "P(on > off)": j.paired.improvement.format(2), "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence,
+        "detectable (80% power)": plain_number(j.detectable), "verdict": j.label,
+    } for game, j in compared.items()])
 
 
-def same_question_rows(compared: dict[str, tuple[Paired, float, str]]) -> pd.DataFrame:
+def same_question_rows(compared: dict[str, Judged]) -> pd.DataFrame:
     """:func:`comparisons` in the columns of the table set beside the other studies' verdicts
     (:mod:`rlcompare.studies.same_question`)."""
     return pd.DataFrame([{
         "study": "minatar (this study)", "environment": f"MinAtar, {'over the games' if game == OVERALL else game}",
         "engine: on- vs off-policy": "network (CNN): SARSA(λ) vs Q(λ), PQN-style",
         "metric": "normalised final greedy return" if game == OVERALL else "final greedy return",
-        "claim": same_question.TWO_SIDED, "estimate": paired.difference.format(2),
-        "estimate of": "on - off, mean [95% CI]", "p (Holm)": p, "verdict": label,
-    } for game, (paired, p, label) in compared.items()], columns=same_question.COLUMNS)
+        "claim": same_question.TWO_SIDED, "estimate": j.paired.difference.format(2),
+        "estimate of": "on - off, mean [95% CI]", "p (Holm)": j.p, "verdict": j.label,
+    } for game, j in compared.items()], columns=same_question.COLUMNS)
 
 
 SAME_QUESTION = (
@@ -315,18 +314,18 @@ SAME_QUESTION = (
     "family.")
 
 
-def answer(compared: dict[str, tuple[Paired, float, str]], seeds: int) -> list[str]:
+def answer(compared: dict[str, Judged], seeds: int) -> list[str]:
     """The answer in plain words: a sentence for the games, one for the overall comparison."""
     on, off = (short_label(m) for m in PAIR)
     games = []
-    for game, (paired, _, label) in compared.items():
+    for game, j in compared.items():
         if game != OVERALL:
-            gap, interval = gap_and_interval(paired.difference)
-            games.append(f"on {game} {gap} ({interval}; {label})")
+            gap, interval = gap_and_interval(j.paired.difference)
+            games.append(f"on {game} {gap} ({interval}; {j.label})")
     sentences = [f"On-policy {on} against off-policy {off}, final greedy return per episode, {seeds} paired seeds: "
                  f"{on} scores {'; '.join(games)}."] if games else []
     if OVERALL in compared:
-        paired, _, label = compared[OVERALL]
+        paired, label = compared[OVERALL].paired, compared[OVERALL].label
         gap, interval = gap_and_interval(paired.difference)
         sentences.append(f"Over the games, in scores normalised between the random policy (0) and the best method "
                          f"here (1), {on} scores {gap} ({interval}; {label}).")
