@@ -53,3 +53,11 @@ def test_every_margin_has_its_reason_and_the_studies_read_them_from_the_table() 
     same = {c.metric: c.value for c in paper_report.CLAIMS if c.kind == "same"}
     assert same == {"convergence_episode": margin("paper", "a similar time frame (convergence)"),
                     "greedy_return": margin("paper", "the same solution (greedy return)")}
+
+
+def test_the_documented_table_is_the_codes() -> None:
+    from pathlib import Path
+
+    page = (Path(__file__).parents[1] / "docs" / "why.md").read_text(encoding="utf-8")
+    for m in MARGINS.values():
+        assert f"| {m.study} | {m.bounds} | {m.value:g} {m.unit} | {m.reason} |" in page
