@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from rlcompare import cli
 from rlcompare.analysis.convergence import RULES
+from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.analysis.stats import VERDICTS, interval
 from rlcompare.analysis.tables import COLUMNS, Claim, is_fragile, judge, per_seed_metrics
 from rlcompare.engine.state import Records
@@ -84,6 +85,7 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert "fragile" in page
     assert 'class="verdict-' in page
     assert "Incomplete" not in page
+    assert BEHAVIOUR_AND_GREEDY in page
 
 
 def overlapping_or_cut(figure: Figure) -> list[str]:

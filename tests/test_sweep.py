@@ -329,6 +329,9 @@ def test_sweep_command_runs_reports_and_groups(tmp_path: Path) -> None:
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Sweep: small" in html
     assert "15 of 15 trials finished" in html
+    from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
+
+    assert BEHAVIOUR_AND_GREEDY in html  # a tabular sweep shows both returns, so it says why they differ
     again = runner.invoke(cli.app, ["report", str(tmp_path / "out"), "--group-by", "env"], prog_name="rlcompare")
     assert again.exit_code == 0, again.output
     assert (tmp_path / "out" / "tables" / "by-env-CliffWalking-v1.csv").is_file()

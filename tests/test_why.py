@@ -162,6 +162,9 @@ def test_reproduce_why_through_the_cli_then_report_rebuilds_it(tmp_path):
     assert "With ε constant, SARSA's return while learning" in result.output
     assert len(list(out.glob("*/config.json"))) == 12
     page = (out / "report.html").read_bytes()
+    from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
+
+    assert BEHAVIOUR_AND_GREEDY.encode() in page  # it shows both returns, so it says why they differ
     (out / "report.html").unlink()
     again = CliRunner().invoke(app, ["report", str(out)])
     assert again.exit_code == 0, again.output

@@ -32,6 +32,7 @@ from matplotlib.figure import Figure
 from rlcompare.algorithms.registry import label as method_label
 from rlcompare.analysis import plots
 from rlcompare.analysis.curves import mean_band
+from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.analysis.report import Section, save_figure, write_report
 from rlcompare.analysis.stats import interval
 from rlcompare.envs.registry import table_of
@@ -245,7 +246,7 @@ def _contrast_section(out: Path, runs: dict[str, Results]) -> Section:
     table = contrast_table({"cliff": runs, **sibling_studies(out)})
     paragraphs = ["SARSA minus Q-Learning on paired seeds, with 95% bootstrap intervals: online, the mean return "
                   "of the ε-greedy behaviour over training (what an agent collects while it learns); greedy, the "
-                  "return of the final greedy policy (what it learned)."]
+                  "return of the final greedy policy (what it learned).", BEHAVIOUR_AND_GREEDY]
     paragraphs += [_contrast_sentence(row) for row in table.to_dict("records")]
     if set(table["study"]) == {"cliff"}:
         paper_dir = Path(out).parent / "paper"

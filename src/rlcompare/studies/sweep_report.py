@@ -32,6 +32,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.analysis import plots
 from rlcompare.analysis.aggregate_plots import draw_aggregates
+from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import interval
@@ -285,7 +286,8 @@ def _build_sweep_report(root: Path, group_by: tuple[str, ...]) -> tuple[Path, li
         Section("Sweep", [f"{manifest['name']}: {len(runs)} configurations with finished trials, {done} of "
                           f"{len(manifest['trials'])} trials finished, root seed {manifest['root_seed']}. Swept: "
                           f"{', '.join(swept) or 'nothing'}. Every configuration runs the same seeds, so they "
-                          "compare on common random numbers."],
+                          "compare on common random numbers.",
+                          *([BEHAVIOUR_AND_GREEDY] if engine == "tabular" else [])],
                 tables=[("Configurations", table)]),
         *([Section("Grouped", tables=grouped)] if grouped else []),
         Section("Across the swept parameters", figures=across) if across else Section(

@@ -31,7 +31,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
-from rlcompare.analysis.findings import SCHEDULE_TEXT, amount, more_or_less, number
+from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less, number
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
@@ -290,7 +290,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
                 "SARSA's expectation, which needs no draw. SARSA drawing after its update takes a fresh action "
                 "after the update; its target's A' is drawn before it (docs/why.md). Mean over seeds with 95% "
                 f"BCa bootstrap intervals; {len(first.seeds)} seeds x {first.config.episodes} episodes, the "
-                "paper's setting otherwise."],
+                "paper's setting otherwise.", BEHAVIOUR_AND_GREEDY],
                 tables=[("SARSA minus Q-Learning, decomposed", table.astype(str), files["decomposition"]),
                         ("Every cell", cells, files["cells"])],
                 figures=[(image, "The total and its three parts, per schedule and return")]),
