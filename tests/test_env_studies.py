@@ -30,7 +30,7 @@ def test_cartpole_study_runs_the_papers_grid_and_reports_it_without_the_papers_n
     table_ii = pd.read_csv(out / "tables" / "table_ii.csv")
     assert table_ii["paper (Table II)"].isna().all()  # the paper's values are Mountain Car's
     verdicts = pd.read_csv(out / "tables" / "verdicts.csv")
-    assert len(verdicts) == 7  # every claim but the two about Mountain Car's first action
+    assert len(verdicts) == 8  # every claim but the two about Mountain Car's first action
     assert not verdicts["metric"].eq("first_action_left").any()
     html = (out / "report.html").read_text()
     assert "On- and off-policy control on CartPole-v1" in html

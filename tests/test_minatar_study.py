@@ -22,6 +22,7 @@ from rlcompare.deep.envs import jax_env  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
 from rlcompare.studies.deep import random_returns  # noqa: E402
 from rlcompare.studies.minatar import plan_of  # noqa: E402
+from rlcompare.studies.paper_report import CLAIMS as PAPER_CLAIMS  # noqa: E402
 from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 
 TINY = ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960"]
@@ -342,7 +343,7 @@ def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other
     own, paper, deep = (_rows_of(table, s) for s in ("minatar", "paper", "deep"))
     assert own["verdict"].tolist() == _verdicts(out, "minatar_verdicts.csv")["verdict"].tolist() != []
     written = _verdicts(tmp_path / "paper", "verdicts.csv")
-    assert len(written) == 9
+    assert len(written) == len(PAPER_CLAIMS)
     assert paper[["claim", "verdict"]].to_numpy().tolist() == written[["claim", "verdict"]].to_numpy().tolist()
     assert set(paper["environment"]) == {"MountainCar-v0"}
     written = _verdicts(tmp_path / "deep", "deep_verdicts.csv")
@@ -353,7 +354,8 @@ def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other
     assert page.index("Verdicts") < page.index(">The same question on tables and on classic control</h2>")
     assert CAPTION in page
     assert "corrects its own claims separately" in CAPTION
-    assert (f"Beside this study: the paper study's 9 verdicts ({tmp_path / 'paper' / 'tables' / 'verdicts.csv'}); "
+    paper_file = tmp_path / "paper" / "tables" / "verdicts.csv"
+    assert (f"Beside this study: the paper study's {len(PAPER_CLAIMS)} verdicts ({paper_file}); "
             f"the deep study's 3 verdicts ({tmp_path / 'deep' / 'tables' / 'deep_verdicts.csv'}).") in page
 
 
@@ -422,7 +424,7 @@ def test_a_malformed_verdict_file_is_one_line_naming_it_not_a_crash(other_studie
     path.write_bytes(content)
     found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS))
     assert _rows_of(found.table, "deep").empty
-    assert len(_rows_of(found.table, "paper")) == 9
+    assert len(_rows_of(found.table, "paper")) == len(PAPER_CLAIMS)
     assert len(found.malformed) == 1
     assert found.malformed[0].startswith(f"{path}: malformed (")
     assert "the deep study's verdict file could not be read" in found.sentence
@@ -446,7 +448,7 @@ def test_the_other_studies_can_be_named_where_they_are(other_studies, tmp_path):
 
     found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS),
                    {"paper": other_studies / "paper", "deep": str(other_studies / "deep")})
-    assert (len(_rows_of(found.table, "paper")), len(_rows_of(found.table, "deep"))) == (9, 3)
+    assert (len(_rows_of(found.table, "paper")), len(_rows_of(found.table, "deep"))) == (len(PAPER_CLAIMS), 3)
     alone = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS), {"deep": other_studies / "deep"})
     assert (len(_rows_of(alone.table, "paper")), len(_rows_of(alone.table, "deep"))) == (0, 3)
     with pytest.raises(ValueError, match="beside: got 'cartpole'; allowed: paper, deep"):

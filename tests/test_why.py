@@ -93,7 +93,7 @@ def test_report_opens_with_findings_and_names_every_term(study):
 
 def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findings(study):
     from rlcompare.studies.paper import paper_configs, reproduce
-    from rlcompare.studies.paper_report import build_report
+    from rlcompare.studies.paper_report import CLAIMS, build_report
 
     out, runs = study
     paper_dir = out.parent / "paper"
@@ -107,7 +107,7 @@ def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findi
     outcome = build_report(paper_dir, videos=False)
     assert [s[:len("With ε decaying, SARSA collects")] for s in outcome.lines[:2]] == [
         "With ε constant, SARSA collects", "With ε decaying, SARSA collects"]  # a sentence per schedule
-    assert outcome.lines[2].startswith("Of the paper's 9 claims tested here:")
+    assert outcome.lines[2].startswith(f"Of the paper's {len(CLAIMS)} claims tested here:")
     # the same cells, run by either study, give the same decomposition
     assert outcome.lines[3:] == why.findings(decomposition(runs))[:len(outcome.lines) - 3]
     page = outcome.path.read_text()

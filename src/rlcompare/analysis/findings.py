@@ -83,8 +83,11 @@ def _verdict_words(claim: Claim, label: str, claims: int) -> str:
 def opening(claims: list[Claim], verdicts: pd.DataFrame, metrics: dict[str, pd.DataFrame]) -> list[str]:
     """The answer in plain words, a sentence per schedule: how much more (or less) SARSA collects than Q-Learning
     per episode while learning and with its final greedy policy, on paired seeds, with each claim's label."""
-    labels = {(c.schedule, c.metric): (c, _bare(row["verdict"])) for c, (_, row) in
-              zip(claims, verdicts.iterrows(), strict=True) if c.metric in RETURN_METRICS}
+    labels: dict[tuple[str, str], tuple[Claim, str]] = {}
+    for claim, (_, row) in zip(claims, verdicts.iterrows(), strict=True):
+        key = (claim.schedule, claim.metric)
+        if claim.metric in RETURN_METRICS and (key not in labels or claim.kind == "direction"):
+            labels[key] = (claim, _bare(row["verdict"]))  # a direction states the sentence's "more" or "less"
     sentences = []
     for schedule, words in SCHEDULE_WORDS.items():
         sarsa, q = metrics.get(f"sarsa-{schedule}"), metrics.get(f"q_learning-{schedule}")
