@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rlcompare.analysis.margins import MARGINS, POWER, detectable_difference, margin, provable_margin
+from rlcompare.analysis.power import POWER, detectable_difference, provable_margin
 from rlcompare.analysis.stats import tost
+from rlcompare.studies.margins import MARGINS, margin
 
 
 @pytest.mark.parametrize(("seeds", "level"), [(10, 0.05), (30, 0.05 / 9), (8, 0.05 / 4)])

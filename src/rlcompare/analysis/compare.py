@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rlcompare.analysis.margins import detectable_difference
+from rlcompare.analysis.power import detectable_difference
 from rlcompare.analysis.stats import (
     _NAN,
     ALPHA,
@@ -97,7 +97,7 @@ class Judged(NamedTuple):
     label: str
     detectable: float
     """The smallest true difference a paired t test at the family's strictest Holm step (α over the family's
-    size) finds four times in five over these seeds (:func:`~rlcompare.analysis.margins.detectable_difference`)."""
+    size) finds four times in five over these seeds (:func:`~rlcompare.analysis.power.detectable_difference`)."""
 
 
 def judge_family(found: dict[Hashable, Paired], names: tuple[str, str], level: float = ALPHA

@@ -30,8 +30,8 @@ from rlcompare.analysis.convergence import (
     episodes_to_seconds,
 )
 from rlcompare.analysis.explain import final_first_action_shares, has_start_region, start_cells
-from rlcompare.analysis.margins import margin, provable_margin
 from rlcompare.analysis.metrics import returns_per_seed
+from rlcompare.analysis.power import provable_margin
 from rlcompare.analysis.stats import (
     ALPHA,
     CONTRADICTED,
@@ -193,7 +193,7 @@ def table_ii(metrics: dict[str, pd.DataFrame], paper: dict[str, float]) -> pd.Da
 
 
 CONVERGENCE = "convergence_episode"
-RATIO_FACTOR = margin("paper", "about R times (ratio)")
+RATIO_FACTOR = 1.25
 """"About R times" means within ``[R / 1.25, R * 1.25]`` (the 80-125% band of bioequivalence)."""
 FRAGILE = " (fragile)"
 COLUMNS = ["claim", "metric", "SARSA", "Q-Learning", "test", "estimate", "P(claim holds for a random pair)", "p",
@@ -297,7 +297,7 @@ def censored_at_worst(values: np.ndarray, lower: float, upper: float, up: np.nda
 
 def underpowered(differences: np.ndarray, margin_value: float, scale: str = "") -> str:
     """A note where the seeds are too few to prove a margin: the smallest margin two one-sided tests prove four
-    times in five at these seeds and this spread (:func:`~rlcompare.analysis.margins.provable_margin`, at α before
+    times in five at these seeds and this spread (:func:`~rlcompare.analysis.power.provable_margin`, at α before
     any correction, the most it could be) exceeds ``margin_value``, so "supported" is out of reach and the label
     can only be contradicted or not resolved. Empty otherwise."""
     provable = provable_margin(float(np.std(differences, ddof=1)), differences.size) if differences.size > 1 else np.nan

@@ -30,7 +30,6 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import label as method_label
-from rlcompare.analysis.margins import margin
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import (
     ALPHA,
@@ -47,6 +46,7 @@ from rlcompare.envs.features import feature_count
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ExperimentConfig, records_bytes
 from rlcompare.experiment.runner import run
+from rlcompare.studies.margins import margin
 
 ENV = "CliffWalking-v1"
 METHODS = ("sarsa", "expected_sarsa", "q_learning")

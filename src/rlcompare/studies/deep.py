@@ -27,7 +27,6 @@ from matplotlib.figure import Figure
 from rlcompare.analysis import stats
 from rlcompare.analysis.aggregate_plots import draw_aggregates
 from rlcompare.analysis.compare import Paired, compare_paired, judge_family
-from rlcompare.analysis.margins import margin
 from rlcompare.analysis.metrics import returns_per_seed
 from rlcompare.analysis.plots import plot_return_curves
 from rlcompare.analysis.profiles import by_method, score_scales
@@ -45,6 +44,7 @@ from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.margins import margin
 from rlcompare.studies.registry import DeepOptions
 
 STUDY = "deep"
@@ -59,7 +59,7 @@ GYMNASIUM_EPISODES = 10
 MARGIN = {env: margin("deep", f"{env} (final greedy return)")
           for env in ("CartPole-v1", "Acrobot-v1", "MountainCar-v0")}
 """Differences of mean return smaller than this count as no difference (5% of each environment's return range,
-:data:`rlcompare.analysis.margins.MARGINS`), declared before any run."""
+:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
 TABULAR_EPISODES = DeepOptions.episodes
 RANDOM_EPISODES = 200
 """Episodes of the uniformly random policy per environment, in the port: the floor (0) of the normalised scores."""

@@ -31,7 +31,6 @@ from rlcompare.analysis import plots, stats
 from rlcompare.analysis.aggregate_plots import draw_aggregates
 from rlcompare.analysis.compare import Judged, compare_paired, judge_family
 from rlcompare.analysis.findings import gap_and_interval
-from rlcompare.analysis.margins import margin
 from rlcompare.analysis.minatar_video import MAX_STEPS, render_stages
 from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, plain_number, save_figure, write_report, write_table
@@ -46,6 +45,7 @@ from rlcompare.experiment.runner import run_or_load
 from rlcompare.experiment.sweep import Trial
 from rlcompare.studies import deep, same_question
 from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.margins import margin
 from rlcompare.studies.registry import MinAtarOptions
 
 STUDY = "minatar"
@@ -62,7 +62,7 @@ above random, and no verdict could be reached: see :func:`smallest_p`); ``paper`
 frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
 MARGIN = margin("minatar", "a game (final greedy return)")
 """Differences of mean return smaller than one reward (one brick, alien, treasure or crossing per episode) count
-as no difference (:data:`rlcompare.analysis.margins.MARGINS`), declared before any run."""
+as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
 OVERALL_MARGIN = margin("minatar", "over the games (normalised score)")
 """Across games, differences of mean normalised score smaller than a twentieth of the gap between the random
 policy and the best method count as no difference."""

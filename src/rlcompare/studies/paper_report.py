@@ -20,7 +20,6 @@ from rlcompare.analysis.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
 from rlcompare.analysis.explain import has_start_region
 from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
-from rlcompare.analysis.margins import margin
 from rlcompare.analysis.profiles import by_method, score_scales
 from rlcompare.analysis.report import Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import ALPHA, interval
@@ -39,6 +38,7 @@ from rlcompare.analysis.video import VideoJob, VideoRenders, plan_stage_videos, 
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.results import Results
 from rlcompare.studies.interface import Report
+from rlcompare.studies.margins import margin
 from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
 from rlcompare.studies.paper_figures import (
     curve_figure,

@@ -1,0 +1,51 @@
+"""Every margin a verdict reads, in one table, each with its reason, declared before any run was read
+(``docs/why.md``, "Every margin, its reason and its power"); what the seeds can prove of each is
+:mod:`rlcompare.analysis.power`'s."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rlcompare.analysis.tables import RATIO_FACTOR
+
+
+@dataclass(frozen=True)
+class Margin:
+    """A bound below which a difference counts as none (or, for a ratio, a band around the claimed factor)."""
+
+    study: str
+    bounds: str
+    """What it bounds, as the report names it."""
+    value: float
+    unit: str
+    reason: str
+
+
+MARGINS = {m.study + ": " + m.bounds: m for m in (
+    Margin("paper", "a similar time frame (convergence)", 0.1, "share of the training's episodes",
+           "the paper reads its Table I's 13.8 against 11.5 (17% of the larger) as a similar time frame; a tenth "
+           "of the training (500 of 5000 episodes) holds that reading"),
+    Margin("paper", "the same solution (greedy return)", 20.0, "return per episode",
+           "the paper calls -174 and -191 the same solution: 17 apart; 20 holds its own reading"),
+    Margin("paper", "about R times (ratio)", RATIO_FACTOR, "factor on either side of R",
+           "the 80-125% band of average bioequivalence (FDA 2001), the field's convention for 'about' a ratio"),
+    Margin("deep", "CartPole-v1 (final greedy return)", 25.0, "return per episode",
+           "5% of the return's range (0 to 500)"),
+    Margin("deep", "Acrobot-v1 (final greedy return)", 25.0, "return per episode",
+           "5% of the return's range (-500 to 0)"),
+    Margin("deep", "MountainCar-v0 (final greedy return)", 10.0, "return per episode",
+           "5% of the return's range (-200 to 0)"),
+    Margin("minatar", "a game (final greedy return)", 1.0, "points per episode",
+           "one point, the smallest score a game gives (one brick, one alien, one fish, one crossing)"),
+    Margin("minatar", "over the games (normalised score)", 0.05, "normalised score",
+           "5% of the distance from a random policy (0) to the best method here (1)"),
+    Margin("book 6.3", "Expected SARSA at least as good as SARSA", 1.0, "return per episode",
+           "one step of Cliff Walking's -1 per step: less than a step per episode is no difference"),
+    Margin("book 6.3", "an asymptote collapses", 5.0, "return per episode",
+           "5 steps per episode, against the book's axis from -160 to 0"),
+)}
+"""Every margin, by ``"<study>: <what it bounds>"``."""
+
+
+def margin(study: str, bounds: str) -> float:
+    return MARGINS[f"{study}: {bounds}"].value
