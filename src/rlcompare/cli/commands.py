@@ -63,6 +63,7 @@ def run(
     force: Force = False,
 ) -> None:
     """Train one configuration over many seeds and write its run directory."""
+    from rlcompare.experiment.runner import refuse_replacing
     from rlcompare.experiment.runner import run as run_experiment
     from rlcompare.studies.paper import summary
 
@@ -72,6 +73,8 @@ def run(
         console.print(progress_label(config))
     announce_compiling()
     with store.output_directory(out_dir, store.RUN, force=force), progress_bars() as progress:
+        if not force:
+            refuse_replacing(out_dir, {"": config})
         task = progress.add_task(progress_label(config), total=config.episodes)
         results = run_experiment(config, out=out_dir, progress=lambda n: progress.advance(task, n))
     console.print(done_line(config.name, results, reused=False), highlight=False)

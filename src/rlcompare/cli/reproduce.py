@@ -30,8 +30,9 @@ from rlcompare.experiment.config import ConfigError, field_docs
 from rlcompare.studies.interface import Options
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
 
-FORCE_HELP = ("Write into OUT even though it holds files rlcompare did not write; they are left as they are "
-              "(rlcompare never replaces or deletes a file it did not write).")
+FORCE_HELP = ("Write into OUT even though it holds files rlcompare did not write (they are left as they are: "
+              "rlcompare never replaces or deletes a file it did not write), and replace the runs rlcompare wrote "
+              "there with other settings.")
 COMMON = ("out", "force")
 """Options of every study, beside its own."""
 

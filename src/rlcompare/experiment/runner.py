@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import json
 import platform
 import sys
 import time
@@ -34,7 +35,7 @@ from rlcompare.engine.state import (
 from rlcompare.envs import gymnasium_env
 from rlcompare.envs.features import make_features
 from rlcompare.envs.registry import make_env
-from rlcompare.experiment import engines, store
+from rlcompare.experiment import engines, rundir, store
 from rlcompare.experiment.config import ExperimentConfig, check_memory
 from rlcompare.experiment.results import Results
 
@@ -150,6 +151,47 @@ def package_version(package: str) -> str | None:
         return None
 
 
+def changed_settings(run_dir: Path, config: Any) -> str:
+    """How the finished run in ``run_dir`` was made differently from ``config``: ``seeds 0-29 there, 0-9 asked``
+    for each setting that differs (the first three); empty where it holds no finished run, or one of ``config``."""
+    if not (run_dir / rundir.META_FILE).is_file():
+        return ""
+    try:
+        stored = store.read_json(run_dir / rundir.CONFIG_FILE)
+    except store.StoreError:
+        return ""
+    asked = json.loads(json.dumps(config.to_dict()))
+    if not isinstance(stored, dict) or stored == asked:
+        return ""
+    differing = [key for key in sorted(set(stored) | set(asked)) if stored.get(key) != asked.get(key)]
+    shown = [f"{key} {_setting(stored.get(key))} there, {_setting(asked.get(key))} asked" for key in differing[:3]]
+    return ", ".join(shown) + (f" and {len(differing) - 3} more" if len(differing) > 3 else "")
+
+
+def _setting(value: Any) -> str:
+    """A setting as a reader writes it; a run of consecutive seeds as ``0-29``."""
+    if isinstance(value, list) and value and all(isinstance(v, int) for v in value):
+        if len(value) > 2 and value == list(range(value[0], value[0] + len(value))):
+            return f"{value[0]}-{value[-1]}"
+        return ", ".join(map(str, value))
+    return "none" if value is None else str(value)
+
+
+def refuse_replacing(out: Path, configs: dict[str, Any]) -> None:
+    """A :class:`~rlcompare.experiment.store.StoreError` where ``out`` holds finished runs made with other settings
+    than ``configs`` asks for (name -> config; ``""``: ``out`` itself is the run): rlcompare does not replace a
+    user's results without a word."""
+    changed = {name: text for name, config in configs.items()
+               if (text := changed_settings(Path(out) / name if name else Path(out), config))}
+    if changed:
+        name, text = next(iter(changed.items()))
+        where = f"{name}: " if name else ""
+        more = f" (and {len(changed) - 1} more runs)" if len(changed) > 1 else ""
+        raise store.StoreError(f"{out}: holds finished runs made with other settings ({where}{text}){more}; choose "
+                               "another --out, ask for the same settings to resume them, or pass --force to "
+                               "replace them")
+
+
 def run_or_load(
     out: Path, configs: dict[str, Any], *, study: str, progress: Callable[[int], None] | None = None,
     force: bool = False, train: Callable[..., Any] | None = None, load: Callable[..., Any] | None = None,
@@ -161,8 +203,9 @@ def run_or_load(
     at once (each run's results depend on its configuration alone).
 
     ``out`` is claimed as the study's directory (``force``: even beside files rlcompare did not write) and
-    locked while this runs. Yields ``(name, results, reused)`` as each configuration completes, so an
-    interrupted study resumes where it stopped and loses nothing finished.
+    locked while this runs. Finished runs made with other settings are refused before anything is trained
+    (:func:`refuse_replacing`; ``force``: replaced). Yields ``(name, results, reused)`` as each configuration
+    completes, so an interrupted study resumes where it stopped and loses nothing finished.
     """
 
     def one(name: str, config: Any) -> tuple[str, Any, bool]:
@@ -175,6 +218,8 @@ def run_or_load(
         return name, (train or engines.train)(config, out=run_dir, study=study, progress=progress), False
 
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
+        if not force:
+            refuse_replacing(Path(out), configs)
         if workers <= 1:
             for name, config in configs.items():
                 yield one(name, config)

@@ -1,0 +1,57 @@
+"""Results made with other settings are never replaced without a word: a study or a run asked into a directory
+that holds finished runs made otherwise is refused in one line naming the differing settings and the choices,
+with nothing written; the same settings resume; ``--force`` replaces."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from rlcompare import cli
+
+runner = CliRunner()
+
+
+def invoke(*args: str):
+    return runner.invoke(cli.app, list(args), prog_name="rlcompare", env={"COLUMNS": "300"})
+
+
+def _contents(directory: Path) -> dict[str, str]:
+    return {str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(directory.rglob("*")) if p.is_file()}
+
+
+def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    first = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
+    assert first.exit_code == 0, first.output
+    before = _contents(out)
+    refused = invoke("reproduce", "--seeds", "2", "--episodes", "20", "--no-videos", "--out", str(out))
+    assert refused.exit_code == 2
+    lines = refused.output.strip().splitlines()
+    assert len(lines) == 1
+    assert "holds finished runs made with other settings" in lines[0]
+    assert "seeds 0-2 there, 0, 1 asked" in lines[0]
+    assert "--force" in lines[0]
+    assert "another --out" in lines[0]
+    assert "Traceback" not in refused.output
+    assert _contents(out) == before
+    again = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
+    assert again.exit_code == 0, again.output  # the same settings resume: every run loaded
+    assert again.output.count("loaded (already complete)") == 9
+    replaced = invoke("reproduce", "--seeds", "2", "--episodes", "20", "--no-videos", "--out", str(out), "--force")
+    assert replaced.exit_code == 0, replaced.output
+    assert _contents(out) != before
+
+
+def test_a_run_with_other_settings_is_refused_in_its_directory(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
+    before = _contents(out)
+    refused = invoke("run", "--seeds", "2", "--episodes", "30", "--out", str(out))
+    assert refused.exit_code == 2
+    assert "episodes 20 there, 30 asked" in refused.output
+    assert _contents(out) == before
+    assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
