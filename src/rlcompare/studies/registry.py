@@ -186,8 +186,8 @@ STUDIES = {study.name: study for study in (
           DeepOptions, "rlcompare.studies.deep", extra="deep"),
     Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
           "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
-    Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, ε_end and the time limit? (a sweep; Ray: "
-          "--address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
+    Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, the ε schedule and the time limit? (a sweep; "
+          "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
 )}
 """Every study, in the order ``reproduce --list`` shows them; ``paper`` is what ``reproduce`` alone runs."""
 DEFAULT_STUDY = "paper"
