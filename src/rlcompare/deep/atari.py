@@ -26,7 +26,6 @@ from rlcompare.deep.envs import Step
 from rlcompare.envs import atari
 from rlcompare.envs.atari import ACTION_NAMES, PROTOCOL, Protocol
 
-ROLES = ("training", "evaluation")
 _EMULATORS: dict[tuple, object] = {}
 """One ``AtariVectorEnv`` per (environment, role, number of games), made at its first reset."""
 
@@ -41,7 +40,8 @@ def close_emulators() -> None:
 @dataclass(frozen=True)
 class AtariEnv:
     """One game under :data:`~rlcompare.envs.atari.PROTOCOL`, with the batched interface of the deep engine:
-    ``reset_batch(keys, role)``, ``step_batch(state, actions, role)``, ``step_autoreset_batch``, ``observe_batch``."""
+    ``reset_batch(keys, role)``, ``step_batch(state, actions, keys, role)``, ``step_autoreset_batch`` and
+    ``observe_batch``; ``role`` (training, evaluation) names the emulator that plays."""
 
     name: str
     rom: str

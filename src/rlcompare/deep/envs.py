@@ -103,7 +103,6 @@ def step_autoreset(env: DeepEnv, state: EnvState, action: jax.Array, key: jax.Ar
     return Step(state, env.observe(state), last_observation, reward, terminated, truncated)
 
 
-
 # --- Many environments at once: vmapped, or stepped together by the host where the environment is batched ---
 
 def is_batched(env: object) -> bool:
@@ -140,6 +139,7 @@ def learning_reward(env: DeepEnv, reward: jax.Array) -> jax.Array:
     """The reward a method learns from: the environment's own, or what its protocol makes of it (Atari's sign)."""
     transform = getattr(env, "learning_reward", None)
     return reward if transform is None else transform(reward)
+
 
 # --- Float64 arithmetic as NumPy rounds it, under XLA ---
 
