@@ -116,7 +116,9 @@ class DQNConfig:
         for name, (low, high, low_open) in _NUMBER_RANGES.items():
             value = getattr(self, name)
             ok = _is_number(value) and (low < value if low_open else low <= value) and value <= high
-            _require(name, ok, value, f"a number in {'(' if low_open else '['}{low}, {high}]")
+            allowed = (f"a number in {'(' if low_open else '['}{low}, {high}]" if math.isfinite(high)
+                       else f"a finite number {'>' if low_open else '>='} {low}")
+            _require(name, ok, value, allowed)
         _require("hidden", isinstance(self.hidden, tuple) and all(_is_integer(w) and w >= 1 for w in self.hidden),
                  self.hidden, "a tuple of integers >= 1")
 

@@ -22,6 +22,7 @@ purejaxql.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -96,12 +97,12 @@ class PQNConfig:
         _check(self.next_action in NEXT_ACTIONS, "next_action", self.next_action, ", ".join(NEXT_ACTIONS))
         _check(0.0 <= self.lam <= 1.0, "lam", self.lam, "a number in [0, 1]")
         _check(0.0 < self.gamma <= 1.0, "gamma", self.gamma, "a number in (0, 1]")
-        _check(self.learning_rate > 0.0, "learning_rate", self.learning_rate, "a positive number")
-        _check(self.max_grad_norm > 0.0, "max_grad_norm", self.max_grad_norm, "a positive number")
+        for name in ("learning_rate", "max_grad_norm", "reward_scale"):
+            value = getattr(self, name)
+            _check(0.0 < value < math.inf, name, value, "a positive finite number")
         for name in ("epsilon_start", "epsilon_end"):
             _check(0.0 <= getattr(self, name) <= 1.0, name, getattr(self, name), "a number in [0, 1]")
         _check(0.0 < self.decay_fraction <= 1.0, "decay_fraction", self.decay_fraction, "a number in (0, 1]")
-        _check(self.reward_scale > 0.0, "reward_scale", self.reward_scale, "a positive number")
         for name in ("n_envs", "n_steps", "n_epochs", "n_minibatches", "total_steps"):
             _check(getattr(self, name) >= 1, name, getattr(self, name), "a positive integer")
         _check((self.n_envs * self.n_steps) % self.n_minibatches == 0, "n_minibatches", self.n_minibatches,

@@ -65,8 +65,8 @@ class DeepConfig:
         deep_method(self.algorithm)
         jax_env(self.env)  # an environment without a JAX port is refused, naming those there are
         if not self.seeds or len(set(self.seeds)) != len(self.seeds) or any(
-                not isinstance(s, int) or s < 0 for s in self.seeds):
-            raise ConfigError("seeds", self.seeds, "distinct non-negative integers, at least one")
+                not isinstance(s, int) or isinstance(s, bool) or not 0 <= s < 2**63 for s in self.seeds):
+            raise ConfigError("seeds", self.seeds, "distinct integers in [0, 2**63), at least one")
         for name in ("eval_rounds", "eval_episodes", "vmap_width"):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
