@@ -44,3 +44,37 @@ def test_a_bad_setting_is_refused_naming_it(algorithm: str, settings: dict, fiel
 def test_seeds_outside_0_to_2_63_are_refused(seeds: tuple) -> None:
     with pytest.raises(ConfigError, match=r"seeds: .*distinct integers in \[0, 2\*\*63\)"):
         DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=seeds)
+
+
+@pytest.fixture(scope="module")
+def deep_run(tmp_path_factory: pytest.TempPathFactory):
+    from rlcompare.deep.run import run
+
+    out = tmp_path_factory.mktemp("deep") / "run"
+    run(DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", hyperparameters={"total_steps": 16 * 128 * 2},
+                   seeds=(0,), eval_rounds=2, eval_episodes=2, vmap_width=1), out=out)
+    return out
+
+
+@pytest.mark.parametrize("name", ["params.npz", "episodes.parquet", "evaluations.parquet"])
+def test_a_tampered_file_of_a_deep_run_is_refused_naming_it(deep_run, name: str, tmp_path) -> None:
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from rlcompare import cli
+    from rlcompare.experiment import store
+    from rlcompare.experiment.engines import load_agent, load_run
+
+    copy = tmp_path / "run"
+    shutil.copytree(deep_run, copy)
+    data = bytearray((copy / name).read_bytes())
+    data[len(data) // 2] ^= 0xFF  # one byte flipped
+    (copy / name).write_bytes(bytes(data))
+    for load in (load_run, load_agent):
+        with pytest.raises(store.StoreError, match=rf"{name}: does not belong to this run"):
+            load(copy)
+    result = CliRunner().invoke(cli.app, ["report", str(copy)], prog_name="rlcompare", env={"COLUMNS": "300"})
+    assert result.exit_code == 2
+    assert f"{name}: does not belong to this run" in result.output
+    assert "Traceback" not in result.output
