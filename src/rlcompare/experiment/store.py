@@ -84,8 +84,9 @@ SWEEP = Owner("sweep")
 # --- paths and markers ----------------------------------------------------------------------------------
 
 def check_path(path: Path | str, option: str = "--out") -> Path:
-    """A path that can name an output directory: not empty, no component longer than the system allows."""
-    text = str(path)
+    """A path that can name an output directory: not empty, no component longer than the system allows; a leading
+    ``~`` is the user's home, as a shell would read it (a quoted ``--out "~/runs"`` is not a directory named ``~``)."""
+    text = os.path.expanduser(str(path))
     if not text.strip():
         raise StoreError(f"{option}: got an empty path; allowed: a directory path")
     for part in Path(text).parts:
