@@ -55,3 +55,33 @@ def test_a_run_with_other_settings_is_refused_in_its_directory(tmp_path: Path) -
     assert "episodes 20 there, 30 asked" in refused.output
     assert _contents(out) == before
     assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
+
+
+def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_line(tmp_path: Path) -> None:
+    """A real second process: ``report`` and a second ``reproduce`` on a directory a running ``reproduce`` is
+    writing are refused in one line naming its process; the first finishes untouched."""
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "paper"
+    command = [sys.executable, "-m", "rlcompare.cli", "reproduce", "--seeds", "4", "--episodes", "8000",
+               "--no-videos", "--out", str(out)]
+    env = {**__import__("os").environ, "COLUMNS": "300"}
+    first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("*/config.json")) and time.monotonic() < deadline and first.poll() is None:
+            time.sleep(0.05)  # training has begun: the directory is locked
+        report = subprocess.run([sys.executable, "-m", "rlcompare.cli", "report", str(out)], capture_output=True,
+                                text=True, check=False, timeout=120, env=env)
+        second = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120, env=env)
+        first_out, first_err = first.communicate(timeout=300)
+    finally:
+        first.kill()
+    assert first.returncode == 0, first_err
+    for refused in (report, second):
+        assert refused.returncode == 2, refused.stdout + refused.stderr
+        assert f"another rlcompare process (pid {first.pid}) is writing here" in refused.stderr
+        assert "Traceback" not in refused.stderr
+    assert "Report:" in first_out

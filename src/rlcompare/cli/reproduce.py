@@ -91,11 +91,13 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
     announce_compiling()
-    try:
-        runs = runner.run(out, options, ConsoleUI(), study=study.name, force=force)
-    except ConfigError as error:
-        raise bad_option(error) from None
-    print_report(runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True)))
+    # one hold of the directory's lock for the training and the report, so no other process writes in between
+    with store.output_directory(out, store.Owner("study", study.name), force=force):
+        try:
+            runs = runner.run(out, options, ConsoleUI(), study=study.name, force=force)
+        except ConfigError as error:
+            raise bad_option(error) from None
+        print_report(runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True)))
 
 
 def study_command(study: Study) -> Callable[..., None]:
