@@ -217,3 +217,19 @@ def test_the_answer_names_the_largest_part_of_each_schedule_in_brief():
         "Why, while learning: the largest part of the difference is, with ε constant, the target (the action taken "
         "against the max), at -22.7; with ε decaying, the order of choosing A' and updating, at +59.7.")
     assert why.in_brief(pd.DataFrame(rows[1:]).assign(schedule="decay")).count("with ε") == 1
+
+
+@pytest.mark.filterwarnings("ignore:Mean of empty slice:RuntimeWarning",
+                            "ignore:invalid value encountered in divide:RuntimeWarning")
+def test_a_window_without_a_greedy_evaluation_says_so_instead_of_a_number(tmp_path):
+    """30 episodes with evaluations every 50: the last window holds no greedy round; the answer says there is
+    nothing to compare, never "nan"."""
+    from typer.testing import CliRunner
+
+    from rlcompare.cli import app
+
+    result = CliRunner().invoke(app, ["reproduce", "why", "--seeds", "2", "--episodes", "30", "--out",
+                                      str(tmp_path / "why")], env={"COLUMNS": "300"})
+    assert result.exit_code == 0, result.output
+    assert "no greedy evaluation fell in them, so there is nothing to compare" in result.output
+    assert "nan" not in result.output

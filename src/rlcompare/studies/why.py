@@ -215,7 +215,10 @@ def findings(frame: pd.DataFrame) -> list[str]:
             f"Q-Learning's. It is the sum of {_parts(row)}; the largest in size is {CAUSE_TEXT[largest]} "
             f"{_decided(row[largest])}.")
         greedy = frame[(frame["schedule"] == schedule) & (frame["return"] == "greedy")]
-        if not greedy.empty:
+        if not greedy.empty and np.isnan(greedy.iloc[-1]["SARSA - Q-Learning"].value):
+            sentences.append(f"The greedy policies of the {greedy.iloc[-1]['episodes']} episodes: no greedy "
+                             "evaluation fell in them, so there is nothing to compare.")
+        elif not greedy.empty:
             last = greedy.iloc[-1]
             sentences.append(f"The greedy policies of the {last['episodes']} episodes: SARSA's return is "
                              f"{more_or_less(last['SARSA - Q-Learning'])}; {CAUSE_TEXT['order']} "
