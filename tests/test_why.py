@@ -219,8 +219,6 @@ def test_the_answer_names_the_largest_part_of_each_schedule_in_brief():
     assert why.in_brief(pd.DataFrame(rows[1:]).assign(schedule="decay")).count("with ε") == 1
 
 
-@pytest.mark.filterwarnings("ignore:Mean of empty slice:RuntimeWarning",
-                            "ignore:invalid value encountered in divide:RuntimeWarning")
 def test_a_window_without_a_greedy_evaluation_says_so_instead_of_a_number(tmp_path):
     """30 episodes with evaluations every 50: the last window holds no greedy round; the answer says there is
     nothing to compare, never "nan"."""

@@ -33,7 +33,7 @@ from matplotlib.figure import Figure
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less, number
 from rlcompare.analysis.metrics import returns_per_seed
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
+from rlcompare.analysis.report import NO_DATA, Section, save_figure, write_report, write_table
 from rlcompare.analysis.stats import Estimate, interval
 from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
@@ -157,11 +157,12 @@ def cells_table(runs: dict[str, Results]) -> pd.DataFrame:
     rows = []
     for name, results in runs.items():
         c = results.config
-        last = c.episodes - c.eval_every if c.evaluation_rounds else c.episodes
+        final = (interval(per_seed_returns(results, "greedy", c.episodes - c.eval_every, c.episodes)).format(1)
+                 if c.evaluation_rounds else NO_DATA)  # no greedy evaluation in so short a training
         rows.append({"cell": name, "schedule": c.schedule, "target": _target_of(c.algorithm),
                      "A' drawn": c.next_action.replace("_", " "),
                      "behaviour return": interval(per_seed_returns(results, "behaviour", 0, c.episodes)).format(1),
-                     "final greedy return": interval(per_seed_returns(results, "greedy", last, c.episodes)).format(1)})
+                     "final greedy return": final})
     return pd.DataFrame(rows)
 
 
