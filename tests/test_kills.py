@@ -81,3 +81,24 @@ def test_a_report_killed_half_way_is_rebuilt_equal_to_one_never_interrupted(tmp_
     assert {p.name: p.read_bytes() for p in (study / "tables").iterdir()} == tables
     assert (study / "report.html").read_bytes() == page
     assert not list(study.rglob(".*.tmp"))  # what the killed report left half-written is gone
+
+
+def _book(out: Path) -> list[str]:
+    return [sys.executable, "-m", "rlcompare.cli", "reproduce", "book-6.3", "--runs", "200", "--out", str(out)]
+
+
+def test_the_book_figure_study_killed_mid_training_resumes_to_the_uninterrupted_tables(tmp_path: Path) -> None:
+    killed, reference = tmp_path / "killed", tmp_path / "reference"
+    log = tmp_path / "killed.log"
+    process = _start(_book(killed), log)
+    _kill_when(process, lambda: len(list(killed.glob(f"*/{rundir.META_FILE}"))) >= 10, log)
+    finished = len(list(killed.glob(f"*/{rundir.META_FILE}")))
+    assert 10 <= finished < 60
+    again = subprocess.run(_book(killed), capture_output=True, text=True, check=False, env=ENV, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.count("loaded (already complete)") == finished  # only the missing runs trained
+    assert subprocess.run(_book(reference), capture_output=True, check=False, env=ENV, timeout=600).returncode == 0
+    tables = sorted(p.name for p in (reference / "tables").iterdir())
+    assert tables == sorted(p.name for p in (killed / "tables").iterdir())
+    for name in tables:  # every number of the study, from the resumed runs and the uninterrupted ones alike
+        assert (killed / "tables" / name).read_bytes() == (reference / "tables" / name).read_bytes(), name
