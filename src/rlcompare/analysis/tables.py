@@ -346,22 +346,21 @@ def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int) -> _Out
     if claim.kind == "direction":
         paired = compare_paired(a, b)
         better = paired.improvement if claim.sign > 0 else probability_of_improvement(b, a)
-        worst = censored_at_worst(a - b, 0.0, 0.0, never_a, never_b) if bias else None
         return _Outcome(row | {"estimate": _fmt(paired.difference, 2),
                                "P(claim holds for a random pair)": _fmt(better, 2)},
                         paired.p_value, partial(_direction, paired.difference, sign=claim.sign), bias,
-                        worst_case=worst)
+                        worst_case=censored_at_worst(a - b, 0.0, 0.0, never_a, never_b) if bias else None)
     if claim.kind == "ratio":
         test = ratio_tost(b, a, claim.value, RATIO_FACTOR)
-        worst = censored_at_worst(np.log(b / a), np.log(test.lower), np.log(test.upper), never_b, never_a)
+        logs = np.log(b / a)
         return _Outcome(row | {"estimate": _fmt(test.estimate, 2)}, test.p, partial(_equivalence, test), bias,
-                        worst_case=worst if bias else None,
-                        power=underpowered(np.log(b / a), np.log(RATIO_FACTOR), "on the log scale"))
+                        worst_case=censored_at_worst(logs, np.log(test.lower), np.log(test.upper), never_b, never_a)
+                        if bias else None, power=underpowered(logs, np.log(RATIO_FACTOR), "on the log scale"))
     if claim.kind == "same":
         test = tost(a - b, -claim.value, claim.value)
-        worst = censored_at_worst(a - b, -claim.value, claim.value, never_a, never_b)
         return _Outcome(row | {"estimate": _fmt(test.estimate, 2)}, test.p, partial(_equivalence, test), bias,
-                        worst_case=worst if bias else None, power=underpowered(a - b, claim.value))
+                        worst_case=censored_at_worst(a - b, -claim.value, claim.value, never_a, never_b)
+                        if bias else None, power=underpowered(a - b, claim.value))
     values = a if claim.method == "sarsa" else b
     reference = np.full_like(values, claim.value)
     shift = paired_difference(values, reference)
