@@ -343,13 +343,18 @@ def holm(p_values: Iterable[float]) -> np.ndarray:
     ``adjusted_(i) = max_{j <= i} min(1, (m - j + 1) p_(j))``; rejecting where ``adjusted < α`` keeps the
     family-wise error rate at α. NaN (nothing tested) stays NaN and is not counted in ``m``."""
     p = np.asarray(list(p_values), dtype=np.float64)
-    finite = np.flatnonzero(~np.isnan(p))
-    if np.any((p[finite] < 0) | (p[finite] > 1)):
+    if np.any((p < 0) | (p > 1)):
         raise ValueError(f"p-values must lie in [0, 1], got {p}")
-    order = finite[np.argsort(p[finite], kind="stable")]
+    order = _ascending_tested(p)
     adjusted = np.full(p.shape, np.nan)
-    adjusted[order] = np.minimum(1.0, np.maximum.accumulate((order.size - np.arange(order.size)) * p[order]))
+    adjusted[order] = np.minimum(1.0, np.maximum.accumulate(holm_factors(p)[order] * p[order]))
     return adjusted
+
+
+def _ascending_tested(p: np.ndarray) -> np.ndarray:
+    """The indices of the tested (non-NaN) p-values, smallest first (ties in their given order)."""
+    tested = np.flatnonzero(~np.isnan(p))
+    return tested[np.argsort(p[tested], kind="stable")]
 
 
 class NoiseFloor(NamedTuple):
@@ -373,8 +378,7 @@ def holm_factors(p_values: Iterable[float]) -> np.ndarray:
     """What Holm's procedure multiplies each p-value by before the running maximum: ``m - j + 1`` for the ``j``-th
     smallest of the ``m`` tested (NaN where nothing was tested), so ``holm(p) >= p * factor`` for each."""
     p = np.asarray(list(p_values), dtype=np.float64)
-    finite = np.flatnonzero(~np.isnan(p))
-    order = finite[np.argsort(p[finite], kind="stable")]
+    order = _ascending_tested(p)
     factors = np.full(p.shape, np.nan)
     factors[order] = order.size - np.arange(order.size)
     return factors

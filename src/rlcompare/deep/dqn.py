@@ -300,14 +300,9 @@ def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
     return MLP(hidden=config.hidden, outputs=env.n_actions)
 
 
-def q_values(config: DQNConfig, env: DeepEnv) -> Apply:
-    """``(params, observations) -> Q-values`` of :func:`network`."""
-    return network(config, env).apply
-
-
 def act(config: DQNConfig, env: DeepEnv) -> rollout.Act:
     """``(params, observations) -> int32 actions`` greedy in the Q-values (ties: the first)."""
-    apply = q_values(config, env)
+    apply = network(config, env).apply
 
     def greedy(params: Params, observations: jax.Array) -> jax.Array:
         return jnp.argmax(apply(params, observations), axis=-1).astype(jnp.int32)
@@ -380,7 +375,7 @@ def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Arra
 
 def _train(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], Runner]:
     """``(runner, key) -> runner`` after ``gradient_steps`` steps of :func:`optimizer` on :func:`q_loss`."""
-    apply, tx = q_values(config, env), optimizer(config)
+    apply, tx = network(config, env).apply, optimizer(config)
     gradient = jax.grad(q_loss)
 
     def train(runner: Runner, key: jax.Array) -> Runner:
