@@ -85,3 +85,42 @@ def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_lin
         assert f"another rlcompare process (pid {first.pid}) is writing here" in refused.stderr
         assert "Traceback" not in refused.stderr
     assert "Report:" in first_out
+
+
+def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_writer(tmp_path: Path) -> None:
+    """A real second process: ``report`` of a run directory ``run`` is still writing, and a second ``run`` into it,
+    are refused in one line naming the writer (before, ``report`` failed on the files not yet there); the writer
+    finishes untouched, and its directory then reads as any other."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    from rlcompare.experiment import store
+
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "rlcompare.cli", "run", "--episodes", "10000", "--seeds", "40", "--out", str(out)]
+    env = {**os.environ, "COLUMNS": "300"}
+    first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        lock = out / store.LOCK_FILE
+        while time.monotonic() < deadline and first.poll() is None and not (
+                lock.exists() and lock.read_text().strip() == str(first.pid)):
+            time.sleep(0.05)  # the writer holds the lock
+        others = [subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                  for args in ([sys.executable, "-m", "rlcompare.cli", "report", str(out)], command)]
+        answers = [other.communicate(timeout=120)[1] for other in others]
+        first_out, first_err = first.communicate(timeout=300)
+    finally:
+        first.kill()
+    assert first.returncode == 0, first_err
+    for other, answer in zip(others, answers, strict=True):
+        assert other.returncode == 2, answer
+        assert answer.strip().splitlines() == [
+            f"Error: {out}: another rlcompare process (pid {first.pid}) is writing here; wait for it to finish, or "
+            "use another directory"]
+    assert "Run directory:" in first_out
+    report = invoke("report", str(out))
+    assert report.exit_code == 0, report.output
+    assert "(q_learning-decay, 40 seeds)" in report.output

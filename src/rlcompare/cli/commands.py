@@ -164,6 +164,7 @@ def _run_report(run_dir: Path) -> None:
     """One run directory: its results over seeds, checked on load; and the study it is a configuration of."""
     from rlcompare.experiment.engines import load_run
 
+    store.refuse_while_written(run_dir)
     with console.status(f"Loading {run_dir}"):
         results = load_run(run_dir)
         shown = run_summary(results)

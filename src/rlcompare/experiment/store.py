@@ -283,13 +283,44 @@ def _acquire(directory: Path) -> int:
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
-        holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
         os.close(fd)
-        raise StoreError(f"{directory}: another rlcompare process (pid {holder}) is writing here; wait for it to "
-                         "finish, or use another directory") from None
+        raise _in_use(directory, _lock_holder(directory)) from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     return fd
+
+
+def _lock_holder(directory: Path) -> str:
+    """The process id the lock file of ``directory`` names (its last writer's)."""
+    try:
+        with (directory / LOCK_FILE).open("rb") as lock:
+            return lock.read(32).decode(errors="replace").strip() or "unknown"
+    except OSError:
+        return "unknown"
+
+
+def _in_use(directory: Path, holder: str) -> StoreError:
+    return StoreError(f"{directory}: another rlcompare process (pid {holder}) is writing here; wait for it to "
+                      "finish, or use another directory")
+
+
+def refuse_while_written(directory: Path) -> None:
+    """Refuse to read ``directory`` while another process holds its lock: what it holds is not finished. Nothing
+    is written (a directory never locked has no lock file, and none is made)."""
+    directory = Path(directory).resolve()
+    with _held_lock:
+        if directory in _held:
+            return  # this process is the writer
+    try:
+        fd = os.open(directory / LOCK_FILE, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise _in_use(directory, _lock_holder(directory)) from None
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager
