@@ -11,9 +11,13 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
+from rlcompare.engine.state import Records
 from rlcompare.experiment import rundir
+from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.results import Results
 
 pytestmark = pytest.mark.slow
@@ -21,18 +25,44 @@ pytestmark = pytest.mark.slow
 ENV = {**os.environ, "COLUMNS": "300"}
 
 
-def _start(command: list[str], log: Path) -> subprocess.Popen:
+def start(command: list[str], log: Path, env: dict[str, str] = ENV) -> subprocess.Popen:
+    """``command`` in a process group of its own (killed whole), its output to ``log``."""
     with log.open("wb") as output:
-        return subprocess.Popen(command, stdout=output, stderr=output, start_new_session=True, env=ENV)
+        return subprocess.Popen(command, stdout=output, stderr=output, start_new_session=True, env=env)
 
 
-def _kill_when(process: subprocess.Popen, ready, log: Path, timeout: float = 240) -> None:
+def kill_when(process: subprocess.Popen, ready, log: Path, timeout: float = 240) -> None:
     deadline = time.monotonic() + timeout
     while not ready() and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.02)
     assert process.poll() is None, log.read_text()
     os.killpg(process.pid, signal.SIGKILL)
     process.wait()
+
+
+def finished_runs(study: Path) -> list[str]:
+    """The runs of ``study`` that finished: those with ``meta.json``, written last."""
+    return sorted(p.parent.name for p in study.glob(f"*/{rundir.META_FILE}"))
+
+
+def assert_same_runs(resumed: Path, uninterrupted: Path, names: list[str]) -> None:
+    """Each run ``names`` of one study directory equals the other's: every record of a tabular run, every episode,
+    evaluation and parameter (final and at each stage) of a deep one."""
+    for name in names:
+        ours, theirs = load_run(resumed / name), load_run(uninterrupted / name)
+        if isinstance(theirs, Results):
+            for field in Records._fields:
+                np.testing.assert_array_equal(getattr(ours.records, field), getattr(theirs.records, field),
+                                              err_msg=f"{name}: {field}")
+            continue
+        pd.testing.assert_frame_equal(ours.episodes, theirs.episodes)
+        pd.testing.assert_frame_equal(ours.evaluations, theirs.evaluations)
+        assert ours.params.keys() == theirs.params.keys()
+        assert ours.snapshots.keys() == theirs.snapshots.keys()
+        for stage, arrays in [("final", theirs.params), *theirs.snapshots.items()]:
+            mine = ours.params if stage == "final" else ours.snapshots[stage]
+            for key, array in arrays.items():
+                np.testing.assert_array_equal(mine[key], array, err_msg=f"{name}: {stage} {key}")
 
 
 def _why(out: Path, *extra: str) -> list[str]:
@@ -43,24 +73,18 @@ def _why(out: Path, *extra: str) -> list[str]:
 def test_the_why_study_killed_mid_training_resumes_to_the_uninterrupted_result(tmp_path: Path) -> None:
     killed = tmp_path / "killed"
     log = tmp_path / "killed.log"
-    process = _start(_why(killed), log)
-    _kill_when(process, lambda: len(list(killed.glob(f"*/{rundir.META_FILE}"))) >= 3, log)
-    finished = sorted(p.parent.name for p in killed.glob(f"*/{rundir.META_FILE}"))
+    process = start(_why(killed), log)
+    kill_when(process, lambda: len(finished_runs(killed)) >= 3, log)
+    finished = finished_runs(killed)
     assert 3 <= len(finished) < 12
-    for run in killed.iterdir():  # a run without meta.json is never read as finished
-        if run.is_dir() and run.name not in finished and (run / rundir.CONFIG_FILE).exists():
-            assert not (run / rundir.META_FILE).exists()
     again = subprocess.run(_why(killed), capture_output=True, text=True, check=False, env=ENV, timeout=600)
     assert again.returncode == 0, again.stderr
     assert again.stdout.count("loaded (already complete)") == len(finished)
     reference = tmp_path / "reference"
     assert subprocess.run(_why(reference), capture_output=True, check=False, env=ENV, timeout=600).returncode == 0
-    runs = sorted(p.parent.name for p in reference.glob(f"*/{rundir.META_FILE}"))
-    assert sorted(p.parent.name for p in killed.glob(f"*/{rundir.META_FILE}")) == runs
-    for name in runs:
-        resumed, uninterrupted = Results.load(killed / name), Results.load(reference / name)
-        for field in ("returns", "lengths", "eval_returns", "eval_lengths"):
-            assert (getattr(resumed.records, field) == getattr(uninterrupted.records, field)).all(), (name, field)
+    runs = finished_runs(reference)
+    assert finished_runs(killed) == runs
+    assert_same_runs(killed, reference, runs)
     assert (killed / "tables" / "decomposition.csv").read_bytes() == (reference / "tables" / "decomposition.csv"
                                                                        ).read_bytes()
 
@@ -72,9 +96,9 @@ def test_a_report_killed_half_way_is_rebuilt_equal_to_one_never_interrupted(tmp_
     tables = {p.name: p.read_bytes() for p in (study / "tables").iterdir()}
     page = (study / "report.html").read_bytes()
     log = tmp_path / "report.log"
-    process = _start([sys.executable, "-m", "rlcompare.cli", "report", str(study)], log)
+    process = start([sys.executable, "-m", "rlcompare.cli", "report", str(study)], log)
     started = time.monotonic()
-    _kill_when(process, lambda: time.monotonic() - started > 3.0, log)  # in its tables or figures
+    kill_when(process, lambda: time.monotonic() - started > 3.0, log)  # in its tables or figures
     again = subprocess.run([sys.executable, "-m", "rlcompare.cli", "report", str(study)], capture_output=True,
                            text=True, check=False, env=ENV, timeout=600)
     assert again.returncode == 0, again.stderr
@@ -90,9 +114,9 @@ def _book(out: Path) -> list[str]:
 def test_the_book_figure_study_killed_mid_training_resumes_to_the_uninterrupted_tables(tmp_path: Path) -> None:
     killed, reference = tmp_path / "killed", tmp_path / "reference"
     log = tmp_path / "killed.log"
-    process = _start(_book(killed), log)
-    _kill_when(process, lambda: len(list(killed.glob(f"*/{rundir.META_FILE}"))) >= 10, log)
-    finished = len(list(killed.glob(f"*/{rundir.META_FILE}")))
+    process = start(_book(killed), log)
+    kill_when(process, lambda: len(finished_runs(killed)) >= 10, log)
+    finished = len(finished_runs(killed))
     assert 10 <= finished < 60
     again = subprocess.run(_book(killed), capture_output=True, text=True, check=False, env=ENV, timeout=600)
     assert again.returncode == 0, again.stderr

@@ -15,6 +15,8 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("gymnax")
 minatar_reference = pytest.importorskip("minatar")
 
+from test_kills import assert_same_runs, finished_runs, kill_when, start  # noqa: E402
+
 from rlcompare import load_agent  # noqa: E402
 from rlcompare.cli import app  # noqa: E402
 from rlcompare.deep import float64  # noqa: E402
@@ -195,20 +197,6 @@ def test_every_method_trains_with_its_minatar_preset_when_asked():
     assert {c.env for c in configs.values()} == {"MinAtar/Seaquest-v0"}
 
 
-def _same_runs(a, b, names=("pqn_q_lambda-breakout", "pqn_sarsa_lambda-breakout")) -> None:
-    from rlcompare.deep.run import DeepResults
-
-    for name in names:
-        ours, theirs = DeepResults.load(a / name), DeepResults.load(b / name)
-        pd.testing.assert_frame_equal(ours.episodes, theirs.episodes)
-        pd.testing.assert_frame_equal(ours.evaluations, theirs.evaluations)
-        for key, array in theirs.params.items():
-            np.testing.assert_array_equal(ours.params[key], array)
-        for stage, arrays in theirs.snapshots.items():
-            for key, array in arrays.items():
-                np.testing.assert_array_equal(ours.snapshots[stage][key], array)
-
-
 def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path, monkeypatch):
     from rlcompare.experiment.backends import LocalBackend
     from rlcompare.studies import minatar as minatar_study
@@ -220,13 +208,15 @@ def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path,
     tasks = list(minatar_study.reproduce(tmp_path / "tasks", plan, backend=LocalBackend(2)))
     assert [(name, reused) for name, _, reused in tasks] == [("pqn_q_lambda-breakout", False)]
     assert tasks[0][1].meta["seeds"] == whole[0][1].meta["seeds"] == [0, 1]
-    _same_runs(tmp_path / "tasks", tmp_path / "whole", ["pqn_q_lambda-breakout"])
+    assert_same_runs(tmp_path / "tasks", tmp_path / "whole", ["pqn_q_lambda-breakout"])
     again = list(minatar_study.reproduce(tmp_path / "tasks", plan, backend=LocalBackend(2)))
     assert [(name, reused) for name, _, reused in again] == [("pqn_q_lambda-breakout", True)]
 
 
 @pytest.mark.slow  # starting and stopping the cluster take about half a minute
-def test_the_study_on_a_ray_cluster_equals_the_study_here(study, tmp_path):
+def test_the_study_on_a_ray_cluster_killed_and_resumed_equals_the_study_here(study, tmp_path):
+    """The study's seed blocks as Ray tasks; its driver killed with SIGKILL once one run is written, then run
+    again: the finished run is loaded, the other trained, and both equal the study trained here."""
     import subprocess
     import sys
 
@@ -234,13 +224,21 @@ def test_the_study_on_a_ray_cluster_equals_the_study_here(study, tmp_path):
     from test_ray import loopback_cluster
 
     here, _ = study
+    out = tmp_path / "ray"
     with loopback_cluster() as (address, env, _, _):
-        done = subprocess.run([sys.executable, "-m", "rlcompare.cli", *TINY, "--out", str(tmp_path / "ray"),
-                               "--address", address, "--no-videos"], capture_output=True, text=True,
-                              env={**env, "COLUMNS": "200"}, timeout=500, check=False)
+        command = [sys.executable, "-m", "rlcompare.cli", *TINY, "--out", str(out), "--address", address,
+                   "--no-videos"]
+        kill_when(start(command, tmp_path / "killed.log", {**env, "COLUMNS": "200"}),
+                  lambda: len(finished_runs(out)) >= 1, tmp_path / "killed.log")
+        finished = finished_runs(out)
+        done = subprocess.run(command, capture_output=True, text=True, env={**env, "COLUMNS": "200"}, timeout=500,
+                              check=False)
     assert done.returncode == 0, done.stdout + done.stderr
     assert f"on Ray at {address}" in done.stdout
-    _same_runs(tmp_path / "ray", here)
+    assert len(finished) == 1
+    assert done.stdout.count("loaded") == 1
+    assert finished_runs(out) == finished_runs(here) == ["pqn_q_lambda-breakout", "pqn_sarsa_lambda-breakout"]
+    assert_same_runs(out, here, finished_runs(here))
 
 
 def _results_with_finals(method: str, env: str, finals: np.ndarray):

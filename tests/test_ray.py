@@ -154,7 +154,11 @@ def loopback_cluster():
         shutil.rmtree(temp, ignore_errors=True)
 
 
-def test_ray_sweep_loses_a_node_and_still_finishes_every_trial_exactly_once(cluster, tmp_path: Path) -> None:
+def test_ray_sweep_loses_a_worker_a_node_and_its_driver_and_still_finishes_every_trial_exactly_once(
+        cluster, tmp_path: Path) -> None:
+    """Killed with SIGKILL in turn, each with trials in flight: one worker process (Ray runs its task again),
+    the second node (Ray runs its tasks on the head), then the driver itself (the same command resumes, running
+    only the trials not saved). Every trial is saved once, bit-identical to the local backend's."""
     address, env, temp, nodes = cluster
     sweep = parse_sweep(SWEEP)
     reference = tmp_path / "local"
@@ -164,23 +168,37 @@ def test_ray_sweep_loses_a_node_and_still_finishes_every_trial_exactly_once(clus
 
     sweep_file, out = tmp_path / "ray.toml", tmp_path / "ray"
     sweep_file.write_text(SWEEP)
+    command = [sys.executable, "-m", "rlcompare.cli", "sweep", str(sweep_file), "--out", str(out), "--backend", "ray",
+               "--address", address, "--no-report"]
     log = tmp_path / "sweep.log"
     with log.open("wb") as output:
-        driver = subprocess.Popen([sys.executable, "-m", "rlcompare.cli", "sweep", str(sweep_file), "--out", str(out),
-                                   "--backend", "ray", "--address", address, "--no-report"],
-                                  stdout=output, stderr=output, env=env)
-    deadline = time.monotonic() + 180
-    while _done(out) < 3:
-        assert driver.poll() is None, log.read_text()
-        assert time.monotonic() < deadline, log.read_text()
-        time.sleep(0.1)
-    done_at_kill = _done(out)
+        driver = subprocess.Popen(command, stdout=output, stderr=output, env=env, start_new_session=True)
+
+    def wait_for(trials: int) -> None:
+        deadline = time.monotonic() + 180
+        while _done(out) < trials:
+            assert driver.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.05)
+
+    wait_for(1)
     ray_processes = _processes([node.pid for node in nodes], driver.pid)
     assert _listening_outside_loopback(ray_processes) == []
+    workers = _running_trials(_processes([nodes[0].pid]))
+    assert workers, "no worker of the head node was running a trial"
+    os.kill(workers[0], signal.SIGKILL)  # one worker, mid-trial
+    wait_for(_done(out) + 2)
     os.killpg(nodes[1].pid, signal.SIGKILL)  # the second node, with a trial in flight
     nodes[1].wait()
-    assert driver.wait(timeout=300) == 0, log.read_text()
-    assert done_at_kill < len(sweep.trials())
+    wait_for(_done(out) + 2)
+    os.killpg(driver.pid, signal.SIGKILL)  # the driver, with trials in flight
+    driver.wait()
+    saved = _done(out)
+    assert saved < len(sweep.trials())
+    resumed = subprocess.run(command, capture_output=True, text=True, env={**env, "COLUMNS": "300"}, timeout=300,
+                             check=False)
+    assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+    assert f"{len(sweep.trials()) - saved} trials run, {saved} already finished" in resumed.stdout
     _wait_for_nodes(address, 1, env, temp / "head.log")  # the head saw the node die
     assert _registered_addresses(address, env) == [LOOPBACK, LOOPBACK]  # the head and the dead node
 
@@ -200,6 +218,16 @@ def test_ray_sweep_loses_a_node_and_still_finishes_every_trial_exactly_once(clus
 
 def _done(out: Path) -> int:
     return len(list(out.glob("trials/*/*/meta.json")))
+
+
+def _running_trials(processes: set[int]) -> list[int]:
+    """Those of ``processes`` that are Ray workers running a trial (Ray titles a worker by its task)."""
+    running = []
+    for pid in processes:
+        with contextlib.suppress(OSError):
+            if Path(f"/proc/{pid}/cmdline").read_bytes().startswith(b"ray::run_trial"):
+                running.append(pid)
+    return running
 
 
 def _registered_addresses(address: str, env: dict[str, str]) -> list[str]:
