@@ -414,7 +414,21 @@ def fill(filesystem: Path) -> None:
     os.close(fd)
 
 
-@pytest.mark.parametrize("command", ["run", "report", "sweep"])
+FULL_DISK_COMMANDS = {
+    "run": ["run", "--episodes", "50", "--seeds", "2"],
+    "report": ["report"],
+    "sweep": ["sweep"],
+    "why": ["reproduce", "why", "--seeds", "2", "--episodes", "50"],
+    "book-6.3": ["reproduce", "book-6.3", "--runs", "2"],
+    "cliff": ["reproduce", "cliff", "--seeds", "2"],
+    "sensitivity": ["reproduce", "sensitivity", "--seeds", "2", "--episodes", "50"],
+    "deep": ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--methods", "pqn_q_lambda,pqn_sarsa_lambda",
+             "--envs", "CartPole-v1"],
+    "minatar": ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960"],
+}
+
+
+@pytest.mark.parametrize("command", FULL_DISK_COMMANDS)
 def test_a_full_disk_is_one_clear_error(command: str, study: Path, tmp_path: Path) -> None:
     sweep_file = tmp_path / "s.toml"
     sweep_file.write_text(SWEEP)
@@ -422,12 +436,39 @@ def test_a_full_disk_is_one_clear_error(command: str, study: Path, tmp_path: Pat
         if command == "report":
             shutil.copytree(study, fs / "study", ignore=shutil.ignore_patterns("figures", "tables", "report.html"))
         fill(fs)
-        args = {"run": ["run", "--episodes", "50", "--seeds", "2", "--out", str(fs / "run")],
-                "report": ["report", str(fs / "study"), "--no-videos"],
-                "sweep": ["sweep", str(sweep_file), "--out", str(fs / "store")]}[command]
-        result = invoke(*args)
+        where = {"report": [str(fs / "study"), "--no-videos"],
+                 "sweep": [str(sweep_file), "--out", str(fs / "store")]}.get(command, ["--out", str(fs / "out")])
+        result = invoke(*FULL_DISK_COMMANDS[command], *where)
         one_clear_line(result)
         assert "no space left" in result.output.lower()
+        assert not (fs / "out").exists()
+
+
+@pytest.mark.slow
+def test_a_disk_that_fills_mid_study_keeps_the_finished_runs_and_resumes_once_there_is_room(tmp_path: Path) -> None:
+    """``reproduce why`` on a file system with room for a few of its 12 runs: one clear line when a run cannot be
+    written, every run written before it kept and whole; with room again, the same command loads those, trains
+    the rest, and writes the tables of an uninterrupted study byte for byte."""
+    from test_kills import assert_same_runs, finished_runs
+
+    why = ["reproduce", "why", "--seeds", "6", "--episodes", "5000"]
+    reference = tmp_path / "reference"
+    assert invoke(*why, "--out", str(reference)).exit_code == 0
+    with small_filesystem(tmp_path / "fs", "1500k") as fs:
+        full = invoke(*why, "--out", str(fs / "why"))
+        one_clear_line(full)
+        assert "no space left" in full.output.lower()
+        kept = finished_runs(fs / "why")
+        assert 1 <= len(kept) < 12
+        assert_same_runs(fs / "why", reference, kept)
+        subprocess.run(["mount", "-o", "remount,size=8m", str(fs)], check=True)
+        again = invoke(*why, "--out", str(fs / "why"))
+        assert again.exit_code == 0, again.output
+        assert again.output.count("loaded (already complete)") == len(kept)
+        assert finished_runs(fs / "why") == finished_runs(reference)
+        assert_same_runs(fs / "why", reference, finished_runs(reference))
+        for table in (reference / "tables").iterdir():
+            assert (fs / "why" / "tables" / table.name).read_bytes() == table.read_bytes(), table.name
 
 
 def test_report_in_a_read_only_directory_is_one_clear_error(study: Path, tmp_path: Path) -> None:

@@ -180,18 +180,19 @@ def claim(directory: Path, owner: Owner, *, force: bool = False, outputs: tuple[
     problem = refusal(directory, owner, force=force)
     if problem:
         raise StoreError(problem)
-    created = not directory.exists()
+    made = [d for d in (directory, *directory.parents) if not d.exists()]
     try:
         directory.mkdir(parents=True, exist_ok=True)
         if not (directory / MARKER_FILE).is_file():
             for stale in _marker_temporaries(directory):
                 stale.unlink(missing_ok=True)
             _write_marker(directory, owner, [name for name in outputs if not (directory / name).exists()])
-    except StoreError:
-        raise
     except OSError as error:
+        for new in made:  # a full disk had room for the directories but not the marker: leave nothing behind
+            with contextlib.suppress(OSError):
+                new.rmdir()
         raise StoreError(f"{directory}: cannot create the directory ({error.strerror})") from None
-    return created
+    return bool(made)
 
 
 def discard(directory: Path) -> None:
