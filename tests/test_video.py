@@ -170,7 +170,9 @@ def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir:
     stems = [f"q_learning-decay-seed0-{stage}" for stage in ("early", "middle", "final")]
     assert [p.name for p in paths] == [f"{stem}.{ext}" for stem in stems for ext in ("mp4", "gif")]
     assert sorted(p.name for p in (tmp_path / "all").iterdir()) == sorted(p.name for p in paths)
-    assert read_mp4(paths[0])[1].shape[0] == 41  # truncated at 40 steps: 41 frames
+    meta, shown = read_mp4(paths[0])
+    assert shown.shape[0] == 21  # truncated at 40 steps: steps 0, 2, ..., 40
+    assert meta["fps"] == encode.FPS / encode.MP4_EVERY  # every second step, in real time
 
     again = video.render_stage_videos(run_dir, tmp_path / "middle", seed=0, stages=["middle"], max_steps=40,
                                       gif=False)
@@ -181,6 +183,22 @@ def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir:
         video.render_stage_videos(run_dir, tmp_path / "x", seed=0, stages=["late"])
     with pytest.raises(KeyError, match="seed"):
         video.render_stage_videos(run_dir, tmp_path / "x", seed=5)
+
+
+def test_a_stage_video_shows_every_second_step_and_its_gif_every_third(tmp_path: Path, run_dir: Path) -> None:
+    """Only the steps the MP4 or the GIF shows are drawn: the MP4 holds every second step's frame (and the last),
+    the GIF is the one :func:`~rlcompare.analysis.encode.write_gif` makes of every frame of the episode."""
+    job = video.plan_stage_videos(run_dir, tmp_path, seed=0, stages=["final"], max_steps=41)[0]
+    mp4, gif = video.render_job(job)
+    episode = video.record_episode(load_agent(run_dir, seed=0, stage="final"), episode_seed=job.episode_seed,
+                                   max_steps=41, title=job.title, seed=0, env_id=job.env_id)
+    assert episode.length == 41  # truncated at an odd step: its frame ends the MP4 too
+    shown = read_mp4(mp4)[1]
+    steps = [*range(0, 41, encode.MP4_EVERY), 41]
+    assert len(shown) == len(steps)
+    for frame, step in zip(shown, steps, strict=True):
+        assert np.abs(frame.astype(int) - episode.frames[step]).mean() < 3
+    assert gif.read_bytes() == encode.write_gif(episode.frames, tmp_path / "all.gif").read_bytes()
 
 
 def test_workers_write_the_same_files_as_one_process(tmp_path: Path, run_dir: Path) -> None:
@@ -212,7 +230,7 @@ def test_random_baseline_gets_one_video(tmp_path: Path) -> None:
         out=tmp_path / "random")
     paths = video.render_stage_videos(tmp_path / "random", tmp_path / "videos", seed=2)
     assert [p.name for p in paths] == ["random-seed2.mp4", "random-seed2.gif"]
-    assert read_mp4(paths[0])[1].shape[0] == 31
+    assert read_mp4(paths[0])[1].shape[0] == 16  # 30 steps: steps 0, 2, ..., 30
 
 
 def test_rendering_needs_no_display_and_sets_it_up_lazily(tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ a method keeps one colour in every figure drawn with the same ``scores`` (:func:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -175,11 +175,14 @@ def improvement_pairs(methods: Sequence[str], estimates: pd.DataFrame) -> list[t
 
 def draw_aggregates(scores: Mapping[str, np.ndarray], directory: Path, *, xlabel: str = NORMALISED,
                     tasks: str = "tasks", curves: Mapping[str, np.ndarray] | None = None, x: np.ndarray | None = None,
-                    curve_xlabel: str = "", prefix: str = "", resamples: int = 2000) -> Aggregates:
+                    curve_xlabel: str = "", prefix: str = "", resamples: int = 2000,
+                    figure: Callable[[Path, Callable[[Path], str]], str] | None = None) -> Aggregates:
     """Every aggregate of ``scores`` (``(tasks, runs)`` per method): the interval estimates and the probability of
     improvement as tables, and the interval-estimate, probability-of-improvement, performance-profile and (with
     ``curves``, ``(tasks, runs, points)`` per method at ``x``) sample-efficiency figures saved as PNG files in
-    ``directory`` (names begin with ``prefix``). ``tasks`` names the tasks in the captions (environments, games)."""
+    ``directory`` (names begin with ``prefix``). ``tasks`` names the tasks in the captions (environments, games).
+    ``figure(path, draw)``: where given, what saves each figure (``draw(path)`` saves it and returns its relative
+    path), e.g. :meth:`rlcompare.analysis.drawn.Drawn.figure`, which keeps one whose inputs have not changed."""
     intervals = interval_estimates(scores, resamples=resamples)
     pairs = improvement_pairs(list(scores), intervals)
     improvements = improvement_estimates(scores, pairs, resamples=resamples)
@@ -188,20 +191,22 @@ def draw_aggregates(scores: Mapping[str, np.ndarray], directory: Path, *, xlabel
     paired = ("every ordered pair of methods" if len(pairs) == len(scores) * (len(scores) - 1)
               else f"the best method by IQM ({pairs[0][0]}) against each other one")
     drawn = [
-        (interval_figure(scores, xlabel, estimates=intervals), "aggregate-intervals",
+        (lambda: interval_figure(scores, xlabel, estimates=intervals), "aggregate-intervals",
          f"Median and mean of the {tasks}' mean scores, IQM and optimality gap (γ = 1: the mean shortfall below 1) "
          f"of every run, over {over}: bars are 95% stratified bootstrap intervals, ticks the estimates"),
-        (improvement_figure(scores, estimates=improvements), "probability-of-improvement",
+        (lambda: improvement_figure(scores, estimates=improvements), "probability-of-improvement",
          f"Probability of improvement, {paired}: the chance that a run of X beats a run of Y on one of the {tasks}, "
          f"averaged over the {tasks}, with its 95% stratified bootstrap interval; 0.5 is no difference"),
-        (profile_figure(scores, xlabel, resamples=resamples), "performance-profiles",
+        (lambda: profile_figure(scores, xlabel, resamples=resamples), "performance-profiles",
          f"Performance profiles: the fraction of runs, over every one of the {tasks}, with a score above τ (95% "
          "stratified bootstrap bands)"),
     ]
     if curves:
-        drawn.append((sample_efficiency_figure(x, curves, curve_xlabel, resamples=resamples), "sample-efficiency",
+        drawn.append((lambda: sample_efficiency_figure(x, curves, curve_xlabel, resamples=resamples),
+                      "sample-efficiency",
                       f"Sample efficiency: the IQM of every run's {xlabel} over the {tasks} at each point of training, "
                       "with a 95% stratified bootstrap band"))
-    figures = [(save_figure(figure, Path(directory) / f"{prefix}{name}.png"), caption)
-               for figure, name, caption in drawn]
+    save = figure or (lambda path, draw: draw(path))
+    figures = [(save(Path(directory) / f"{prefix}{name}.png", lambda path, make=make: save_figure(make(), path)),
+                caption) for make, name, caption in drawn]
     return Aggregates(interval_table(intervals, tasks=tasks), improvement_table(improvements, tasks=tasks), figures)

@@ -151,9 +151,12 @@ def _caption_pieces(title: str, frame: Frame, *, seed: int | None, episode_seed:
 
 def captioned(played: Iterable[Frame], title: str, *, seed: int | None, episode_seed: int,
               max_steps: int, env_id: str) -> Iterator[tuple[np.ndarray, Frame]]:
-    """Each frame under its caption, packed, in one reused buffer (copy it to keep it)."""
+    """Each frame under its caption, packed, in one reused buffer (copy it to keep it); a frame without a picture
+    (not drawn, :func:`~rlcompare.analysis.play.play`) is passed over."""
     buffer = None
     for frame in played:
+        if frame.picture is None:
+            continue
         line, detail = _caption_pieces(title, frame, seed=seed, episode_seed=episode_seed, max_steps=max_steps,
                                        env_id=env_id)
         buffer = _stack(frame.picture, line, detail, buffer)

@@ -37,5 +37,5 @@ def mean_band(
     counts = np.random.default_rng(seed).multinomial(seeds, np.full(seeds, 1 / seeds), size=n_resamples)
     resampled = counts @ curves / seeds  # each row: the mean of one resample of whole seeds
     tail = (1 - confidence) / 2 * 100
-    low, high = np.percentile(resampled, [tail, 100 - tail], axis=0)
+    low, high = np.percentile(resampled.T, [tail, 100 - tail], axis=1)  # each point's resamples side by side
     return mean, low, high

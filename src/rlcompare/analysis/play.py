@@ -26,8 +26,9 @@ class Agent(Protocol):
 
 
 class Frame(NamedTuple):
-    picture: np.ndarray
-    """The environment's picture, packed (:mod:`rlcompare.analysis.frames`), in a buffer the next frame reuses."""
+    picture: np.ndarray | None
+    """The environment's picture, packed (:mod:`rlcompare.analysis.frames`), in a buffer the next frame reuses;
+    None at a step :func:`play` was asked not to draw."""
     step: int
     return_so_far: float
     terminated: bool
@@ -40,8 +41,12 @@ def _headless() -> None:
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 
-def play(agent: Agent, episode_seed: int, max_steps: int, env_id: str) -> Iterator[Frame]:
-    """Step ``agent`` through one rendered episode, yielding the start frame and one frame per step."""
+def play(agent: Agent, episode_seed: int, max_steps: int, env_id: str,
+         drawn: Callable[[int], bool] | None = None) -> Iterator[Frame]:
+    """Step ``agent`` through one rendered episode, yielding the start frame and one frame per step.
+
+    ``drawn(step)``: whether that step's picture is drawn (default: every step); the last step's always is, and
+    the others' pictures are None (a video that shows every second step need not draw the others)."""
     _headless()
     import gymnasium as gym  # after _headless: gymnasium imports pygame when it first renders
 
@@ -55,7 +60,8 @@ def play(agent: Agent, episode_seed: int, max_steps: int, env_id: str) -> Iterat
             observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
             total += float(reward)
             step += 1
-            yield Frame(picture(), step, total, bool(terminated), bool(truncated))
+            shown = drawn is None or drawn(step) or terminated or truncated
+            yield Frame(picture() if shown else None, step, total, bool(terminated), bool(truncated))
     finally:
         env.close()
 

@@ -36,6 +36,7 @@ lookup), once for all its videos.
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import multiprocessing
 import os
 import time
@@ -44,15 +45,16 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rlcompare.analysis import captions, frames
-from rlcompare.analysis.encode import FPS, GIF_EVERY, GIF_SCALE, GifFrames, mp4_writer
+from rlcompare.analysis.encode import FPS, GIF_EVERY, GIF_SCALE, MP4_EVERY, GifFrames, mp4_writer
 from rlcompare.analysis.play import Agent, Frame, play
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.engines import load_agent
+from rlcompare.experiment.engines import front_for, load_run
 from rlcompare.experiment.results import Results
 
 DEFAULT_EPISODE_SEED = 10_000
@@ -114,15 +116,24 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
 def _render_video(agent: Agent, title: str, mp4: Path, gif: Path | None, *, seed: int, episode_seed: int,
                   max_steps: int, fps: float, env_id: str) -> list[Path]:
     """Play, caption and encode one video in a single pass: ffmpeg encodes in its own process while
-    Python renders the next frames, and no more than one frame is held in memory (plus the GIF's)."""
-    captioned = captions.captioned(play(agent, episode_seed, max_steps, env_id), title, seed=seed,
-                                   episode_seed=episode_seed, max_steps=max_steps, env_id=env_id)
+    Python renders the next frames, and no more than one frame is held in memory (plus the GIF's).
+
+    The episode plays at ``fps`` steps a second; the MP4 shows every :data:`MP4_EVERY`-th step and the GIF every
+    :data:`GIF_EVERY`-th (each also the last), and only the steps one of them shows are drawn."""
     small = GifFrames(GIF_SCALE, GIF_EVERY) if gif is not None else None
-    with mp4_writer(mp4, fps) as writer:
-        for packed, _ in captioned:
-            writer.append(packed)
-            if small is not None:
-                small.add(packed)
+
+    def drawn(step: int) -> bool:
+        return step % MP4_EVERY == 0 or (small is not None and small.wanted(step))
+
+    captioned = captions.captioned(play(agent, episode_seed, max_steps, env_id, drawn), title, seed=seed,
+                                   episode_seed=episode_seed, max_steps=max_steps, env_id=env_id)
+    with mp4_writer(mp4, fps / MP4_EVERY) as writer:
+        for packed, frame in captioned:
+            last = frame.terminated or frame.truncated
+            if frame.step % MP4_EVERY == 0 or last:
+                writer.append(packed)
+            if small is not None and (small.wanted(frame.step) or last):
+                small.add_at(frame.step, packed)
     if small is None or gif is None:
         return [mp4]
     return [mp4, small.save(gif, fps)]
@@ -152,9 +163,22 @@ class VideoJob:
         return [self.mp4] if self.gif is None else [self.mp4, self.gif]
 
 
+@functools.lru_cache(maxsize=2)
+def _loaded_run(run_dir: Path, signature: tuple[int, ...]) -> Any:
+    """The run in ``run_dir``, loaded (and verified) once for the several videos of one run a process renders;
+    ``signature`` (its ``meta.json``'s inode, size and time, which a rewrite of the run changes) keys it."""
+    return load_run(run_dir)
+
+
+def _agent(job: VideoJob) -> Any:
+    meta = os.stat(job.run_dir / rundir.META_FILE)
+    results = _loaded_run(Path(job.run_dir).absolute(), (meta.st_ino, meta.st_size, meta.st_mtime_ns))
+    return front_for(results.config).agent(results, job.seed, job.stage)
+
+
 def render_job(job: VideoJob) -> list[Path]:
     """Load the agent of ``job`` and render its video (MP4, then GIF); the paths written."""
-    agent = load_agent(job.run_dir, seed=job.seed, stage=job.stage)
+    agent = _agent(job)
     return _render_video(agent, job.title, job.mp4, job.gif, seed=job.seed, episode_seed=job.episode_seed,
                          max_steps=job.max_steps, fps=job.fps, env_id=job.env_id)
 

@@ -10,6 +10,8 @@ then stay out, and its claims are tested as they would read there.
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
+import glob
 import time
 from pathlib import Path
 
@@ -18,6 +20,7 @@ import pandas as pd
 
 from rlcompare.analysis.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
+from rlcompare.analysis.drawn import Drawn, report_key
 from rlcompare.analysis.explain import has_start_region
 from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
 from rlcompare.analysis.profiles import by_method, score_scales
@@ -45,6 +48,7 @@ from rlcompare.studies.paper_figures import (
     first_actions_figure,
     label,
     paired_difference_figure,
+    paired_differences,
     stages_figure,
     visits_figure,
 )
@@ -164,7 +168,7 @@ AGGREGATE_POINTS = 50
 """Points of the sample-efficiency curves: training cut into this many equal spans of episodes."""
 
 
-def paper_aggregates(runs: dict[str, Results], figures_dir: Path) -> Aggregates | None:
+def paper_aggregates(runs: dict[str, Results], figures_dir: Path, drawn: Drawn | None = None) -> Aggregates | None:
     """rliable's aggregates of the paper's four learners on its one task (Agarwal et al. 2021): each seed's
     behaviour return normalised between the random baseline's mean (0) and the best learner's mean (1), and its
     learning curve on the same scale, averaged over :data:`AGGREGATE_POINTS` spans of episodes."""
@@ -180,7 +184,8 @@ def paper_aggregates(runs: dict[str, Results], figures_dir: Path) -> Aggregates 
                                                 axis=1) for n in learners}}
     return draw_aggregates(by_method(finals, scales), figures_dir, xlabel="normalised return while learning",
                            tasks="task", curves=by_method(curves, scales),
-                           x=np.array([span[-1] + 1 for span in spans]), curve_xlabel="episode")
+                           x=np.array([span[-1] + 1 for span in spans]), curve_xlabel="episode",
+                           figure=drawn.figure if drawn is not None else None)
 
 
 def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> Report:
@@ -190,14 +195,31 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_w
         raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
                                + "; ".join(problems))
     plan = _video_plan(study_dir, runs, video_seed) if videos else []
-    with start_videos([job for _, job in plan], workers=video_workers) as renders:
-        return _build_report_beside(study_dir, runs, problems, plan, renders, started)
+    drawn = Drawn(study_dir, report_key(runs, {"video_seed": video_seed}))
+    pending = [job for _, job in plan if not all([drawn.kept(path) for path in job.outputs])]
+    with start_videos(pending, workers=video_workers) as renders:
+        return _build_report_beside(study_dir, runs, problems, plan, renders, started, drawn)
+
+
+def _clear_figures(study_dir: Path, drawn: Drawn) -> None:
+    """Remove the figures rlcompare drew here that this report will not keep, so that figures of runs that are
+    gone do not linger (:mod:`rlcompare.analysis.drawn`)."""
+    kept = set(drawn.keeps(lambda relative: fnmatch.fnmatchcase(relative, "figures/*.png")))
+    if not kept:
+        store.remove_outputs(study_dir, "figures/*.png")
+        return
+    listed = store.read_json(study_dir / store.MARKER_FILE)["outputs"]
+    for relative in listed:
+        if fnmatch.fnmatchcase(relative, "figures/*.png") and relative not in kept:
+            store.remove_outputs(study_dir, glob.escape(relative))
 
 
 def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: list[str],
                          plan: list[tuple[str, VideoJob]], renders: VideoRenders,
-                         started: float) -> Report:
-    """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page."""
+                         started: float, drawn: Drawn) -> Report:
+    """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page.
+    A figure or video whose inputs have not changed since the last report is kept (:mod:`rlcompare.analysis.drawn`).
+    """
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
     position_velocity = has_start_region(first.config)
@@ -206,7 +228,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
-    store.remove_outputs(study_dir, "figures/*.png")  # figures of runs that are gone must not linger
+    _clear_figures(study_dir, drawn)
     claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
               and (position_velocity or c.metric != "first_action_left")]
     judgement = judge_by_rule([_scaled(c, episodes) for c in claims], metrics, episodes,
@@ -221,7 +243,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     split = decomposition(runs)
     if not split.empty:
         tables["decomposition"] = formatted(split)
-    aggregates = paper_aggregates(runs, figures_dir)
+    aggregates = paper_aggregates(runs, figures_dir, drawn)
     if aggregates is not None:
         tables["aggregates"], tables["improvement"] = aggregates.intervals, aggregates.improvements
     files = {name: write_table(frame, tables_dir, name) for name, frame in tables.items()}
@@ -233,26 +255,31 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     for file_name, names, title in FIGURES:
         present = [runs[n] for n in names if n in runs]
         if len(present) == len(names):
-            curve_figures.append((save_figure(curve_figure(present, title), figures_dir / f"{file_name}.png"), title))
+            curve_figures.append((drawn.figure(figures_dir / f"{file_name}.png", _saved(curve_figure, present, title)),
+                                  title))
         else:
             problems.append(f"{title}: left out, its runs are missing")
-    explanation_figures = [(save_figure(stages_figure(r), figures_dir / f"stages-{r.config.name}.png"),
+    explanation_figures = [(drawn.figure(figures_dir / f"stages-{r.config.name}.png", _saved(stages_figure, r)),
                             f"{label(r)}: greedy action and state value at each stage") for r in learners
                            if position_velocity]
     if paper_learners and position_velocity:
         explanation_figures += [
-            (save_figure(visits_figure(paper_learners), figures_dir / "visits.png"), "State visits during training"),
-            (save_figure(first_actions_figure(paper_learners), figures_dir / "first-actions.png"),
+            (drawn.figure(figures_dir / "visits.png", _saved(visits_figure, paper_learners)),
+             "State visits during training"),
+            (drawn.figure(figures_dir / "first-actions.png", _saved(first_actions_figure, paper_learners)),
              "First greedy action from the start region"),
         ]
     if not split.empty:
-        explanation_figures.insert(0, (save_figure(decomposition_figure(split), figures_dir / "decomposition.png"),
+        explanation_figures.insert(0, (drawn.figure(figures_dir / "decomposition.png",
+                                                    _saved(decomposition_figure, split)),
                                        "SARSA minus Q-Learning = order + target + interaction"))
     seconds["figures"] = time.perf_counter() - mark
 
     video_cells = []
     if plan:
-        written = set(renders.wait())
+        rendered = renders.wait()
+        drawn.record(rendered)
+        written = set(rendered) | {path for _, job in plan for path in job.outputs if drawn.kept(path)}
         for caption, job in plan:
             gif = job.gif if job.gif is not None and job.gif in written else None
             video_cells.append((f"videos/{job.mp4.name}", f"videos/{gif.name}" if gif is not None else "", caption))
@@ -260,10 +287,11 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
 
     answer = opening(claims, judgement.verdicts, metrics)
     brief = [in_brief(split)] if not split.empty else []
-    pictured = paired_difference_figure(runs, metrics)
-    answer_figure = [(save_figure(pictured, figures_dir / "paired-differences.png"),
+    pictured = bool(paired_differences(runs, metrics))  # else the figure has nothing to show
+    answer_figure = [(drawn.figure(figures_dir / "paired-differences.png", _saved(paired_difference_figure, runs,
+                                                                                   metrics)),
                       "SARSA minus Q-Learning, seed by seed: each dot one seed's paired difference; the bar the mean "
-                      "and its 95% interval")] if pictured is not None else []
+                      "and its 95% interval")] if pictured else []
     sections = [Section("The answer", [*answer, *brief], figures=answer_figure),
                 Section("What the answer rests on", [*findings[len(answer):], BEHAVIOUR_AND_GREEDY]),
                 *_sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells,
@@ -271,8 +299,14 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
+    drawn.save()
     seconds["total"] = time.perf_counter() - started
     return Report(path=path, lines=findings, problems=problems, seconds=seconds)
+
+
+def _saved(draw, *args):
+    """What :meth:`Drawn.figure` calls to draw a figure: ``draw(*args)`` saved at the path it is given."""
+    return lambda path: save_figure(draw(*args), path)
 
 
 def _grid_text(config) -> str:

@@ -1,0 +1,96 @@
+"""Figures and videos drawn again only when what they are drawn from changes, and kept only when provably
+rlcompare's and unchanged (:mod:`rlcompare.analysis.drawn`)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rlcompare.analysis import drawn
+from rlcompare.experiment import store
+from rlcompare.studies.paper import paper_configs, reproduce
+from rlcompare.studies.paper_report import build_report
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small paper study (3 seeds x 60 episodes, short episodes), with one report and its videos."""
+    path = tmp_path_factory.mktemp("study")
+    list(reproduce(path, paper_configs((0, 1, 2), episodes=60, max_steps=120, eval_every=20, eval_episodes=2)))
+    build_report(path, video_workers=1)
+    return path
+
+
+@pytest.fixture
+def study_copy(study: Path, tmp_path: Path) -> Path:
+    return Path(shutil.copytree(study, tmp_path / "study"))
+
+
+def stamps(directory: Path) -> dict[str, tuple[int, int]]:
+    """Each figure's and video's inode and modification time: a file written again gets a new inode."""
+    return {p.relative_to(directory).as_posix(): (p.stat().st_ino, p.stat().st_mtime_ns)
+            for folder in ("figures", "videos") for p in sorted((directory / folder).iterdir())}
+
+
+def test_a_second_report_keeps_every_figure_and_video_and_rewrites_the_tables(study_copy: Path) -> None:
+    before, page = stamps(study_copy), (study_copy / "report.html").read_bytes()
+    ledger = json.loads((study_copy / drawn.LEDGER).read_text())
+    assert set(ledger["files"]) == set(before)  # every figure and video is in the ledger
+    assert drawn.LEDGER in store.read_json(study_copy / store.MARKER_FILE)["outputs"]
+    outcome = build_report(study_copy, video_workers=1)
+    assert stamps(study_copy) == before  # nothing drawn again
+    assert outcome.seconds["figures"] < 0.5
+    assert (study_copy / "report.html").read_bytes() == page
+
+
+def test_a_file_edited_or_replaced_is_drawn_again_and_the_others_kept(study_copy: Path) -> None:
+    figure, movie = study_copy / "figures" / "fig6-constant.png", study_copy / "videos" / "random-seed0.mp4"
+    original_figure, original_movie = figure.read_bytes(), movie.read_bytes()
+    figure.write_bytes(original_figure + b"\0")
+    movie.unlink()
+    before = stamps(study_copy)
+    build_report(study_copy, video_workers=1)
+    after = stamps(study_copy)
+    assert figure.read_bytes() == original_figure  # drawn again, the same
+    assert movie.read_bytes() == original_movie
+    changed = {name for name in after if after[name] != before.get(name)}
+    assert changed == {"figures/fig6-constant.png", "videos/random-seed0.mp4", "videos/random-seed0.gif"}  # one job
+
+
+def test_another_key_draws_everything_again(study_copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    before = stamps(study_copy)
+    monkeypatch.setattr(drawn, "code_fingerprint", lambda: "other code")
+    build_report(study_copy, video_workers=1)
+    after = stamps(study_copy)
+    assert all(after[name] != before[name] for name in before)
+
+
+def test_a_file_rlcompare_did_not_list_is_never_kept_nor_touched(study_copy: Path) -> None:
+    mine = study_copy / "figures" / "mine.png"
+    mine.write_bytes(b"a user's own file")
+    ledger_path = study_copy / drawn.LEDGER
+    ledger = json.loads(ledger_path.read_text())
+    ledger["files"]["figures/mine.png"] = drawn.file_digest(mine)  # a ledger that vouches for it is not enough
+    ledger_path.write_text(json.dumps(ledger))
+    key = ledger["key"]
+    ledger_drawn = drawn.Drawn(study_copy, key)
+    assert not ledger_drawn.kept(mine)
+    assert ledger_drawn.kept(study_copy / "figures" / "fig3-random.png")
+    build_report(study_copy, videos=False)
+    assert mine.read_bytes() == b"a user's own file"
+    assert "figures/mine.png" not in json.loads(ledger_path.read_text())["files"]
+
+
+def test_no_ledger_or_a_damaged_one_keeps_nothing(study_copy: Path) -> None:
+    key = json.loads((study_copy / drawn.LEDGER).read_text())["key"]
+    (study_copy / drawn.LEDGER).write_text("{not json")
+    assert not drawn.Drawn(study_copy, key).kept(study_copy / "figures" / "fig3-random.png")
+    assert not drawn.Drawn(study_copy, None).kept(study_copy / "figures" / "fig3-random.png")
+    before = stamps(study_copy)
+    build_report(study_copy, video_workers=1)
+    after = stamps(study_copy)
+    assert all(after[name] != before[name] for name in before)
+    assert json.loads((study_copy / drawn.LEDGER).read_text())["key"] == key  # written again, whole
