@@ -150,6 +150,14 @@ def test_bench_sweeps_on_a_cluster_that_is_not_there_ends_with_one_line() -> Non
         (["run", "--bounds", "0:1"], "--bounds", "2 pairs of finite numbers"),
         (["run", "--bounds", "0-1,2-3"], "--bounds", "LOW:HIGH per observation dimension"),
         (["run", "--env", "MountainCar-book", "--adapter"], "--env", "not a registered Gymnasium environment"),
+        (["run", "--bins", "10000000"], "--bins", "fit in 4 GiB"),
+        (["run", "--alpha", "nan"], "--alpha", "(0, 1]"),
+        (["run", "--gamma", "inf"], "--gamma", "[0, 1]"),
+        (["run", "--epsilon", "-0.1"], "--epsilon", "[0, 1]"),
+        (["run", "--epsilon", "nan"], "--epsilon", "[0, 1]"),
+        (["run", "--algorithm", "sarsa_lambda", "--lam", "nan"], "--lam", "[0, 1]"),
+        (["run", "--first-seed", "-1"], "--first-seed", ">= 0"),
+        (["run", "--first-seed", str(2**63 - 1), "--seeds", "2"], "--seeds", "[0, 2**63)"),
     ],
 )
 def test_bad_input_gets_one_clear_message_and_exit_code_2(
