@@ -30,6 +30,7 @@ from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
 from rlcompare.algorithms.td import Rates, Transition
+from rlcompare.engine.borrowed import borrowed
 from rlcompare.engine.state import Settings
 from rlcompare.engine.steps import by_type, features_of, observe, reset, states_buffer, step
 
@@ -41,6 +42,14 @@ class Traces(NamedTuple):
     z: np.ndarray  # (features * actions,) float64: the trace of w[i, a] at i * actions + a
     touched: np.ndarray  # (features * actions,) int64: the listed pairs first
     listed: np.ndarray  # (features * actions,) bool
+
+
+@njit(inline="always")
+def _borrow(w: np.ndarray, w2: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray, visits: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The arrays a loop uses on every step, borrowed from its caller, which holds them for the call
+    (:mod:`rlcompare.engine.borrowed`: no reference to them is counted in the loop)."""
+    return borrowed(w), borrowed(w2), borrowed(agent_rng), borrowed(transitions), borrowed(visits)
 
 
 @njit(inline="always")
@@ -70,6 +79,7 @@ def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes
                          visits: np.ndarray) -> tuple[float, int, bool]:
         """One episode. The next action A' is drawn before the update of ``q(S, A)`` (SARSA's box) or after it,
         at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
+        w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
         n_actions = w.shape[1]
         buffer = states_buffer(features, 2)  # S and S' in turn
         q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
@@ -109,6 +119,7 @@ def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
                    epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
     """One episode of uniformly random actions; nothing is learned, the visits are counted."""
+    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
     buffer = states_buffer(features, 1)
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
@@ -134,6 +145,7 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     """n-step SARSA (7.2): the n-step return updates ``q(S_τ, A_τ)``. States, actions and rewards live in ring
     buffers of ``n + 1`` entries. A time-limit cut bootstraps from ``q(S_T, A_T)``, with ``A_T`` drawn from the
     behaviour policy, unless it is treated as terminal."""
+    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
     n, alpha, gamma = rule.n, settings.alpha, settings.gamma
     size = n + 1
     states = states_buffer(features, size)
@@ -187,7 +199,8 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     exploratory (non-greedy) action."""
     alpha, gamma = settings.alpha, settings.gamma
     watkins = cuts_traces(rule)
-    z, touched, listed = work
+    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
+    z, touched, listed = borrowed(work.z), borrowed(work.touched), borrowed(work.listed)
     w_flat, n_actions = w.reshape(w.size), w.shape[1]
     buffer = states_buffer(features, 2)  # S and S' in turn
     q_next = np.empty(n_actions)
@@ -250,6 +263,7 @@ def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2
     """REINFORCE (13.3, 13.4): a softmax policy over the preferences ``w`` acts for a whole episode, then
     :func:`~rlcompare.algorithms.reinforce.episode_update` learns from it (the baseline's weights in
     ``w2[:, 0]``)."""
+    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
     n_actions, limit = w.shape[1], settings.max_steps
     states = states_buffer(features, limit)
     actions = np.empty(limit, np.int64)
@@ -302,6 +316,7 @@ def evaluation_loop(target_action: Callable) -> Callable:
                            env_rng: np.ndarray, agent_rng: np.ndarray,
                            transitions: np.ndarray) -> tuple[float, int, bool]:
         """One episode of the target policy, drawing from the evaluation's own streams."""
+        w, w2, agent_rng, transitions, _ = _borrow(w, w2, agent_rng, transitions, agent_rng)
         n_actions = w.shape[1]
         buffer = states_buffer(features, 1)
         q, scratch = np.empty(n_actions), np.empty(n_actions)
