@@ -94,3 +94,20 @@ def test_no_ledger_or_a_damaged_one_keeps_nothing(study_copy: Path) -> None:
     after = stamps(study_copy)
     assert all(after[name] != before[name] for name in before)
     assert json.loads((study_copy / drawn.LEDGER).read_text())["key"] == key  # written again, whole
+
+
+def test_a_users_own_ledger_file_is_left_alone_and_nothing_kept(tmp_path: Path) -> None:
+    """A directory shared with ``--force`` whose ``.drawn.json`` is the user's: the report draws everything and
+    neither reads nor replaces that file."""
+    from typer.testing import CliRunner
+
+    from rlcompare import cli
+
+    target = tmp_path / "shared"
+    target.mkdir()
+    (target / drawn.LEDGER).write_text("mine")
+    result = CliRunner().invoke(cli.app, ["reproduce", "--episodes", "20", "--seeds", "1", "--no-videos", "--out",
+                                          str(target), "--force"])
+    assert result.exit_code == 0, result.output
+    assert (target / drawn.LEDGER).read_text() == "mine"
+    assert (target / "report.html").is_file()

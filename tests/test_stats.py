@@ -288,3 +288,23 @@ def test_a_comparison_without_an_estimate_has_no_data():
     paired = compare_paired(np.array([1.0, np.nan, 2.0]), np.array([0.0, 0.0, 0.0]))
     assert np.isnan(paired.p_value)
     assert comparison_label(paired.difference, paired.p_value, ("A", "B")) == "no data"
+
+
+def test_improvement_share_counts_pairs_to_the_same_bits_as_mid_ranks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Counting pairs in compiled code and summing mid-ranks give U exactly, so the same bits, ties and resampled
+    rows included; more pairs than :data:`PAIRS_COUNTED`, or a NaN, take the ranks."""
+    from rlcompare.analysis import stats as module
+
+    rng = np.random.default_rng(5)
+    cases = [(rng.integers(0, 4, 30).astype(float), rng.integers(0, 4, 30).astype(float)),
+             (rng.normal(size=(200, 30)), rng.normal(size=(200, 30))),
+             (np.round(rng.normal(size=(50, 3, 10))), np.round(rng.normal(size=(50, 3, 12)))),
+             (rng.normal(size=7), rng.normal(size=1))]
+    counted = [module.improvement_share(a, b) for a, b in cases]
+    monkeypatch.setattr(module, "PAIRS_COUNTED", 0)
+    ranked = [module.improvement_share(a, b) for a, b in cases]
+    for c, r in zip(counted, ranked, strict=True):
+        assert np.shape(c) == np.shape(r)
+        assert np.array_equal(c, r)
+    with_nan = np.array([1.0, np.nan, 3.0])
+    assert np.isnan(module.improvement_share(with_nan, np.array([2.0, 2.0])))

@@ -125,7 +125,17 @@ class Drawn:
         return shown
 
     def save(self) -> None:
-        """Write the ledger: this report's key and the files it kept or drew."""
-        if self.key is not None:
-            store.write_json_atomic(self.directory / LEDGER, {"key": self.key, "files": dict(sorted(
-                self.recorded.items()))})
+        """Write the ledger: this report's key and the files it kept or drew. Where a file of that name is there
+        and rlcompare did not write it (a directory shared with ``--force``), it is left alone and nothing is
+        ledgered: the next report draws everything again."""
+        ledger = self.directory / LEDGER
+        if self.key is None:
+            return
+        if ledger.exists() or ledger.is_symlink():
+            try:
+                listed = LEDGER in store.read_json(self.directory / store.MARKER_FILE)["outputs"]
+            except (store.StoreError, KeyError, TypeError):
+                listed = False
+            if not listed:
+                return
+        store.write_json_atomic(ledger, {"key": self.key, "files": dict(sorted(self.recorded.items()))})
