@@ -109,12 +109,22 @@ def train_runs(
                                               first_episode, stop_episode, records), state.w.shape[0])
 
 
+def run_blocks(runs: int, threads: int) -> list[tuple[int, int]]:
+    """``[first, stop)`` of ``min(runs, threads * BLOCKS_PER_THREAD)`` blocks covering ``[0, runs)``, whose sizes
+    differ by one run at most, the larger first: the threads take them in turn, so the last handed out are the
+    shortest, and the threads end together (30 runs on 2 threads in 15 blocks of 2 left one thread idle for a
+    block at the end of every chunk: 1.89x one thread where these make 1.98x)."""
+    count = max(1, min(runs, threads * BLOCKS_PER_THREAD))
+    size, larger = divmod(runs, count)
+    stops = np.cumsum([size + (block < larger) for block in range(count)])
+    return [(int(stop - size - (block < larger)), int(stop)) for block, stop in enumerate(stops)]
+
+
 def over_runs(train: Callable[[int, int], None], runs: int) -> None:
-    """Call ``train(first, stop)`` for blocks of runs covering ``[0, runs)`` on ``numba.get_num_threads()``
-    threads; each run writes only its own slices, so the order does not matter."""
+    """Call ``train(first, stop)`` for blocks of runs covering ``[0, runs)`` (:func:`run_blocks`) on
+    ``numba.get_num_threads()`` threads; each run writes only its own slices, so the order does not matter."""
     threads = min(numba.get_num_threads(), runs)
-    size = max(1, -(-runs // (threads * BLOCKS_PER_THREAD)))
-    blocks = [(first, min(first + size, runs)) for first in range(0, runs, size)]
+    blocks = run_blocks(runs, threads)
     if threads <= 1:
         for first, stop in blocks:
             train(first, stop)
