@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -93,23 +94,31 @@ def test_every_configuration_field_is_an_option_whose_help_is_its_docstring() ->
     assert sorted(options) == ["--first-seed", "--force", "--out"]
 
 
-def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     from rlcompare.experiment import benchmark
 
-    measured = [benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0),
-                benchmark.Measurement("sarsa (grid)", 1, 5000, 0.05)]
+    loop = benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0)
+    reference = benchmark.Measurement("sarsa, reference kernel", 1, 5000, 0.1)
+    measured = [loop, benchmark.Measurement("sarsa (grid)", 1, 5000, 0.05, reference)]
     def run_benchmark(report=lambda m: None):
         for measurement in measured:
             report(measurement)
         return measured
 
     monkeypatch.setattr(benchmark, "run_benchmark", run_benchmark)
-    result = invoke("bench", "--no-environments")
+    result = invoke("bench", "--no-environments", "--no-study", "--out", str(tmp_path / "bench"))
     assert result.exit_code == 0, result.output
-    assert "sarsa (grid), 1 thread: 100,000 steps/s" in result.output  # each measurement said as it is taken
+    assert "sarsa (grid), 1 thread: 100,000 steps/s, 2.00x its reference kernel" in result.output  # as taken
     assert "Every algorithm on MountainCar-v0" in result.output
-    for cell in ("100,000", "100x", "1.00x"):  # steps/s, against Gymnasium's loop, against 1 thread
-        assert cell in result.output
+    for cell in ("100,000", "50,000", "2.00x", "100x", "1.00x"):  # steps/s, the reference's, against it, against
+        assert cell in result.output                                # Gymnasium's loop, against 1 thread
+    written = json.loads((tmp_path / "bench" / "bench.json").read_text())
+    (row,) = written["kernels"]
+    assert (row["label"], row["vs_reference"], row["vs_gymnasium"]) == ("sarsa (grid)", 2.0, 100.0)
+    assert row["reference"]["steps_per_second"] == 50_000
+    assert written["tables"][0]["rows"][1][:5] == ["sarsa (grid)", "1", "100,000", "50,000", "2.00x"]
+    again = invoke("bench", "--no-environments", "--no-study", "--out", str(tmp_path / "bench"))
+    assert again.exit_code == 0, again.output  # its own file, rewritten
 
 
 def test_bench_sweeps_on_a_cluster_that_is_not_there_ends_with_one_line() -> None:

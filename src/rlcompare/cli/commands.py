@@ -216,9 +216,12 @@ def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
 
 
 @app.command(short_help=SUMMARIES["bench"], cls=PlainCommand)
+@one_line_errors
 def bench(
     environments: Annotated[bool, typer.Option(help="Also measure every ported environment against its own "
                                                     "Gymnasium loop and through the adapter.")] = True,
+    study: Annotated[bool, typer.Option(help="Also train the paper's study (9 configurations x 10 seeds x 1000 "
+                                             "episodes) on 1 and all threads.")] = True,
     sweeps: Annotated[bool, typer.Option(help="Only measure sweeps: trials per second of short trials on the "
                                               "local backend (1 and 2 workers) and on Ray.")] = False,
     address: Annotated[str | None, typer.Option(help="With --sweeps: the Ray cluster (default: a new local Ray "
@@ -227,10 +230,28 @@ def bench(
                                             "'bench' extra is installed.")] = False,
     to_score: Annotated[bool, typer.Option(help="With --deep: also the wall time to a greedy return of 475 on "
                                                 "CartPole, ours beside Stable-Baselines3 (several minutes).")] = False,
+    out: Annotated[str | None, typer.Option(
+        help="Directory of the JSON file of every row measured: bench.json (sweeps.json with --sweeps, deep.json "
+             "with --deep), rewritten by each run; a new directory or one rlcompare wrote. Default: runs/bench.",
+        show_default=False)] = None,
 ) -> None:
-    """Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop."""
+    """Steps per second of the kernels on 1 and all threads against a plain reference kernel of each method and
+    a plain Gymnasium loop."""
     from rlcompare.experiment import benchmark
     from rlcompare.experiment.backends import BackendError
+
+    owner, out_dir = store.Owner("bench"), out_path(out, Path("runs/bench"))
+    check_out(out_dir, owner, False)
+    path = out_dir / ("deep.json" if deep else "sweeps.json" if sweeps else "bench.json")
+    tables: list[benchmark.BenchTable] = []
+    sections: dict[str, Any] = {}
+
+    def show(table: benchmark.BenchTable) -> None:
+        """Print a table, and write every table and section so far (what is measured stays, whatever follows)."""
+        print_bench(table)
+        tables.append(table)
+        with store.output_directory(out_dir, owner) as directory:
+            store.write_json_atomic(directory / path.name, benchmark.bench_document(tables, **sections))
 
     if deep:
         try:
@@ -238,28 +259,44 @@ def bench(
         except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
             fail(str(error))
         with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):
-            print_bench(deep_table())
-            print_bench(minatar_table())
+            show(deep_table())
+            show(minatar_table())
             if to_score:
-                print_bench(score_table())
+                show(score_table())
+        console.print(f"Written: {path}", highlight=False)
         return
     if sweeps:
         try:
             with console.status("Measuring sweeps of 200 short trials: the local backend with 1 and 2 workers, "
                                 "then Ray"):
-                print_bench(benchmark.sweep_benchmark(address))
+                show(benchmark.sweep_benchmark(address))
         except BackendError as error:
             fail(str(error))
+        console.print(f"Written: {path}", highlight=False)
         return
     with measurement_lines("every algorithm on MountainCar-v0, on 1 and all threads, after a plain Gymnasium "
-                           "loop") as say:
-        measured = benchmark.run_benchmark(
-            report=lambda m: say(f"{m.label}, {plural(m.threads, 'thread')}: {m.steps_per_second:,.0f} steps/s"))
-    print_bench(benchmark.kernel_table(measured))
+                           "loop; each method with a reference kernel in turn with it") as say:
+        measured = benchmark.run_benchmark(report=lambda m: say(
+            f"{m.label}, {plural(m.threads, 'thread')}: {m.steps_per_second:,.0f} steps/s"
+            + ("" if m.vs_reference is None else f", {m.vs_reference:.2f}x its reference kernel")))
+    sections.update(gymnasium_loop=measured[0].as_dict(), kernels=benchmark.kernel_rows(measured))
+    show(benchmark.kernel_table(measured))
+    if study:
+        from rlcompare.studies.paper import paper_configs
+
+        with measurement_lines("the paper's study on 1 and all threads, in turn") as say:
+            threads = benchmark.study_threads(paper_configs(tuple(range(10)), 1000), report=lambda m: say(
+                f"{plural(m.threads, 'thread')}: {m.seconds:.2f} s, {m.steps_per_second:,.0f} steps/s"))
+        sections.update(study=[m.as_dict() for m in threads])
+        show(benchmark.study_table(threads))
     if environments:
         with measurement_lines("each ported environment: Gymnasium's loop, the port, the adapter") as say:
             ports = benchmark.run_port_benchmark(report=lambda m: say(
                 f"{m.env}: Gymnasium loop {m.gymnasium.steps_per_second:,.0f}, port "
                 f"{max(x.steps_per_second for x in m.port):,.0f}, adapter {m.adapter.steps_per_second:,.0f} "
                 "steps/s"))
-        print_bench(benchmark.port_table(ports))
+        sections.update(ports=[{"env": m.env, "gymnasium": m.gymnasium.as_dict(),
+                                "port": [x.as_dict() for x in m.port], "adapter": m.adapter.as_dict()}
+                               for m in ports])
+        show(benchmark.port_table(ports))
+    console.print(f"Written: {path}", highlight=False)
