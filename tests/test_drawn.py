@@ -3,6 +3,7 @@ rlcompare's and unchanged (:mod:`rlcompare.analysis.drawn`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -73,27 +74,51 @@ def test_a_file_rlcompare_did_not_list_is_never_kept_nor_touched(study_copy: Pat
     mine.write_bytes(b"a user's own file")
     ledger_path = study_copy / drawn.LEDGER
     ledger = json.loads(ledger_path.read_text())
-    ledger["files"]["figures/mine.png"] = drawn.file_digest(mine)  # a ledger that vouches for it is not enough
+    ledger["files"]["figures/mine.png"] = {"key": ledger["files"]["figures/fig3-random.png"]["key"],
+                                           "sha256": drawn.file_digest(mine)}
     ledger_path.write_text(json.dumps(ledger))
-    key = ledger["key"]
-    ledger_drawn = drawn.Drawn(study_copy, key)
-    assert not ledger_drawn.kept(mine)
-    assert ledger_drawn.kept(study_copy / "figures" / "fig3-random.png")
+    key = ledger["files"]["figures/fig3-random.png"]["key"]
+    ledger_drawn = drawn.Drawn(study_copy)
+    assert not ledger_drawn.kept(mine, key)
+    assert ledger_drawn.kept(study_copy / "figures" / "fig3-random.png", key)
     build_report(study_copy, videos=False)
     assert mine.read_bytes() == b"a user's own file"
     assert "figures/mine.png" not in json.loads(ledger_path.read_text())["files"]
 
 
 def test_no_ledger_or_a_damaged_one_keeps_nothing(study_copy: Path) -> None:
-    key = json.loads((study_copy / drawn.LEDGER).read_text())["key"]
+    ledger = json.loads((study_copy / drawn.LEDGER).read_text())
+    figure = study_copy / "figures" / "fig3-random.png"
+    key = ledger["files"]["figures/fig3-random.png"]["key"]
+    assert drawn.Drawn(study_copy).kept(figure, key)
+    assert not drawn.Drawn(study_copy).kept(figure, None)  # runs without recorded checksums: always drawn
+    assert not drawn.Drawn(study_copy).kept(figure, "another key")
     (study_copy / drawn.LEDGER).write_text("{not json")
-    assert not drawn.Drawn(study_copy, key).kept(study_copy / "figures" / "fig3-random.png")
-    assert not drawn.Drawn(study_copy, None).kept(study_copy / "figures" / "fig3-random.png")
+    assert not drawn.Drawn(study_copy).kept(figure, key)
     before = stamps(study_copy)
     build_report(study_copy, video_workers=1)
     after = stamps(study_copy)
     assert all(after[name] != before[name] for name in before)
-    assert json.loads((study_copy / drawn.LEDGER).read_text())["key"] == key  # written again, whole
+    assert json.loads((study_copy / drawn.LEDGER).read_text()) == ledger  # written again, whole
+
+
+def test_a_retrained_configuration_draws_again_only_what_shows_it(study_copy: Path) -> None:
+    """Another run in one configuration's directory (another step size here) changes the key of the figures and
+    videos drawn from it, and of no other."""
+    before = stamps(study_copy)
+    shutil.rmtree(study_copy / "sarsa-decay")
+    config = next(c for c in paper_configs((0, 1, 2), episodes=60, max_steps=120, eval_every=20, eval_episodes=2)
+                  if c.name == "sarsa-decay")
+    list(reproduce(study_copy, [dataclasses.replace(config, alpha=0.1)]))
+    build_report(study_copy, video_workers=1)
+    after = stamps(study_copy)
+    changed = {name for name in after if after[name] != before.get(name)}
+    assert {"figures/fig3-random.png", "figures/fig4-q_learning-constant.png", "figures/fig6-constant.png",
+            "figures/stages-sarsa-constant.png", "videos/random-seed0.mp4"}.isdisjoint(changed)
+    assert {"figures/fig8-sarsa-decay.png", "figures/fig9-decay.png", "figures/stages-sarsa-decay.png",
+            "figures/visits.png", "figures/aggregate-intervals.png"} <= changed
+    assert {name for name in changed if name.startswith("videos/")} == {
+        name for name in after if name.startswith("videos/sarsa-decay-")}
 
 
 def test_a_users_own_ledger_file_is_left_alone_and_nothing_kept(tmp_path: Path) -> None:

@@ -10,8 +10,6 @@ then stay out, and its claims are tested as they would read there.
 from __future__ import annotations
 
 import dataclasses
-import fnmatch
-import glob
 import time
 from pathlib import Path
 
@@ -20,7 +18,7 @@ import pandas as pd
 
 from rlcompare.analysis.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
-from rlcompare.analysis.drawn import Drawn, report_key
+from rlcompare.analysis.drawn import Drawn
 from rlcompare.analysis.explain import has_start_region
 from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
 from rlcompare.analysis.profiles import by_method, score_scales
@@ -185,7 +183,8 @@ def paper_aggregates(runs: dict[str, Results], figures_dir: Path, drawn: Drawn |
     return draw_aggregates(by_method(finals, scales), figures_dir, xlabel="normalised return while learning",
                            tasks="task", curves=by_method(curves, scales),
                            x=np.array([span[-1] + 1 for span in spans]), curve_xlabel="episode",
-                           figure=drawn.figure if drawn is not None else None)
+                           figure=None if drawn is None else
+                           lambda path, draw: drawn.figure(path, draw, [runs["random"], *(runs[n] for n in learners)]))
 
 
 def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_workers: int | None) -> Report:
@@ -195,28 +194,24 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_w
         raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
                                + "; ".join(problems))
     plan = _video_plan(study_dir, runs, video_seed) if videos else []
-    drawn = Drawn(study_dir, report_key(runs, {"video_seed": video_seed}))
-    pending = [job for _, job in plan if not all([drawn.kept(path) for path in job.outputs])]
+    drawn = Drawn(study_dir)
+    keys = {job.mp4: video_key(runs, job) for _, job in plan}
+    pending = [job for _, job in plan if not all([drawn.kept(path, keys[job.mp4]) for path in job.outputs])]
     with start_videos(pending, workers=video_workers) as renders:
-        return _build_report_beside(study_dir, runs, problems, plan, renders, started, drawn)
+        return _build_report_beside(study_dir, runs, problems, plan, renders, started, drawn, keys)
 
 
-def _clear_figures(study_dir: Path, drawn: Drawn) -> None:
-    """Remove the figures rlcompare drew here that this report will not keep, so that figures of runs that are
-    gone do not linger (:mod:`rlcompare.analysis.drawn`)."""
-    kept = set(drawn.keeps(lambda relative: fnmatch.fnmatchcase(relative, "figures/*.png")))
-    if not kept:
-        store.remove_outputs(study_dir, "figures/*.png")
-        return
-    listed = store.read_json(study_dir / store.MARKER_FILE)["outputs"]
-    for relative in listed:
-        if fnmatch.fnmatchcase(relative, "figures/*.png") and relative not in kept:
-            store.remove_outputs(study_dir, glob.escape(relative))
+def video_key(runs: dict[str, Results], job: VideoJob) -> str | None:
+    """What a video is drawn from (:mod:`rlcompare.analysis.drawn`): its run and everything the job says but where
+    the files go."""
+    shown = {field.name: getattr(job, field.name) for field in dataclasses.fields(job)
+             if field.name not in ("run_dir", "mp4", "gif")}
+    return Drawn.key([runs[job.run_dir.name]], shown | {"files": [path.name for path in job.outputs]})
 
 
 def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: list[str],
                          plan: list[tuple[str, VideoJob]], renders: VideoRenders,
-                         started: float, drawn: Drawn) -> Report:
+                         started: float, drawn: Drawn, keys: dict[Path, str | None]) -> Report:
     """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page.
     A figure or video whose inputs have not changed since the last report is kept (:mod:`rlcompare.analysis.drawn`).
     """
@@ -228,7 +223,6 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
-    _clear_figures(study_dir, drawn)
     claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
               and (position_velocity or c.metric != "first_action_left")]
     judgement = judge_by_rule([_scaled(c, episodes) for c in claims], metrics, episodes,
@@ -255,31 +249,34 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     for file_name, names, title in FIGURES:
         present = [runs[n] for n in names if n in runs]
         if len(present) == len(names):
-            curve_figures.append((drawn.figure(figures_dir / f"{file_name}.png", _saved(curve_figure, present, title)),
+            curve_figures.append((drawn.figure(figures_dir / f"{file_name}.png", _saved(curve_figure, present, title),
+                                               present),
                                   title))
         else:
             problems.append(f"{title}: left out, its runs are missing")
-    explanation_figures = [(drawn.figure(figures_dir / f"stages-{r.config.name}.png", _saved(stages_figure, r)),
+    explanation_figures = [(drawn.figure(figures_dir / f"stages-{r.config.name}.png", _saved(stages_figure, r), [r]),
                             f"{label(r)}: greedy action and state value at each stage") for r in learners
                            if position_velocity]
     if paper_learners and position_velocity:
         explanation_figures += [
-            (drawn.figure(figures_dir / "visits.png", _saved(visits_figure, paper_learners)),
+            (drawn.figure(figures_dir / "visits.png", _saved(visits_figure, paper_learners), paper_learners),
              "State visits during training"),
-            (drawn.figure(figures_dir / "first-actions.png", _saved(first_actions_figure, paper_learners)),
+            (drawn.figure(figures_dir / "first-actions.png", _saved(first_actions_figure, paper_learners),
+                          paper_learners),
              "First greedy action from the start region"),
         ]
     if not split.empty:
         explanation_figures.insert(0, (drawn.figure(figures_dir / "decomposition.png",
-                                                    _saved(decomposition_figure, split)),
+                                                    _saved(decomposition_figure, split), runs.values()),
                                        "SARSA minus Q-Learning = order + target + interaction"))
     seconds["figures"] = time.perf_counter() - mark
 
     video_cells = []
     if plan:
-        rendered = renders.wait()
-        drawn.record(rendered)
-        written = set(rendered) | {path for _, job in plan for path in job.outputs if drawn.kept(path)}
+        rendered = set(renders.wait())
+        for job in renders.jobs:
+            drawn.record([path for path in job.outputs if path in rendered], keys[job.mp4])
+        written = rendered | {path for _, job in plan for path in job.outputs if drawn.kept(path, keys[job.mp4])}
         for caption, job in plan:
             gif = job.gif if job.gif is not None and job.gif in written else None
             video_cells.append((f"videos/{job.mp4.name}", f"videos/{gif.name}" if gif is not None else "", caption))
@@ -288,8 +285,8 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     answer = opening(claims, judgement.verdicts, metrics)
     brief = [in_brief(split)] if not split.empty else []
     pictured = bool(paired_differences(runs, metrics))  # else the figure has nothing to show
-    answer_figure = [(drawn.figure(figures_dir / "paired-differences.png", _saved(paired_difference_figure, runs,
-                                                                                   metrics)),
+    answer_figure = [(drawn.figure(figures_dir / "paired-differences.png",
+                                   _saved(paired_difference_figure, runs, metrics), runs.values()),
                       "SARSA minus Q-Learning, seed by seed: each dot one seed's paired difference; the bar the mean "
                       "and its 95% interval")] if pictured else []
     sections = [Section("The answer", [*answer, *brief], figures=answer_figure),
@@ -299,6 +296,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     title = ("On- and off-policy control on Mountain Car: the paper, reproduced" if paper_values
              else f"On- and off-policy control on {first.config.env}: the paper's question")
     path = write_report(study_dir / "report.html", title, sections, problems)
+    drawn.remove_unrecorded("figures/*.png")  # figures of runs that are gone must not linger
     drawn.save()
     seconds["total"] = time.perf_counter() - started
     return Report(path=path, lines=findings, problems=problems, seconds=seconds)
