@@ -136,3 +136,12 @@ def test_a_users_own_ledger_file_is_left_alone_and_nothing_kept(tmp_path: Path) 
     assert result.exit_code == 0, result.output
     assert (target / drawn.LEDGER).read_text() == "mine"
     assert (target / "report.html").is_file()
+
+
+def test_the_code_that_trains_or_parses_options_does_not_enter_the_key() -> None:
+    """What training made is in the runs' checksums; the code that draws, loads and plays the agents is in the key."""
+    assert not drawn._draws("cli/commands.py")
+    assert not drawn._draws("engine/run.py")
+    for relative in ("engine/state.py", "analysis/plots.py", "experiment/results.py", "envs/mountain_car.py",
+                     "algorithms/policies.py", "studies/paper_figures.py"):
+        assert drawn._draws(relative), relative

@@ -35,14 +35,24 @@ LIBRARIES = ("numpy", "matplotlib", "pillow", "pandas", "scipy", "gymnasium", "p
 """The libraries whose versions enter the key: those that compute, draw or encode what a report shows."""
 
 
+def _draws(relative: str) -> bool:
+    """Whether a file of rlcompare's source can change what a report draws from stored runs: all but the command
+    line and the training loops (what training made is in the runs' checksums; the records' layout,
+    ``engine/state.py``, is read back, so it counts)."""
+    return not (relative.startswith("cli/") or (relative.startswith("engine/") and relative != "engine/state.py"))
+
+
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """sha256 of every Python file of the installed rlcompare (paths and bytes) and of the versions of
-    :data:`LIBRARIES`: any change to the code or to a library that draws makes every file be drawn again."""
+    """sha256 of rlcompare's Python files that can change what a report draws (paths and bytes, :func:`_draws`) and
+    of the versions of :data:`LIBRARIES`: any change to that code or to a library that draws makes every file be
+    drawn again."""
     digest = hashlib.sha256()
     package = Path(__file__).resolve().parent.parent
     for path in sorted(package.rglob("*.py")):
-        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+        relative = path.relative_to(package).as_posix()
+        if _draws(relative):
+            digest.update(relative.encode() + b"\0" + path.read_bytes() + b"\0")
     for name in LIBRARIES:
         try:
             version = importlib.metadata.version(name)
