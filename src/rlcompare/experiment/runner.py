@@ -40,7 +40,8 @@ from rlcompare.experiment.config import ExperimentConfig, check_memory
 from rlcompare.experiment.results import Results
 
 CHUNK_EPISODES = 250
-"""Episodes per kernel call; between calls the progress bar moves. Results do not depend on it."""
+"""Episodes per kernel call; once every run has finished one, the progress bar moves. Results do not depend on
+it."""
 
 
 def epsilon_schedule(config: ExperimentConfig) -> np.ndarray:
@@ -84,18 +85,13 @@ def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None]
     with stepped_env(config, state) as env:
         rule, settings = rule_for(config), kernel_settings(config)
 
-        def train(first: int, stop: int) -> None:
-            engine.train_runs(rule, settings, env, features, state, epsilons, first, stop, records)
-
         started = time.perf_counter()
-        train(0, 0)  # compile or load the kernel outside the clock
+        engine.train_runs(rule, settings, env, features, state, epsilons, 0, 0, records)  # compile or load it
         compile_seconds = time.perf_counter() - started
+        chunks = [(first, min(first + CHUNK_EPISODES, config.episodes))
+                  for first in range(0, config.episodes, CHUNK_EPISODES)]
         started = time.perf_counter()
-        for first in range(0, config.episodes, CHUNK_EPISODES):
-            stop = min(first + CHUNK_EPISODES, config.episodes)
-            train(first, stop)
-            if progress is not None:
-                progress(stop - first)
+        engine.train_chunks(rule, settings, env, features, state, epsilons, chunks, records, progress)
         wall = time.perf_counter() - started
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
