@@ -421,6 +421,9 @@ class Measurement:
     reference: Measurement | None = None
     """The method's reference kernel on the same seeds and threads, measured in turn with this one (kernel rows of
     the methods in :data:`REFERENCES`)."""
+    cpu_seconds: float | None = None
+    """Processor time of the whole process over the same span, where measured: over ``seconds``, the cores it had
+    (on a machine shared with other work, two threads may have had one)."""
 
     @property
     def steps_per_second(self) -> float:
@@ -433,7 +436,7 @@ class Measurement:
 
     def as_dict(self) -> dict:
         return {"label": self.label, "threads": self.threads, "steps": self.steps, "seconds": self.seconds,
-                "steps_per_second": self.steps_per_second}
+                "steps_per_second": self.steps_per_second, "cpu_seconds": self.cpu_seconds}
 
 
 def bench_config(algorithm: str, runs: int, episodes: int, features: str = "grid", env: str = "MountainCar-v0",
@@ -488,14 +491,17 @@ def kernel_steps_per_second(
     return Measurement(what, threads, timings[0][0], statistics.median(t[1] for t in timings))
 
 
-def kernel_and_reference(algorithm: str, threads: int, *, runs: int = 8, episodes: int = 2000, repeats: int = 3,
+def kernel_and_reference(algorithm: str, threads: int, *, runs: int = 8, episodes: int = 2000, repeats: int = 5,
                          ) -> tuple[Measurement, Measurement]:
     """rlcompare's kernel and the method's reference kernel on the same seeds and threads, measured in turn
-    ``repeats`` times (the machine's load then weighs on both alike); each the median of its own."""
+    ``repeats`` times, each first in every other turn (a load on the machine then weighs on both alike); each the
+    median of its own."""
     config = bench_config(algorithm, runs, episodes)
+    ours, plain = [], []
     with numba_threads(threads):
-        pairs = [(kernel_seconds(config), reference_seconds(config)) for _ in range(repeats)]
-    ours, plain = [p[0] for p in pairs], [p[1] for p in pairs]
+        for turn in range(repeats):
+            for measure, times in [(kernel_seconds, ours), (reference_seconds, plain)][::1 - 2 * (turn % 2)]:
+                times.append(measure(config))
     return (Measurement(f"{algorithm} (grid)", threads, ours[0][0], statistics.median(t[1] for t in ours)),
             Measurement(f"{algorithm}, reference kernel", threads, plain[0][0], statistics.median(t[1] for t in plain)))
 
@@ -570,19 +576,21 @@ def study_threads(configs: list[ExperimentConfig], repeats: int = 3,
     threads = sorted({1, numba.config.NUMBA_NUM_THREADS})
     for config in configs:  # compile or load every loop before the clock starts
         run(replace(config, seeds=config.seeds[:1], episodes=1))
-    timings: dict[int, list[tuple[int, float]]] = {n: [] for n in threads}
+    timings: dict[int, list[tuple[int, float, float]]] = {n: [] for n in threads}
     for _ in range(repeats):
         for n in threads:
             with numba_threads(n):
-                steps, started = 0, time.perf_counter()
+                steps, started, cpu = 0, time.perf_counter(), time.process_time()
                 for config in configs:
                     timing = run(config).meta["timings"]
                     steps += timing["training_steps"] + timing["evaluation_steps"]
-                timings[n].append((steps, time.perf_counter() - started))
+                timings[n].append((steps, time.perf_counter() - started, time.process_time() - cpu))
     label = (f"{len(configs)} configurations x {len(configs[0].seeds)} seeds x {configs[0].episodes} episodes, "
              "evaluation included")
-    measurements = [Measurement(label, n, timings[n][0][0], statistics.median(t[1] for t in timings[n]))
-                    for n in threads]
+    measurements = []
+    for n in threads:
+        steps, seconds, cpu = timings[n][0][0], *(statistics.median(t[k] for t in timings[n]) for k in (1, 2))
+        measurements.append(Measurement(label, n, steps, seconds, cpu_seconds=cpu))
     for measurement in measurements:
         report(measurement)
     return measurements
@@ -697,9 +705,12 @@ def study_table(measurements: list[Measurement]) -> BenchTable:
     """:func:`study_threads`'s measurements, each against 1 thread."""
     single = measurements[0].steps_per_second
     rows = [(str(m.threads), f"{m.steps:,}", f"{m.seconds:.2f}", f"{m.steps_per_second:,.0f}",
-             f"{m.steps_per_second / single:.2f}x") for m in measurements]
+             f"{m.steps_per_second / single:.2f}x", f"{(m.cpu_seconds or 0.0) / m.seconds:.2f}")
+            for m in measurements]
     return BenchTable(f"The paper's study on threads: {measurements[0].label}",
-                      ("threads", "steps", "seconds", "steps/s", "vs 1 thread"), rows)
+                      ("threads", "steps", "seconds", "steps/s", "vs 1 thread", "cores used"), rows,
+                      ("cores used: processor time over wall time (medians); below the threads, other work on the "
+                       "machine had the rest",))
 
 
 def kernel_rows(measurements: list[Measurement]) -> list[dict]:
