@@ -220,8 +220,8 @@ def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
 def bench(
     environments: Annotated[bool, typer.Option(help="Also measure every ported environment against its own "
                                                     "Gymnasium loop and through the adapter.")] = True,
-    study: Annotated[bool, typer.Option(help="Also train the paper's study (9 configurations x 10 seeds x 1000 "
-                                             "episodes) on 1 and all threads.")] = True,
+    study: Annotated[bool, typer.Option(help="Also train the paper's study as reproduce does (9 configurations x "
+                                             "10 seeds x 5000 episodes) on 1 and all threads, about 30 s.")] = True,
     sweeps: Annotated[bool, typer.Option(help="Only measure sweeps: trials per second of short trials on the "
                                               "local backend (1 and 2 workers) and on Ray.")] = False,
     address: Annotated[str | None, typer.Option(help="With --sweeps: the Ray cluster (default: a new local Ray "
@@ -285,7 +285,7 @@ def bench(
         from rlcompare.studies.paper import paper_configs
 
         with measurement_lines("the paper's study on 1 and all threads, in turn") as say:
-            threads = benchmark.study_threads(paper_configs(tuple(range(10)), 1000), report=lambda m: say(
+            threads = benchmark.study_threads(paper_configs(tuple(range(10)), 5000), report=lambda m: say(
                 f"{plural(m.threads, 'thread')}: {m.seconds:.2f} s, {m.steps_per_second:,.0f} steps/s"))
         sections.update(study=[m.as_dict() for m in threads])
         show(benchmark.study_table(threads))
