@@ -30,7 +30,7 @@ from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
 from rlcompare.algorithms.td import Rates, Transition
-from rlcompare.engine.borrowed import borrowed
+from rlcompare.engine.borrowed import borrowed, kept
 from rlcompare.engine.state import Settings
 from rlcompare.engine.steps import by_type, features_of, observe, reset, states_buffer, step
 
@@ -42,14 +42,6 @@ class Traces(NamedTuple):
     z: np.ndarray  # (features * actions,) float64: the trace of w[i, a] at i * actions + a
     touched: np.ndarray  # (features * actions,) int64: the listed pairs first
     listed: np.ndarray  # (features * actions,) bool
-
-
-@njit(inline="always")
-def _borrow(w: np.ndarray, w2: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray, visits: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The arrays a loop uses on every step, borrowed from its caller, which holds them for the call
-    (:mod:`rlcompare.engine.borrowed`: no reference to them is counted in the loop)."""
-    return borrowed(w), borrowed(w2), borrowed(agent_rng), borrowed(transitions), borrowed(visits)
 
 
 @njit(inline="always")
@@ -79,10 +71,10 @@ def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes
                          visits: np.ndarray) -> tuple[float, int, bool]:
         """One episode. The next action A' is drawn before the update of ``q(S, A)`` (SARSA's box) or after it,
         at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
-        w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
+        w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
         n_actions = w.shape[1]
-        buffer = states_buffer(features, 2)  # S and S' in turn
-        q, q_next, scratch = np.empty(n_actions), np.empty(n_actions), np.empty(n_actions)
+        owners = (states_buffer(features, 2), np.empty(n_actions), np.empty(n_actions), np.empty(n_actions))
+        buffer, q, q_next, scratch = borrowed(owners)  # the buffer holds S and S' in turn
         now = 0
         state = reset(env, env_rng)
         s = features_of(features, observe(env, state), buffer, now)
@@ -106,6 +98,7 @@ def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes
             if not rule.draw_before:  # after the update, which may have changed q(S', .)
                 next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng)
             s, action = s_next, next_action
+        kept(owners)
         return episode_return, steps, terminated
 
     return one_step_episode
@@ -119,8 +112,9 @@ def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
                    epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
     """One episode of uniformly random actions; nothing is learned, the visits are counted."""
-    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
-    buffer = states_buffer(features, 1)
+    w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
+    owner = states_buffer(features, 1)
+    buffer = borrowed(owner)
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     action = uniform_action(rule.n_actions, agent_rng)
@@ -132,6 +126,7 @@ def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
         if terminated or steps >= settings.max_steps:
             break
         action = uniform_action(rule.n_actions, agent_rng)
+    kept(owner)
     return episode_return, steps, terminated
 
 
@@ -145,14 +140,12 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     """n-step SARSA (7.2): the n-step return updates ``q(S_τ, A_τ)``. States, actions and rewards live in ring
     buffers of ``n + 1`` entries. A time-limit cut bootstraps from ``q(S_T, A_T)``, with ``A_T`` drawn from the
     behaviour policy, unless it is treated as terminal."""
-    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
+    w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
     n, alpha, gamma = rule.n, settings.alpha, settings.gamma
     size = n + 1
-    states = states_buffer(features, size)
-    actions = np.zeros(size, np.int64)
-    rewards = np.zeros(size)
-    q = np.empty(w.shape[1])
-    discounts = nstep.powers(gamma, n)
+    owners = (states_buffer(features, size), np.zeros(size, np.int64), np.zeros(size), np.empty(w.shape[1]),
+              nstep.powers(gamma, n))
+    states, actions, rewards, q, discounts = borrowed(owners)
     state = reset(env, env_rng)
     actions[0] = epsilon_greedy_action(action_values(w, features_of(features, observe(env, state), states, 0), q),
                                        epsilon, agent_rng)
@@ -185,6 +178,7 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
         if tau == horizon - 1:
             break
         t += 1
+    kept(owners)
     return episode_return, horizon, terminated
 
 
@@ -199,11 +193,11 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
     exploratory (non-greedy) action."""
     alpha, gamma = settings.alpha, settings.gamma
     watkins = cuts_traces(rule)
-    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
-    z, touched, listed = borrowed(work.z), borrowed(work.touched), borrowed(work.listed)
+    w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
+    z, touched, listed = borrowed(work)
     w_flat, n_actions = w.reshape(w.size), w.shape[1]
-    buffer = states_buffer(features, 2)  # S and S' in turn
-    q_next = np.empty(n_actions)
+    owners = (states_buffer(features, 2), np.empty(n_actions))
+    buffer, q_next = borrowed(owners)  # the buffer holds S and S' in turn
     n_touched, now = 0, 0
     state = reset(env, env_rng)
     s = features_of(features, observe(env, state), buffer, now)
@@ -235,6 +229,7 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
             traces.decay(z, touched, n_touched, gamma * rule.lam)
         s, action = s_next, next_action
     traces.clear(z, touched, listed, n_touched)  # fresh traces for the next episode
+    kept(owners)
     return episode_return, steps, terminated
 
 
@@ -263,12 +258,11 @@ def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2
     """REINFORCE (13.3, 13.4): a softmax policy over the preferences ``w`` acts for a whole episode, then
     :func:`~rlcompare.algorithms.reinforce.episode_update` learns from it (the baseline's weights in
     ``w2[:, 0]``)."""
-    w, w2, agent_rng, transitions, visits = _borrow(w, w2, agent_rng, transitions, visits)
+    w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
     n_actions, limit = w.shape[1], settings.max_steps
-    states = states_buffer(features, limit)
-    actions = np.empty(limit, np.int64)
-    rewards = np.empty(limit)
-    h, pi = np.empty(n_actions), np.empty(n_actions)
+    owners = (states_buffer(features, limit), np.empty(limit, np.int64), np.empty(limit), np.empty(n_actions),
+              np.empty(n_actions))
+    states, actions, rewards, h, pi = borrowed(owners)
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     while not terminated and steps < limit:
@@ -281,6 +275,7 @@ def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2
         episode_return += reward
         steps += 1
     episode_update(rule, w, w2, states, actions, rewards, steps, settings.alpha, settings.gamma, h, pi)
+    kept(owners)
     return episode_return, steps, terminated
 
 
@@ -316,10 +311,10 @@ def evaluation_loop(target_action: Callable) -> Callable:
                            env_rng: np.ndarray, agent_rng: np.ndarray,
                            transitions: np.ndarray) -> tuple[float, int, bool]:
         """One episode of the target policy, drawing from the evaluation's own streams."""
-        w, w2, agent_rng, transitions, _ = _borrow(w, w2, agent_rng, transitions, agent_rng)
+        w, w2, agent_rng, transitions = borrowed((w, w2, agent_rng, transitions))
         n_actions = w.shape[1]
-        buffer = states_buffer(features, 1)
-        q, scratch = np.empty(n_actions), np.empty(n_actions)
+        owners = (states_buffer(features, 1), np.empty(n_actions), np.empty(n_actions))
+        buffer, q, scratch = borrowed(owners)
         state = reset(env, env_rng)
         episode_return, steps, terminated = 0.0, 0, False
         while not terminated and steps < settings.max_steps:
@@ -328,6 +323,7 @@ def evaluation_loop(target_action: Callable) -> Callable:
             state, reward, terminated = step(env, state, action, transitions)
             episode_return += reward
             steps += 1
+        kept(owners)
         return episode_return, steps, terminated
 
     return evaluation_episode
