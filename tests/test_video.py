@@ -251,3 +251,23 @@ def test_rendering_needs_no_display_and_sets_it_up_lazily(tmp_path: Path) -> Non
                             text=True, timeout=120, cwd=tmp_path, check=False)
     assert result.returncode == 0, result.stderr
     assert result.stdout == "4\n"  # no pygame banner
+
+
+def test_rendering_through_gymnasium_needs_no_sound_card_and_prints_nothing(tmp_path: Path) -> None:
+    """Acrobot is drawn by ``env.render()``, whose ``pygame.init()`` also opens the sound device: on a machine
+    without one, ALSA had printed a dozen lines of errors into every report."""
+    script = (
+        "import os\n"
+        "import rlcompare.analysis.video as video\n"
+        "class Idle:\n"
+        "    def act(self, observation):\n"
+        "        return 1\n"
+        "episode = video.record_episode(Idle(), episode_seed=0, max_steps=3, env_id='Acrobot-v1')\n"
+        "assert os.environ['SDL_AUDIODRIVER'] == 'dummy'\n"
+        "print(len(episode.frames))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("SDL_", "PYGAME_"))}
+    result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120,
+                            cwd=tmp_path, check=False)
+    assert result.returncode == 0, result.stderr
+    assert (result.stdout, result.stderr) == ("4\n", "")

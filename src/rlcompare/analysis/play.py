@@ -1,9 +1,10 @@
 """An agent played in Gymnasium, frame by frame: the environment's picture at every step, packed
 (:mod:`rlcompare.analysis.frames`), with the return so far.
 
-Rendering needs no display: the first call that renders sets ``SDL_VIDEODRIVER=dummy`` (and hides
-pygame's banner) with ``os.environ.setdefault``, so a value set by the user wins. Importing this module
-changes nothing.
+Rendering needs no display and no sound card: the first call that renders sets ``SDL_VIDEODRIVER`` and
+``SDL_AUDIODRIVER`` to ``dummy`` (``pygame.init()``, which Gymnasium's renderers call, opens the sound device too,
+and ALSA printed a dozen errors where there is none) and hides pygame's banner, with ``os.environ.setdefault``, so
+a value set by the user wins. Importing this module changes nothing.
 
 Where the environment's registry entry has a painter (Mountain Car's draws Gymnasium's picture pixel for pixel
 in 0.15 ms, where ``env.render()`` takes 1.9 ms), it draws the pictures; else ``env.render()`` does.
@@ -36,8 +37,9 @@ class Frame(NamedTuple):
 
 
 def _headless() -> None:
-    """Let pygame render without a display and without its banner; a value the user set wins."""
+    """Let pygame render without a display, a sound card or its banner; a value the user set wins."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 
