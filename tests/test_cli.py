@@ -119,6 +119,16 @@ def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.Monkey
     assert written["tables"][0]["rows"][1][:5] == ["sarsa (grid)", "1", "100,000", "50,000", "2.00x"]
     again = invoke("bench", "--no-environments", "--no-study", "--out", str(tmp_path / "bench"))
     assert again.exit_code == 0, again.output  # its own file, rewritten
+    shown = invoke("report", str(tmp_path / "bench"))  # the tables again, from the file
+    assert shown.exit_code == 0, shown.output
+    assert shown.output.split("\n", 1)[1] == again.output[again.output.index("Every algorithm"):
+                                                          again.output.index("Written:")]
+    assert shown.output.startswith(f"bench.json: measured {written['created'][:10]}")
+    (tmp_path / "bench" / "bench.json").write_text(json.dumps({**written, "tables": [{"title": "x"}]}))
+    tampered = invoke("report", str(tmp_path / "bench"))
+    assert tampered.exit_code == 2
+    assert tampered.output.strip() == f"Error: {tmp_path / 'bench' / 'bench.json'}: not a benchmark rlcompare " \
+                                      "wrote (no 'columns')"
 
 
 def test_bench_sweeps_on_a_cluster_that_is_not_there_ends_with_one_line() -> None:

@@ -89,11 +89,11 @@ class Drawn:
         """Files this report drew from runs without recorded checksums: kept on disk, never in the ledger."""
         self._ledger: dict[str, dict] = {}
         self._listed: set[str] = set()
-        ledger, marker = self.directory / LEDGER, self.directory / store.MARKER_FILE
+        ledger = self.directory / LEDGER
+        self._listed = store.listed_outputs(self.directory)
         try:
-            self._listed = set(store.read_json(marker)["outputs"])
             data = store.read_json(ledger) if LEDGER in self._listed and ledger.is_file() else None
-        except (store.StoreError, KeyError, TypeError):
+        except store.StoreError:
             return
         files = data.get("files") if isinstance(data, dict) else None
         if isinstance(files, dict):
@@ -151,23 +151,18 @@ class Drawn:
     def remove_unrecorded(self, pattern: str) -> list[str]:
         """Delete the files matching ``pattern`` that rlcompare listed here and this report neither kept nor drew
         (figures of runs that are gone), and nothing else; their relative paths."""
-        stale = [relative for relative in sorted(self._listed_now()) if fnmatch.fnmatchcase(relative, pattern)
-                 and relative not in self.recorded and relative not in self._unkeyed]
+        stale = [relative for relative in sorted(store.listed_outputs(self.directory))
+                 if fnmatch.fnmatchcase(relative, pattern) and relative not in self.recorded
+                 and relative not in self._unkeyed]
         for relative in stale:
             store.remove_outputs(self.directory, glob.escape(relative))
         return stale
-
-    def _listed_now(self) -> set[str]:
-        try:
-            return set(store.read_json(self.directory / store.MARKER_FILE)["outputs"])
-        except (store.StoreError, KeyError, TypeError):
-            return set()
 
     def save(self) -> None:
         """Write the ledger: the files this report kept or drew. Where a file of that name is there and rlcompare
         did not write it (a directory shared with ``--force``), it is left alone and nothing is ledgered: the next
         report draws everything again."""
         ledger = self.directory / LEDGER
-        if (ledger.exists() or ledger.is_symlink()) and LEDGER not in self._listed_now():
+        if (ledger.exists() or ledger.is_symlink()) and LEDGER not in store.listed_outputs(self.directory):
             return
         store.write_json_atomic(ledger, {"files": dict(sorted(self.recorded.items()))})

@@ -134,8 +134,8 @@ def sweep(
 @one_line_errors
 def report(
     study_dir: Annotated[Path, typer.Argument(
-        metavar="STUDY_DIR", help="A study directory written by reproduce, a sweep's store, or one run directory "
-                                  "(written by run, or one configuration of a study).")],
+        metavar="STUDY_DIR", help="A study directory written by reproduce, a sweep's store, one run directory "
+                                  "(written by run, or one configuration of a study), or bench's directory.")],
     videos: Annotated[bool, typer.Option(help="Render videos of the greedy agents (studies that draw them).")
                       ] = True,
     group_by: Annotated[list[str] | None, typer.Option(
@@ -145,7 +145,8 @@ def report(
     one run directory: its results over seeds (and the study it belongs to, if any)."""
     from rlcompare.cli.reproduce import load_runner
 
-    allowed = "a study directory written by 'rlcompare reproduce', a sweep's store, or a run directory"
+    allowed = ("a study directory written by 'rlcompare reproduce', a sweep's store, a run directory, or the "
+               "directory 'rlcompare bench' wrote")
     if not study_dir.is_dir():
         raise typer.BadParameter(f"{study_dir} is not a directory; allowed: {allowed}", param_hint="'STUDY_DIR'")
     owner = store.owner_of(study_dir)
@@ -153,6 +154,8 @@ def report(
         _sweep_report(study_dir, tuple(group_by or ()))
     elif owner == store.RUN:
         _run_report(study_dir)
+    elif owner == store.BENCH:
+        _bench_report(study_dir)
     elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
         print_report(load_runner(STUDIES[owner.name]).report(study_dir, ConsoleUI(), videos=videos))
     else:
@@ -178,6 +181,20 @@ def _run_report(run_dir: Path) -> None:
     if parent is not None and parent.kind == "study":
         console.print(f"It is one configuration of {parent}: 'rlcompare report {run_dir.resolve().parent}' builds "
                       "that study's report.", highlight=False)
+
+
+def _bench_report(directory: Path) -> None:
+    """A benchmark's directory: the tables of each file ``bench`` wrote there, as it printed them, with when and
+    where they were measured."""
+    from rlcompare.experiment.benchmark import BENCH_FILES, read_bench_document
+
+    listed = store.listed_outputs(directory)
+    for name in BENCH_FILES:
+        if name in listed and (directory / name).is_file():
+            said, tables = read_bench_document(directory / name)
+            console.print(said, highlight=False)
+            for table in tables:
+                print_bench(table)
 
 
 def run_summary(results: Any) -> tuple[pd.DataFrame, str, str]:
@@ -240,7 +257,7 @@ def bench(
     from rlcompare.experiment import benchmark
     from rlcompare.experiment.backends import BackendError
 
-    owner, out_dir = store.Owner("bench"), out_path(out, Path("runs/bench"))
+    owner, out_dir = store.BENCH, out_path(out, Path("runs/bench"))
     check_out(out_dir, owner, False)
     path = out_dir / ("deep.json" if deep else "sweeps.json" if sweeps else "bench.json")
     tables: list[benchmark.BenchTable] = []

@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
+from pathlib import Path
 
 import gymnasium as gym
 import numba
@@ -35,6 +36,7 @@ from rlcompare.engine.state import initial_state
 from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
 from rlcompare.envs.features import grid_bounds, make_features
 from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, environment
+from rlcompare.experiment import store
 from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.runner import epsilon_schedule, run, versions
 from rlcompare.rng import next_double
@@ -720,6 +722,26 @@ def kernel_rows(measurements: list[Measurement]) -> list[dict]:
     return [{**m.as_dict(), "reference": None if m.reference is None else m.reference.as_dict(),
              "vs_reference": m.vs_reference, "vs_gymnasium": m.steps_per_second / loop,
              "vs_one_thread": m.steps_per_second / single[m.label]} for m in measurements[1:]]
+
+
+BENCH_FILES = ("bench.json", "sweeps.json", "deep.json")
+"""What ``rlcompare bench`` writes: the kernels, studies and ports; ``--sweeps``; ``--deep``."""
+
+
+def read_bench_document(path: Path) -> tuple[str, list[BenchTable]]:
+    """What :func:`bench_document` wrote to ``path``: a line saying when and where it measured, and its tables. A
+    file of another shape is a :class:`~rlcompare.experiment.store.StoreError` naming it."""
+    document = store.read_json(path)
+    try:
+        machine = document["machine"]
+        said = (f"{path.name}: measured {document['created']} on {machine['processor']}, {machine['cpus']} CPUs, "
+                f"{machine['numba_threads']} numba threads")
+        tables = [BenchTable(str(t["title"]), tuple(map(str, t["columns"])),
+                             [tuple(map(str, row)) for row in t["rows"]], tuple(map(str, t["notes"])))
+                  for t in document["tables"]]
+    except (KeyError, TypeError) as error:
+        raise store.StoreError(f"{path}: not a benchmark rlcompare wrote (no {error})") from None
+    return said, tables
 
 
 def bench_document(tables: list[BenchTable], **sections: object) -> dict:

@@ -68,7 +68,8 @@ def cut(text: str, limit: int) -> str:
 
 @dataclass(frozen=True)
 class Owner:
-    """What an output directory is: a ``run``, a ``study`` (``name``: which one) or a ``sweep`` store."""
+    """What an output directory is: a ``run``, a ``study`` (``name``: which one), a ``sweep`` store or a
+    ``bench``mark's measurements."""
 
     kind: str
     name: str = ""
@@ -79,6 +80,7 @@ class Owner:
 
 RUN = Owner("run")
 SWEEP = Owner("sweep")
+BENCH = Owner("bench")
 
 
 # --- paths and markers ----------------------------------------------------------------------------------
@@ -118,6 +120,15 @@ def owner_of(directory: Path) -> Owner | None:
         return None
     data = _read_marker(marker)
     return Owner(data["kind"], data["name"])
+
+
+def listed_outputs(directory: Path) -> set[str]:
+    """The files (relative paths) ``directory``'s marker says rlcompare wrote there; none where it has no marker
+    or one rlcompare did not write."""
+    try:
+        return set(_read_marker(Path(directory) / MARKER_FILE)["outputs"])
+    except StoreError:
+        return set()
 
 
 def _read_marker(marker: Path) -> dict:
