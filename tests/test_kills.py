@@ -103,11 +103,14 @@ def test_a_report_killed_half_way_is_rebuilt_equal_to_one_never_interrupted(tmp_
     process = start(report, log)
     started = time.monotonic()
     kill_when(process, lambda: time.monotonic() - started > whole / 2, log)  # half-way through, as timed whole
+    # what a kill in the middle of writing a figure leaves (whether or not this one did), and a user's file
+    (study / "figures" / ".decomposition.png.k1ll3d.tmp").write_bytes(b"half a picture")
+    (study / "figures" / ".mine.tmp").write_bytes(b"a user's")
     again = subprocess.run(report, capture_output=True, text=True, check=False, env=ENV, timeout=600)
     assert again.returncode == 0, again.stderr
     assert {p.name: p.read_bytes() for p in (study / "tables").iterdir()} == tables
     assert (study / "report.html").read_bytes() == page
-    assert not list(study.rglob(".*.tmp"))  # what the killed report left half-written is gone
+    assert list(study.rglob(".*.tmp")) == [study / "figures" / ".mine.tmp"]  # what rlcompare left half-written is gone
 
 
 def _book(out: Path) -> list[str]:

@@ -338,12 +338,13 @@ def refuse_while_written(directory: Path) -> None:
 @contextlib.contextmanager
 def rewriting(directory: Path, kind: str) -> Iterator[Owner]:
     """Hold the lock of a directory rlcompare wrote for a ``kind`` (``study``, ``sweep``), to rewrite its
-    outputs (a report); anything else is refused."""
+    outputs (a report), and clear what interrupted writes left there; anything else is refused."""
     found = owner_of(directory)
     if found is None or found.kind != kind:
         what = "no marker of rlcompare's" if found is None else f"{found}"
         raise StoreError(f"{directory}: {what}; allowed: a {kind} directory written by rlcompare")
     with locked(directory):
+        remove_stale_temporaries(directory)
         yield found
 
 
