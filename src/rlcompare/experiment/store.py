@@ -202,6 +202,8 @@ def claim(directory: Path, owner: Owner, *, force: bool = False, outputs: tuple[
         for new in made:  # a full disk had room for the directories but not the marker: leave nothing behind
             with contextlib.suppress(OSError):
                 new.rmdir()
+        if isinstance(error, StoreError):
+            raise
         raise StoreError(f"{directory}: cannot create the directory ({error.strerror})") from None
     return bool(made)
 
@@ -296,22 +298,19 @@ def _acquire(directory: Path) -> int:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
         os.close(fd)
-        raise _in_use(directory, _lock_holder(directory)) from None
+        raise _in_use(directory) from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     return fd
 
 
-def _lock_holder(directory: Path) -> str:
-    """The process id the lock file of ``directory`` names (its last writer's)."""
+def _in_use(directory: Path) -> StoreError:
+    """The refusal of a directory another process holds the lock of, naming that process (the lock file's)."""
     try:
         with (directory / LOCK_FILE).open("rb") as lock:
-            return lock.read(32).decode(errors="replace").strip() or "unknown"
+            holder = lock.read(32).decode(errors="replace").strip() or "unknown"
     except OSError:
-        return "unknown"
-
-
-def _in_use(directory: Path, holder: str) -> StoreError:
+        holder = "unknown"
     return StoreError(f"{directory}: another rlcompare process (pid {holder}) is writing here; wait for it to "
                       "finish, or use another directory")
 
@@ -330,7 +329,7 @@ def refuse_while_written(directory: Path) -> None:
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
-        raise _in_use(directory, _lock_holder(directory)) from None
+        raise _in_use(directory) from None
     finally:
         os.close(fd)
 
