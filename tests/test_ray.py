@@ -184,8 +184,11 @@ def test_ray_sweep_loses_a_worker_a_node_and_its_driver_and_still_finishes_every
     wait_for(1)
     ray_processes = _processes([node.pid for node in nodes], driver.pid)
     assert _listening_outside_loopback(ray_processes) == []
-    workers = _running_trials(_processes([nodes[0].pid]))
-    assert workers, "no worker of the head node was running a trial"
+    deadline = time.monotonic() + 60
+    while not (workers := _running_trials(_processes([nodes[0].pid]))):  # between two of its trials: wait
+        assert driver.poll() is None, log.read_text()
+        assert time.monotonic() < deadline, "no worker of the head node ran a trial"
+        time.sleep(0.01)
     os.kill(workers[0], signal.SIGKILL)  # one worker, mid-trial
     wait_for(_done(out) + 2)
     os.killpg(nodes[1].pid, signal.SIGKILL)  # the second node, with a trial in flight
