@@ -88,9 +88,8 @@ class Drawn:
         self._unkeyed: set[str] = set()
         """Files this report drew from runs without recorded checksums: kept on disk, never in the ledger."""
         self._ledger: dict[str, dict] = {}
-        self._listed: set[str] = set()
-        ledger = self.directory / LEDGER
         self._listed = store.listed_outputs(self.directory)
+        ledger = self.directory / LEDGER
         try:
             data = store.read_json(ledger) if LEDGER in self._listed and ledger.is_file() else None
         except store.StoreError:

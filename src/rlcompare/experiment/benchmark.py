@@ -660,7 +660,6 @@ def sweep_trials_per_second(backend, label: str, workers: int, trials: int = 200
     """Run a sweep of short trials into a fresh store after a warm-up sweep (which loads the kernels in every
     worker); time the whole sweep."""
     import tempfile
-    from pathlib import Path
 
     from rlcompare.experiment.sweep_store import load_configurations, run_sweep
 
@@ -699,7 +698,7 @@ def kernel_table(measurements: list[Measurement]) -> BenchTable:
     return BenchTable("Every algorithm on MountainCar-v0, 20 bins (one step: act, step, update)",
                       ("what", "threads", "steps/s", "reference kernel steps/s", "vs reference kernel",
                        "vs Gymnasium", "vs 1 thread"), rows,
-                      ("reference kernel: the method written plainly by hand for this task alone "
+                      ("reference kernel: the method written plainly by hand for tabular Mountain Car alone "
                        "(rlcompare.experiment.benchmark.REFERENCES), trained on the same seeds and threads in turn",))
 
 

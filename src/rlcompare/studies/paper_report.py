@@ -196,9 +196,10 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_w
     plan = _video_plan(study_dir, runs, video_seed) if videos else []
     drawn = Drawn(study_dir)
     keys = {job.mp4: video_key(runs, job) for _, job in plan}
-    pending = [job for _, job in plan if not all([drawn.kept(path, keys[job.mp4]) for path in job.outputs])]
+    kept = {path for _, job in plan for path in job.outputs if drawn.kept(path, keys[job.mp4])}
+    pending = [job for _, job in plan if not set(job.outputs) <= kept]
     with start_videos(pending, workers=video_workers) as renders:
-        return _build_report_beside(study_dir, runs, problems, plan, renders, started, drawn, keys)
+        return _build_report_beside(study_dir, runs, problems, plan, renders, started, drawn, keys, kept)
 
 
 def video_key(runs: dict[str, Results], job: VideoJob) -> str | None:
@@ -211,10 +212,10 @@ def video_key(runs: dict[str, Results], job: VideoJob) -> str | None:
 
 def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: list[str],
                          plan: list[tuple[str, VideoJob]], renders: VideoRenders,
-                         started: float, drawn: Drawn, keys: dict[Path, str | None]) -> Report:
+                         started: float, drawn: Drawn, keys: dict[Path, str | None], kept: set[Path]) -> Report:
     """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page.
-    A figure or video whose inputs have not changed since the last report is kept (:mod:`rlcompare.analysis.drawn`).
-    """
+    A figure or video whose inputs have not changed since the last report is kept (:mod:`rlcompare.analysis.drawn`):
+    ``keys``, each video's key by its MP4; ``kept``, the video files kept."""
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
     position_velocity = has_start_region(first.config)
@@ -276,7 +277,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
         rendered = set(renders.wait())
         for job in renders.jobs:
             drawn.record([path for path in job.outputs if path in rendered], keys[job.mp4])
-        written = rendered | {path for _, job in plan for path in job.outputs if drawn.kept(path, keys[job.mp4])}
+        written = rendered | kept
         for caption, job in plan:
             gif = job.gif if job.gif is not None and job.gif in written else None
             video_cells.append((f"videos/{job.mp4.name}", f"videos/{gif.name}" if gif is not None else "", caption))
