@@ -22,7 +22,7 @@ PLAN = [("q_learning", "grid", 1000, 1), ("sarsa", "grid", 1000, 1), ("expected_
         ("sarsa", "tiles", 150, 1), ("sarsa_lambda", "tiles", 150, 1), ("q_learning", "grid", 1000, 2)]
 MEASURE = """
 import json, sys
-from rlcompare.experiment.benchmark import kernel_steps_per_second
+from rlcompare.bench.tabular import kernel_steps_per_second
 alg, features, episodes, threads = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 kernel_steps_per_second(alg, threads, features=features, runs=2, episodes=3, repeats=1)
 m = kernel_steps_per_second(alg, threads, features=features, runs=8, episodes=episodes, repeats=3)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rlcompare import ConfigError, ExperimentConfig, run
-from rlcompare.analysis.stats import interval
-from rlcompare.engine.state import Records
+from rlcompare.stats.intervals import interval
+from rlcompare.tabular.state import Records
 
 PORTED = ["MountainCar-v0", "CartPole-v1", "Acrobot-v1", "CliffWalking-v1", "FrozenLake-v1", "Taxi-v4"]
 

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from rlcompare import ExperimentConfig, load_agent, run
-from rlcompare.experiment.agent import GreedyAgent, RandomAgent
+from rlcompare.tabular.agent import GreedyAgent, RandomAgent
 
 BOX_EXPECTED = r"expected shape \(2,\) of finite numbers, as MountainCar-v0's env\.step returns"
 STATE_EXPECTED = r"expected an integer state in \[0, 16\), as FrozenLake-v1's env\.step returns"

@@ -10,14 +10,14 @@ from matplotlib.colors import to_rgba
 from matplotlib.patches import Rectangle
 from scipy import stats
 
-from rlcompare.analysis.aggregate_plots import (
+from rlcompare.report.aggregate_plots import (
     improvement_figure,
     interval_figure,
     method_colors,
     profile_figure,
     sample_efficiency_figure,
 )
-from rlcompare.analysis.profiles import improvement_estimates, interval_estimates, iqm_curve
+from rlcompare.stats.aggregates import improvement_estimates, interval_estimates, iqm_curve
 
 RESAMPLES = 200
 

@@ -33,9 +33,15 @@ from rlcompare.algorithms.reinforce import Reinforce
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.algorithms.softmax import sample_softmax, softmax
 from rlcompare.algorithms.td import double_q_target, expected_sarsa_target, q_learning_target
-from rlcompare.engine import episodes as loops
-from rlcompare.engine.run import train_block, train_runs
-from rlcompare.engine.state import (
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import UniformGrid, cell_indices
+from rlcompare.envs.features import OneHot, make_features
+from rlcompare.envs.registry import environment, make_env
+from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
+from rlcompare.rng import next_double, stream_state
+from rlcompare.tabular import episodes as loops
+from rlcompare.tabular.runs import train_block, train_runs
+from rlcompare.tabular.state import (
     AGENT_STREAM,
     ENV_STREAM,
     EVAL_AGENT_STREAM,
@@ -49,12 +55,6 @@ from rlcompare.engine.state import (
     allocate_records,
     initial_state,
 )
-from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import UniformGrid, cell_indices
-from rlcompare.envs.features import OneHot, make_features
-from rlcompare.envs.registry import environment, make_env
-from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
-from rlcompare.rng import next_double, stream_state
 
 IMPLS = ["compiled", "py_func"]
 ALPHA, GAMMA = 0.5, 0.5

@@ -1,4 +1,7 @@
-"""The layers of the package: imports point down, so no two packages import each other, however deep the import."""
+"""The layers of the package, read from the code's own imports: each layer imports only the layers below it, the
+statistics import no pictures, no JAX and no engine, the pictures reach no deep engine, and no package holds a
+circle of imports. An import under ``if TYPE_CHECKING:`` loads nothing and only lets the type checker hold a
+module to a contract, so it is not counted."""
 
 from __future__ import annotations
 
@@ -11,49 +14,108 @@ import pytest
 import rlcompare
 
 PACKAGE = Path(rlcompare.__file__).parent
+LAYERS = (
+    ("formatting", "machine", "compiled"),
+    ("validation", "rng"),
+    ("algorithms", "envs"),
+    ("tabular", "deep"),
+    ("experiment",),
+    ("stats",),
+    ("report",),
+    ("studies", "bench"),
+    ("cli", "__init__", "__main__"),
+)
+"""From the bottom up: what each top-level package or module of rlcompare is, by the layer it stands in."""
+PICTURES = ("matplotlib", "imageio", "imageio_ffmpeg", "PIL", "pygame")
+JAX = ("jax", "jaxlib", "flax", "optax", "gymnax")
 
 
-def package_of(module: str) -> str | None:
-    """``experiment`` for ``rlcompare.experiment.store``; None outside rlcompare."""
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def runtime_imports(path: Path) -> list[str]:
+    """Every module ``path`` imports when it runs (at its top or in a function), its own relative imports resolved;
+    not those under ``if TYPE_CHECKING:``."""
+    tree = ast.parse(path.read_text())
+    typing_only = {id(node) for block in ast.walk(tree) if isinstance(block, ast.If)
+                   and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+                   for statement in block.body for node in ast.walk(statement)}
+    found = []
+    for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            submodules = [f"{node.module}.{alias.name}" for alias in node.names]
+            modules = [name for name in submodules if name in MODULE_FILES]  # modules imported from their package
+            found += modules if len(modules) == len(submodules) else [node.module, *modules]
+    return found
+
+
+MODULES = {module_name(path): path for path in PACKAGE.rglob("*.py")}
+MODULE_FILES = set(MODULES)
+IMPORTS = {name: runtime_imports(path) for name, path in MODULES.items()}
+
+
+def top(module: str) -> str:
+    """``experiment`` for ``rlcompare.experiment.store``, ``validation`` for ``rlcompare.validation``."""
     parts = module.split(".")
-    return parts[1] if parts[0] == "rlcompare" and len(parts) > 1 else None
+    return parts[1] if len(parts) > 1 else "__init__"
 
 
-def imports_between_packages() -> dict[tuple[str, str], list[str]]:
-    """(importing package, imported package) -> the files that import so, counting imports inside functions."""
-    edges: dict[tuple[str, str], list[str]] = {}
-    for path in PACKAGE.rglob("*.py"):
-        relative = path.relative_to(PACKAGE)
-        here = relative.parts[0].removesuffix(".py")
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = [alias.name for alias in node.names] if isinstance(node, ast.Import) else (
-                [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else [])
-            for there in filter(None, map(package_of, names)):
-                if there != here:
-                    edges.setdefault((here, there), []).append(str(relative))
+def edges_between_packages() -> dict[tuple[str, str], set[str]]:
+    """(importing package, imported package) -> the modules that import so."""
+    edges: dict[tuple[str, str], set[str]] = {}
+    for name, imported in IMPORTS.items():
+        for other in imported:
+            if other.split(".")[0] == "rlcompare" and other in MODULES and top(other) != top(name):
+                edges.setdefault((top(name), top(other)), set()).add(name)
     return edges
 
 
-def test_no_two_packages_import_each_other():
-    edges = imports_between_packages()
-    cycles = {(a, b): (edges[(a, b)], edges[(b, a)]) for a, b in edges if (b, a) in edges and a < b}
-    assert not cycles
+def layer_of(package: str) -> int:
+    return next(index for index, layer in enumerate(LAYERS) if package in layer)
 
 
-def test_the_packages_form_layers_without_a_cycle():
-    edges = imports_between_packages()
-    graph = {a: {b for (x, b) in edges if x == a} for a, _ in edges}
-    order = list(graphlib.TopologicalSorter(graph).static_order())  # CycleError names a cycle
-    assert order.index("engine") < order.index("experiment") < order.index("studies") < order.index("cli")
+def test_every_package_has_a_layer():
+    assert {top(name) for name in MODULES} <= {package for layer in LAYERS for package in layer}
 
 
-def test_experiment_reaches_an_engine_only_through_the_registry():
-    edges = imports_between_packages()
-    assert ("experiment", "deep") not in edges
-    assert ("experiment", "studies") not in edges
-    assert ("analysis", "studies") not in edges
+def test_each_layer_imports_only_the_layers_below_it():
+    upward = {edge: sorted(modules) for edge, modules in edges_between_packages().items()
+              if layer_of(edge[0]) <= layer_of(edge[1])}
+    assert not upward
 
 
+def external(module: str, roots: tuple[str, ...]) -> list[str]:
+    return sorted({other for other in IMPORTS[module] if other.split(".")[0] in roots})
+
+
+@pytest.mark.parametrize("module", sorted(name for name in MODULES if top(name) == "stats"))
+def test_the_statistics_import_no_pictures_no_jax_and_nothing_of_rlcompare_but_the_base(module):
+    assert not external(module, PICTURES + JAX)
+    assert {top(other) for other in IMPORTS[module] if other in MODULES} <= {"stats", *LAYERS[0], *LAYERS[1]}
+
+
+@pytest.mark.parametrize("module", sorted(name for name in MODULES if top(name) == "report"))
+def test_the_pictures_reach_no_deep_engine_and_no_jax(module):
+    assert not external(module, JAX)
+    assert "deep" not in {top(other) for other in IMPORTS[module] if other in MODULES}
+
+
+@pytest.mark.parametrize("engine", ["tabular", "deep"])
+def test_an_engine_reaches_no_other_engine_and_nothing_above_it(engine):
+    reached = {there for (here, there) in edges_between_packages() if here == engine}
+    assert reached <= {package for layer in LAYERS[:3] for package in layer}
+
+
+def test_no_circle_of_imports_inside_a_package():
+    graph = {name: {other for other in imported if other in MODULES and other != name and top(other) == top(name)}
+             for name, imported in IMPORTS.items()}
+    graphlib.TopologicalSorter(graph).prepare()  # CycleError names the circle
 IMPORT_EVERYTHING = r"""
 import importlib, json, os, pkgutil, time
 from pathlib import Path
@@ -108,7 +170,8 @@ def test_the_deep_engine_turns_float64_on_for_its_own_calls_only():
     """Its entry points trace in float64 (the physics is Gymnasium's float64) and leave JAX's 32-bit default to the
     caller when they return."""
     jax = pytest.importorskip("jax")
-    from rlcompare.deep.run import DeepConfig, params_template
+    from rlcompare.deep.config import DeepConfig
+    from rlcompare.deep.train import params_template
 
     assert not jax.config.jax_enable_x64
     params_template(DeepConfig(algorithm="pqn_q_lambda", env="MountainCar-v0", seeds=(0,)))

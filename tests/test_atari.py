@@ -17,11 +17,11 @@ import jax.numpy as jnp  # noqa: E402
 
 from rlcompare.deep import dqn, ppo, pqn  # noqa: E402
 from rlcompare.deep.atari import AtariEnv, NatureCNN, atari_env, reset_seed  # noqa: E402
+from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.envs import jax_env, jax_env_names, learning_reward  # noqa: E402
-from rlcompare.deep.run import DeepConfig  # noqa: E402
 from rlcompare.envs import atari  # noqa: E402
 from rlcompare.envs.registry import environment  # noqa: E402
-from rlcompare.experiment.config import ConfigError  # noqa: E402
+from rlcompare.validation import ConfigError  # noqa: E402
 
 pytestmark = pytest.mark.slow
 

@@ -81,7 +81,7 @@ def test_sb3s_dqn_has_our_network_and_settings() -> None:
     pytest.importorskip("stable_baselines3")
     import torch
 
-    from rlcompare.deep import bench
+    from rlcompare.bench import deep as bench
 
     config = dqn.PRESETS["default"][ENV]
     model = bench.sb3_minatar_dqn(config)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from rlcompare import ExperimentConfig, run
-from rlcompare.engine.state import initial_state
+from rlcompare.bench.tabular import REFERENCES, kernel_and_reference, kernel_steps_per_second
 from rlcompare.envs.features import make_features
-from rlcompare.experiment.benchmark import REFERENCES, kernel_and_reference, kernel_steps_per_second
-from rlcompare.experiment.runner import epsilon_schedule
+from rlcompare.tabular.state import initial_state
+from rlcompare.tabular.train import epsilon_schedule
 
 
 def test_kernel_measurement_counts_the_training_steps_of_the_configuration_it_names() -> None:
@@ -23,7 +23,7 @@ def test_kernel_measurement_counts_the_training_steps_of_the_configuration_it_na
 
 
 def test_port_benchmark_measures_the_gymnasium_loop_the_port_and_the_adapter_on_one_environment() -> None:
-    from rlcompare.experiment.benchmark import gymnasium_steps_per_second
+    from rlcompare.bench.tabular import gymnasium_steps_per_second
 
     loop = gymnasium_steps_per_second("CartPole-v1", steps=300)
     assert (loop.label, loop.steps) == ("CartPole-v1, Gymnasium loop", 300)

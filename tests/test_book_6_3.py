@@ -15,12 +15,12 @@ from scipy import stats
 from typer.testing import CliRunner
 
 from rlcompare import cli
-from rlcompare.analysis.stats import mean_interval
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig, records_bytes
 from rlcompare.experiment.engines import load_if_complete
+from rlcompare.stats.intervals import mean_interval
 from rlcompare.studies import book_6_3
 from rlcompare.studies.registry import STUDIES
+from rlcompare.tabular.config import ExperimentConfig, records_bytes
 
 runner = CliRunner(env={"COLUMNS": "200"})
 
@@ -159,7 +159,7 @@ def _books_answer() -> tuple[dict[str, float], dict[str, dict[float, float]]]:
 def test_verdicts_on_synthetic_numbers_with_a_known_answer() -> None:
     interim, asymptotic = _books_answer()
     asymptotic["expected_sarsa"][0.3] = -26.0  # 1 below SARSA: exactly on the margin, neither shown nor refuted
-    table = book_6_3.verdicts(book_6_3.claims(_synthetic(interim, asymptotic))).set_index("claim")
+    table = book_6_3.verdicts(book_6_3.claims(), _synthetic(interim, asymptotic)).set_index("claim")
     assert len(table) == 42
     assert table.loc["Q-Learning's asymptotic return below SARSA's, α = 1", "verdict"] == "contradicted"
     assert table.loc["Expected SARSA at least as good as SARSA, asymptotic, α = 0.3", "verdict"] == "not resolved"
@@ -175,7 +175,7 @@ def test_verdicts_turn_when_the_book_is_wrong() -> None:
     interim["expected_sarsa"] = -75.0  # Expected SARSA 5 worse than SARSA: beyond the margin of 1
     asymptotic["expected_sarsa"] = {alpha: -20.0 - 20 * alpha for alpha in book_6_3.ALPHAS}  # falls by 18
     asymptotic["sarsa"] = dict.fromkeys(book_6_3.ALPHAS, -25.0)  # does not collapse
-    table = book_6_3.verdicts(book_6_3.claims(_synthetic(interim, asymptotic))).set_index("claim")
+    table = book_6_3.verdicts(book_6_3.claims(), _synthetic(interim, asymptotic)).set_index("claim")
     interim_claims = table.loc[[f"Expected SARSA at least as good as SARSA, interim, α = {a:g}"
                                 for a in book_6_3.ALPHAS]]
     assert (interim_claims["verdict"] == "contradicted").all()

@@ -13,11 +13,12 @@ import pytest
 import typer.main
 from typer.testing import CliRunner
 
-from rlcompare import ExperimentConfig, Results, cli
-from rlcompare.analysis import drawn
+from rlcompare import ExperimentConfig, cli
 from rlcompare.cli.config_options import plain
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.config import field_docs
+from rlcompare.experiment.engines import load_run
+from rlcompare.report import drawn
+from rlcompare.tabular.config import field_docs
 
 runner = CliRunner(env={"COLUMNS": "200"})
 
@@ -37,7 +38,7 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
     for name in names:
         assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
         assert name in result.output
-    loaded = Results.load(tmp_path / "sarsa-constant")
+    loaded = load_run(tmp_path / "sarsa-constant")
     assert (loaded.config.seeds, loaded.config.episodes, loaded.config.epsilon) == ((0, 1), 100, 0.5)
     assert loaded.meta["study"] == "paper"
     assert "-262" in result.output  # the paper's Table II beside ours
@@ -56,7 +57,7 @@ def test_run_resolves_every_option(tmp_path: Path) -> None:
                     "--truncation-as-terminal", "--seeds", "2", "--first-seed", "5", "--eval-every", "10",
                     "--eval-episodes", "3", "--out", str(tmp_path / "run"))
     assert result.exit_code == 0, result.output
-    config = Results.load(tmp_path / "run").config
+    config = load_run(tmp_path / "run").config
     assert (config.algorithm, config.schedule, config.alpha, config.gamma, config.epsilon, config.bins) == (
         "sarsa", "constant", 0.1, 0.95, 0.2, 12)
     assert (config.episodes, config.max_steps, config.truncation_as_terminal) == (30, 300, True)
@@ -95,7 +96,7 @@ def test_every_configuration_field_is_an_option_whose_help_is_its_docstring() ->
 
 
 def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    from rlcompare.experiment import benchmark
+    from rlcompare.bench import tabular as benchmark
 
     loop = benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0)
     reference = benchmark.Measurement("sarsa, reference kernel", 1, 5000, 0.1)
@@ -218,7 +219,7 @@ def test_run_on_an_environment_without_a_port_says_it_runs_at_python_speed(tmp_p
                     "--seeds", "1", "--out", str(tmp_path / "cliff"))
     assert result.exit_code == 0, result.output
     assert "CliffWalkingSlippery-v1 through Gymnasium's API: Python speed" in result.output
-    loaded = Results.load(tmp_path / "cliff")
+    loaded = load_run(tmp_path / "cliff")
     assert loaded.meta["stepped_by"] == "Gymnasium adapter (Python speed)"
     assert (loaded.config.env, loaded.config.max_steps) == ("CliffWalkingSlippery-v1", 1000)
 
@@ -228,7 +229,7 @@ def test_run_resolves_grid_bounds_and_the_adapter(tmp_path: Path) -> None:
                     "--bounds=-2.4:2.4,-2:2,-0.2:0.2,-3:3", "--episodes", "4", "--seeds", "1",
                     "--out", str(tmp_path / "cartpole"))
     assert result.exit_code == 0, result.output
-    config = Results.load(tmp_path / "cartpole").config
+    config = load_run(tmp_path / "cartpole").config
     assert (config.env, config.adapter, config.bins, config.max_steps) == ("CartPole-v1", True, (1, 1, 3, 4), 500)
     assert config.bounds == ((-2.4, 2.4), (-2.0, 2.0), (-0.2, 0.2), (-3.0, 3.0))
     assert "Python speed" in result.output

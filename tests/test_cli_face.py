@@ -20,8 +20,8 @@ from rlcompare import ExperimentConfig, cli, run
 from rlcompare.cli import console as console_module
 from rlcompare.cli.config_options import PLAIN_WORDS
 from rlcompare.cli.face import face_app
-from rlcompare.experiment.config import field_docs
 from rlcompare.studies.registry import STUDIES
+from rlcompare.tabular.config import field_docs
 
 HEAVY = ("numpy", "pandas", "numba", "jax", "matplotlib", "scipy", "pyarrow")
 TINY = ExperimentConfig(algorithm="sarsa", seeds=(0, 1, 2), episodes=20, eval_every=10, eval_episodes=2)
@@ -172,7 +172,7 @@ def test_a_wide_table_wraps_instead_of_being_cut(width: int, monkeypatch: pytest
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     import pandas as pd
 
-    from rlcompare.experiment.benchmark import Measurement, kernel_table
+    from rlcompare.bench.tabular import Measurement, kernel_table
 
     monkeypatch.setenv("COLUMNS", str(width))  # the console reads it at each print
     names = ["q_learning-constant-before_update", "double_expected_sarsa-constant", "random"]
@@ -195,9 +195,9 @@ def test_a_wide_table_wraps_instead_of_being_cut(width: int, monkeypatch: pytest
 
 def test_the_compile_notice_promises_no_time_it_cannot_keep(monkeypatch: pytest.MonkeyPatch,
                                                             capsys: pytest.CaptureFixture[str]) -> None:
-    from rlcompare import _numba_cache
+    from rlcompare import compiled
 
-    monkeypatch.setattr(_numba_cache, "holds_nothing_yet", lambda: True)
+    monkeypatch.setattr(compiled, "holds_nothing_yet", lambda: True)
     monkeypatch.setenv("COLUMNS", "200")
     console_module.announce_compiling()
     said = capsys.readouterr().out

@@ -10,12 +10,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rlcompare import ConfigError, ExperimentConfig
-from rlcompare.engine.state import allocate_records
+from rlcompare import ConfigError, ExperimentConfig, machine
 from rlcompare.envs.features import make_features
-from rlcompare.experiment import config as config_module
-from rlcompare.experiment.config import quote, records_bytes
-from rlcompare.experiment.runner import epsilon_schedule
+from rlcompare.formatting import quote
+from rlcompare.tabular import config as config_module
+from rlcompare.tabular.config import records_bytes
+from rlcompare.tabular.state import allocate_records
+from rlcompare.tabular.train import epsilon_schedule
 
 
 def test_defaults_are_the_papers_setting() -> None:
@@ -177,7 +178,7 @@ def test_records_bytes_equals_what_the_kernel_allocates(env: str, features: str,
 
 def test_records_larger_than_memory_are_refused_with_the_figures(monkeypatch: pytest.MonkeyPatch) -> None:
     """3 seeds x 20,000,000 episodes: 1,180,096,024 bytes, 1.1 GiB, on a machine said to have 1 GiB."""
-    monkeypatch.setattr(config_module, "physical_memory", lambda: 2**30)
+    monkeypatch.setattr(machine, "physical_memory", lambda: 2**30)
     config = ExperimentConfig(seeds=(0, 1, 2), episodes=20_000_000, eval_every=0)  # validation reads no machine
     with pytest.raises(ConfigError) as caught:
         config_module.check_memory(config)
@@ -193,7 +194,7 @@ def test_a_run_too_large_for_this_machine_still_loads_and_is_refused_only_when_i
     allocated or written."""
     from rlcompare.experiment.runner import run
 
-    monkeypatch.setattr(config_module, "physical_memory", lambda: 2**20)
+    monkeypatch.setattr(machine, "physical_memory", lambda: 2**20)
     config = ExperimentConfig(seeds=tuple(range(8)), episodes=20_000, eval_every=0)
     assert ExperimentConfig.from_dict(config.to_dict()) == config
     with pytest.raises(ConfigError, match="fit in memory"):
@@ -203,7 +204,7 @@ def test_a_run_too_large_for_this_machine_still_loads_and_is_refused_only_when_i
 
 def test_evaluations_larger_than_this_machines_memory_are_refused() -> None:
     """2**31 - 1 evaluations of 2**31 - 1 episodes: no machine holds their records."""
-    memory = config_module.physical_memory()
+    memory = machine.physical_memory()
     with pytest.raises(ConfigError) as caught:
         config_module.check_memory(ExperimentConfig(seeds=(0,), episodes=2**31 - 1, eval_every=1,
                                                     eval_episodes=2**31 - 1))
@@ -217,8 +218,8 @@ def test_physical_memory_falls_back_where_the_machine_does_not_say(monkeypatch: 
     def unsupported(name: str) -> int:
         raise ValueError(name)
 
-    monkeypatch.setattr(config_module.os, "sysconf", unsupported)
-    assert config_module.physical_memory() == 16 * 2**30
+    monkeypatch.setattr(machine.os, "sysconf", unsupported)
+    assert machine.physical_memory() == 16 * 2**30
 
 
 # --- numbers: one value, one configuration ----------------------------------------------------------------

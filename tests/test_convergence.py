@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlcompare.analysis.convergence import convergence_episodes, episodes_to_seconds
-from rlcompare.analysis.curves import moving_average
+from rlcompare.stats.convergence import convergence_episodes, episodes_to_seconds
+from rlcompare.stats.curves import moving_average
 
 WINDOW = 100
 

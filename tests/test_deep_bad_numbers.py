@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("jax")
 
-from rlcompare.deep.run import DeepConfig
-from rlcompare.experiment.config import ConfigError
+from rlcompare.deep.config import DeepConfig
+from rlcompare.validation import ConfigError
 
 
 @pytest.mark.parametrize(("algorithm", "settings", "field", "allowed"), [
@@ -48,7 +48,7 @@ def test_seeds_outside_0_to_2_63_are_refused(seeds: tuple) -> None:
 
 @pytest.fixture(scope="module")
 def deep_run(tmp_path_factory: pytest.TempPathFactory):
-    from rlcompare.deep.run import run
+    from rlcompare.experiment.runner import run
 
     out = tmp_path_factory.mktemp("deep") / "run"
     run(DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", hyperparameters={"total_steps": 16 * 128 * 2},

@@ -15,7 +15,7 @@ import numpy as np  # noqa: E402
 from rlcompare.deep import dqn  # noqa: E402
 from rlcompare.deep.envs import CARTPOLE  # noqa: E402
 from rlcompare.envs import atari, minatar  # noqa: E402
-from rlcompare.experiment.config import ConfigError  # noqa: E402
+from rlcompare.validation import ConfigError  # noqa: E402
 
 # --- the target and the loss, by hand ---
 

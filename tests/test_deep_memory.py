@@ -7,10 +7,12 @@ import pytest
 
 pytest.importorskip("jax")
 
-from rlcompare.deep import run as deep_run
-from rlcompare.deep.run import DeepConfig, compiled_training, memory_needed
+from rlcompare import machine
+from rlcompare.deep.config import DeepConfig
+from rlcompare.deep.train import compiled_training, memory_needed
 from rlcompare.experiment import rundir
-from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.runner import run
+from rlcompare.validation import ConfigError
 
 OBSERVATION_BYTES = 10 * 10 * 4  # Breakout's four boolean channels
 
@@ -29,8 +31,8 @@ def test_a_replay_buffer_counts_while_training_and_longer_training_in_the_record
 def test_a_training_too_large_for_the_machine_is_refused_before_it_runs(monkeypatch, tmp_path) -> None:
     config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=(0,), vmap_width=1, eval_rounds=1,
                         eval_episodes=1, hyperparameters={"total_steps": 2_048, "n_envs": 8, "n_steps": 16})
-    monkeypatch.setattr(deep_run, "physical_memory", lambda: 100_000)
+    monkeypatch.setattr(machine, "physical_memory", lambda: 100_000)
     with pytest.raises(ConfigError, match=r"vmap_width: got 1; allowed: a training that fits in memory: "
                                           r"pqn_q_lambda-CartPole-v1 on 1 seeds.*this machine has 0.0 GiB"):
-        deep_run.run(config, out=tmp_path / "run")
+        run(config, out=tmp_path / "run")
     assert not (tmp_path / "run" / rundir.PARAMS_FILE).exists()

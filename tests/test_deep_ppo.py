@@ -16,7 +16,7 @@ import jax.numpy as jnp
 from rlcompare.deep import ppo
 from rlcompare.deep.envs import CARTPOLE, MOUNTAIN_CAR, jax_env_names
 from rlcompare.deep.rollout import TrainOutput
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 F, T = False, True
 

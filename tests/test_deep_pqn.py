@@ -17,7 +17,7 @@ from rlcompare.deep.pqn import (
     make_train,
     sarsa_actions,
 )
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 GAMMA, LAM = 0.9, 0.5
 

@@ -14,10 +14,14 @@ pytest.importorskip("jax")
 
 from rlcompare.deep import pqn
 from rlcompare.deep.agent import agent
+from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.envs import CARTPOLE
+from rlcompare.deep.results import DeepResults, merge_seeds
 from rlcompare.deep.rollout import STAGES, evaluate, stage_rounds
-from rlcompare.deep.run import DeepConfig, DeepResults, merge_seeds, run
 from rlcompare.experiment import rundir
+from rlcompare.experiment.engines import load_run
+from rlcompare.experiment.rundir import write_results
+from rlcompare.experiment.runner import run
 
 ROUNDS, EPISODES, SEEDS = 10, 3, (0, 1)
 CONFIG = pqn.PQNConfig(total_steps=ROUNDS * 2 * 8 * 16, n_envs=8, n_steps=16, n_epochs=1, n_minibatches=2,
@@ -53,7 +57,7 @@ def stored(tmp_path_factory: pytest.TempPathFactory) -> tuple[DeepResults, DeepR
                         hyperparameters={"total_steps": CONFIG.total_steps, "n_envs": 8, "n_steps": 16})
     out = tmp_path_factory.mktemp("stages") / "run"
     results = run(config, out=out)
-    return results, DeepResults.load(out)
+    return results, load_run(out)
 
 
 def test_a_run_directory_keeps_every_stage(stored: tuple[DeepResults, DeepResults]) -> None:
@@ -93,10 +97,10 @@ def test_a_run_written_before_the_stages_were_kept_offers_its_final_network(
         stored: tuple[DeepResults, DeepResults], tmp_path) -> None:
     results, _ = stored
     older = DeepResults(results.config, results.episodes, results.evaluations, results.params, results.meta)
-    older.save(tmp_path / "older")
+    write_results(tmp_path / "older", older)
     with np.load(tmp_path / "older" / rundir.PARAMS_FILE) as arrays:
         assert not any(name.startswith(("early", "middle")) for name in arrays.files)
-    loaded = DeepResults.load(tmp_path / "older")
+    loaded = load_run(tmp_path / "older")
     assert loaded.stages == ["final"]
     with pytest.raises(KeyError, match="'early' is not in this run"):
         agent(loaded, seed=0, stage="early")

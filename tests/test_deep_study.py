@@ -16,11 +16,13 @@ import jax.numpy as jnp
 
 from rlcompare import load_agent
 from rlcompare.cli import app
+from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.envs import jax_env
-from rlcompare.deep.run import DeepConfig, DeepResults, compiled_program
-from rlcompare.deep.run import run as deep_run
+from rlcompare.deep.train import compiled_program
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ConfigError
+from rlcompare.experiment.engines import load_run
+from rlcompare.experiment.runner import run as deep_run
+from rlcompare.validation import ConfigError
 
 TINY = ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50", "--methods",
         "pqn_q_lambda,pqn_sarsa_lambda", "--envs", "CartPole-v1"]
@@ -51,7 +53,7 @@ def test_the_study_writes_run_directories_and_a_report(study):
 
 
 def test_episodes_are_recorded_with_the_step_at_which_they_ended(study):
-    results = DeepResults.load(study[0] / "pqn_q_lambda-CartPole-v1")
+    results = load_run(study[0] / "pqn_q_lambda-CartPole-v1")
     for _, episodes in results.episodes.groupby("seed"):
         assert np.all(np.diff(episodes["env_step"].to_numpy()) >= 0)
         assert episodes["episode"].tolist() == list(range(len(episodes)))
@@ -94,7 +96,7 @@ def test_a_deep_agent_acts_in_gymnasium_as_in_the_port(study):
 def test_a_seed_gives_the_same_results_whatever_seeds_train_beside_it(study):
     config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=(0, 1),
                         hyperparameters={"total_steps": 41000}, vmap_width=2)
-    stored = DeepResults.load(study[0] / "pqn_q_lambda-CartPole-v1")
+    stored = load_run(study[0] / "pqn_q_lambda-CartPole-v1")
     shared = compiled_program.cache_info().hits
     alone = deep_run(DeepConfig(**{**config.__dict__, "seeds": (1,)}))  # padded with a copy of itself
     assert compiled_program.cache_info().hits == shared + 1  # the study's program, not traced again
@@ -166,12 +168,12 @@ def test_a_run_written_before_a_setting_was_added_loads_when_the_default_keeps_w
         (run / "meta.json").write_text(json.dumps(meta))
 
     rewrite({**written, "resolved": {k: v for k, v in written["resolved"].items() if k != "gamma"}})
-    loaded = DeepResults.load(run, DeepConfig.from_dict(written))
+    loaded = load_run(run, DeepConfig.from_dict(written))
     assert loaded.config.method_config().gamma == 0.99
 
     rewrite({**written, "resolved": {k: v for k, v in written["resolved"].items() if k != "n_envs"}})
     with pytest.raises(store.StoreError, match="not what its preset gives now"):
-        DeepResults.load(run)
+        load_run(run)
 
 
 @pytest.mark.slow

@@ -1,5 +1,5 @@
 """Figures and videos drawn again only when what they are drawn from changes, and kept only when provably
-rlcompare's and unchanged (:mod:`rlcompare.analysis.drawn`)."""
+rlcompare's and unchanged (:mod:`rlcompare.report.drawn`)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from rlcompare.analysis import drawn
 from rlcompare.experiment import store
+from rlcompare.report import drawn
 from rlcompare.studies.paper import paper_configs, reproduce
 from rlcompare.studies.paper_report import build_report
 
@@ -38,7 +38,7 @@ def stamps(directory: Path) -> dict[str, tuple[int, int]]:
 
 def test_a_second_report_keeps_every_figure_and_video_and_rewrites_the_tables(
         study_copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from rlcompare.analysis import aggregate_plots
+    from rlcompare.report import aggregate_plots
     from rlcompare.studies import paper_report
 
     before, page = stamps(study_copy), (study_copy / "report.html").read_bytes()

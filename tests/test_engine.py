@@ -12,8 +12,11 @@ from rlcompare.algorithms.policies import RandomActions, epsilon_greedy_action, 
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.schedules import linear_decay_epsilon
 from rlcompare.algorithms.td import QLearning, Sarsa
-from rlcompare.engine.run import train_block, train_runs
-from rlcompare.engine.state import (
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import cell_of, make_grid
+from rlcompare.rng import stream_state
+from rlcompare.tabular.runs import train_block, train_runs
+from rlcompare.tabular.state import (
     AGENT_STREAM,
     ENV_STREAM,
     EVAL_AGENT_STREAM,
@@ -25,9 +28,6 @@ from rlcompare.engine.state import (
     allocate_records,
     initial_state,
 )
-from rlcompare.envs import mountain_car
-from rlcompare.envs.discretize import cell_of, make_grid
-from rlcompare.rng import stream_state
 
 SEEDS = [0, 1, 2, 3, 4]
 EPISODES = 300
@@ -472,7 +472,7 @@ def test_training_frees_every_array_it_allocates_once() -> None:
 from numba.core.runtime import rtsys
 from rlcompare import run
 from rlcompare.algorithms.registry import METHODS
-from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.tabular.config import ExperimentConfig
 configs = [ExperimentConfig(algorithm=name, seeds=(0, 1, 2), episodes=30, eval_every=10, eval_episodes=2)
            for name in METHODS]
 configs.append(ExperimentConfig(algorithm="sarsa_lambda", features="tiles", alpha=0.5 / 8, seeds=(0, 1), episodes=5,

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from rlcompare import Results, cli
+from rlcompare import cli
+from rlcompare.experiment.engines import load_run
 from rlcompare.studies.contrast import contrast_table, load_pairs, sibling_studies
 
 runner = CliRunner(env={"COLUMNS": "200"})
@@ -23,7 +24,7 @@ def test_cartpole_study_runs_the_papers_grid_and_reports_it_without_the_papers_n
     result = invoke("reproduce", "cartpole", "--seeds", "3", "--episodes", "300", "--no-videos", "--out", str(out))
     assert result.exit_code == 0, result.output
     for name in ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant"):
-        loaded = Results.load(out / name)
+        loaded = load_run(out / name)
         assert (loaded.config.env, loaded.config.bins, loaded.config.max_steps) == ("CartPole-v1", (1, 1, 6, 12), 500)
         assert (loaded.config.alpha, loaded.config.gamma) == (0.05, 0.9)  # the paper's settings
         assert loaded.meta["study"] == "cartpole"
@@ -41,7 +42,7 @@ def test_cartpole_study_runs_the_papers_grid_and_reports_it_without_the_papers_n
                                    "decomposition", "paired-differences", "aggregate-intervals",
                                    "probability-of-improvement", "performance-profiles", "sample-efficiency"))
     # CartPole is solved by balancing to the limit, not by terminating: greedy success counts those episodes.
-    sarsa = Results.load(out / "sarsa-decay")
+    sarsa = load_run(out / "sarsa-decay")
     balanced = (~sarsa.records.eval_terminated[:, -1]) & (sarsa.records.eval_lengths[:, -1] == 500)
     row = table_ii.set_index("configuration").loc["sarsa-decay"]
     assert row["greedy success"] == f"{balanced.mean():.0%}"
@@ -74,7 +75,7 @@ def test_cliff_report_sets_the_cliff_against_mountain_car_in_numbers(studies: Pa
 
 def test_cliff_runs_the_books_50_runs_and_says_how_to_add_mountain_car(tmp_path: Path) -> None:
     assert invoke("reproduce", "cliff", "--out", str(tmp_path / "cliff")).exit_code == 0
-    assert Results.load(tmp_path / "cliff" / "sarsa").seeds == tuple(range(50))
+    assert load_run(tmp_path / "cliff" / "sarsa").seeds == tuple(range(50))
     html = (tmp_path / "cliff" / "report.html").read_text()
     assert "Mountain Car&#x27;s side is missing" in html
     assert f"reproduce --out {tmp_path / 'paper'}" in html

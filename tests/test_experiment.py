@@ -11,10 +11,9 @@ import pandas as pd
 import pytest
 from gymnasium_play import gymnasium_returns
 
-from rlcompare import ExperimentConfig, Results, load_agent, run
-from rlcompare.experiment import results as results_module
+from rlcompare import ExperimentConfig, load_agent, run
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.engines import load_if_complete
+from rlcompare.experiment.engines import load_if_complete, load_run
 from rlcompare.studies.paper import paper_configs, reproduce
 
 
@@ -36,7 +35,7 @@ def test_results_tables_are_long_format(small_config: ExperimentConfig) -> None:
 def test_run_directory_round_trip(tmp_path: Path, small_config: ExperimentConfig) -> None:
     results = run(small_config, out=tmp_path / "run")
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
-    loaded = Results.load(tmp_path / "run")
+    loaded = load_run(tmp_path / "run")
     assert loaded.config == small_config
     for name, array in results.records._asdict().items():
         np.testing.assert_array_equal(getattr(loaded.records, name), array, err_msg=name)
@@ -46,7 +45,7 @@ def test_run_directory_round_trip(tmp_path: Path, small_config: ExperimentConfig
 
 def test_round_trip_keeps_the_order_of_seeds(tmp_path: Path, small_config: ExperimentConfig) -> None:
     results = run(dataclasses.replace(small_config, seeds=(5, 3, 9)), out=tmp_path / "run")
-    loaded = Results.load(tmp_path / "run")
+    loaded = load_run(tmp_path / "run")
     np.testing.assert_array_equal(loaded.records.returns, results.records.returns)
     np.testing.assert_array_equal(loaded.records.eval_returns, results.records.eval_returns)
 
@@ -102,7 +101,7 @@ def test_failed_write_leaves_nothing_that_looks_finished(
         handle.write(b"PAR1 half a file")
         raise OSError("disk full")
 
-    monkeypatch.setattr(results_module.pq, "write_table", broken_parquet)
+    monkeypatch.setattr(rundir.pq, "write_table", broken_parquet)
     with pytest.raises(OSError, match="disk full"):
         run(small_config, out=tmp_path / "run")
     assert not (tmp_path / "run").exists()  # created by the run and nothing written into it: removed again
@@ -125,7 +124,7 @@ def test_failed_write_leaves_nothing_that_looks_finished(
     monkeypatch.undo()
     again = run(small_config, out=tmp_path / "run")  # resumes over what it wrote, temporaries cleared
     assert not list((tmp_path / "run").glob("*.tmp"))
-    assert Results.load(tmp_path / "run").records.returns.tolist() == again.records.returns.tolist()
+    assert load_run(tmp_path / "run").records.returns.tolist() == again.records.returns.tolist()
 
 
 def test_study_resumes_and_reruns_only_what_is_unfinished(tmp_path: Path) -> None:
@@ -136,7 +135,7 @@ def test_study_resumes_and_reruns_only_what_is_unfinished(tmp_path: Path) -> Non
     again = {r.config.name: (r, reused) for r, reused in reproduce(tmp_path, configs)}
     assert [n for n, (_, reused) in again.items() if not reused] == ["sarsa-decay"]
     rerun = again["sarsa-decay"][0]
-    np.testing.assert_array_equal(rerun.records.returns, Results.load(tmp_path / "sarsa-decay").records.returns)
+    np.testing.assert_array_equal(rerun.records.returns, load_run(tmp_path / "sarsa-decay").records.returns)
 
 
 def test_changed_config_is_not_taken_for_a_finished_run(tmp_path: Path, small_config: ExperimentConfig) -> None:
@@ -156,7 +155,7 @@ def test_output_path_that_is_a_file_is_refused(tmp_path: Path, small_config: Exp
 def test_loading_an_incomplete_directory_names_what_is_missing(tmp_path: Path) -> None:
     (tmp_path / rundir.CONFIG_FILE).write_text("{}")
     with pytest.raises(store.StoreError, match=r"missing episodes\.parquet"):
-        Results.load(tmp_path)
+        load_run(tmp_path)
 
 
 def test_loaded_agent_acts_in_gymnasium_exactly_as_in_our_evaluation(tmp_path: Path) -> None:

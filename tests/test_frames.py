@@ -10,8 +10,8 @@ import imageio_ffmpeg
 import numpy as np
 from PIL import Image
 
-from rlcompare.analysis import frames, video
 from rlcompare.envs.registry import environment
+from rlcompare.report import frames, video
 
 
 def test_the_painter_draws_gymnasiums_frame_pixel_for_pixel() -> None:

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.runner import run
+from rlcompare.tabular.config import ExperimentConfig
 
 GOLDEN = Path(__file__).parent / "golden" / "digests.json"
 SHORT = {"seeds": (0, 7), "eval_every": 10, "eval_episodes": 2}

@@ -25,8 +25,9 @@ import pytest
 
 pytest.importorskip("jax")
 
-from rlcompare.deep.run import DeepConfig, DeepResults
-from rlcompare.deep.run import run as deep_run
+from rlcompare.deep.config import DeepConfig
+from rlcompare.deep.results import DeepResults
+from rlcompare.experiment.runner import run as deep_run
 
 GOLDEN = Path(__file__).parent / "golden" / "deep.json"
 TINY = {"seeds": (0, 3), "vmap_width": 2, "eval_rounds": 2, "eval_episodes": 2}

@@ -15,10 +15,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rlcompare.engine.state import Records
 from rlcompare.experiment import rundir
 from rlcompare.experiment.engines import load_run
-from rlcompare.experiment.results import Results
+from rlcompare.tabular.results import Results
+from rlcompare.tabular.state import Records
 
 pytestmark = pytest.mark.slow
 

@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from rlcompare.analysis.stats import (
+from rlcompare.stats import verdicts
+from rlcompare.stats.intervals import (
     CONTRADICTED,
     NO_DATA,
     NOT_RESOLVED,
@@ -24,7 +25,13 @@ from rlcompare.analysis.stats import (
     verdict,
     worst_case_sign_p,
 )
-from rlcompare.analysis.tables import Claim, censored_at_worst, is_fragile, judge_by_rule, labels_by_definition
+from rlcompare.stats.verdicts import censored_at_worst, is_fragile, labels_by_definition
+from rlcompare.studies.paper_report import NAMES, paper_claim
+
+
+def judge_by_rule(*args, **kwargs):
+    """:func:`rlcompare.stats.verdicts.judge_by_rule` with the paper's names for A and B."""
+    return verdicts.judge_by_rule(*args, names=NAMES, **kwargs)
 
 NAN = float("nan")
 
@@ -137,7 +144,7 @@ def test_a_ratio_far_from_the_claim_is_contradicted_under_every_definition_that_
     frames = _rule_frames(sarsa, q, rules)
     main = {name: frame[["seed", "band 5%, window 100"]].rename(columns={"band 5%, window 100": "convergence_episode"})
             for name, frame in frames.items()}
-    four = Claim("about 4 times", "decay", "convergence_episode", kind="ratio", value=3.88)
+    four = paper_claim("about 4 times", "decay", "convergence_episode", kind="ratio", value=3.88)
     judgement = judge_by_rule([four], main, 5000, rules=frames)
     row = judgement.verdicts.iloc[0]
     assert row["verdict"] == CONTRADICTED
@@ -162,7 +169,7 @@ def test_a_ratio_far_from_the_claim_is_contradicted_under_every_definition_that_
 ])
 def test_a_margin_the_seeds_cannot_prove_is_named_underpowered(seeds: int, spread: float, margin_value: float,
                                                                  underpowered_note: bool) -> None:
-    from rlcompare.analysis.tables import underpowered
+    from rlcompare.stats.verdicts import underpowered
 
     differences = np.random.default_rng(0).standard_normal(seeds)
     differences = (differences - differences.mean()) / differences.std(ddof=1) * spread  # exactly that spread

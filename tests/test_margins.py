@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rlcompare.analysis.power import POWER, detectable_difference, provable_margin
-from rlcompare.analysis.stats import tost
+from rlcompare.stats.intervals import tost
+from rlcompare.stats.power import POWER, detectable_difference, provable_margin
 from rlcompare.studies.margins import MARGINS, margin
 
 
@@ -51,7 +51,7 @@ def test_every_margin_has_its_reason_and_the_studies_read_them_from_the_table() 
     assert {env: margin("deep", f"{env} (final greedy return)") for env in deep.MARGIN} == deep.MARGIN
     assert margin("book 6.3", "Expected SARSA at least as good as SARSA") == book_6_3.NONINFERIORITY_MARGIN
     assert margin("book 6.3", "an asymptote collapses") == book_6_3.COLLAPSE_MARGIN
-    same = {c.metric: c.value for c in paper_report.CLAIMS if c.kind == "same"}
+    same = {c.metric: c.bounds[1] for c in paper_report.CLAIMS if c.kind == "within"}
     assert same == {"convergence_episode": margin("paper", "a similar time frame (convergence)"),
                     "greedy_return": margin("paper", "the same solution (greedy return)")}
 

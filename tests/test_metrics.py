@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlcompare.analysis.metrics import returns_from_tables, returns_per_seed
+from rlcompare.stats.metrics import returns_from_tables, returns_per_seed
 
 
 def test_returns_by_hand_from_a_table_of_episodes_and_rounds():

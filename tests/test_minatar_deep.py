@@ -11,10 +11,11 @@ pytest.importorskip("gymnax")
 import flax.linen as nn  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
+from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.networks import Conv3x3, ConvNet, patches_3x3  # noqa: E402
-from rlcompare.deep.run import DeepConfig  # noqa: E402
-from rlcompare.deep.run import run as deep_run  # noqa: E402
-from rlcompare.experiment.config import ConfigError, ExperimentConfig  # noqa: E402
+from rlcompare.experiment.runner import run as deep_run  # noqa: E402
+from rlcompare.tabular.config import ExperimentConfig  # noqa: E402
+from rlcompare.validation import ConfigError  # noqa: E402
 
 
 def test_image_patches_times_a_dense_layer_is_flaxs_convolution():

@@ -16,12 +16,13 @@ pytest.importorskip("gymnax")
 import jax.numpy as jnp  # noqa: E402
 
 from rlcompare.deep import dqn  # noqa: E402
+from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.minatar import minatar_env  # noqa: E402
 from rlcompare.deep.networks import ConvNet  # noqa: E402
-from rlcompare.deep.run import DeepConfig, DeepResults  # noqa: E402
-from rlcompare.deep.run import run as deep_run  # noqa: E402
+from rlcompare.deep.results import DeepResults  # noqa: E402
 from rlcompare.envs import minatar  # noqa: E402
-from rlcompare.experiment.config import ConfigError  # noqa: E402
+from rlcompare.experiment.runner import run as deep_run  # noqa: E402
+from rlcompare.validation import ConfigError  # noqa: E402
 
 ENV = "MinAtar/Breakout-v0"
 """Four channels (paddle, ball, trail, brick), six actions under the paper's protocol."""

@@ -161,8 +161,8 @@ def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our
     import gymnasium as gym
     from minatar.gym import register_envs
 
-    from rlcompare.deep.run import DeepConfig
-    from rlcompare.deep.run import run as deep_run
+    from rlcompare.deep.config import DeepConfig
+    from rlcompare.experiment.runner import run as deep_run
 
     deep_run(DeepConfig(algorithm="pqn_q_lambda", env="Breakout-MinAtar", seeds=(0,), vmap_width=1, eval_rounds=2,
                         eval_episodes=2, hyperparameters={"total_steps": 128 * 32 * 8}), out=tmp_path / "run")
@@ -242,7 +242,8 @@ def test_the_study_on_a_ray_cluster_killed_and_resumed_equals_the_study_here(stu
 
 
 def _results_with_finals(method: str, env: str, finals: np.ndarray):
-    from rlcompare.deep.run import DeepConfig, DeepResults
+    from rlcompare.deep.config import DeepConfig
+    from rlcompare.deep.results import DeepResults
 
     seeds = tuple(range(len(finals)))
     evaluations = pd.DataFrame({"seed": seeds, "round": 0, "after_step": 100, "return": finals,

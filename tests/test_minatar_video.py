@@ -12,22 +12,18 @@ pytest.importorskip("minatar")
 import jax
 from minatar.gym import BaseEnv
 
-from rlcompare.analysis import frames
-from rlcompare.analysis.minatar_video import (
-    CELL,
-    EPISODE_KEY,
-    frames_of,
-    palette,
-    picture,
-    play_stages,
-    render_stages,
-    stage_steps,
-)
 from rlcompare.deep import float64
+from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.methods import deep_method
+from rlcompare.deep.playback import EPISODE_KEY, play_stages, stage_steps, stage_titles
+from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import evaluate
-from rlcompare.deep.run import DeepConfig, DeepResults, params_template, run
+from rlcompare.deep.train import params_template
 from rlcompare.envs import minatar
+from rlcompare.envs.minatar import CELL, palette, picture
+from rlcompare.experiment.runner import run
+from rlcompare.report import frames
+from rlcompare.report.stage_video import frames_of, render_stages
 
 
 @pytest.mark.parametrize("game", list(minatar.GAMES))
@@ -82,9 +78,9 @@ def test_each_stage_plays_the_episode_its_evaluation_would(results: DeepResults)
 
 def test_the_frames_show_every_stage_side_by_side_until_the_longest_ends(results: DeepResults) -> None:
     played = play_stages(results, seed=0)
-    video = list(frames_of(results, played))
-    assert len(video) == played.lengths.max() + 1
     colours = palette(played.observations.shape[-1])
+    video = list(frames_of(played, stage_titles(results), lambda state: picture(state, colours)))
+    assert len(video) == played.lengths.max() + 1
     last = frames.unpack(video[-1])
     height = 10 * CELL
     for index in range(3):
@@ -95,6 +91,9 @@ def test_the_frames_show_every_stage_side_by_side_until_the_longest_ends(results
 
 
 def test_a_video_and_its_preview_are_written(results: DeepResults, tmp_path) -> None:
-    paths = render_stages(results, 0, tmp_path / "breakout.mp4", tmp_path / "breakout.gif", max_steps=30)
+    played = play_stages(results, 0, max_steps=30)
+    colours = palette(played.observations.shape[-1])
+    paths = render_stages(played, stage_titles(results), lambda state: picture(state, colours),
+                          tmp_path / "breakout.mp4", tmp_path / "breakout.gif")
     assert [p.name for p in paths] == ["breakout.mp4", "breakout.gif"]
     assert all(p.stat().st_size > 1_000 for p in paths)

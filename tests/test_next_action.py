@@ -20,14 +20,14 @@ from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.registry import rule_for as method_rule
 from rlcompare.algorithms.reinforce import Reinforce
 from rlcompare.algorithms.schedules import linear_decay_epsilon
-from rlcompare.engine import episodes
-from rlcompare.engine.run import train_runs
-from rlcompare.engine.state import Settings, allocate_records, initial_state
 from rlcompare.envs import mountain_car
 from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import chain
 from rlcompare.rng import stream_state
+from rlcompare.tabular import episodes
+from rlcompare.tabular.runs import train_runs
+from rlcompare.tabular.state import Settings, allocate_records, initial_state
 
 W0 = [[0.25, 0.2], [0.1, 0.6]]
 COIN_SEED = 343

@@ -8,16 +8,19 @@ import time
 from pathlib import Path
 
 import rlcompare
-from rlcompare._numba_cache import prune_unused, source_digest
+from rlcompare.compiled import COMPILED_SOURCES, prune_unused, source_digest
 
 PACKAGE = Path(rlcompare.__file__).parent
 
 
 def copy_of_compiled_sources(tmp_path: Path) -> Path:
     copy = tmp_path / "package"
-    for name in ("algorithms", "engine", "envs"):
-        shutil.copytree(PACKAGE / name, copy / name, ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copy(PACKAGE / "rng.py", copy / "rng.py")
+    for name in COMPILED_SOURCES:
+        if (PACKAGE / name).is_dir():
+            shutil.copytree(PACKAGE / name, copy / name, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            (copy / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy(PACKAGE / name, copy / name)
     return copy
 
 
@@ -26,6 +29,7 @@ def test_digest_changes_with_any_compiled_source_and_only_with_them(tmp_path: Pa
     before = source_digest(copy)
     assert before == source_digest(PACKAGE)
     (copy / "cli.py").write_text("# not compiled code\n")
+    (copy / "tabular" / "config.py").write_text("# validated settings, not compiled code\n")
     assert source_digest(copy) == before
     port = copy / "envs" / "cartpole.py"
     port.write_text(port.read_text() + "\n# one more line\n")
@@ -46,12 +50,12 @@ def test_prune_deletes_other_versions_unused_for_a_month_and_keeps_the_rest(tmp_
 def test_an_empty_cache_says_the_next_run_compiles(tmp_path, monkeypatch):
     import numba
 
-    from rlcompare._numba_cache import holds_nothing_yet
+    from rlcompare.compiled import holds_nothing_yet
 
     monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
     assert holds_nothing_yet()
-    (tmp_path / "engine").mkdir()
-    (tmp_path / "engine" / "run.train_block-1.py310.nbi").write_bytes(b"")
+    (tmp_path / "tabular").mkdir()
+    (tmp_path / "tabular" / "run.train_block-1.py310.nbi").write_bytes(b"")
     assert not holds_nothing_yet()
 
 

@@ -28,7 +28,7 @@ from typer.testing import CliRunner
 from rlcompare import ExperimentConfig, Results, cli, load_agent, run
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.backends import LocalBackend
-from rlcompare.experiment.engines import load_if_complete
+from rlcompare.experiment.engines import load_if_complete, load_run
 from rlcompare.experiment.sweep import parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, run_sweep, trial_path
 from rlcompare.studies.paper import paper_configs, reproduce
@@ -255,11 +255,11 @@ def test_the_lock_is_released_when_its_holder_dies(tmp_path: Path) -> None:
 # --- 4, 5. files that do not belong together -------------------------------------------------------------
 
 def test_another_configurations_files_in_a_run_directory_are_refused_and_retrained(study_copy: Path) -> None:
-    original = Results.load(study_copy / "sarsa-decay")
+    original = load_run(study_copy / "sarsa-decay")
     for name in (rundir.EPISODES_FILE, rundir.QTABLES_FILE):
         shutil.copyfile(study_copy / "q_learning-decay" / name, study_copy / "sarsa-decay" / name)
     with pytest.raises(store.StoreError, match=r"sarsa-decay/episodes\.parquet: does not belong to this run"):
-        Results.load(study_copy / "sarsa-decay")
+        load_run(study_copy / "sarsa-decay")
     result = invoke("report", str(study_copy), "--no-videos")
     output = " ".join(result.output.split())  # the console wraps long paths where it likes
     assert "sarsa-decay" in output
@@ -268,7 +268,7 @@ def test_another_configurations_files_in_a_run_directory_are_refused_and_retrain
     again = {r.config.name: reused for r, reused in reproduce(study_copy, paper_configs(
         (0, 1), episodes=60, eval_every=30, eval_episodes=2))}
     assert [name for name, reused in again.items() if not reused] == ["sarsa-decay"]
-    np.testing.assert_array_equal(Results.load(study_copy / "sarsa-decay").records.returns, original.records.returns)
+    np.testing.assert_array_equal(load_run(study_copy / "sarsa-decay").records.returns, original.records.returns)
 
 
 @pytest.mark.parametrize(("field", "value"), [("bins", 10), ("seeds", [5, 1]), ("alpha", 0.5)])
@@ -278,7 +278,7 @@ def test_an_edited_config_is_refused_by_load_and_load_agent(field: str, value, t
     data = store.read_json(path)
     data[field] = value
     path.write_text(json.dumps(data))
-    for load in (lambda: Results.load(tmp_path / "run"), lambda: load_agent(tmp_path / "run", seed=0)):
+    for load in (lambda: load_run(tmp_path / "run"), lambda: load_agent(tmp_path / "run", seed=0)):
         with pytest.raises(store.StoreError, match=r"config\.json: does not belong to this run"):
             load()
     assert load_if_complete(tmp_path / "run", TINY) is None
@@ -290,7 +290,7 @@ def test_a_run_written_without_a_record_of_its_contents_is_not_trusted(tmp_path:
     del meta["contents"]
     (tmp_path / "run" / rundir.META_FILE).write_text(json.dumps(meta))
     with pytest.raises(store.StoreError, match="no record of the run's contents"):
-        Results.load(tmp_path / "run")
+        load_run(tmp_path / "run")
 
 
 @pytest.fixture(scope="module")
@@ -355,7 +355,7 @@ def test_a_damaged_run_directory_is_refused_or_reads_exactly_as_written(damage, 
         else:
             shutil.copyfile(other / name, path)
         try:
-            loaded = Results.load(run_dir)
+            loaded = load_run(run_dir)
         except store.StoreError:
             return
         for field, array in written.records._asdict().items():
@@ -365,14 +365,14 @@ def test_a_damaged_run_directory_is_refused_or_reads_exactly_as_written(damage, 
 
 # --- 8, 9, 10. sizes, full disks, read-only directories, failed runs -------------------------------------
 
-@pytest.mark.parametrize(("name", "message"), [(rundir.CONFIG_FILE, "does not belong to this run"),
+@pytest.mark.parametrize(("name", "message"), [(rundir.CONFIG_FILE, "not a file of this run"),
                                                 (rundir.META_FILE, "more than rlcompare writes")])
 def test_an_oversized_metadata_file_is_refused_unread(name: str, message: str, tmp_path: Path) -> None:
     run(TINY, out=tmp_path / "run")
     (tmp_path / "run" / name).write_text('{"algorithm": "' + "x" * (store.MAX_JSON_BYTES + 10) + '"}')
     started = time.perf_counter()
     with pytest.raises(store.StoreError, match=message) as error:
-        Results.load(tmp_path / "run")
+        load_run(tmp_path / "run")
     assert time.perf_counter() - started < 5
     assert len(str(error.value)) < 300
     result = invoke("report", str(tmp_path / "run"))
@@ -380,12 +380,12 @@ def test_an_oversized_metadata_file_is_refused_unread(name: str, message: str, t
 
 
 def test_a_run_that_fails_leaves_no_directory_behind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from rlcompare.experiment import runner as runner_module
+    from rlcompare.tabular import front
 
     def interrupted(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(runner_module, "_train", interrupted)
+    monkeypatch.setattr(front, "train", interrupted)
     result = invoke("run", "--episodes", "5", "--seeds", "1", "--out", str(tmp_path / "new"))
     one_clear_line(result)
     assert "No space left on device" in result.output

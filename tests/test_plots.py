@@ -7,10 +7,10 @@ import pytest
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
-from rlcompare.analysis import plots
-from rlcompare.analysis.curves import mean_band, moving_average, thinned
-from rlcompare.analysis.explain import map_frame
-from rlcompare.experiment.config import ExperimentConfig
+from rlcompare.report import plots
+from rlcompare.stats.curves import mean_band, moving_average, thinned
+from rlcompare.studies.start_region import map_frame
+from rlcompare.tabular.config import ExperimentConfig
 
 FRAME = map_frame(ExperimentConfig())  # MountainCar-v0 on the paper's grid
 

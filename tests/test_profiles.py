@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from rlcompare.analysis.profiles import (
+from rlcompare.stats.aggregates import (
     AGGREGATES,
     aggregate_estimates,
     aggregate_mean,

@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rlcompare.engine.state import Records
 from rlcompare.experiment.backends import LocalBackend
 from rlcompare.experiment.sweep import parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, read_table, run_sweep
+from rlcompare.tabular.state import Records
 
 pytest.importorskip("ray")
 

@@ -11,10 +11,10 @@ from typer.testing import CliRunner
 from rlcompare import ConfigError, ExperimentConfig
 from rlcompare.algorithms.registry import BEFORE_UPDATE, FAMILIES, METHODS, label
 from rlcompare.algorithms.registry import rule_for as method_rule
+from rlcompare.bench.tabular import MULTI_STEP, ONE_STEP
 from rlcompare.cli import app
-from rlcompare.engine.episodes import LOOPS
-from rlcompare.experiment.benchmark import MULTI_STEP, ONE_STEP
-from rlcompare.experiment.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
+from rlcompare.tabular.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
+from rlcompare.tabular.episodes import LOOPS
 
 
 def test_the_configuration_accepts_exactly_the_registered_methods():
@@ -77,8 +77,8 @@ def test_every_study_listed_is_one_the_command_can_run():
 
 
 def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entrys():
+    from rlcompare.bench.tabular import PORT_EPISODES
     from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, environment
-    from rlcompare.experiment.benchmark import PORT_EPISODES
 
     assert set(PORT_EPISODES) == {*PORTS, *TABLE_ENVIRONMENTS} - {"MountainCar-book"}
     assert all(PORT_EPISODES[name] == environment(name).bench_episodes for name in PORT_EPISODES)
@@ -107,10 +107,10 @@ def test_the_readme_lists_every_study_in_the_registrys_order():
     assert line.split("#")[1].split() == list(STUDIES)
 
 
-def test_analysis_names_no_environment():
+@pytest.mark.parametrize("package", ["stats", "report"])
+def test_statistics_and_pictures_name_no_environment(package):
     """What figures, tables and videos say of an environment comes from its registry entry."""
-    analysis = Path(__file__).parents[1] / "src" / "rlcompare" / "analysis"
-    for path in analysis.glob("*.py"):
+    for path in (Path(__file__).parents[1] / "src" / "rlcompare" / package).glob("*.py"):
         code = "\n".join(line for line in path.read_text().splitlines() if not line.lstrip().startswith("#"))
         for name in ("MountainCar", "CartPole", "Acrobot", "CliffWalking", "mountain_car", "cartpole"):
             assert f'"{name}' not in code, (path.name, name)

@@ -15,17 +15,33 @@ from matplotlib.transforms import Bbox
 from typer.testing import CliRunner
 
 from rlcompare import cli
-from rlcompare.analysis.convergence import RULES
-from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
-from rlcompare.analysis.stats import VERDICTS, interval
-from rlcompare.analysis.tables import COLUMNS, Claim, is_fragile, judge, per_seed_metrics
-from rlcompare.engine.state import Records
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.results import Results
+from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
+from rlcompare.stats import verdicts
+from rlcompare.stats.convergence import RULES
+from rlcompare.stats.intervals import VERDICTS, interval
+from rlcompare.stats.verdicts import columns, is_fragile
+from rlcompare.studies.measures import per_seed_metrics
 from rlcompare.studies.paper import paper_configs, reproduce
 from rlcompare.studies.paper_figures import curve_figure, paired_difference_figure, stages_figure, visits_figure
-from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, FIGURES, build_report, load_study
+from rlcompare.studies.paper_report import (
+    CLAIMS,
+    CONFIGURATIONS,
+    FIGURES,
+    NAMES,
+    build_report,
+    load_study,
+    paper_claim,
+    within,
+)
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
+from rlcompare.tabular.state import Records
+
+
+def judge(*args, **kwargs):
+    """:func:`rlcompare.stats.verdicts.judge` with the paper's names for A and B."""
+    return verdicts.judge(*args, names=NAMES, **kwargs)
 
 runner = CliRunner(env={"COLUMNS": "200"})
 ABLATION = ("q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",
@@ -60,7 +76,7 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert table_ii.set_index("configuration").loc["sarsa-constant", "paper (Table II)"] == -176
     verdicts = pd.read_csv(study_copy / "tables" / "verdicts.csv")
     assert len(verdicts) == len(CLAIMS)
-    assert list(verdicts.columns) == COLUMNS
+    assert list(verdicts.columns) == columns(NAMES)
     assert {v.removesuffix(" (fragile)") for v in verdicts["verdict"]} <= set(VERDICTS)
     assert (verdicts["p (Holm)"].dropna() >= verdicts["p"].dropna()).all()
     floored = verdicts[verdicts["metric"] == "first_action_left"]
@@ -267,8 +283,8 @@ def _metrics(sarsa: list[float], q: list[float], metric: str = "behaviour_return
 def test_judge_reads_the_direction_of_each_claim() -> None:
     rng = np.random.default_rng(0)
     q = rng.normal(-300, 5, 20)
-    better = Claim("SARSA higher", "constant", "behaviour_return", sign=1)
-    lower = Claim("SARSA lower", "constant", "behaviour_return", sign=-1)
+    better = paper_claim("SARSA higher", "constant", "behaviour_return", sign=1)
+    lower = paper_claim("SARSA lower", "constant", "behaviour_return", sign=-1)
     clear = judge([better, lower], _metrics(list(q + 20), list(q)), episodes=100)
     assert list(clear["verdict"]) == ["supported", "contradicted"]
     noise = judge([better], _metrics(list(q + rng.normal(0, 5, 20)), list(q)), episodes=100)
@@ -276,7 +292,7 @@ def test_judge_reads_the_direction_of_each_claim() -> None:
 
 
 def test_judge_counts_a_run_that_never_converged_as_the_last_episode() -> None:
-    claim = Claim("SARSA faster", "constant", "convergence_episode", sign=-1)
+    claim = paper_claim("SARSA faster", "constant", "convergence_episode", sign=-1)
     row = judge([claim], _metrics([100.0, 120.0, 110.0], [np.nan, 400.0, 390.0], "convergence_episode"),
                 episodes=500).iloc[0]
     assert row["Q-Learning"] == pytest.approx((500 + 400 + 390) / 3)
@@ -286,17 +302,17 @@ def test_judge_ratio_equivalence_and_level_claims() -> None:
     rng = np.random.default_rng(1)
     sarsa = rng.normal(1000, 30, 30)
     metrics = _metrics(list(sarsa), list(4 * sarsa + rng.normal(0, 30, 30)), "convergence_episode")
-    four = Claim("4 times", "constant", "convergence_episode", kind="ratio", value=4.0)
-    two = Claim("2 times", "constant", "convergence_episode", kind="ratio", value=2.0)
+    four = paper_claim("4 times", "constant", "convergence_episode", kind="ratio", value=4.0)
+    two = paper_claim("2 times", "constant", "convergence_episode", kind="ratio", value=2.0)
     assert list(judge([four, two], metrics, episodes=10_000)["verdict"]) == ["supported", "contradicted"]
     close = _metrics(list(sarsa), list(sarsa + rng.normal(0, 1, 30)))
-    same = Claim("same", "constant", "behaviour_return", kind="same", value=5.0)
+    same = paper_claim("same", "constant", "behaviour_return", kind="within", bounds=within(5.0))
     assert judge([same], close, episodes=1)["verdict"].iloc[0] == "supported"
     apart = _metrics(list(sarsa), list(sarsa + 50))
     assert judge([same], apart, episodes=1)["verdict"].iloc[0] == "contradicted"
     shares = _metrics(list(rng.uniform(0.7, 0.9, 30)), list(rng.uniform(0.1, 0.3, 30)), "first_action_left")
-    sarsa_left = Claim("SARSA left", "constant", "first_action_left", kind="level", sign=1, value=0.5)
-    q_left = Claim("Q left", "constant", "first_action_left", kind="level", sign=1, value=0.5, method="q_learning")
+    sarsa_left = paper_claim("SARSA left", "constant", "first_action_left", kind="level", sign=1, value=0.5)
+    q_left = paper_claim("Q left", "constant", "first_action_left", kind="level", sign=1, value=0.5, reads="b")
     assert list(judge([sarsa_left, q_left], shares, episodes=1)["verdict"]) == ["supported", "contradicted"]
 
 
@@ -304,14 +320,14 @@ def test_judge_refuses_unpaired_seeds() -> None:
     metrics = _metrics([1.0, 2.0], [1.0, 2.0])
     metrics["q_learning-constant"]["seed"] = [5, 6]
     with pytest.raises(ValueError, match="different seeds"):
-        judge([Claim("x", "constant", "behaviour_return")], metrics, episodes=10)
+        judge([paper_claim("x", "constant", "behaviour_return")], metrics, episodes=10)
 
 
 def test_a_time_to_converge_around_the_end_of_the_decay_is_flagged_as_the_schedule() -> None:
     from types import SimpleNamespace
 
-    from rlcompare.experiment.config import ExperimentConfig
     from rlcompare.studies.paper_report import schedule_notes
+    from rlcompare.tabular.config import ExperimentConfig
 
     runs = {name: SimpleNamespace(config=ExperimentConfig(algorithm=algorithm, schedule=schedule, episodes=5000))
             for name, algorithm, schedule in (("sarsa-decay", "sarsa", "decay"), ("q_learning-decay", "q_learning",

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rlcompare.analysis.report import NO_DATA, Section, plain_number, render_report, shown, write_table
+from rlcompare.report.page import NO_DATA, Section, plain_number, render_report, shown, write_table
 
 
 @pytest.mark.parametrize(("value", "text"), [

@@ -14,13 +14,13 @@ import pytest
 from typer.testing import CliRunner
 
 from rlcompare import cli
-from rlcompare.analysis.stats import Estimate, paired_difference
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.experiment.sweep import SweepError, derive_seeds
 from rlcompare.experiment.sweep_store import read_manifest, trial_path
-from rlcompare.studies import sensitivity, sensitivity_report
-from rlcompare.studies.sensitivity import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
+from rlcompare.stats.intervals import Estimate, paired_difference
+from rlcompare.studies import sensitivity_grid, sensitivity_report
+from rlcompare.studies.sensitivity_grid import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
+from rlcompare.tabular.config import ExperimentConfig
 
 runner = CliRunner(env={"COLUMNS": "200"})
 TINY = ("--grid", "alpha=0.05,0.5", "--grid", "gamma=0.9", "--grid", "epsilon_end=0", "--grid",
@@ -113,13 +113,13 @@ def test_a_wider_schedule_block_trains_only_its_new_configurations(tiny_study: t
     assert result.exit_code == 0, result.output
     assert "6 trials run, 18 already finished" in result.output  # constant ε = 0.25, both algorithms, 3 seeds
     assert {k: v for k, v in trial_files(out).items() if k in before} == before
-    cells = sensitivity.compare_cells(sensitivity.seed_returns(out / "sweep"))
+    cells = sensitivity_grid.compare_cells(sensitivity_grid.seed_returns(out / "sweep"))
     assert sorted(cells.loc[cells["schedule"] == "constant", "epsilon_end"]) == [0.25, 0.5]
 
 
 def test_the_paired_difference_of_a_cell_is_the_one_computed_by_hand(tiny_study: tuple[Path, str]) -> None:
     root = tiny_study[0] / "sweep"
-    cells = sensitivity.compare_cells(sensitivity.seed_returns(root))
+    cells = sensitivity_grid.compare_cells(sensitivity_grid.seed_returns(root))
     by_hand: dict[tuple[str, float, str], dict[int, tuple[float, float]]] = {}
     for trial in read_manifest(root)["trials"]:
         trial_dir = trial_path(root, trial["config_hash"], trial["seed"])
@@ -149,27 +149,27 @@ def test_the_paired_difference_of_a_cell_is_the_one_computed_by_hand(tiny_study:
 
 
 def test_the_default_grid_covers_the_required_values_on_common_seeds() -> None:
-    sweep, text = sensitivity.plan()
+    sweep, text = sensitivity_grid.plan()
     assert 'schedule = "decay"' in text
     cross = {(c.algorithm, c.alpha, c.gamma, c.epsilon_end, c.truncation_as_terminal) for c in sweep.configs
              if c.schedule == "decay"}
     assert cross == set(itertools.product(("q_learning", "sarsa"), (0.01, 0.05, 0.1, 0.2, 0.5), (0.9, 0.99, 1.0),
                                           (0.0, 0.01, 0.05), (False, True)))
     assert len(sweep.configs) == 180 + 18
-    assert sweep.seeds == derive_seeds(0, sensitivity.DEFAULT_SEEDS)
+    assert sweep.seeds == derive_seeds(0, sensitivity_grid.DEFAULT_SEEDS)
     assert {c.seeds for c in sweep.configs} == {sweep.seeds}  # paired: every configuration, the same seeds
     for config in sweep.configs:  # everything else is the paper's setting
         assert config == ExperimentConfig(algorithm=config.algorithm, schedule=config.schedule, alpha=config.alpha,
                                           gamma=config.gamma, epsilon=config.epsilon, epsilon_end=config.epsilon_end,
                                           truncation_as_terminal=config.truncation_as_terminal,
-                                          episodes=sensitivity.DEFAULT_EPISODES, seeds=sweep.seeds)
+                                          episodes=sensitivity_grid.DEFAULT_EPISODES, seeds=sweep.seeds)
     assert (sweep.configs[0].epsilon_start, sweep.configs[0].bins, sweep.configs[0].max_steps) == (1.0, 20, 1000)
 
 
 def test_the_grid_holds_the_schedule_block_constant_and_decaying_epsilon_by_gamma() -> None:
     """Constant ε at 0.1, 0.25 and the paper's 0.5, and ε decaying to each ε_end, each with γ 0.9, 0.99 and 1 at
     the paper's α and time limit; the decaying ones are the cross's own configurations."""
-    sweep, text = sensitivity.plan()
+    sweep, text = sensitivity_grid.plan()
     at_block = [c for c in sweep.configs if c.alpha == 0.05 and c.truncation_as_terminal]
     found = {(c.algorithm, c.schedule, c.epsilon if c.schedule == "constant" else c.epsilon_end, c.gamma)
              for c in at_block}
@@ -180,31 +180,31 @@ def test_the_grid_holds_the_schedule_block_constant_and_decaying_epsilon_by_gamm
     assert len(constant) == 18
     assert all(c in at_block for c in constant)
     assert text.count("[[include]]") == 18  # the decaying cells are not run twice
-    assert sensitivity.cell_count() == 99
+    assert sensitivity_grid.cell_count() == 99
 
 
 def test_a_cross_without_the_blocks_setting_gets_the_blocks_decaying_cells_of_its_own() -> None:
-    grid = {**sensitivity.AXES, "alpha": (0.1,), "gamma": (0.9, 1.0)}
-    sweep, _ = sensitivity.plan(grid, seeds=2, episodes=10)
+    grid = {**sensitivity_grid.AXES, "alpha": (0.1,), "gamma": (0.9, 1.0)}
+    sweep, _ = sensitivity_grid.plan(grid, seeds=2, episodes=10)
     decaying = {(c.alpha, c.gamma, c.epsilon_end, c.truncation_as_terminal) for c in sweep.configs
                 if c.schedule == "decay" and c.alpha == 0.05}
     assert decaying == set(itertools.product((0.05,), (0.9, 1.0), (0.0, 0.01, 0.05), (True,)))
-    assert len(sweep.configs) == 2 * (12 + 6 + 6) == 2 * sensitivity.cell_count(grid)
+    assert len(sweep.configs) == 2 * (12 + 6 + 6) == 2 * sensitivity_grid.cell_count(grid)
 
 
 def test_the_default_size_can_resolve_a_cell_after_holm() -> None:
     """The smallest two-sided Wilcoxon p-value of n seeds, 2 / 2**n, must pass Holm's first threshold over every
     cell of both blocks."""
-    assert sensitivity.LEVEL / sensitivity.cell_count() > 2 / 2**sensitivity.DEFAULT_SEEDS
+    assert sensitivity_grid.LEVEL / sensitivity_grid.cell_count() > 2 / 2**sensitivity_grid.DEFAULT_SEEDS
 
 
 def test_a_grid_option_overrides_one_axis_and_keeps_the_others() -> None:
-    grid = sensitivity.parse_grid(["alpha=0.1, 0.3", "truncation_as_terminal=TRUE"])
+    grid = sensitivity_grid.parse_grid(["alpha=0.1, 0.3", "truncation_as_terminal=TRUE"])
     assert grid["alpha"] == (0.1, 0.3)
     assert grid["truncation_as_terminal"] == (True,)
-    assert grid["gamma"] == sensitivity.GRID["gamma"]
+    assert grid["gamma"] == sensitivity_grid.GRID["gamma"]
     assert grid["epsilon"] == (0.1, 0.25, 0.5)
-    assert sensitivity.parse_grid(["epsilon=0.2"])["epsilon"] == (0.2,)
+    assert sensitivity_grid.parse_grid(["epsilon=0.2"])["epsilon"] == (0.2,)
 
 
 @pytest.mark.parametrize(("grid", "field"), [
@@ -217,7 +217,7 @@ def test_a_grid_option_overrides_one_axis_and_keeps_the_others() -> None:
 ])
 def test_a_bad_grid_names_its_field(grid: dict, field: str) -> None:
     with pytest.raises(SweepError, match=field.replace("[", r"\[").replace("(", r"\(").replace("]", r"\]")):
-        sensitivity.plan(grid, seeds=2, episodes=10)
+        sensitivity_grid.plan(grid, seeds=2, episodes=10)
 
 
 @pytest.mark.parametrize(("args", "option", "message"), [
@@ -268,12 +268,12 @@ def test_reproduce_lists_the_study() -> None:
 
 def test_marks_need_the_holm_adjusted_p_value_and_the_interval_on_one_side() -> None:
     above, below, spanning = Estimate(5.0, 1.0, 9.0), Estimate(-5.0, -9.0, -1.0), Estimate(5.0, -1.0, 9.0)
-    adjusted, marks = sensitivity.mark_family([above, below, spanning, Estimate(1.0, np.nan, np.nan)],
+    adjusted, marks = sensitivity_grid.mark_family([above, below, spanning, Estimate(1.0, np.nan, np.nan)],
                                               [0.001, 0.002, 0.001, 0.001])
     assert marks == [SARSA_BETTER, Q_BETTER, NOT_RESOLVED, NOT_RESOLVED]
     np.testing.assert_allclose(adjusted, [0.004, 0.004, 0.004, 0.004])
-    alone = sensitivity.mark_family([above], [0.02])[1]
-    together = sensitivity.mark_family([above, above, above], [0.02, 0.03, 0.04])[1]
+    alone = sensitivity_grid.mark_family([above], [0.02])[1]
+    together = sensitivity_grid.mark_family([above, above, above], [0.02, 0.03, 0.04])[1]
     assert alone == [SARSA_BETTER]
     assert together == [NOT_RESOLVED] * 3  # each below 0.05, none below Holm's thresholds
 
@@ -283,10 +283,10 @@ def test_marks_need_the_holm_adjusted_p_value_and_the_interval_on_one_side() -> 
 
 def cell(schedule: str, alpha: float, gamma: float, end: float, terminal: bool, value: float, mark: str,
          low: float | None = None, high: float | None = None) -> dict:
-    """One row of :func:`sensitivity.compare_cells`, both metrics alike."""
+    """One row of :func:`sensitivity_grid.compare_cells`, both metrics alike."""
     row = {"schedule": schedule, "alpha": alpha, "gamma": gamma, "epsilon_end": end, "truncation_as_terminal": terminal,
            "seeds": 20}
-    for metric in sensitivity.METRICS:
+    for metric in sensitivity_grid.METRICS:
         row |= {f"{metric}_sarsa": -200.0 + value, f"{metric}_q_learning": -200.0, f"{metric}_difference": value,
                 f"{metric}_low": value - 5 if low is None else low,
                 f"{metric}_high": value + 5 if high is None else high, f"{metric}_p": 1e-5,

@@ -8,13 +8,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rlcompare.analysis.compare import Judged, compare_paired
-from rlcompare.analysis.findings import _verdict_words, gap_and_interval, opening, tally
-from rlcompare.analysis.stats import VERDICTS
-from rlcompare.analysis.tables import Claim
+from rlcompare.report.findings import _verdict_words, gap_and_interval, opening, tally
+from rlcompare.stats.compare import Judged, compare_paired
+from rlcompare.stats.intervals import VERDICTS
+from rlcompare.studies.paper_report import paper_claim, within
 
-CLAIMS = [Claim("a", "constant", "behaviour_return"), Claim("b", "constant", "greedy_return"),
-          Claim("c", "decay", "behaviour_return"), Claim("d", "decay", "greedy_return", kind="same", value=20)]
+CLAIMS = [paper_claim("a", "constant", "behaviour_return"), paper_claim("b", "constant", "greedy_return"),
+          paper_claim("c", "decay", "behaviour_return"),
+          paper_claim("d", "decay", "greedy_return", kind="within", bounds=within(20))]
 
 
 def _metrics(shift: float = 5.0) -> dict[str, pd.DataFrame]:
@@ -34,7 +35,7 @@ def test_the_papers_answer_states_each_claims_own_label(row: int, label: str) ->
     labels = ["supported"] * len(CLAIMS)
     labels[row] = label
     sentences = opening(CLAIMS, _verdicts(labels), _metrics())
-    sentence = sentences[0 if CLAIMS[row].schedule == "constant" else 1]
+    sentence = sentences[0 if CLAIMS[row].a == "sarsa-constant" else 1]
     assert _verdict_words(CLAIMS[row], label, len(CLAIMS)) in sentence
     fragile = labels.copy()
     fragile[row] = f"{label} (fragile)"  # the mark changes the tally, not the claim's words

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rlcompare.analysis.compare import compare_paired, comparison_label
-from rlcompare.analysis.stats import (
+from rlcompare.stats.compare import compare_paired, comparison_label
+from rlcompare.stats.intervals import (
     CONTRADICTED,
     NOT_RESOLVED,
     SUPPORTED,
@@ -293,7 +293,7 @@ def test_a_comparison_without_an_estimate_has_no_data():
 def test_improvement_share_counts_pairs_to_the_same_bits_as_mid_ranks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Counting pairs in compiled code and summing mid-ranks give U exactly, so the same bits, ties and resampled
     rows included; more pairs than :data:`PAIRS_COUNTED`, or a NaN, take the ranks."""
-    from rlcompare.analysis import stats as module
+    from rlcompare.stats import intervals as module
 
     rng = np.random.default_rng(5)
     cases = [(rng.integers(0, 4, 30).astype(float), rng.integers(0, 4, 30).astype(float)),

@@ -21,7 +21,6 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from rlcompare import cli, run
-from rlcompare.engine.state import Records
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.backends import LocalBackend
 from rlcompare.experiment.sweep import SweepError, derive_seeds, load_sweep, parse_sweep
@@ -34,7 +33,8 @@ from rlcompare.experiment.sweep_store import (
     run_sweep,
     trial_path,
 )
-from rlcompare.experiment.tabular import SWEEP_KEYS as CONFIG_KEYS
+from rlcompare.tabular.front import SWEEP_KEYS as CONFIG_KEYS
+from rlcompare.tabular.state import Records
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "sweep.toml"
 SMALL = """
@@ -329,7 +329,7 @@ def test_sweep_command_runs_reports_and_groups(tmp_path: Path) -> None:
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Sweep: small" in html
     assert "15 of 15 trials finished" in html
-    from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
+    from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
 
     assert BEHAVIOUR_AND_GREEDY in html  # a tabular sweep shows both returns, so it says why they differ
     again = runner.invoke(cli.app, ["report", str(tmp_path / "out"), "--group-by", "env"], prog_name="rlcompare")

@@ -20,9 +20,11 @@ pytest.importorskip("jax")
 
 from rlcompare import cli
 from rlcompare.deep import INSTALL_HINT
-from rlcompare.deep.engine import SWEEP_KEYS as DEEP_KEYS
-from rlcompare.deep.run import DeepConfig, DeepResults
+from rlcompare.deep.config import DeepConfig
+from rlcompare.deep.front import SWEEP_KEYS as DEEP_KEYS
+from rlcompare.deep.results import DeepResults
 from rlcompare.experiment import rundir, store
+from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.sweep import SweepError, config_dict, config_hash, parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, read_table, trial_path
 from rlcompare.studies.sweep_report import PANELS, across_figure, deep_configuration_rows, deep_metrics
@@ -247,7 +249,7 @@ def test_trials_merge_per_configuration_in_the_sweep_order_of_seeds(deep_store) 
         assert results.seeds == sweep.seeds
         assert results.evaluations.groupby("seed")["round"].nunique().to_dict() == dict.fromkeys(sweep.seeds, 2)
         assert all(array.shape[0] == 2 for array in results.params.values())
-        first = DeepResults.load(trial_path(out, config_hash(config), sweep.seeds[0]))
+        first = load_run(trial_path(out, config_hash(config), sweep.seeds[0]))
         pd.testing.assert_frame_equal(results.evaluations[results.evaluations["seed"] == sweep.seeds[0]],
                                       first.evaluations)
     episodes = read_table(out)
@@ -334,7 +336,7 @@ def test_a_deep_sweep_on_a_ray_cluster_equals_the_local_backend(deep_store, tmp_
     ours = load_configurations(out)[0]
     assert list(ours) == [config_hash(c) for c in parse_sweep(TINY).configs]
     for key, results in ours.items():
-        _assert_same(results, DeepResults.load(trial_path(reference, key, results.seeds[0])))
+        _assert_same(results, load_run(trial_path(reference, key, results.seeds[0])))
 
 
 def test_a_huge_hyperparameter_name_is_quoted_in_part() -> None:

@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from rlcompare import cli
-from rlcompare.experiment.config import ExperimentConfig, quote
 from rlcompare.experiment.sweep import SweepError, config_hash, is_sweep_name, parse_sweep
+from rlcompare.formatting import quote
+from rlcompare.tabular.config import ExperimentConfig
 
 runner = CliRunner(env={"COLUMNS": "200"})
 NAME_ALLOWED = ("allowed: a single directory name of letters, digits, '.', '_' and '-' (at most 100 characters, "

@@ -86,12 +86,12 @@ def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
     of episodes every method has drawn the same starts, however long its episodes were and however often it
     slipped: the start state of episode k of seed s is the same for every method (common random numbers)."""
     from rlcompare.algorithms.registry import rule_for as method_rule
-    from rlcompare.engine.run import train_runs
-    from rlcompare.engine.state import ENV_STREAM, TRANSITION_STREAM, allocate_records, initial_state
     from rlcompare.envs.features import make_features
     from rlcompare.envs.registry import make_env
-    from rlcompare.experiment.config import ExperimentConfig
-    from rlcompare.experiment.runner import epsilon_schedule, kernel_settings
+    from rlcompare.tabular.config import ExperimentConfig
+    from rlcompare.tabular.runs import train_runs
+    from rlcompare.tabular.state import ENV_STREAM, TRANSITION_STREAM, allocate_records, initial_state
+    from rlcompare.tabular.train import epsilon_schedule, kernel_settings
 
     for env_id in ("FrozenLake-v1", "Taxi-v4"):
         table, streams, lengths = from_gymnasium(env_id), {}, {}
@@ -117,7 +117,7 @@ def test_every_method_sees_the_same_start_states_on_stochastic_tables() -> None:
 def test_the_adapter_draws_starts_and_slips_from_the_same_streams_as_the_table() -> None:
     """FrozenLake through Gymnasium's own environment (reset and transition generators swapped in) equals
     the table port bit for bit, slips included."""
-    from rlcompare.experiment.config import ExperimentConfig
+    from rlcompare.tabular.config import ExperimentConfig
 
     config = ExperimentConfig(env="FrozenLake-v1", algorithm="sarsa", episodes=60, seeds=(0, 1), eval_every=30,
                               eval_episodes=3, schedule="constant", epsilon=0.3, alpha=0.1)

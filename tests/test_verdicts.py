@@ -7,9 +7,11 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from rlcompare.analysis.convergence import RULES, Rule, convergence_episodes, convergence_on_rounds
-from rlcompare.analysis.explain import start_cells
-from rlcompare.analysis.stats import (
+from rlcompare.envs.discretize import make_grid
+from rlcompare.envs.features import grid_bounds
+from rlcompare.stats import verdicts
+from rlcompare.stats.convergence import RULES, Rule, convergence_episodes, convergence_on_rounds
+from rlcompare.stats.intervals import (
     CONTRADICTED,
     NO_DATA,
     NOT_RESOLVED,
@@ -26,21 +28,23 @@ from rlcompare.analysis.stats import (
     tost,
     verdict,
 )
-from rlcompare.analysis.tables import (
-    COLUMNS,
-    Claim,
-    convergence,
-    convergence_by_rule,
-    family,
-    first_action_floor,
-    judge,
-    judge_by_rule,
-)
-from rlcompare.engine.state import Records
-from rlcompare.envs.discretize import make_grid
-from rlcompare.envs.features import grid_bounds
-from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.results import Results
+from rlcompare.stats.verdicts import columns, family
+from rlcompare.studies.measures import convergence, convergence_by_rule, first_action_floor
+from rlcompare.studies.paper_report import NAMES, paper_claim, within
+from rlcompare.studies.start_region import start_cells
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
+from rlcompare.tabular.state import Records
+
+
+def judge(*args, **kwargs):
+    """:func:`rlcompare.stats.verdicts.judge` with the paper's names for A and B."""
+    return verdicts.judge(*args, names=NAMES, **kwargs)
+
+
+def judge_by_rule(*args, **kwargs):
+    """:func:`rlcompare.stats.verdicts.judge_by_rule` with the paper's names for A and B."""
+    return verdicts.judge_by_rule(*args, names=NAMES, **kwargs)
 
 
 def test_the_five_labels():
@@ -233,14 +237,14 @@ def _metrics(sarsa, q, metric: str, schedule: str = "constant") -> dict[str, pd.
             f"q_learning-{schedule}": pd.DataFrame({"seed": seeds, metric: np.asarray(q, dtype=float)})}
 
 
-FASTER = Claim("SARSA faster", "constant", "convergence_episode", sign=-1)
-FOUR = Claim("about 4 times", "constant", "convergence_episode", kind="ratio", value=4.0)
-SIMILAR = Claim("similar time", "constant", "convergence_episode", kind="same", value=50.0)
+FASTER = paper_claim("SARSA faster", "constant", "convergence_episode", sign=-1)
+FOUR = paper_claim("about 4 times", "constant", "convergence_episode", kind="ratio", value=4.0)
+SIMILAR = paper_claim("similar time", "constant", "convergence_episode", kind="within", bounds=within(50.0))
 
 
 def test_judge_table_has_the_stable_columns():
     table = judge([FASTER], _metrics([100.0] * 6, [400.0] * 6, "convergence_episode"), episodes=1000)
-    assert list(table.columns) == COLUMNS
+    assert list(table.columns) == columns(NAMES)
     for name in ("claim", "verdict", "estimate", "p", "p (Holm)", "fragile", "censored", "noise floor"):
         assert name in table.columns
 
@@ -300,12 +304,12 @@ def test_holm_turns_two_marginal_claims_into_not_resolved():
     # Six seeds, every difference positive: exact two-sided Wilcoxon p = 2 / 2^6 = 0.03125 each.
     s, q = np.arange(6.0) + 10.0, np.arange(6.0)
     metrics = _metrics(s, q, "behaviour_return") | _metrics(s, q, "behaviour_return", "decay")
-    one = Claim("SARSA higher", "constant", "behaviour_return")
+    one = paper_claim("SARSA higher", "constant", "behaviour_return")
     alone = judge([one], metrics, episodes=10).iloc[0]
     assert alone["p"] == pytest.approx(0.03125)
     assert alone["p (Holm)"] == pytest.approx(0.03125)
     assert alone["verdict"] == SUPPORTED
-    pair = judge([one, Claim("SARSA higher too", "decay", "behaviour_return")], metrics, episodes=10)
+    pair = judge([one, paper_claim("SARSA higher too", "decay", "behaviour_return")], metrics, episodes=10)
     np.testing.assert_allclose(pair["p (Holm)"], [0.0625, 0.0625])
     assert list(pair["verdict"]) == [NOT_RESOLVED, NOT_RESOLVED]
     assert family(pair) == "Holm's family: the 2 claims of this table that have data to test (of 2), " \
@@ -314,7 +318,7 @@ def test_holm_turns_two_marginal_claims_into_not_resolved():
 
 def test_a_claim_below_its_noise_floor_is_undecidable_here():
     shares = _metrics(np.linspace(0.8, 0.95, 12), np.linspace(0.05, 0.2, 12), "first_action_left")
-    left = Claim("SARSA pushes left first", "constant", "first_action_left", kind="level", sign=1, value=0.5,
+    left = paper_claim("SARSA pushes left first", "constant", "first_action_left", kind="level", sign=1, value=0.5,
                  floor=True)
     tiny = noise_floor(_q_tables((0.0, 1e-4, 3e-4), noise=0.01))
     row = judge([left], shares, episodes=1, floors={"sarsa-constant": tiny}).iloc[0]
@@ -323,7 +327,7 @@ def test_a_claim_below_its_noise_floor_is_undecidable_here():
     assert "more seeds will not settle it" in row["note"]
     clear = NoiseFloor(0.5, 0.01)
     assert judge([left], shares, episodes=1, floors={"sarsa-constant": clear})["verdict"].iloc[0] == SUPPORTED
-    unfloored = Claim("SARSA pushes left first", "constant", "first_action_left", kind="level", sign=1, value=0.5)
+    unfloored = paper_claim("SARSA pushes left first", "constant", "first_action_left", kind="level", sign=1, value=0.5)
     assert judge([unfloored], shares, episodes=1, floors={"sarsa-constant": tiny})["verdict"].iloc[0] == SUPPORTED
 
 
@@ -379,7 +383,7 @@ def test_a_verdict_that_changes_with_the_band_is_marked_fragile():
     metrics = {name: frame[["seed", "band 5%, window 100"]].rename(columns={"band 5%, window 100":
                                                                              "convergence_episode"})
                for name, frame in rules.items()}
-    steady = Claim("SARSA higher", "constant", "convergence_episode", sign=1)
+    steady = paper_claim("SARSA higher", "constant", "convergence_episode", sign=1)
     judgement = judge_by_rule([FASTER, steady], metrics, EPISODES, rules=rules)
     faster, higher = judgement.verdicts.iloc[0], judgement.verdicts.iloc[1]
     assert faster["verdict"] == "supported (fragile)"  # Q-Learning never settles in a 5% band: censored at 2000

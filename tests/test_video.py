@@ -18,7 +18,7 @@ import pytest
 from PIL import Image, ImageSequence
 
 from rlcompare import ExperimentConfig, load_agent, run
-from rlcompare.analysis import captions, encode, video
+from rlcompare.report import captions, encode, video
 
 MAX_STEPS = 200
 
@@ -187,7 +187,7 @@ def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir:
 
 def test_a_stage_video_shows_every_second_step_and_its_gif_every_third(tmp_path: Path, run_dir: Path) -> None:
     """Only the steps the MP4 or the GIF shows are drawn: the MP4 holds every second step's frame (and the last),
-    the GIF is the one :func:`~rlcompare.analysis.encode.write_gif` makes of every frame of the episode."""
+    the GIF is the one :func:`~rlcompare.report.encode.write_gif` makes of every frame of the episode."""
     job = video.plan_stage_videos(run_dir, tmp_path, seed=0, stages=["final"], max_steps=41)[0]
     mp4, gif = video.render_job(job)
     episode = video.record_episode(load_agent(run_dir, seed=0, stage="final"), episode_seed=job.episode_seed,
@@ -236,7 +236,7 @@ def test_random_baseline_gets_one_video(tmp_path: Path) -> None:
 def test_rendering_needs_no_display_and_sets_it_up_lazily(tmp_path: Path) -> None:
     script = (
         "import os, sys\n"
-        "import rlcompare.analysis.video as video\n"
+        "import rlcompare.report.video as video\n"
         "assert 'SDL_VIDEODRIVER' not in os.environ and 'pygame' not in sys.modules\n"
         "class Idle:\n"
         "    def act(self, observation):\n"
@@ -258,7 +258,7 @@ def test_rendering_through_gymnasium_needs_no_sound_card_and_prints_nothing(tmp_
     without one, ALSA had printed a dozen lines of errors into every report."""
     script = (
         "import os\n"
-        "import rlcompare.analysis.video as video\n"
+        "import rlcompare.report.video as video\n"
         "class Idle:\n"
         "    def act(self, observation):\n"
         "        return 1\n"

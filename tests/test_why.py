@@ -11,6 +11,7 @@ import pytest
 
 from rlcompare.studies import why
 from rlcompare.studies.interface import UI
+from rlcompare.studies.paper_report import paper_claim, within
 from rlcompare.studies.registry import WhyOptions
 from rlcompare.studies.why import TERMS, decomposition, per_seed_returns, term_per_seed, why_configs
 
@@ -117,15 +118,14 @@ def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findi
 def test_the_opening_says_the_gaps_in_words_with_the_labels():
     import pandas as pd
 
-    from rlcompare.analysis.compare import compare_paired
-    from rlcompare.analysis.findings import gap_and_interval, more_or_less, opening, tally
-    from rlcompare.analysis.stats import Estimate
-    from rlcompare.analysis.tables import Claim
+    from rlcompare.report.findings import gap_and_interval, more_or_less, opening, tally
+    from rlcompare.stats.compare import compare_paired
+    from rlcompare.stats.intervals import Estimate
 
-    claims = [Claim("a", "constant", "behaviour_return"), Claim("b", "constant", "greedy_return"),
-              Claim("c", "decay", "behaviour_return", sign=-1), Claim("d", "decay", "greedy_return", kind="same",
-                                                                      value=20),
-              Claim("e", "decay", "convergence_episode", kind="same", value=10)]
+    claims = [paper_claim("a", "constant", "behaviour_return"), paper_claim("b", "constant", "greedy_return"),
+              paper_claim("c", "decay", "behaviour_return", sign=-1),
+              paper_claim("d", "decay", "greedy_return", kind="within", bounds=within(20)),
+              paper_claim("e", "decay", "convergence_episode", kind="within", bounds=within(10))]
     verdicts = pd.DataFrame({"verdict": ["supported", "not resolved", "supported", "supported",
                                          "not resolved (fragile)"],
                              "p (Holm)": [0.01, 0.3, 0.02, 0.01, 0.5], "fragile": [False] * 4 + [True]})
@@ -162,7 +162,7 @@ def test_reproduce_why_through_the_cli_then_report_rebuilds_it(tmp_path):
     assert "With ε constant, SARSA's return while learning" in result.output
     assert len(list(out.glob("*/config.json"))) == 12
     page = (out / "report.html").read_bytes()
-    from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
+    from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
 
     assert BEHAVIOUR_AND_GREEDY.encode() in page  # it shows both returns, so it says why they differ
     (out / "report.html").unlink()
@@ -207,7 +207,7 @@ def test_a_missing_or_damaged_cell_is_named_and_the_rest_still_decomposed(study,
 
 
 def test_the_answer_names_the_largest_part_of_each_schedule_in_brief():
-    from rlcompare.analysis.stats import Estimate
+    from rlcompare.stats.intervals import Estimate
 
     rows = [{"schedule": schedule, "return": "behaviour", "episodes": "all training",
              **dict(zip(("order", "target", "interaction"), map(lambda v: Estimate(v, v - 5, v + 5), values),

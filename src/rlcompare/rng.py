@@ -16,7 +16,8 @@ does little else, runs 10% faster), but is typed again at each of its calls: a q
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from rlcompare.compiled import njit
 
 _MASK32 = np.uint64(0xFFFFFFFF)
 _MASK64 = (1 << 64) - 1

@@ -10,8 +10,10 @@ register, as a plain tabular loop would; the functions below are written once fo
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.extending import overload
+
+from rlcompare.compiled import njit
 
 
 def n_features_on(s: int | np.ndarray) -> int:

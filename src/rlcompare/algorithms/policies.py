@@ -11,8 +11,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from rlcompare.compiled import njit
 from rlcompare.rng import next_below, next_double
 
 

@@ -12,10 +12,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action
 from rlcompare.algorithms.softmax import softmax
+from rlcompare.compiled import njit
 
 
 class Reinforce(NamedTuple):

@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from rlcompare.algorithms.policies import largest
+from rlcompare.compiled import njit
 from rlcompare.rng import next_double
 
 

@@ -26,10 +26,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action
 from rlcompare.algorithms.policies import largest
+from rlcompare.compiled import njit
 from rlcompare.rng import next_double
 
 

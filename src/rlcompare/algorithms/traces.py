@@ -12,9 +12,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from rlcompare.algorithms.linear import feature_on, n_features_on
+from rlcompare.compiled import njit
 
 
 class SarsaLambda(NamedTuple):

@@ -33,8 +33,8 @@ from rlcompare.cli.console import (
 from rlcompare.cli.face import SUMMARIES, PlainCommand, new_app
 from rlcompare.cli.reproduce import FORCE_HELP, reproduce_app
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
 from rlcompare.studies.registry import STUDIES
+from rlcompare.tabular.config import ExperimentConfig
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -186,7 +186,7 @@ def _run_report(run_dir: Path) -> None:
 def _bench_report(directory: Path) -> None:
     """A benchmark's directory: the tables of each file ``bench`` wrote there, as it printed them, with when and
     where they were measured."""
-    from rlcompare.experiment.benchmark import BENCH_FILES, read_bench_document
+    from rlcompare.bench.tabular import BENCH_FILES, read_bench_document
 
     listed = store.listed_outputs(directory)
     for name in BENCH_FILES:
@@ -200,15 +200,15 @@ def _bench_report(directory: Path) -> None:
 def run_summary(results: Any) -> tuple[pd.DataFrame, str, str]:
     """A run's table: its mean behaviour and greedy return over seeds with 95% intervals, as ``run`` prints
     (a deep run: the greedy return of its last evaluation round)."""
-    from rlcompare.experiment.results import Results
     from rlcompare.studies.paper import summary
+    from rlcompare.tabular.results import Results
 
     if isinstance(results, Results):
         return summary([results], paper=False)
     import numpy as np
 
-    from rlcompare.analysis.metrics import returns_per_seed
-    from rlcompare.analysis.tables import table_ii
+    from rlcompare.stats.metrics import returns_per_seed
+    from rlcompare.studies.measures import table_ii
 
     seeds = list(results.seeds)
     training = results.episodes.groupby("seed", sort=False)["return"]
@@ -254,7 +254,7 @@ def bench(
 ) -> None:
     """Steps per second of the kernels on 1 and all threads against a plain reference kernel of each method and
     a plain Gymnasium loop."""
-    from rlcompare.experiment import benchmark
+    from rlcompare.bench import tabular as benchmark
     from rlcompare.experiment.backends import BackendError
 
     owner, out_dir = store.BENCH, out_path(out, Path("runs/bench"))
@@ -272,7 +272,7 @@ def bench(
 
     if deep:
         try:
-            from rlcompare.deep.bench import deep_table, minatar_table, score_table
+            from rlcompare.bench.deep import deep_table, minatar_table, score_table
         except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
             fail(str(error))
         with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):

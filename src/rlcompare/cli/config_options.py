@@ -1,4 +1,4 @@
-"""Options derived from :class:`~rlcompare.experiment.config.ExperimentConfig`: one per field, named after it,
+"""Options derived from :class:`~rlcompare.tabular.config.ExperimentConfig`: one per field, named after it,
 with its default and its docstring as help, and the forms the command line gives some of them in."""
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ import typer
 
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.cli.console import bad_option, option_flag
-from rlcompare.experiment.config import DEFAULT_STAGES, ConfigError, ExperimentConfig, field_docs
+from rlcompare.tabular.config import DEFAULT_STAGES, ExperimentConfig, field_docs
+from rlcompare.validation import ConfigError
 
 _DEFAULT_SEEDS = len(ExperimentConfig().seeds)
 

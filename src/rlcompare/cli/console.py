@@ -19,14 +19,15 @@ from rich.table import Table
 from rich.text import Text
 
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ConfigError
 from rlcompare.experiment.store import StoreError
+from rlcompare.formatting import cut, quote
 from rlcompare.studies.interface import UI, Advance, Report
+from rlcompare.validation import ConfigError
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from rlcompare.experiment.benchmark import BenchTable
+    from rlcompare.bench.tabular import BenchTable
 
 class _Console(Console):
     """rich's console, its width read at each print: a width given to it, else COLUMNS where it is set, else a
@@ -57,9 +58,9 @@ console = _Console()
 def print_error(message: str, details: tuple[str, ...] = ()) -> None:
     """``Error: message`` on standard error, unwrapped and never read as markup, and a line per detail."""
     errors = Console(stderr=True, soft_wrap=True, highlight=False)
-    errors.print(Text("Error: ", style="red") + Text(store.cut(message, 2000)))
+    errors.print(Text("Error: ", style="red") + Text(cut(message, 2000)))
     for detail in details:
-        errors.print(Text(f"  {store.cut(detail, 2000)}"))
+        errors.print(Text(f"  {cut(detail, 2000)}"))
 
 
 def fail(message: str) -> None:
@@ -97,7 +98,7 @@ def option_flag(field_name: str) -> str:
 
 def bad_option(error: ConfigError) -> typer.BadParameter:
     """A refused value as a usage error that names its option (exit code 2)."""
-    return typer.BadParameter(f"got {store.quote(error.value)}; allowed: {error.allowed}",
+    return typer.BadParameter(f"got {quote(error.value)}; allowed: {error.allowed}",
                               param_hint=f"'{option_flag(error.field_name)}'")
 
 
@@ -128,7 +129,7 @@ def progress_bars(eta: bool = False) -> Progress:
 
 def announce_compiling() -> None:
     """Say so before a run that will compile the kernels, which takes a while on a fresh machine."""
-    from rlcompare._numba_cache import holds_nothing_yet
+    from rlcompare.compiled import holds_nothing_yet
 
     if holds_nothing_yet():
         console.print("Compiling: the first run of each method on each environment and features compiles its "

@@ -26,9 +26,10 @@ from rlcompare.cli.console import (
 )
 from rlcompare.cli.face import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ConfigError, field_docs
 from rlcompare.studies.interface import Options
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
+from rlcompare.tabular.config import field_docs
+from rlcompare.validation import ConfigError
 
 FORCE_HELP = ("Write into OUT even though it holds files rlcompare did not write (they are left as they are: "
               "rlcompare never replaces or deletes a file it did not write), and replace the runs rlcompare wrote "

@@ -9,8 +9,9 @@ import numpy as np
 
 from rlcompare.deep import float64
 from rlcompare.deep.methods import deep_method
-from rlcompare.deep.run import DeepResults, params_template
-from rlcompare.experiment.agent import check_box_observation
+from rlcompare.deep.results import DeepResults
+from rlcompare.deep.train import params_template
+from rlcompare.envs.observations import check_box_observation
 
 
 class DeepAgent:

@@ -39,7 +39,7 @@ from rlcompare.deep.atari import NatureCNN, is_frames
 from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import MLP, ConvNet, is_image
 from rlcompare.envs import atari, minatar
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 Params = Any
 Apply = Callable[[Params, jax.Array], jax.Array]

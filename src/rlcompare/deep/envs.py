@@ -34,7 +34,7 @@ import jax.numpy as jnp
 
 from rlcompare.envs import acrobot, atari, cartpole, minatar, mountain_car
 from rlcompare.envs.registry import PORTS, environment
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 
 class EnvState(NamedTuple):
@@ -301,7 +301,7 @@ def jax_env_names() -> tuple[str, ...]:
 
 def jax_env(name: str) -> DeepEnv:
     """The JAX port of ``name``, from its registry entry (:mod:`rlcompare.envs.registry`); a
-    :class:`~rlcompare.experiment.config.ConfigError` naming those there are."""
+    :class:`~rlcompare.tabular.config.ConfigError` naming those there are."""
     if name not in jax_env_names():
         raise ConfigError("env", name, ", ".join(jax_env_names()))
     module, _, attribute = environment(name).jax_port.partition(":")

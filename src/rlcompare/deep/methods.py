@@ -13,7 +13,7 @@ from types import ModuleType
 from typing import Any
 
 from rlcompare.deep import dqn, ppo, pqn
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 
 @dataclass(frozen=True)

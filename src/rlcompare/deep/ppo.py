@@ -40,7 +40,7 @@ from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all,
 from rlcompare.deep.networks import ACTIVATIONS, Conv3x3, is_image
 from rlcompare.deep.rollout import Act, Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.envs import atari, minatar
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 NORMALIZE_EPSILON = 1e-8
 """``VecNormalize``'s ε under the square root, and the advantage normalisation's (SB3)."""

@@ -38,7 +38,7 @@ from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all,
 from rlcompare.deep.networks import MLP, ConvNet, is_image
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.envs import acrobot, atari, minatar, mountain_car
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 TARGETS = ("max", "sample", "expected")
 NEXT_ACTIONS = (BEFORE_UPDATE, AFTER_UPDATE)

@@ -29,10 +29,11 @@ from typing import NamedTuple
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from rlcompare.compiled import njit
 from rlcompare.rng import next_double
 
 ENV_ID = "Acrobot-v1"

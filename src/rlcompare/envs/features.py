@@ -9,8 +9,8 @@ import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from numba import njit
 
+from rlcompare.compiled import njit
 from rlcompare.envs.discretize import UniformGrid, make_grid
 from rlcompare.envs.tiles import TileCoding, make_tile_coding
 

@@ -29,7 +29,9 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, objmode
+from numba import objmode
+
+from rlcompare.compiled import njit
 
 _OPEN: dict[int, list[tuple]] = {}
 """``(env, reset generator, transition generator)`` opened by :func:`opened`, by handle; instance ``2 * run``

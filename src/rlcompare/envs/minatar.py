@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 ACTION_NAMES = ("no-op", "left", "up", "right", "down", "fire")
 """MinAtar's six actions, in the reference's order (``n l u r d f``)."""
 
@@ -82,3 +84,26 @@ def actions(game: Game, protocol: Protocol) -> tuple[int, ...]:
 def max_steps(game: Game, protocol: Protocol) -> int | None:
     """gymnax's limit under its protocol; None where only the game ends an episode."""
     return game.time_limit if protocol.time_limit else None
+
+
+CELL = 24
+"""Pixels per side of one of the grid's 10 x 10 cells in a picture."""
+
+
+def palette(n_channels: int) -> np.ndarray:
+    """``(n_channels + 1, 3)`` uint8: black, then one colour per channel, MinAtar's own: the reference package's
+    ``render_mode="rgb_array"`` (``minatar/gym.py``) uses seaborn's ``cubehelix`` palette, which is matplotlib's
+    cubehelix colour map at ``n`` evenly spaced inner points."""
+    import matplotlib
+
+    inner = np.linspace(0.0, 1.0, n_channels + 2)[1:-1]
+    colours = np.vstack([np.zeros(3), matplotlib.colormaps["cubehelix"](inner)[:, :3]])
+    return np.round(colours * 255).astype(np.uint8)
+
+
+def picture(observation: np.ndarray, colours: np.ndarray, cell: int = CELL) -> np.ndarray:
+    """``(10 cell, 10 cell, 3)`` uint8: each cell in the colour of the highest channel set in it, black where none
+    is."""
+    channels = observation.shape[-1]
+    index = np.max(observation.astype(np.int64) * np.arange(1, channels + 1), axis=-1)
+    return np.repeat(np.repeat(colours[index], cell, axis=0), cell, axis=1)

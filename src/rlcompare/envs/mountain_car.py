@@ -24,8 +24,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from rlcompare.compiled import njit
 from rlcompare.rng import next_double
 
 ENV_ID = "MountainCar-v0"

@@ -98,7 +98,7 @@ class Environment:
     painter: Callable | None = None
     """What draws a video's frames where ``env.render()`` is slow: built from the unwrapped Gymnasium
     environment, its ``paint(out)`` writes the picture ``env.render()`` would return, as packed pixels
-    (:mod:`rlcompare.analysis.frames`); None: ``env.render()``."""
+    (:mod:`rlcompare.report.frames`); None: ``env.render()``."""
     bench_episodes: int = 0
     """Episodes per seed of Q-Learning with ε = 0.5 that make about a million steps (``rlcompare bench``);
     0: not benchmarked."""

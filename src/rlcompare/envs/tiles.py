@@ -36,7 +36,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from rlcompare.compiled import njit
 
 _MASK32 = 0xFFFFFFFF
 _SEED = 0x9E3779B9

@@ -27,11 +27,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from rlcompare.experiment import engines
+from rlcompare.experiment.runner import run
 from rlcompare.experiment.sweep import Trial, config_dict
 
 BACKENDS = ("local", "ray")
 OnDone = Callable[[Trial, Any], None]
-"""Called with a trial and its results (its engine's: a deep sweep's :class:`~rlcompare.deep.run.DeepResults`)."""
+"""Called with a trial and its results (its engine's: a deep sweep's :class:`~rlcompare.deep.results.DeepResults`)."""
 
 
 class BackendError(RuntimeError):
@@ -41,7 +42,7 @@ class BackendError(RuntimeError):
 def run_trial(config: dict) -> Any:
     """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker) on the engine it
     names (:mod:`rlcompare.experiment.engines`), imported only then."""
-    return engines.train(engines.config_from_dict(config))
+    return run(engines.config_from_dict(config))
 
 
 @dataclass(frozen=True)

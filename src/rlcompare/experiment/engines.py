@@ -1,33 +1,55 @@
-"""The engines that train configurations into run directories: one record each.
+"""The engines that train configurations into run directories: one record each, and the one function that finds a
+configuration's engine (:func:`front`).
 
 An engine's front is one module, imported only when a configuration of that engine is built, trained or loaded
-(the deep one needs the ``deep`` extra). It offers:
-
-| name | what |
-|---|---|
-| ``Config`` | its frozen configuration: ``to_dict()``, ``from_dict(data)``, ``seeds``, ``name``, ``progress_total`` |
-| ``Results`` | what a run produces: ``save(run_dir)``, ``load(run_dir, expected=None)``, ``seeds``, ``meta`` |
-| ``run(config, *, out=None, study="", progress=None)`` | train every seed; write ``out`` where given |
-| ``merge(parts)`` | one ``Results`` from runs of one configuration on other seeds (a sweep's trials) |
-| ``agent(results, seed, stage)`` | the greedy agent of one seed, acting in Gymnasium's environment |
-| ``SWEEP_KEYS``, ``NESTED``, ``FIXED_IN_SWEEP``, ``sweep_config(values, seeds)`` | what a sweep file may set |
-
-``config.json`` names its engine (``"engine": "deep"``; a run written before engines were named is tabular), so
-everything that reads a run directory, a sweep's trial or a trial shipped to a Ray worker asks this registry
-which front reads it, and nothing in :mod:`rlcompare.experiment` imports an engine's internals.
+(the deep one needs the ``deep`` extra). What it offers is :class:`EngineFront`; a type checker holds each front
+to it. ``config.json`` names its engine (``"engine": "deep"``; a run written before engines were named is
+tabular), so everything that reads a run directory, a sweep's trial or a trial shipped to a Ray worker asks this
+registry which front reads it, and nothing in :mod:`rlcompare.experiment` imports an engine's internals.
 """
 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
+
+
+class EngineFront(Protocol):
+    """What an engine's front module offers: its configuration and results types, how it trains, merges seeds,
+    makes an agent, and what a sweep file may set of its configurations."""
+
+    Config: type[Any]
+    """Its frozen configuration: ``to_dict()``, ``from_dict(data)``, ``seeds``, ``name``, ``progress_total``."""
+    Results: type[rundir.RunResults]
+    """What a run produces (:class:`~rlcompare.experiment.rundir.RunResults`)."""
+    SWEEP_KEYS: tuple[str, ...]
+    """What a sweep file may set."""
+    NESTED: str | None
+    """The table of a sweep file whose keys are nested settings (the deep engine's ``hyperparameters``)."""
+    FIXED_IN_SWEEP: Mapping[str, str]
+    """Fields a sweep may not set, with the reason."""
+
+    def train(self, config: Any, *, study: str = "", progress: Callable[[int], None] | None = None) -> Any:
+        """Every seed of ``config`` trained, in memory."""
+        ...
+
+    def merge(self, parts: list[Any]) -> Any:
+        """One results of runs of one configuration on other seeds (a sweep's trials)."""
+        ...
+
+    def agent(self, results: Any, seed: int, stage: str = "final") -> Any:
+        """The greedy agent of one seed, acting in Gymnasium's environment."""
+        ...
+
+    def sweep_config(self, values: dict[str, Any], seeds: tuple[int, ...]) -> Any:
+        """One configuration of a sweep from the values its sections give and its seeds."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -39,14 +61,14 @@ class Engine:
     module: str
     extra: str = ""
 
-    def front(self) -> ModuleType:
+    def front(self) -> EngineFront:
         """The engine's front, imported now; an :class:`ImportError` saying how to install a missing extra."""
-        return importlib.import_module(self.module)
+        return cast(EngineFront, importlib.import_module(self.module))
 
 
 ENGINES = {engine.name: engine for engine in (
-    Engine("tabular", "numba kernels over tables, tiles and linear features", "rlcompare.experiment.tabular"),
-    Engine("deep", "JAX networks: PQN Q(λ), SARSA(λ), DQN, PPO", "rlcompare.deep.engine", extra="deep"),
+    Engine("tabular", "numba kernels over tables, tiles and linear features", "rlcompare.tabular.front"),
+    Engine("deep", "JAX networks: PQN Q(λ), SARSA(λ), DQN, PPO", "rlcompare.deep.front", extra="deep"),
 )}
 DEFAULT = "tabular"
 """The engine of a configuration that names none (every run written before the deep engine)."""
@@ -59,25 +81,16 @@ def engine(name: Any) -> Engine:
     return ENGINES[name]
 
 
-def front_of(data: dict) -> ModuleType:
-    """The front of the engine a configuration's dictionary names."""
-    return engine(data.get("engine", DEFAULT)).front()
+def front(config: Any) -> EngineFront:
+    """The front of the engine of ``config``: a configuration (its class names the engine) or the dictionary of
+    one (its ``engine`` key; none: :data:`DEFAULT`)."""
+    name = config.get("engine", DEFAULT) if isinstance(config, dict) else type(config).engine
+    return engine(name).front()
 
 
-def front_for(config: Any) -> ModuleType:
-    """The front of the engine that trains ``config`` (its class says which)."""
-    return engine(type(config).engine).front()
-
-
-def config_from_dict(data: dict) -> Any:
+def config_from_dict(data: dict[str, Any]) -> Any:
     """The configuration a ``config.json`` (or a trial shipped to a worker) holds, in its engine's class."""
-    return front_of(data).Config.from_dict(data)
-
-
-def train(config: Any, *, out: Path | None = None, study: str = "", progress: Callable[[int], None] | None = None
-          ) -> Any:
-    """Train every seed of ``config`` on its engine; write the run directory ``out`` where given."""
-    return front_for(config).run(config, out=out, study=study, progress=progress)
+    return front(data).Config.from_dict(data)
 
 
 def load_run(run_dir: Path, expected: Any = None) -> Any:
@@ -87,16 +100,17 @@ def load_run(run_dir: Path, expected: Any = None) -> Any:
     if not isinstance(config, dict):
         raise store.StoreError(f"{Path(run_dir) / rundir.CONFIG_FILE}: not a configuration rlcompare wrote")
     try:
-        results = front_of(config).Results
+        results = front(config).Results
     except ConfigError as error:
         raise store.StoreError(f"{Path(run_dir) / rundir.CONFIG_FILE}: {error}") from None
-    return results.load(run_dir, expected=expected)
+    return rundir.read_results(Path(run_dir), results, expected)
 
 
 def load_if_complete(run_dir: Path, config: Any, load: Callable[..., Any] | None = None) -> Any | None:
     """The stored results of ``config`` in ``run_dir`` if that run finished and its files belong together, else
-    None (so it is trained again). ``load``: a study's own reader in place of the engine's ``Results.load``."""
-    reader = load or front_for(config).Results.load
+    None (so it is trained again). ``load``: a study's own reader (``load(run_dir, expected=config)``) in place of
+    the engine's."""
+    reader = load or load_run
     if not (Path(run_dir) / rundir.META_FILE).is_file():  # written last: no meta.json, no finished run
         return None
     try:
@@ -109,4 +123,14 @@ def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final") -> 
     """The greedy agent of ``seed`` (default: the run's first) at ``stage`` of a finished run directory of any
     engine, ready for ``gymnasium.make`` of the run's environment: ``agent.act(observation) -> action``."""
     results = load_run(Path(run_dir))
-    return front_for(results.config).agent(results, results.seeds[0] if seed is None else seed, stage)
+    try:
+        return front(results.config).agent(results, results.seeds[0] if seed is None else seed, stage)
+    except ValueError as error:  # stored arrays that are not the method's (a run of another version)
+        raise store.StoreError(f"{Path(run_dir)}: {error}") from None
+
+
+if TYPE_CHECKING:  # each front satisfies the contract (checked by the type checker, imported by nothing)
+    from rlcompare.deep import front as _deep_front
+    from rlcompare.tabular import front as _tabular_front
+
+    _FRONTS: tuple[EngineFront, ...] = (_tabular_front, _deep_front)

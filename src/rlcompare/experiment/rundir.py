@@ -1,14 +1,17 @@
 """The run directory: its files, written the one way every engine and study does (:func:`write_run`), and read
-back only when they are all there and belong together (:func:`read_run`, :func:`verify_run`).
+back only when they are all there and belong together (:func:`read_run`, :func:`verify_run`). The results of
+either engine are written and read here, by one writer and one reader (:func:`write_results`,
+:func:`read_results`).
 
 A run directory holds everything needed to rebuild every table and figure without training again:
 
 | file                    | what                                                                        |
 |-------------------------|-----------------------------------------------------------------------------|
-| ``config.json``         | the resolved :class:`ExperimentConfig`                                      |
-| ``episodes.parquet``    | one row per seed x episode: ε, behaviour return, length, terminated         |
+| ``config.json``         | the resolved configuration, naming its engine                               |
+| ``episodes.parquet``    | one row per seed x episode: return, length, terminated (and ε, or the step) |
 | ``evaluations.parquet`` | one row per seed x evaluation round x episode of the greedy policy          |
-| ``qtables.npz``         | Q-tables at the named stages, state-visit counts, seeds, ε per episode      |
+| ``qtables.npz``         | tabular: Q-tables at the named stages, state-visit counts, seeds, ε         |
+| ``params.npz``          | deep: the network's parameters at each stage, seeds                         |
 | ``meta.json``           | versions, seeds, timings, command line, and the size and checksum of each   |
 |                         | other file; written last, so it marks the run complete                      |
 
@@ -19,25 +22,29 @@ rlcompare owns, under its lock, each one atomically.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, TypeVar
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from rlcompare.experiment import store
 from rlcompare.experiment.store import StoreError
+from rlcompare.formatting import cut
 
 CONFIG_FILE = "config.json"
 EPISODES_FILE = "episodes.parquet"
 EVALUATIONS_FILE = "evaluations.parquet"
 QTABLES_FILE = "qtables.npz"
 META_FILE = "meta.json"
-RUN_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, QTABLES_FILE, META_FILE)
-CONTENT_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, QTABLES_FILE)
-"""The files whose checksums ``meta.json`` records."""
 PARAMS_FILE = "params.npz"
-DEEP_CONTENT_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, PARAMS_FILE)
-"""A deep run's: the network's parameters stand where a tabular run keeps its Q-tables."""
-DEEP_RUN_FILES = (*DEEP_CONTENT_FILES, META_FILE)
+"""A deep run's arrays: the network's parameters stand where a tabular run keeps its Q-tables."""
+RUN_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, QTABLES_FILE, META_FILE)
+DEEP_RUN_FILES = (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, PARAMS_FILE, META_FILE)
 
 
 def is_complete(run_dir: Path, files: tuple[str, ...] = RUN_FILES) -> bool:
@@ -80,8 +87,7 @@ def file_record(data: bytes) -> dict[str, Any]:
     return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
-def verify_run(run_dir: Path, expected_config: dict | None = None, content_files: tuple[str, ...] = CONTENT_FILES
-               ) -> dict:
+def verify_run(run_dir: Path, expected_config: dict | None, content_files: tuple[str, ...]) -> dict:
     """``meta.json`` of a finished run whose files belong together: each one's size and checksum equal what
     ``meta.json`` recorded when the run was written, and ``config.json`` is ``expected_config`` where given.
     Anything else is a :class:`StoreError` naming the file."""
@@ -113,3 +119,107 @@ def _record_of(path: Path) -> dict[str, Any]:
             digest.update(block)
             size += len(block)
     return {"bytes": size, "sha256": digest.hexdigest()}
+
+
+class Config(Protocol):
+    """A configuration of either engine, as its run directory holds it."""
+
+    @property
+    def seeds(self) -> tuple[int, ...]: ...
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+
+R = TypeVar("R", bound="RunResults")
+
+
+class RunResults(Protocol):
+    """What a run of either engine produces, as its run directory holds it."""
+
+    arrays_file: str
+    """The file of arrays beside the tables: ``qtables.npz`` or ``params.npz``."""
+    meta: dict[str, Any]
+
+    @property
+    def config(self) -> Any: ...
+
+    def labels(self) -> dict[str, str]:
+        """The columns every row of its tables carries: study, env, algorithm, schedule."""
+        ...
+
+    def columns(self) -> dict[str, dict[str, np.ndarray]]:
+        """Its tables' other columns: ``episodes`` and ``evaluations``."""
+        ...
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """What :attr:`arrays_file` holds."""
+        ...
+
+    def record(self) -> dict[str, Any]:
+        """What the run holds, for ``meta.json``'s ``contents``: seeds, rows, shapes."""
+        ...
+
+    @classmethod
+    def read_config(cls, stored: dict[str, Any], expected: Any) -> Any:
+        """The configuration ``config.json`` holds (a :class:`ValueError` where it is not ``expected``)."""
+        ...
+
+    @classmethod
+    def from_files(cls: type[R], config: Any, episodes: pd.DataFrame, evaluations: pd.DataFrame,
+                   arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> R:
+        """The results the files hold (a :class:`ValueError` where they do not belong to ``config``)."""
+        ...
+
+
+def files_of(results: type[RunResults] | RunResults) -> tuple[str, ...]:
+    """The files of a run directory of ``results``' engine whose checksums ``meta.json`` records."""
+    return (CONFIG_FILE, EPISODES_FILE, EVALUATIONS_FILE, results.arrays_file)
+
+
+def write_results(run_dir: Path, results: RunResults) -> Path:
+    """Write the run directory of ``results`` (:func:`write_run`): its configuration, its two tables in Parquet,
+    each label a dictionary-encoded column, and its arrays."""
+    labels, columns = results.labels(), results.columns()
+    return write_run(run_dir, results.config.to_dict(), {
+        EPISODES_FILE: _parquet_bytes(labels, columns["episodes"]),
+        EVALUATIONS_FILE: _parquet_bytes(labels, columns["evaluations"]),
+        results.arrays_file: _npz_bytes(results.arrays()),
+    }, results.meta, results.record())
+
+
+def read_results(run_dir: Path, results: type[R], expected: Any = None) -> R:
+    """The results of a finished run directory whose files belong together (:func:`read_run`), in ``results``'
+    type; anything else is a :class:`StoreError` naming the file."""
+    run_dir = Path(run_dir)
+    meta, stored = read_run(run_dir, files_of(results))
+    try:
+        config = results.read_config(stored, expected)
+    except (ValueError, TypeError) as error:
+        raise StoreError(f"{run_dir / CONFIG_FILE}: {cut(str(error), 300)}") from None
+    try:
+        episodes = pd.read_parquet(run_dir / EPISODES_FILE)
+        evaluations = pd.read_parquet(run_dir / EVALUATIONS_FILE)
+        with np.load(run_dir / results.arrays_file, allow_pickle=False) as stored_arrays:
+            arrays = {key: stored_arrays[key] for key in stored_arrays.files}
+    except Exception as error:
+        raise StoreError(f"{run_dir}: cannot read the stored records ({cut(str(error), 200)})") from None
+    try:
+        return results.from_files(config, episodes, evaluations, arrays, meta)
+    except (ValueError, KeyError) as error:
+        raise StoreError(f"{run_dir}: {cut(str(error), 300)}") from None
+
+
+def _parquet_bytes(labels: dict[str, str], columns: dict[str, np.ndarray]) -> bytes:
+    """The labels, each one dictionary-encoded (categorical) column, then ``columns``, in Parquet."""
+    rows = len(next(iter(columns.values())))
+    label_columns = {name: pa.DictionaryArray.from_arrays(np.zeros(rows, dtype=np.int32), pa.array([str(value)]))
+                     for name, value in labels.items()}
+    buffer = io.BytesIO()
+    pq.write_table(pa.table({**label_columns, **columns}), buffer)
+    return buffer.getvalue()
+
+
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    return buffer.getvalue()

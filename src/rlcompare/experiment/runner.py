@@ -1,150 +1,29 @@
-"""``run(config) -> Results``: train every seed of a configuration in the fused engine."""
+"""``run(config) -> results``: train every seed of a configuration on its engine into its run directory, and the
+studies' run-or-load over many configurations."""
 
 from __future__ import annotations
 
-import contextlib
-import functools
 import json
-import platform
-import sys
-import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from datetime import datetime, timezone
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-import numba
-import numpy as np
-
-from rlcompare import _numba_cache as numba_cache
-from rlcompare.algorithms.registry import rule_for
-from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
-from rlcompare.engine import run as engine
-from rlcompare.engine.state import (
-    ENV_STREAM,
-    EVAL_ENV_STREAM,
-    EVAL_TRANSITION_STREAM,
-    TRANSITION_STREAM,
-    RunState,
-    Settings,
-    allocate_records,
-    initial_state,
-)
-from rlcompare.envs import gymnasium_env
-from rlcompare.envs.features import make_features
-from rlcompare.envs.registry import make_env
 from rlcompare.experiment import engines, rundir, store
-from rlcompare.experiment.config import ExperimentConfig, check_memory
-from rlcompare.experiment.results import Results
-
-CHUNK_EPISODES = 250
-"""Episodes per kernel call; once every run has finished one, the progress bar moves. Results do not depend on
-it."""
 
 
-def epsilon_schedule(config: ExperimentConfig) -> np.ndarray:
-    """ε of every episode under the configured schedule."""
-    if config.schedule == "constant":
-        return constant_epsilon(config.episodes, config.epsilon)
-    return linear_decay_epsilon(config.episodes, config.epsilon_start, config.epsilon_end,
-                                config.decay_fraction)
-
-
-def run(
-    config: ExperimentConfig,
-    *,
-    out: Path | None = None,
-    study: str = "",
-    progress: Callable[[int], None] | None = None,
-) -> Results:
-    """Train every seed of ``config``; write the run directory to ``out`` if given.
-
-    ``progress`` is called with the number of episodes (per seed) finished since its last call. Records that
-    would not fit in this machine's memory are refused first (:func:`~rlcompare.experiment.config.check_memory`).
-    """
-    check_memory(config)
-    numba_cache.tend()
+def run(config: Any, *, out: Path | None = None, study: str = "", progress: Callable[[int], None] | None = None
+        ) -> Any:
+    """Train every seed of ``config`` on its engine (:mod:`rlcompare.experiment.engines`); write the run directory
+    to ``out`` if given (refused before training, locked while it lasts). ``progress`` is called with what was
+    finished since its last call (episodes of each seed, or seeds: the config's ``progress_total`` says)."""
+    train = engines.front(config).train
     if out is None:
-        return _train(config, study, progress)
-    with store.output_directory(Path(out), store.RUN):  # refused before training, locked while it lasts
-        results = _train(config, study, progress)
-        results.save(out)
+        return train(config, study=study, progress=progress)
+    with store.output_directory(Path(out), store.RUN):
+        results = train(config, study=study, progress=progress)
+        rundir.write_results(Path(out), results)
     return results
-
-
-def _train(config: ExperimentConfig, study: str, progress: Callable[[int], None] | None) -> Results:
-    epsilons = epsilon_schedule(config)
-    features = make_features(config.environment, config.features, config.bins, config.tilings, config.tiles,
-                             config.hash_size, config.bounds)
-    state = initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
-    stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
-    records = allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
-                                      config.eval_episodes, stage_episodes, state.w.shape[1:])
-    with stepped_env(config, state) as env:
-        rule, settings = rule_for(config), kernel_settings(config)
-
-        started = time.perf_counter()
-        engine.train_runs(rule, settings, env, features, state, epsilons, 0, 0, records)  # compile or load it
-        compile_seconds = time.perf_counter() - started
-        chunks = [(first, min(first + CHUNK_EPISODES, config.episodes))
-                  for first in range(0, config.episodes, CHUNK_EPISODES)]
-        started = time.perf_counter()
-        engine.train_chunks(rule, settings, env, features, state, epsilons, chunks, records, progress)
-        wall = time.perf_counter() - started
-    steps = int(records.lengths.sum())
-    meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
-    meta["timings"]["compile_seconds"] = compile_seconds
-    return Results(config=config, epsilons=epsilons, records=records, meta=meta)
-
-
-@contextlib.contextmanager
-def stepped_env(config: ExperimentConfig, state: RunState) -> Iterator[tuple]:
-    """The environment compiled code steps: a port, or Gymnasium environments opened for every run (their
-    generators copies of the run's reset and transition streams) and closed afterwards."""
-    if config.environment.is_ported:
-        yield make_env(config.environment)
-        return
-    training = state.rng[:, [ENV_STREAM, TRANSITION_STREAM]]
-    evaluation = state.rng[:, [EVAL_ENV_STREAM, EVAL_TRANSITION_STREAM]]
-    with gymnasium_env.opened(config.env, training, evaluation, config.max_steps) as handle:
-        yield make_env(config.environment, handle)
-
-
-def kernel_settings(config: ExperimentConfig) -> Settings:
-    """The scalars every method reads, as compiled code reads them."""
-    return Settings(alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
-                    truncation_is_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every))
-
-
-def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:
-    return {
-        "study": study,
-        "name": config.name,
-        "seeds": list(config.seeds),
-        "stepped_by": "compiled port" if config.environment.is_ported else "Gymnasium adapter (Python speed)",
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "command": sys.argv,
-        "timings": {"wall_seconds": wall, "training_steps": steps, "evaluation_steps": eval_steps,
-                    "threads": min(numba.get_num_threads(), len(config.seeds)),
-                    "steps_per_second": (steps + eval_steps) / wall if wall > 0 else None},
-        "versions": dict(versions()),
-    }
-
-
-@functools.cache
-def versions() -> dict[str, str | None]:
-    """Python, the platform and the packages a result depends on (read once: reading them costs milliseconds)."""
-    return {"python": platform.python_version(), "platform": platform.platform(),
-            **{pkg: package_version(pkg) for pkg in ("rlcompare", "numpy", "numba", "gymnasium", "pandas")}}
-
-
-def package_version(package: str) -> str | None:
-    try:
-        return metadata.version(package)
-    except metadata.PackageNotFoundError:
-        return None
 
 
 def changed_settings(run_dir: Path, config: Any) -> str:
@@ -211,7 +90,7 @@ def run_or_load(
             if progress is not None:
                 progress(config.progress_total)
             return name, stored, True
-        return name, (train or engines.train)(config, out=run_dir, study=study, progress=progress), False
+        return name, (train or run)(config, out=run_dir, study=study, progress=progress), False
 
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
         if not force:

@@ -30,13 +30,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from rlcompare.formatting import cut, quote
+
 MARKER_FILE = ".rlcompare.json"
 LOCK_FILE = ".rlcompare.lock"
 OWN_FILES = (MARKER_FILE, LOCK_FILE)
 MAX_JSON_BYTES = 16 * 2**20
 """The largest metadata file rlcompare reads (its own are far smaller); a larger one is not of a run."""
 MAX_NAME_BYTES = 255
-MAX_QUOTE = 80
 
 
 def _default_file_mode() -> int:
@@ -50,20 +51,6 @@ _FILE_MODE = _default_file_mode()
 
 class StoreError(OSError):
     """A directory or file that cannot be written or read as asked; names the path and what is wrong."""
-
-
-def quote(value: Any, limit: int = MAX_QUOTE) -> str:
-    """``repr(value)`` cut to at most ``limit`` characters, saying how long it was when cut: what an error
-    quotes of a value stays one short line however large the value."""
-    try:
-        return cut(repr(value), limit)
-    except ValueError:  # an integer with more digits than Python will print
-        return f"<an integer of {value.bit_length():,} bits>" if isinstance(value, int) else "<unprintable>"
-
-
-def cut(text: str, limit: int) -> str:
-    """``text`` cut to at most ``limit`` characters, with its length appended when cut."""
-    return text if len(text) <= limit else f"{text[:limit]}… ({len(text):,} characters)"
 
 
 @dataclass(frozen=True)

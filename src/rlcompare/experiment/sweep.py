@@ -56,9 +56,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from rlcompare.experiment.config import ConfigError
 from rlcompare.experiment.engines import ENGINES
-from rlcompare.experiment.store import cut, quote
+from rlcompare.formatting import cut, quote
+from rlcompare.validation import ConfigError
 
 SECTIONS = ("sweep", "fixed", "grid", "include")
 SWEEP_KEYS = ("name", "root_seed", "seeds", "engine")

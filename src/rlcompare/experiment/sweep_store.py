@@ -22,13 +22,13 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
 
 from rlcompare.experiment import engines, rundir, store
-from rlcompare.experiment.results import Results
 from rlcompare.experiment.sweep import Sweep, Trial, config_dict, config_hash, swept_value
 
 MANIFEST_FILE = "manifest.json"
@@ -73,7 +73,7 @@ class SweepStore:
 
     def save(self, trial: Trial, results) -> None:
         """Write a finished trial's run directory; mark it done in the manifest."""
-        results.save(self.trial_dir(trial))  # over an earlier attempt that did not finish, if any
+        rundir.write_results(self.trial_dir(trial), results)  # over an earlier attempt that did not finish, if any
         with self._lock:
             self._status[trial.trial_id] = DONE
             if time.monotonic() - self._written >= self.MANIFEST_EVERY:
@@ -109,7 +109,7 @@ def is_finished(trial_dir: Path, config: dict | None = None, engine: str = engin
     """Whether a trial's run directory is finished and its files belong together (and hold ``config``);
     ``engine``: the sweep's, whose results say what files a trial has."""
     try:
-        rundir.verify_run(trial_dir, config, engines.engine(engine).front().Results.content_files)
+        rundir.verify_run(trial_dir, config, rundir.files_of(engines.engine(engine).front().Results))
     except store.StoreError:
         return False
     return True
@@ -147,21 +147,21 @@ def read_manifest(root: Path) -> dict:
     return manifest
 
 
-def load_configurations(root: Path) -> tuple[dict[str, Results], list[str]]:
-    """The finished trials of each configuration of a sweep, merged into one :class:`Results` per
-    configuration (a deep sweep's: one :class:`~rlcompare.deep.run.DeepResults`), its seeds in the sweep's
+def load_configurations(root: Path) -> tuple[dict[str, Any], list[str]]:
+    """The finished trials of each configuration of a sweep, merged into one results of its engine per
+    configuration (a deep sweep's: one :class:`~rlcompare.deep.results.DeepResults`), its seeds in the sweep's
     order, by config hash; and a line for each trial whose files do not belong together and each configuration
     that has no finished trial."""
     manifest = read_manifest(root)
     front = engines.engine(engine_of(manifest)).front()  # the deep engine is imported only for a deep sweep
-    load_as, files = front.Results, (*front.Results.content_files, rundir.META_FILE)
+    files = (*rundir.files_of(front.Results), rundir.META_FILE)
     by_config: dict[str, list] = {}
     problems = []
     for entry in manifest["trials"]:
         run_dir = trial_path(root, entry["config_hash"], entry["seed"])
         if rundir.is_complete(run_dir, files):
             try:
-                trial = load_as.load(run_dir)
+                trial = rundir.read_results(run_dir, front.Results)
             except store.StoreError as error:
                 problems.append(f"trial {entry['id']} left out: {error}; run the sweep again to redo it")
                 continue

@@ -30,20 +30,21 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import label as method_label
-from rlcompare.analysis import plots
-from rlcompare.analysis.curves import mean_band
-from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
-from rlcompare.analysis.report import Section, save_figure, write_report
-from rlcompare.analysis.stats import interval
 from rlcompare.envs.registry import table_of
 from rlcompare.envs.table import TableEnv
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.results import Results
+from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.report import plots
+from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
+from rlcompare.report.page import Section, save_figure, write_report
+from rlcompare.stats.curves import mean_band
+from rlcompare.stats.intervals import interval
 from rlcompare.studies import book_6_3
 from rlcompare.studies.contrast import contrast_table, sibling_studies
 from rlcompare.studies.interface import UI, Report, Seeded
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
 
 BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
         "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0, "stages": (("final", 1.0),)}
@@ -88,7 +89,7 @@ class BookStudy:
         out = Path(out)
         with store.rewriting(out, "study"):
             if runs is None:
-                runs = {name: (self.load or Results.load)(out / name) for name in self.configs((0,))}
+                runs = {name: (self.load or load_run)(out / name) for name in self.configs((0,))}
             return Report(self.draw(out, runs))
 
 

@@ -23,30 +23,23 @@ import io
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import label as method_label
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
-from rlcompare.analysis.stats import (
-    ALPHA,
-    Equivalence,
-    Estimate,
-    equivalence_verdict,
-    holm,
-    interval,
-    mean_interval,
-    tost,
-)
-from rlcompare.engine.state import STREAMS
 from rlcompare.envs.features import feature_count
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.config import ExperimentConfig, records_bytes
 from rlcompare.experiment.runner import run
+from rlcompare.formatting import cut
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.intervals import ALPHA, Estimate, interval, mean_interval
+from rlcompare.stats.verdicts import Claim, judge, margin_text
 from rlcompare.studies.margins import margin
+from rlcompare.tabular.config import ExperimentConfig, records_bytes
+from rlcompare.tabular.state import STREAMS
 
 ENV = "CliffWalking-v1"
 METHODS = ("sarsa", "expected_sarsa", "q_learning")
@@ -72,6 +65,8 @@ COLLAPSE_MARGIN = margin("book 6.3", "an asymptote collapses")
 """An asymptote 'collapses' from α = 0.1 to α = 1.0 when it falls by more than this (return per episode)."""
 
 RUNS_FILE = "runs.parquet"
+RETURN = "return"
+"""What every claim reads: a run's mean return per episode (a column of ``runs.parquet``)."""
 CONTENT_FILES = (rundir.CONFIG_FILE, RUNS_FILE, rundir.QTABLES_FILE)
 RUN_FILES = (*CONTENT_FILES, rundir.META_FILE)
 COLOURS = {"sarsa": "tab:blue", "expected_sarsa": "tab:red", "q_learning": "black"}
@@ -155,7 +150,7 @@ class PhaseRuns:
             with np.load(run_dir / rundir.QTABLES_FILE, allow_pickle=False) as arrays:
                 q_tables, seeds = arrays["snapshots"], arrays["seeds"].tolist()
         except (ValueError, KeyError, OSError) as error:
-            raise store.StoreError(f"{run_dir}: cannot read the stored runs ({store.cut(str(error), 200)})") from None
+            raise store.StoreError(f"{run_dir}: cannot read the stored runs ({cut(str(error), 200)})") from None
         if runs["seed"].tolist() != list(config.seeds) or seeds != list(config.seeds):
             raise store.StoreError(f"{run_dir}: the runs stored are not those of {rundir.CONFIG_FILE}")
         return cls(config, runs, q_tables, meta)
@@ -221,27 +216,9 @@ def train(config: ExperimentConfig, *, out: Path | None = None, study: str = "",
 # --- the book's claims, as verdicts on paired runs ---------------------------------------------------------
 
 
-class Claim(NamedTuple):
-    """A claim on the mean of per-seed values (paired differences), held where that mean lies in
-    ``[lower, upper]`` (one of them infinite: a one-sided claim with its margin)."""
-
-    claim: str
-    reads: str
-    values: np.ndarray
-    lower: float
-    upper: float
-
-
-def _paired(a: PhaseRuns, b: PhaseRuns) -> np.ndarray:
-    """``a - b`` per seed, over the seeds both ran (all of them in this study: every configuration of a phase
-    runs the same seeds)."""
-    left, right = a.runs.set_index("seed")["return"], b.runs.set_index("seed")["return"]
-    common = left.index.intersection(right.index, sort=False)
-    return (left.loc[common] - right.loc[common]).to_numpy()
-
-
-def claims(runs: dict[str, PhaseRuns]) -> list[Claim]:
-    """The book's claims on Figure 6.3, with margins fixed before any run was looked at:
+def claims() -> list[Claim]:
+    """The book's claims on Figure 6.3, each on the mean return per episode of paired runs (A - B), with margins
+    fixed before any run was looked at:
 
     - Expected SARSA is at least as good as SARSA (within :data:`NONINFERIORITY_MARGIN`) at every α, interim
       and asymptotic;
@@ -249,47 +226,34 @@ def claims(runs: dict[str, PhaseRuns]) -> list[Claim]:
       Expected SARSA's does not (falls by less);
     - Q-Learning's online return is the worst asymptotically: below SARSA's and Expected SARSA's at every α.
     """
-    def of(phase: str, method: str, alpha: float) -> PhaseRuns:
-        return runs[run_name(phase, method, alpha)]
-
-    found = []
-    for phase in PHASES:
-        for alpha in ALPHAS:
-            found.append(Claim(f"Expected SARSA at least as good as SARSA, {phase}, α = {alpha:g}",
-                               "Expected SARSA - SARSA", _paired(of(phase, "expected_sarsa", alpha),
-                                                                 of(phase, "sarsa", alpha)),
-                               -NONINFERIORITY_MARGIN, np.inf))
+    found = [Claim(f"Expected SARSA at least as good as SARSA, {phase}, α = {alpha:g}",
+                   run_name(phase, "expected_sarsa", alpha), run_name(phase, "sarsa", alpha), RETURN, "within",
+                   bounds=(-NONINFERIORITY_MARGIN, np.inf), about="Expected SARSA - SARSA")
+             for phase in PHASES for alpha in ALPHAS]
     low, high = ALPHAS[0], ALPHAS[-1]
-    found.append(Claim("SARSA's asymptotic return collapses at large α", f"SARSA, α = {low:g} - α = {high:g}",
-                       _paired(of("asymptotic", "sarsa", low), of("asymptotic", "sarsa", high)),
-                       COLLAPSE_MARGIN, np.inf))
-    found.append(Claim("Expected SARSA's asymptotic return does not collapse at large α",
-                       f"Expected SARSA, α = {low:g} - α = {high:g}",
-                       _paired(of("asymptotic", "expected_sarsa", low), of("asymptotic", "expected_sarsa", high)),
-                       -np.inf, COLLAPSE_MARGIN))
-    for other in ("sarsa", "expected_sarsa"):
-        for alpha in ALPHAS:
-            found.append(Claim(f"Q-Learning's asymptotic return below {method_label(other)}'s, α = {alpha:g}",
-                               f"Q-Learning - {method_label(other)}",
-                               _paired(of("asymptotic", "q_learning", alpha), of("asymptotic", other, alpha)),
-                               -np.inf, 0.0))
+    for method, bounds, text in (("sarsa", (COLLAPSE_MARGIN, np.inf), "SARSA's asymptotic return collapses"),
+                                 ("expected_sarsa", (-np.inf, COLLAPSE_MARGIN),
+                                  "Expected SARSA's asymptotic return does not collapse")):
+        found.append(Claim(f"{text} at large α", run_name("asymptotic", method, low),
+                           run_name("asymptotic", method, high), RETURN, "within", bounds=bounds,
+                           about=f"{method_label(method)}, α = {low:g} - α = {high:g}"))
+    found += [Claim(f"Q-Learning's asymptotic return below {method_label(other)}'s, α = {alpha:g}",
+                    run_name("asymptotic", "q_learning", alpha), run_name("asymptotic", other, alpha), RETURN,
+                    "within", bounds=(-np.inf, 0.0), about=f"Q-Learning - {method_label(other)}")
+              for other in ("sarsa", "expected_sarsa") for alpha in ALPHAS]
     return found
 
 
-def margin_text(lower: float, upper: float) -> str:
-    return f"> {lower:g}" if np.isinf(upper) else (f"< {upper:g}" if np.isinf(lower) else f"[{lower:g}, {upper:g}]")
-
-
-def verdicts(found: list[Claim], level: float = ALPHA) -> pd.DataFrame:
-    """Each claim tested by one-sided t tests against its margin (:func:`~rlcompare.analysis.stats.tost` with one
-    bound infinite), Holm-corrected across the whole family: supported where the mean lies on the claimed side
-    of the margin at the family-wise level, contradicted where it lies on the other side, else not resolved."""
-    tests: list[Equivalence] = [tost(c.values, c.lower, c.upper) for c in found]
-    adjusted = holm([test.p for test in tests])
-    return pd.DataFrame([{
-        "claim": c.claim, "reads": c.reads, "runs": len(c.values), "mean [95% t interval]": test.estimate.format(2),
-        "holds where": margin_text(c.lower, c.upper), "p (Holm)": f"{p:.2g}",
-        "verdict": equivalence_verdict(test, p, level)} for c, test, p in zip(found, tests, adjusted, strict=True)])
+def verdicts(found: list[Claim], runs: dict[str, PhaseRuns]) -> pd.DataFrame:
+    """Each claim tested by one-sided t tests against its margin (:func:`~rlcompare.stats.intervals.tost` with one
+    bound infinite), Holm-corrected across the whole family (:func:`~rlcompare.stats.verdicts.judge`): supported
+    where the mean lies on the claimed side of the margin at the family-wise level, contradicted where it lies on
+    the other side, else not resolved."""
+    judged = judge(found, {name: r.runs for name, r in runs.items()}, episodes=0)
+    return pd.DataFrame({
+        "claim": judged["claim"], "reads": [c.about for c in found], "runs": [len(runs[c.a].seeds) for c in found],
+        "mean [95% t interval]": judged["estimate"], "holds where": [margin_text(c.bounds) for c in found],
+        "p (Holm)": [f"{p:.2g}" for p in judged["p (Holm)"]], "verdict": judged["verdict"]})
 
 
 # --- the report -------------------------------------------------------------------------------------------
@@ -381,7 +345,7 @@ def report_6_3(out: Path, runs: dict[str, PhaseRuns]) -> Path:
     table = numbers(runs)
     image = save_figure(figure_6_3(table), out / "figures" / "fig6_3.png")
     table_file = write_table(table, out / "tables", "fig6_3")
-    judged = verdicts(claims(runs))
+    judged = verdicts(claims(), runs)
     verdicts_file = write_table(judged, out / "tables", "verdicts")
     timing, wall = timing_table(runs)
     interim, asymptotic = timing.iloc[0], timing.iloc[1]

@@ -17,10 +17,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from rlcompare.analysis.compare import compare_paired, comparison_label
-from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.results import Results
+from rlcompare.experiment.engines import load_run
+from rlcompare.stats.compare import compare_paired, comparison_label
+from rlcompare.studies.measures import per_seed_metrics
+from rlcompare.tabular.results import Results
 
 PAIRS = (("sarsa", "q_learning"), ("sarsa-constant", "q_learning-constant"), ("sarsa-decay", "q_learning-decay"))
 """(SARSA, Q-Learning) run directories compared in a study: the cliff's, then the paper grid's."""
@@ -35,7 +36,7 @@ def load_pairs(study_dir: Path) -> dict[str, Results]:
         run_dir = Path(study_dir) / name
         if rundir.is_complete(run_dir):
             with contextlib.suppress(store.StoreError):
-                runs[name] = Results.load(run_dir)
+                runs[name] = load_run(run_dir)
     return runs
 
 

@@ -24,28 +24,30 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from rlcompare.analysis import stats
-from rlcompare.analysis.aggregate_plots import draw_aggregates
-from rlcompare.analysis.compare import Paired, compare_paired, judge_family
-from rlcompare.analysis.metrics import returns_per_seed
-from rlcompare.analysis.plots import plot_return_curves
-from rlcompare.analysis.profiles import by_method, score_scales
-from rlcompare.analysis.report import Section, plain_number, save_figure, write_report, write_table
-from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.deep import float64
 from rlcompare.deep.agent import gymnasium_returns
+from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.envs import jax_env
 from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import evaluate
-from rlcompare.deep.run import DeepConfig, DeepResults
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ConfigError, ExperimentConfig
 from rlcompare.experiment.engines import load_run
-from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.report.aggregate_plots import draw_aggregates
+from rlcompare.report.page import Section, plain_number, save_figure, write_report, write_table
+from rlcompare.report.plots import plot_return_curves
+from rlcompare.stats import intervals as stats
+from rlcompare.stats.aggregates import by_method, score_scales
+from rlcompare.stats.compare import Paired, compare_paired, judge_family
+from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
+from rlcompare.studies.measures import per_seed_metrics
 from rlcompare.studies.registry import DeepOptions
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
+from rlcompare.validation import ConfigError
 
 STUDY = "deep"
 ENVS = ("CartPole-v1", "Acrobot-v1", "MountainCar-v0")
@@ -193,7 +195,7 @@ def eval_curves(results: DeepResults) -> tuple[np.ndarray, np.ndarray]:
 
 
 def per_seed(results: DeepResults) -> pd.DataFrame:
-    """One row per seed: its returns (:func:`~rlcompare.analysis.metrics.returns_per_seed`: behaviour, final
+    """One row per seed: its returns (:func:`~rlcompare.stats.metrics.returns_per_seed`: behaviour, final
     greedy return, area under the greedy curve), and the environment steps and seconds at which the greedy curve
     first reached the environment's score."""
     steps, curves = eval_curves(results)

@@ -20,7 +20,7 @@ from typing import Any
 
 import pandas as pd
 
-from rlcompare.experiment.config import ConfigError
+from rlcompare.validation import ConfigError
 
 Advance = Callable[[str, int], None]
 """``advance(task, n)``: ``n`` more units of one task of a progress display done."""
@@ -36,7 +36,7 @@ def option(default: Any, *, minimum: int | None = None, spellings: tuple[str, ..
 class Options:
     """A study's options, one field each, with its docstring as help. Frozen and checked on creation: an
     integer below its field's ``minimum``, or what :meth:`check` refuses, is a
-    :class:`~rlcompare.experiment.config.ConfigError` naming the field."""
+    :class:`~rlcompare.tabular.config.ConfigError` naming the field."""
 
     def __post_init__(self) -> None:
         for item in dataclasses.fields(self):

@@ -1,12 +1,12 @@
 """Every margin a verdict reads, in one table, each with its reason, declared before any run was read
 (``docs/why.md``, "Every margin, its reason and its power"); what the seeds can prove of each is
-:mod:`rlcompare.analysis.power`'s."""
+:mod:`rlcompare.stats.power`'s."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rlcompare.analysis.tables import RATIO_FACTOR
+from rlcompare.stats.verdicts import RATIO_FACTOR
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ stages of learning in every game.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -27,22 +28,26 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from rlcompare.analysis import plots, stats
-from rlcompare.analysis.aggregate_plots import draw_aggregates
-from rlcompare.analysis.compare import Judged, compare_paired, judge_family
-from rlcompare.analysis.findings import gap_and_interval
-from rlcompare.analysis.minatar_video import MAX_STEPS, render_stages
-from rlcompare.analysis.profiles import by_method, score_scales
-from rlcompare.analysis.report import Section, plain_number, save_figure, write_report, write_table
 from rlcompare.deep import float64
+from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.methods import DEEP_METHODS, deep_method
+from rlcompare.deep.playback import MAX_STEPS, play_stages, stage_titles
+from rlcompare.deep.results import DeepResults, merge_seeds
 from rlcompare.deep.rollout import evaluate
-from rlcompare.deep.run import DeepConfig, DeepResults, merge_seeds, params_template
+from rlcompare.deep.train import params_template
 from rlcompare.envs import minatar
-from rlcompare.experiment import engines, store
+from rlcompare.experiment import engines, rundir, store
 from rlcompare.experiment.backends import make_backend
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.experiment.sweep import Trial
+from rlcompare.report import plots
+from rlcompare.report.aggregate_plots import draw_aggregates
+from rlcompare.report.findings import gap_and_interval
+from rlcompare.report.page import Section, plain_number, save_figure, write_report, write_table
+from rlcompare.report.stage_video import render_stages
+from rlcompare.stats import intervals as stats
+from rlcompare.stats.aggregates import by_method, score_scales
+from rlcompare.stats.compare import Judged, compare_paired, judge_family
 from rlcompare.studies import deep, same_question
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
@@ -163,7 +168,7 @@ def _trained_on(backend: Any, out: Path, configs: dict[str, DeepConfig], progres
         if all(part is not None for part in parts):
             merged = merge_seeds(parts)
             with store.output_directory(out / trial.config_hash, store.RUN):
-                merged.save(out / trial.config_hash)
+                rundir.write_results(out / trial.config_hash, merged)
             finished.append((trial.config_hash, merged))
 
     backend.run(trials, save)
@@ -237,7 +242,7 @@ def per_game(runs: dict[str, DeepResults], values: Callable[[DeepResults], np.nd
 
 def normalised(runs: dict[str, DeepResults], floors: dict[str, float]) -> dict[str, np.ndarray]:
     """Per method, ``(games, seeds)`` final returns scaled so that the random policy is 0 and the best method's
-    mean here is 1, game by game (:func:`~rlcompare.analysis.profiles.score_scales`)."""
+    mean here is 1, game by game (:func:`~rlcompare.stats.aggregates.score_scales`)."""
     finals = per_game(runs, final_returns)
     return by_method(finals, score_scales(finals, floors))
 
@@ -359,7 +364,10 @@ def video_cells(runs: dict[str, DeepResults], videos: Path) -> list[tuple[str, s
     cells = []
     for name, results in runs.items():
         seed = results.seeds[0]
-        mp4, gif = render_stages(results, seed, videos / f"{name}.mp4", videos / f"{name}.gif")
+        played = play_stages(results, seed)
+        colours = minatar.palette(played.observations.shape[-1])
+        mp4, gif = render_stages(played, stage_titles(results), functools.partial(minatar.picture, colours=colours),
+                                 videos / f"{name}.mp4", videos / f"{name}.gif")
         cells.append((f"videos/{mp4.name}", f"videos/{gif.name}",
                       f"{minatar.GAMES[game_of(results)].title}, {DEEP_METHODS[results.config.algorithm].label}, "
                       f"seed {seed}: {', '.join(results.stages)}"))

@@ -13,22 +13,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.results import Results
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.studies.interface import UI, Report
 from rlcompare.studies.registry import PaperOptions
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
 
 STUDY = "paper"
 DEFAULT_EPISODES = 5000
-
-PAPER_TABLE_I = {"q_learning-decay": 41.5, "q_learning-constant": 13.8, "sarsa-decay": 10.7,
-                 "sarsa-constant": 11.5}
-"""Table I, "time to converge", as printed (no unit or rule is given)."""
-PAPER_TABLE_II = {"q_learning-decay": -191.0, "q_learning-constant": -262.0, "sarsa-decay": -174.0,
-                  "sarsa-constant": -176.0}
-"""Table II, mean cumulative reward, as printed."""
-
 
 PAPER_ALGORITHMS = ("q_learning", "sarsa")
 ORDER_ABLATION = (("q_learning", "before_update"), ("sarsa", "after_update"))
@@ -74,7 +66,7 @@ def reproduce(
 def summary(results: Iterable[Results], *, paper: bool) -> tuple[pd.DataFrame, str, str]:
     """Each configuration's mean behaviour and greedy return over seeds with 95% intervals (beside the paper's
     Table II where ``paper``): the table, its title and its caption."""
-    from rlcompare.analysis.tables import per_seed_metrics, table_ii
+    from rlcompare.studies.measures import PAPER_TABLE_II, per_seed_metrics, table_ii  # scipy: after training
 
     frame = table_ii({r.config.name: per_seed_metrics(r) for r in results}, PAPER_TABLE_II if paper else {})
     columns = ["configuration", "behaviour mean", "greedy mean", "greedy success"]
@@ -105,7 +97,7 @@ class PaperStudy:
 
     def report(self, out: Path, ui: UI, *, runs: dict[str, Results] | None = None, videos: bool = True) -> Report:
         """Tables, verdicts, figures, videos and ``report.html`` (:mod:`rlcompare.studies.paper_report`)."""
-        from rlcompare.studies.paper_report import build_report
+        from rlcompare.studies.paper_report import build_report  # matplotlib: once the runs are trained
 
         with ui.working("Building the report"):
             return build_report(out, videos=videos)

@@ -9,10 +9,10 @@ from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.registry import label as method_label
-from rlcompare.analysis import plots
-from rlcompare.analysis.explain import final_first_action_shares, map_frame
-from rlcompare.analysis.metrics import returns_per_seed
-from rlcompare.experiment.results import Results
+from rlcompare.report import plots
+from rlcompare.stats.metrics import returns_per_seed
+from rlcompare.studies.start_region import final_first_action_shares, map_frame
+from rlcompare.tabular.results import Results
 
 SMOOTHING = 100
 
@@ -163,7 +163,7 @@ def paired_differences(runs: dict[str, Results], metrics: dict[str, pd.DataFrame
                        ) -> dict[str, pd.DataFrame]:
     """For each schedule whose SARSA and Q-Learning both loaded (:data:`PAIRS`): one row per seed both ran, with
     SARSA minus Q-Learning in ``behaviour_return`` and ``greedy_return`` (the numbers of Table II and the
-    verdicts: :func:`~rlcompare.analysis.metrics.returns_per_seed`). ``metrics``: the per-seed metrics the report
+    verdicts: :func:`~rlcompare.stats.metrics.returns_per_seed`). ``metrics``: the per-seed metrics the report
     already holds, by configuration (computed from the runs where absent)."""
     differences = {}
     for schedule, sarsa_name, q_name in PAIRS:
@@ -187,7 +187,7 @@ def _returns(runs: dict[str, Results], metrics: dict[str, pd.DataFrame] | None, 
 def paired_difference_figure(runs: dict[str, Results], metrics: dict[str, pd.DataFrame] | None = None
                              ) -> Figure | None:
     """The study's answer in one picture: SARSA minus Q-Learning seed by seed (dots) with the mean and its 95%
-    BCa interval (a bar, :func:`~rlcompare.analysis.stats.interval`, as the verdicts use), for each schedule,
+    BCa interval (a bar, :func:`~rlcompare.stats.intervals.interval`, as the verdicts use), for each schedule,
     the behaviour return beside the greedy return. None when no schedule has both runs.
 
     ``runs`` by configuration name (``load_study``); ``metrics`` as for :func:`paired_differences`."""

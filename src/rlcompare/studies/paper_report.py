@@ -12,35 +12,33 @@ from __future__ import annotations
 import dataclasses
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from rlcompare.analysis.aggregate_plots import Aggregates, draw_aggregates
-from rlcompare.analysis.convergence import DEFAULT_RULE, RULES
-from rlcompare.analysis.drawn import Drawn
-from rlcompare.analysis.explain import has_start_region
-from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
-from rlcompare.analysis.profiles import by_method, score_scales
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
-from rlcompare.analysis.stats import ALPHA, interval
-from rlcompare.analysis.tables import (
-    RATIO_FACTOR,
-    Claim,
+from rlcompare.experiment import rundir, store
+from rlcompare.experiment.engines import load_run
+from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
+from rlcompare.report.drawn import Drawn
+from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.report.video import VideoJob, VideoRenders, plan_stage_videos, start_videos
+from rlcompare.stats.aggregates import by_method, score_scales
+from rlcompare.stats.convergence import DEFAULT_RULE, RULES
+from rlcompare.stats.intervals import ALPHA, interval
+from rlcompare.stats.verdicts import RATIO_FACTOR, Claim, family, judge_by_rule
+from rlcompare.studies.interface import Report
+from rlcompare.studies.margins import margin
+from rlcompare.studies.measures import (
+    PAPER_TABLE_I,
+    PAPER_TABLE_II,
     convergence_by_rule,
-    family,
-    judge_by_rule,
     noise_floors,
     per_seed_metrics,
     table_i,
     table_ii,
 )
-from rlcompare.analysis.video import VideoJob, VideoRenders, plan_stage_videos, start_videos
-from rlcompare.experiment import rundir, store
-from rlcompare.experiment.results import Results
-from rlcompare.studies.interface import Report
-from rlcompare.studies.margins import margin
-from rlcompare.studies.paper import PAPER_TABLE_I, PAPER_TABLE_II
 from rlcompare.studies.paper_figures import (
     curve_figure,
     first_actions_figure,
@@ -50,8 +48,10 @@ from rlcompare.studies.paper_figures import (
     stages_figure,
     visits_figure,
 )
+from rlcompare.studies.start_region import has_start_region
 from rlcompare.studies.why import decomposition, decomposition_figure, formatted, in_brief
 from rlcompare.studies.why import findings as why_findings
+from rlcompare.tabular.results import Results
 
 CONFIGURATIONS = ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant")
 FIGURES = (
@@ -63,35 +63,48 @@ FIGURES = (
     ("fig8-sarsa-decay", ("sarsa-decay",), "Fig. 8: SARSA with ε decaying from 1"),
     ("fig9-decay", ("q_learning-decay", "sarsa-decay"), "Fig. 9: Q-Learning and SARSA, ε decaying"),
 )
+NAMES = ("SARSA", "Q-Learning")
+"""What the verdicts call A and B: every claim of the paper sets SARSA against Q-Learning on one schedule."""
+
+
+def paper_claim(text: str, schedule: str, metric: str, **how: Any) -> Claim:
+    """A claim of the paper: SARSA (A) against Q-Learning (B) with ε ``schedule``."""
+    return Claim(text, f"sarsa-{schedule}", f"q_learning-{schedule}", metric, **how)
+
+
+def within(share: float) -> tuple[float, float]:
+    return (-share, share)
+
+
 CLAIMS = (
-    Claim("With ε decaying, Q-Learning takes about 4 times as long as SARSA to converge (Table I: 41.5 vs 10.7)",
-          "decay", "convergence_episode", kind="ratio", value=41.5 / 10.7),
-    Claim("With ε decaying, SARSA converges faster than Q-Learning", "decay", "convergence_episode", sign=-1),
-    Claim("With ε constant, both converge within a similar time frame (Table I: 13.8 vs 11.5): within 10% of "
-          "training", "constant", "convergence_episode", kind="same",
-          value=margin("paper", "a similar time frame (convergence)")),
-    Claim("With ε constant, SARSA has the higher mean cumulative reward (Table II: -176 vs -262)", "constant",
-          "behaviour_return", sign=1),
-    Claim("With ε constant, SARSA finds a better solution: its greedy policy returns more", "constant",
-          "greedy_return", sign=1),
-    Claim("With ε decaying, SARSA has the higher mean cumulative reward (Table II: -174 vs -191)", "decay",
-          "behaviour_return", sign=1),
-    Claim("With ε decaying, both find the same solution (-174 to -191): greedy returns within 20", "decay",
-          "greedy_return", kind="same", value=margin("paper", "the same solution (greedy return)")),
-    Claim("With ε decaying, SARSA finds a better solution: its greedy policy returns more (the constant-ε claim, "
-          "asked of decaying ε)", "decay", "greedy_return", sign=1),
-    Claim("With ε constant, SARSA accelerates backwards first: push left from most start states", "constant",
-          "first_action_left", kind="level", sign=1, value=0.5, method="sarsa", floor=True),
-    Claim("With ε constant, Q-Learning accelerates forward first: push left from few start states", "constant",
-          "first_action_left", kind="level", sign=-1, value=0.5, method="q_learning", floor=True),
+    paper_claim("With ε decaying, Q-Learning takes about 4 times as long as SARSA to converge (Table I: 41.5 vs "
+                "10.7)", "decay", "convergence_episode", kind="ratio", value=41.5 / 10.7),
+    paper_claim("With ε decaying, SARSA converges faster than Q-Learning", "decay", "convergence_episode", sign=-1),
+    paper_claim("With ε constant, both converge within a similar time frame (Table I: 13.8 vs 11.5): within 10% of "
+                "training", "constant", "convergence_episode", kind="within",
+                bounds=within(margin("paper", "a similar time frame (convergence)"))),
+    paper_claim("With ε constant, SARSA has the higher mean cumulative reward (Table II: -176 vs -262)", "constant",
+                "behaviour_return", sign=1),
+    paper_claim("With ε constant, SARSA finds a better solution: its greedy policy returns more", "constant",
+                "greedy_return", sign=1),
+    paper_claim("With ε decaying, SARSA has the higher mean cumulative reward (Table II: -174 vs -191)", "decay",
+                "behaviour_return", sign=1),
+    paper_claim("With ε decaying, both find the same solution (-174 to -191): greedy returns within 20", "decay",
+                "greedy_return", kind="within", bounds=within(margin("paper", "the same solution (greedy return)"))),
+    paper_claim("With ε decaying, SARSA finds a better solution: its greedy policy returns more (the constant-ε "
+                "claim, asked of decaying ε)", "decay", "greedy_return", sign=1),
+    paper_claim("With ε constant, SARSA accelerates backwards first: push left from most start states", "constant",
+                "first_action_left", kind="level", sign=1, value=0.5, reads="a", floor=True),
+    paper_claim("With ε constant, Q-Learning accelerates forward first: push left from few start states", "constant",
+                "first_action_left", kind="level", sign=-1, value=0.5, reads="b", floor=True),
 )
 """The paper's claims, with their margins declared before any run is read (``docs/why.md``, "Verdicts")."""
 
 
 def _scaled(claim: Claim, episodes: int) -> Claim:
     """A "same time frame" margin given as a share of training, in episodes."""
-    if claim.kind == "same" and claim.metric == "convergence_episode":
-        return dataclasses.replace(claim, value=claim.value * episodes)
+    if claim.kind == "within" and claim.metric == "convergence_episode":
+        return dataclasses.replace(claim, bounds=(claim.bounds[0] * episodes, claim.bounds[1] * episodes))
     return claim
 
 
@@ -107,7 +120,7 @@ def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
             problems.append(f"{name}: no run directory at {run_dir}")
             continue
         try:
-            loaded[name] = Results.load(run_dir)
+            loaded[name] = load_run(run_dir)
         except (store.StoreError, ValueError, KeyError) as error:
             problems.append(f"{name}: {error}")
     return loaded, problems
@@ -118,7 +131,7 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     """Tables (Markdown and CSV), verdicts, figures, videos and ``report.html`` inside ``study_dir``.
 
     The videos render on ``video_workers`` other processes (default: see
-    :func:`~rlcompare.analysis.video.default_workers`) while this process builds the tables and figures; the
+    :func:`~rlcompare.report.video.default_workers`) while this process builds the tables and figures; the
     files are the same whatever the number.
     """
     with store.rewriting(Path(study_dir), "study"):
@@ -203,7 +216,7 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_w
 
 
 def video_key(runs: dict[str, Results], job: VideoJob) -> str | None:
-    """What a video is drawn from (:mod:`rlcompare.analysis.drawn`): its run and everything the job says but where
+    """What a video is drawn from (:mod:`rlcompare.report.drawn`): its run and everything the job says but where
     the files go."""
     shown = {field.name: getattr(job, field.name) for field in dataclasses.fields(job)
              if field.name not in ("run_dir", "mp4", "gif")}
@@ -214,7 +227,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
                          plan: list[tuple[str, VideoJob]], renders: VideoRenders,
                          started: float, drawn: Drawn, keys: dict[Path, str | None], kept: set[Path]) -> Report:
     """Tables, figures and the page, built while the videos of ``plan`` render; waits for them before the page.
-    A figure or video whose inputs have not changed since the last report is kept (:mod:`rlcompare.analysis.drawn`):
+    A figure or video whose inputs have not changed since the last report is kept (:mod:`rlcompare.report.drawn`):
     ``keys``, each video's key by its MP4; ``kept``, the video files kept."""
     seconds: dict[str, float] = {}
     first, episodes = next(iter(runs.values())), next(iter(runs.values())).config.episodes
@@ -224,9 +237,8 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
-    claims = [c for c in CLAIMS if {f"sarsa-{c.schedule}", f"q_learning-{c.schedule}"} <= set(runs)
-              and (position_velocity or c.metric != "first_action_left")]
-    judgement = judge_by_rule([_scaled(c, episodes) for c in claims], metrics, episodes,
+    claims = [c for c in CLAIMS if {c.a, c.b} <= set(runs) and (position_velocity or c.metric != "first_action_left")]
+    judgement = judge_by_rule([_scaled(c, episodes) for c in claims], metrics, episodes, names=NAMES,
                               floors=noise_floors(runs) if position_velocity else {},
                               rules={name: convergence_by_rule(r) for name, r in runs.items() if name != "random"})
     tables = {
@@ -336,7 +348,7 @@ def schedule_notes(runs: dict[str, Results], metrics: dict[str, pd.DataFrame]) -
 
 
 def _table_i_text(config) -> str:
-    """Table I's rule in full (:mod:`rlcompare.analysis.convergence`)."""
+    """Table I's rule in full (:mod:`rlcompare.stats.convergence`)."""
     window = min(DEFAULT_RULE.window, config.episodes)
     stay = max(2 * window, round(0.1 * config.episodes))
     return (f"A run has converged at the first episode after which its return, averaged over the previous {window} "
@@ -352,9 +364,9 @@ def _table_i_text(config) -> str:
 
 def _verdict_text() -> list[str]:
     """How the verdicts are reached: labels, tests, margins, Holm's family and the fragile mark."""
-    margins = ", ".join(f"{c.value:.0%} of training for convergence" if c.metric == "convergence_episode"
-                        else f"{c.value:g} reward for {c.metric.replace('_', ' ')}s"
-                        for c in CLAIMS if c.kind == "same")
+    margins = ", ".join(f"{c.bounds[1]:.0%} of training for convergence" if c.metric == "convergence_episode"
+                        else f"{c.bounds[1]:g} reward for {c.metric.replace('_', ' ')}s"
+                        for c in CLAIMS if c.kind == "within")
     behaviour = [rule for rule in RULES if rule.curve == "behaviour"]
     bands = ", ".join(f"{t:.0%}" for t in sorted({rule.tolerance for rule in behaviour}))
     windows = ", ".join(str(w) for w in sorted({rule.window for rule in behaviour}))

@@ -12,8 +12,8 @@ import importlib
 from dataclasses import dataclass
 from typing import Any
 
-from rlcompare.experiment.config import ConfigError
 from rlcompare.studies.interface import Options, Seeded, listed, option
+from rlcompare.validation import ConfigError
 
 PAPER_LEARNERS = ("q_learning", "sarsa")
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from rlcompare.experiment import store
+from rlcompare.formatting import cut
 from rlcompare.studies.paper import MOUNTAIN_CAR
 
 COLUMNS = ["study", "environment", "engine: on- vs off-policy", "metric", "claim", "estimate", "estimate of",
@@ -95,7 +96,7 @@ def _verified(source: Source, directory: Path) -> Path:
         owner = store.owner_of(directory)
         listed = store.read_json(directory / store.MARKER_FILE)["outputs"] if owner is not None else []
     except (store.StoreError, OSError, KeyError, TypeError) as error:
-        raise _NotRead(f"{directory} is not the {source.name} study's ({store.cut(str(error), 120)}): not read"
+        raise _NotRead(f"{directory} is not the {source.name} study's ({cut(str(error), 120)}): not read"
                        ) from None
     if owner != store.Owner("study", source.name):
         what = f"it holds {owner}" if owner is not None else "rlcompare wrote no marker there"
@@ -121,7 +122,7 @@ def _read(source: Source, path: Path) -> pd.DataFrame:
     except _Malformed:
         raise
     except (OSError, ValueError) as error:  # pandas' ParserError and EmptyDataError, UnicodeDecodeError: ValueErrors
-        raise _Malformed(store.cut(str(error).strip() or type(error).__name__, 120)) from None
+        raise _Malformed(cut(str(error).strip() or type(error).__name__, 120)) from None
     missing = [column for column in source.needed if column not in frame.columns]
     if missing:
         raise _Malformed(f"no column {', '.join(repr(m) for m in missing)}")

@@ -18,12 +18,12 @@ import pandas as pd
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
-from rlcompare.analysis.stats import Estimate
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.sweep_store import read_manifest, trial_path
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.intervals import Estimate
 from rlcompare.studies.interface import Report
-from rlcompare.studies.sensitivity import (
+from rlcompare.studies.sensitivity_grid import (
     ALGORITHMS,
     CELL_KEYS,
     GRID,

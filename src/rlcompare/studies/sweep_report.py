@@ -30,17 +30,17 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from rlcompare.analysis import plots
-from rlcompare.analysis.aggregate_plots import draw_aggregates
-from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY
-from rlcompare.analysis.profiles import by_method, score_scales
-from rlcompare.analysis.report import Section, save_figure, write_report, write_table
-from rlcompare.analysis.stats import interval
-from rlcompare.analysis.tables import per_seed_metrics
 from rlcompare.experiment import store
-from rlcompare.experiment.results import Results
 from rlcompare.experiment.sweep import swept_value
 from rlcompare.experiment.sweep_store import engine_of, is_finished, load_configurations, read_manifest, trial_path
+from rlcompare.report import plots
+from rlcompare.report.aggregate_plots import draw_aggregates
+from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.aggregates import by_method, score_scales
+from rlcompare.stats.intervals import interval
+from rlcompare.studies.measures import per_seed_metrics
+from rlcompare.tabular.results import Results
 
 MAX_CURVES = 12
 PANELS = {"tabular": (("behaviour_return", "behaviour (ε-greedy) return, mean over training"),

@@ -31,17 +31,17 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
-from rlcompare.analysis.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less, number
-from rlcompare.analysis.metrics import returns_per_seed
-from rlcompare.analysis.report import NO_DATA, Section, save_figure, write_report, write_table
-from rlcompare.analysis.stats import Estimate, interval
 from rlcompare.experiment import store
-from rlcompare.experiment.config import ExperimentConfig
-from rlcompare.experiment.results import Results
+from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less, number
+from rlcompare.report.page import NO_DATA, Section, save_figure, write_report, write_table
+from rlcompare.stats.intervals import Estimate, interval
+from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.studies.interface import UI, Report
-from rlcompare.studies.paper import DEFAULT_EPISODES
 from rlcompare.studies.registry import WhyOptions
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
 
 STUDY = "why"
 TARGETS = {"max": "q_learning", "taken": "sarsa", "expectation": "expected_sarsa"}
@@ -71,7 +71,7 @@ def cell_name(config: ExperimentConfig) -> str:
     return f"{config.algorithm}-{config.schedule}-{config.next_action}"
 
 
-def why_configs(seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES) -> dict[str, ExperimentConfig]:
+def why_configs(seeds: tuple[int, ...], episodes: int = WhyOptions.episodes) -> dict[str, ExperimentConfig]:
     """Every cell of the factorial on the paper's setting, by run directory."""
     base = ExperimentConfig(seeds=seeds, episodes=episodes)
     configs = [replace(base, algorithm=algorithm, schedule=schedule, next_action=order)
@@ -102,7 +102,7 @@ def windows(episodes: int) -> dict[str, tuple[int, int]]:
 def per_seed_returns(results: Results, kind: str, start: int, stop: int) -> np.ndarray:
     """Each seed's mean return over episodes ``[start, stop)``: of the behaviour, or of the greedy policy
     evaluated after episodes in that range, the greedy curve's area there (NaN where no evaluation falls in it);
-    :func:`~rlcompare.analysis.metrics.returns_per_seed` on that window."""
+    :func:`~rlcompare.stats.metrics.returns_per_seed` on that window."""
     records, config = results.records, results.config
     after = (np.arange(config.evaluation_rounds) + 1) * config.eval_every
     rounds = (after > start) & (after <= stop)
@@ -261,7 +261,7 @@ def load_why(out: Path) -> tuple[dict[str, Results], list[str]]:
     runs, problems = {}, []
     for name in why_configs((0,)):
         try:
-            runs[name] = Results.load(Path(out) / name)
+            runs[name] = load_run(Path(out) / name)
         except (OSError, ValueError, KeyError) as error:  # StoreError included
             problems.append(f"{name}: {error}")
     return runs, problems

@@ -1,0 +1,113 @@
+"""One deep configuration: a method, an environment, a preset of the method's hyperparameters and the seeds.
+
+Seeds train ``vmap_width`` at a time, the last group padded with copies of its first seed: XLA batches the
+matrix products of a vmap by its width, so a seed's numbers depend on the width (by about 1e-7 after twenty
+updates) but not on which seeds train beside it or how many a user asks for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from rlcompare.deep.envs import DeepEnv, is_batched, jax_env
+from rlcompare.deep.methods import deep_method, hyperparameters
+from rlcompare.validation import COUNT, SEEDS_ALLOWED, check_fields, is_seeds, plain, require
+
+
+@dataclass(frozen=True)
+class DeepConfig:
+    """One deep configuration, run once per seed. Frozen and validated on creation."""
+
+    engine: ClassVar[str] = "deep"
+    """The engine that trains it (:mod:`rlcompare.experiment.engines`)."""
+
+    algorithm: str = "pqn_q_lambda"
+    """A deep method of :data:`rlcompare.deep.methods.DEEP_METHODS` (``docs/deep.md``); ``rlcompare run --help``
+    lists them."""
+    env: str = "CartPole-v1"
+    """``CartPole-v1``, ``Acrobot-v1`` or ``MountainCar-v0`` at Gymnasium's registered limits, a MinAtar game, or an
+    Atari game (``Breakout-Atari``: ``vmap_width`` 1)."""
+    preset: str = "default"
+    """A named set of the method's hyperparameters (``docs/deep.md``)."""
+    hyperparameters: dict[str, Any] = field(default_factory=dict)
+    """Overrides of the preset, by field name."""
+    seeds: tuple[int, ...] = tuple(range(10))
+    """One run per seed; seed ``s`` trains from ``jax.random.key(s)``."""
+    eval_rounds: int = 20
+    """Greedy evaluations, evenly spaced over the training, >= 1."""
+    eval_episodes: int = 10
+    """Episodes per evaluation, >= 1."""
+    vmap_width: int = 10
+    """Seeds trained side by side in one program (results depend on it; see the module's docstring), >= 1."""
+
+    def __post_init__(self) -> None:
+        deep_method(self.algorithm)
+        jax_env(self.env)  # an environment without a JAX port is refused, naming those there are
+        require(is_seeds(self.seeds), "seeds", self.seeds, SEEDS_ALLOWED)
+        object.__setattr__(self, "seeds", tuple(int(seed) for seed in self.seeds))
+        for name in ("eval_rounds", "eval_episodes", "vmap_width"):
+            object.__setattr__(self, name, plain(getattr(self, name)))
+        check_fields(self, {"eval_rounds": COUNT, "eval_episodes": COUNT, "vmap_width": COUNT})
+        require(not is_batched(self.environment) or self.vmap_width == 1, "vmap_width", self.vmap_width,
+                "1 for an Atari game (its emulator plays one seed's games at a time)")
+        require(isinstance(self.hyperparameters, dict), "hyperparameters", self.hyperparameters,
+                "a table of field names and values")
+        make_train = deep_method(self.algorithm).module.make_train  # builds closures only: cheap
+        make_train(self.method_config(), self.environment, self.eval_rounds, self.eval_episodes)  # validates
+
+    def method_config(self) -> Any:
+        """The method's own config: preset, fixed settings and overrides, validated."""
+        return hyperparameters(self.algorithm, self.env, self.preset, self.hyperparameters)
+
+    @property
+    def environment(self) -> DeepEnv:
+        return jax_env(self.env)
+
+    @property
+    def name(self) -> str:
+        return f"{self.algorithm}-{self.env}"
+
+    @property
+    def progress_total(self) -> int:
+        """What a run's ``progress`` callback counts to: seeds (trained ``vmap_width`` at a time)."""
+        return len(self.seeds)
+
+    def to_dict(self) -> dict[str, Any]:
+        """What ``config.json`` holds: the fields, and every hyperparameter the run used."""
+        data = dataclasses.asdict(self)
+        data["engine"] = self.engine
+        data["seeds"] = list(self.seeds)
+        data["resolved"] = _jsonable(dataclasses.asdict(self.method_config()))
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> DeepConfig:
+        known = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: (tuple(v) if k == "seeds" else v) for k, v in data.items() if k in known})
+
+
+def with_settings_added_since(stored: dict[str, Any], config: DeepConfig) -> dict[str, Any]:
+    """``config.json`` of a run with the method's settings added since it was written, at their defaults: a
+    setting is added with the default that keeps what the method did before (PPO's ``value_loss``, DQN's
+    ``optimizer``), so an older run still reads as the configuration it was."""
+    resolved = stored.get("resolved")
+    if not isinstance(resolved, dict):
+        return stored
+    defaults = json_round_trip(_jsonable(dataclasses.asdict(type(config.method_config())())))
+    return {**stored, "resolved": {**{k: v for k, v in defaults.items() if k not in resolved}, **resolved}}
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+def json_round_trip(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` as ``config.json`` gives it back: tuples as lists."""
+    return dict(json.loads(json.dumps(data)))

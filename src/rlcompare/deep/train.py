@@ -1,0 +1,167 @@
+"""``train(config) -> DeepResults``: every seed of a deep configuration trained in one jitted program, ``vmap_width``
+seeds side by side (:mod:`rlcompare.deep.config`)."""
+
+from __future__ import annotations
+
+import functools
+import sys
+import time
+from collections.abc import Callable, Iterator
+from datetime import datetime, timezone
+from typing import Any
+
+import jax
+import numpy as np
+import pandas as pd
+
+from rlcompare import machine
+from rlcompare.deep import float64, rollout, use_compilation_cache
+from rlcompare.deep.config import DeepConfig
+from rlcompare.deep.envs import is_batched, jax_env
+from rlcompare.deep.methods import deep_method
+from rlcompare.deep.results import DeepResults
+from rlcompare.deep.rollout import TrainOutput
+from rlcompare.validation import ConfigError
+
+
+def groups(seeds: tuple[int, ...], width: int) -> Iterator[tuple[tuple[int, ...], tuple[int, ...]]]:
+    """``(seeds, padded)``: the seeds in groups of ``width``, the last padded with copies of its first seed."""
+    for first in range(0, len(seeds), width):
+        group = seeds[first:first + width]
+        yield group, group + (group[0],) * (width - len(group))
+
+
+def compiled_training(config: DeepConfig) -> Callable[[jax.Array], TrainOutput]:
+    """The training of ``vmap_width`` seeds, compiled: once a process for each configuration, whatever its
+    seeds, so the trials of a sweep that differ only in their seeds share it."""
+    return compiled_program(config.algorithm, config.env, config.method_config(), config.eval_rounds,
+                            config.eval_episodes, config.vmap_width)
+
+
+@functools.lru_cache(maxsize=32)
+@float64
+def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: int, eval_episodes: int,
+                     width: int) -> Callable[[jax.Array], TrainOutput]:
+    """The jitted, vmapped training of ``width`` seeds, lowered and compiled for ``width`` keys; kept for the
+    process (``cache_info()`` counts the runs that found it)."""
+    environment = jax_env(env)
+    train = deep_method(algorithm).module.make_train(method_config, environment, eval_rounds, eval_episodes)
+    if is_batched(environment):  # one seed, its emulator's callbacks outside any vmap
+        return jax.jit(lambda keys: jax.tree.map(lambda x: x[None], train(keys[0]))).lower(seed_keys((0,))).compile()
+    return jax.jit(jax.vmap(train)).lower(seed_keys((0,) * width)).compile()
+
+
+@float64
+def params_template(config: DeepConfig) -> Any:
+    """The shape of one seed's parameter tree, traced without training."""
+    train = deep_method(config.algorithm).module.make_train(config.method_config(), config.environment,
+                                                            config.eval_rounds, config.eval_episodes)
+    return jax.eval_shape(train, jax.random.key(0)).params
+
+
+def memory_needed(config: DeepConfig, compiled: Any) -> tuple[int, int]:
+    """``(while training, records)``: bytes XLA allocates for one group of ``vmap_width`` seeds (its replay
+    buffers, rollouts and outputs, as the compiled program reports them), and bytes of every group's records kept
+    and joined after it. ``(0, 0)`` where the backend does not say."""
+    stats = compiled.memory_analysis()
+    if stats is None:
+        return 0, 0
+    output = stats.output_size_in_bytes
+    groups = -(-len(config.seeds) // config.vmap_width)
+    return stats.argument_size_in_bytes + output + stats.temp_size_in_bytes, 2 * groups * output
+
+
+def check_memory(config: DeepConfig, compiled: Any) -> None:
+    """A training that fits in this machine's memory, refused after compiling and before the first step (a
+    :class:`ConfigError` naming ``total_steps`` where the records are the larger part, else ``vmap_width``)."""
+    training, records = memory_needed(config, compiled)
+    memory = machine.physical_memory()
+    if training + records <= memory:
+        return
+    name, value = ("total_steps", config.method_config().total_steps) if records > training else (
+        "vmap_width", config.vmap_width)
+    raise ConfigError(name, value, f"a training that fits in memory: {config.name} on {len(config.seeds)} seeds, "
+                      f"{config.vmap_width} side by side, needs {machine.gib(training)} while training and "
+                      f"{machine.gib(records)} for its records; this machine has {machine.gib(memory)}")
+
+
+def seed_keys(seeds: tuple[int, ...]) -> jax.Array:
+    return jax.numpy.stack([jax.random.key(seed) for seed in seeds])
+
+
+def episodes_frame(seeds: tuple[int, ...], output: TrainOutput) -> pd.DataFrame:
+    """The training episodes of every seed, in the order they ended, with the step at which each did."""
+    done = np.asarray(output.finished.done)
+    n_envs = done.shape[-1]
+    frames = []
+    for index, seed in enumerate(seeds):
+        flat_done = done[index].reshape(-1, n_envs)  # (vector steps, envs), in time order
+        vector_step, _ = np.nonzero(flat_done)
+        pick = {name: np.asarray(getattr(output.finished, name))[index].reshape(-1, n_envs)[flat_done]
+                for name in ("returns", "lengths", "terminated")}
+        frames.append(pd.DataFrame({
+            "seed": np.full(len(vector_step), seed, np.int64),
+            "episode": np.arange(len(vector_step), dtype=np.int64),
+            "env_step": ((vector_step + 1) * n_envs).astype(np.int64),
+            "return": pick["returns"].astype(np.float64),
+            "length": pick["lengths"].astype(np.int64),
+            "terminated": pick["terminated"].astype(bool),
+        }))
+    return pd.concat(frames, ignore_index=True)
+
+
+def evaluations_frame(seeds: tuple[int, ...], output: TrainOutput, steps_per_round: int) -> pd.DataFrame:
+    returns = np.asarray(output.eval_returns)
+    _, rounds, per_round = returns.shape
+    runs = len(seeds)
+    return pd.DataFrame({
+        "seed": np.repeat(np.asarray(seeds, np.int64), rounds * per_round),
+        "round": np.tile(np.repeat(np.arange(rounds, dtype=np.int64), per_round), runs),
+        "after_step": np.tile(np.repeat((np.arange(rounds, dtype=np.int64) + 1) * steps_per_round, per_round), runs),
+        "return": returns.reshape(-1).astype(np.float64),
+        "length": np.asarray(output.eval_lengths).reshape(-1).astype(np.int64),
+        "terminated": np.asarray(output.eval_terminated).reshape(-1).astype(bool),
+    })
+
+
+@float64
+def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None] | None = None) -> DeepResults:
+    """Train every seed of ``config``, ``vmap_width`` at a time in one compiled program; ``progress`` is called
+    with the number of seeds finished since its last call."""
+    use_compilation_cache()
+    started = time.perf_counter()
+    train = compiled_training(config)
+    compile_seconds = time.perf_counter() - started
+    check_memory(config, train)
+    started = time.perf_counter()
+    outputs = []
+    for group, padded in groups(config.seeds, config.vmap_width):
+        output = jax.device_get(jax.block_until_ready(train(seed_keys(padded))))
+        kept = len(group)
+        outputs.append(jax.tree.map(lambda x, kept=kept: x[:kept], output))
+        if progress is not None:
+            progress(len(group))
+    wall = time.perf_counter() - started
+    output = jax.tree.map(lambda *parts: np.concatenate(parts), *outputs)
+    done = output.finished.done  # (seeds, rounds, updates per round, steps per update, environments)
+    steps_per_round = int(np.prod(done.shape[2:]))
+    steps = steps_per_round * done.shape[1]
+    meta = {
+        "study": study, "name": config.name, "engine": "deep", "seeds": list(config.seeds),
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "command": sys.argv,
+        "timings": {"compile_seconds": compile_seconds, "wall_seconds": wall, "training_steps": steps,
+                    "steps_per_second": steps * len(config.seeds) / wall if wall > 0 else None,
+                    "device": str(jax.devices()[0])},
+        "versions": dict(machine.versions("jax", "flax", "optax")),
+    }
+    snapshots = {stage: _named_arrays(jax.tree.map(lambda leaf, i=index: leaf[:, i], output.snapshots))
+                 for index, (stage, _) in enumerate(rollout.STAGES)}
+    return DeepResults(config, episodes_frame(config.seeds, output),
+                       evaluations_frame(config.seeds, output, steps_per_round), _named_arrays(output.params), meta,
+                       snapshots)
+
+
+def _named_arrays(tree: Any) -> dict[str, np.ndarray]:
+    """A parameter tree's leaves by their path (``jax.tree_util.keystr``)."""
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    return {jax.tree_util.keystr(path): np.asarray(leaf) for path, leaf in leaves}

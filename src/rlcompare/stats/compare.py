@@ -1,0 +1,120 @@
+"""A against B on paired seeds: the one comparison every study makes, and the one vocabulary it reports in.
+
+:func:`compare_paired` gives the paired difference with its interval, the Wilcoxon p-value, the probability of
+improvement and, where a margin is declared, the test of equivalence (:mod:`rlcompare.stats.intervals`);
+:func:`comparison_label` says what it found in the words every report uses ("A better", "B better", "equivalent
+(within ±m)", "not resolved", "no data"), read off :func:`~rlcompare.stats.intervals.verdict`, the rule a claim is
+judged by.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import NamedTuple
+
+import numpy as np
+
+from rlcompare.stats.intervals import (
+    _NAN,
+    ALPHA,
+    CONTRADICTED,
+    NO_DATA,
+    NOT_RESOLVED,
+    SUPPORTED,
+    Equivalence,
+    Estimate,
+    _per_seed,
+    equivalence_verdict,
+    holm,
+    paired_difference,
+    probability_of_improvement,
+    rank_test,
+    tost,
+    verdict,
+)
+from rlcompare.stats.power import detectable_difference
+
+
+class Paired(NamedTuple):
+    """A against B on paired seeds (seed ``s`` of each on the same start states): the comparison every study
+    makes."""
+
+    a_mean: float
+    b_mean: float
+    difference: Estimate
+    """Mean of A - B over seeds, with its BCa bootstrap interval (:func:`paired_difference`)."""
+    p_value: float
+    """Two-sided Wilcoxon signed-rank p-value (:func:`rank_test`); NaN where a value is not finite."""
+    improvement: Estimate
+    """P(a seed of A beats a seed of B) (:func:`probability_of_improvement`); NaN where not asked for."""
+    seeds: int
+    equivalence: Equivalence | None = None
+    """TOST of A - B within the declared ±margin; None where no margin is declared."""
+    spread: float = np.nan
+    """Standard deviation of A - B over seeds (``ddof=1``): what the power of the comparison reads."""
+
+
+def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *, improvement: bool = True
+                   ) -> Paired:
+    """A against B on paired seeds: means, the difference with its interval, the rank test, the probability of
+    improvement (unless ``improvement`` is False: a bootstrap of its own, which a grid of many cells may skip)
+    and, where ``margin`` is given, the test of equivalence within ±margin."""
+    a, b = _per_seed(a), _per_seed(b)
+    finite = bool(np.isfinite(a - b).all())
+    return Paired(float(np.mean(a)), float(np.mean(b)), paired_difference(a, b),
+                  rank_test(a, b) if finite else np.nan,
+                  probability_of_improvement(a, b) if improvement else _NAN, int(a.size),
+                  None if margin is None else tost(a - b, -margin, margin),
+                  float(np.std(a - b, ddof=1)) if a.size > 1 and finite else np.nan)
+
+
+def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, str],
+                     equivalence: Equivalence | None = None, level: float = ALPHA,
+                     p_equivalence: float | None = None) -> str:
+    """What A against B found, in the one vocabulary: "A better" / "B better" where :func:`verdict` supports or
+    contradicts "A - B > 0" (``difference``) at ``p_adjusted``; else "equivalent (within ±m)" where a margin was
+    declared and :func:`equivalence_verdict` supports ``equivalence`` at ``p_equivalence`` (its p-value adjusted in
+    the same family as ``p_adjusted``: :func:`judge_family`); "no data" without an estimate; "not resolved"
+    otherwise."""
+    direction = verdict(difference, p_adjusted, +1, level)
+    if direction in (SUPPORTED, CONTRADICTED):
+        return f"{names[0] if direction == SUPPORTED else names[1]} better"
+    if direction == NO_DATA:
+        return NO_DATA
+    if equivalence is not None and equivalence_verdict(equivalence, p_equivalence, level) == SUPPORTED:
+        return f"equivalent (within ±{equivalence.upper:g})"
+    return NOT_RESOLVED
+
+
+class Judged(NamedTuple):
+    """One comparison of a family, judged."""
+
+    paired: Paired
+    p: float
+    """Holm-adjusted p of the direction (Wilcoxon)."""
+    p_equivalence: float
+    """Holm-adjusted p of the equivalence (TOST within the margin); NaN where no margin was declared."""
+    label: str
+    detectable: float
+    """The smallest true difference a paired t test at the family's strictest Holm step (α over the family's
+    size) finds four times in five over these seeds (:func:`~rlcompare.stats.power.detectable_difference`)."""
+
+
+def judge_family(found: dict[Hashable, Paired], names: tuple[str, str], level: float = ALPHA
+                 ) -> dict[Hashable, Judged]:
+    """Every comparison of a report as one family: each one's direction test and, where a margin was declared,
+    its equivalence test, all Holm-adjusted together (Holm 1979), so that "A better" and "equivalent" share one
+    family-wise error rate; each labelled by :func:`comparison_label`, with the difference its seeds could detect."""
+    keys = list(found)
+    directions = [found[k].p_value for k in keys]
+    equivalences = [np.nan if found[k].equivalence is None else found[k].equivalence.p_equivalent for k in keys]
+    adjusted = holm([*directions, *equivalences])
+    size = int(np.sum(~np.isnan([*directions, *equivalences])))
+    strictest = level / max(size, 1)
+    judged = {}
+    for i, key in enumerate(keys):
+        paired, p, p_equivalence = found[key], adjusted[i], adjusted[len(keys) + i]
+        label = comparison_label(paired.difference, p, names, paired.equivalence, level, p_equivalence)
+        judged[key] = Judged(paired, p, p_equivalence, label, detectable_difference(paired.spread, paired.seeds,
+                                                                                    strictest))
+    return judged

@@ -1,0 +1,50 @@
+"""Why one method wins: what the greedy policies do where every episode starts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
+from rlcompare.envs.features import grid_bounds
+from rlcompare.report.plots import MapFrame
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
+
+
+def map_frame(config: ExperimentConfig) -> MapFrame | None:
+    """The frame of the maps a report draws over two observation dimensions, where the environment names them
+    and the features are the grid; None elsewhere."""
+    env = config.environment
+    if env.map_axes is None or config.features != "grid":
+        return None
+    low, high = grid_bounds(env, config.bounds)
+    return MapFrame((float(low[0]), float(high[0]), float(low[1]), float(high[1])), env.map_axes, env.action_names)
+
+
+def has_start_region(config: ExperimentConfig) -> bool:
+    """Whether the report's start region, first actions and maps apply: the environment draws maps over two
+    dimensions, says where its episodes start there, and the features are the grid."""
+    return map_frame(config) is not None and config.environment.start_box is not None
+
+
+def start_cells(grid: UniformGrid, start_box: tuple[tuple[float, float], ...], points: int = 2001) -> np.ndarray:
+    """Cells of ``points`` start states spread evenly over each range of ``start_box`` together (Mountain Car's:
+    ``(p, 0)`` for ``p`` in its reset range [-0.6, -0.4])."""
+    return cell_indices(grid, np.column_stack([np.linspace(low, high, points) for low, high in start_box]))
+
+
+def first_action_shares(q_tables: np.ndarray, grid: UniformGrid, start_box: tuple[tuple[float, float], ...]
+                        ) -> np.ndarray:
+    """``(seeds, actions)``: for each seed, the share of start states whose first greedy action is each
+    action. The paper says Q-Learning "accelerates forward in the first few frames while SARSA
+    accelerates backwards"; this counts it over every start state and every seed."""
+    cells = start_cells(grid, start_box)
+    first = q_tables[:, cells].argmax(axis=2)  # (seeds, start states)
+    return np.stack([(first == a).mean(axis=1) for a in range(q_tables.shape[2])], axis=1)
+
+
+def final_first_action_shares(results: Results) -> np.ndarray:
+    """:func:`first_action_shares` of the final Q-tables, on the grid the run was trained on."""
+    c = results.config
+    return first_action_shares(results.records.snapshots[:, -1], make_grid(*grid_bounds(c.environment, c.bounds),
+                                                                            c.bins), c.environment.start_box)

@@ -1,0 +1,94 @@
+"""Agents loaded from a tabular run that act on Gymnasium's own observations.
+
+``act`` checks its observation before any compiled code reads it (:mod:`rlcompare.envs.observations`).
+Finite observations outside the grid's or the tiles' box stay valid: they land in the edge cell, as with
+Gymnasium's ``DiscretizeObservation``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rlcompare.envs import mountain_car
+from rlcompare.envs.discretize import UniformGrid, cell_index
+from rlcompare.envs.features import OneHot, make_features
+from rlcompare.envs.observations import check_observation
+from rlcompare.envs.registry import Environment
+from rlcompare.envs.tiles import TileCoding, active_tiles_nd
+from rlcompare.tabular.results import Results
+
+
+def observation_shape(env: Environment) -> tuple[int, ...]:
+    """The shape of ``env``'s observations: ``()`` for a finite environment, ``(d,)`` for a Box."""
+    return () if env.n_states else (env.observation_size,)
+
+
+@dataclass
+class GreedyAgent:
+    """The greedy policy of stored weights: ``act(observation) -> int``, ties to the first action.
+
+    With the grid the weights are the Q-table; with tiles, ``q(s, a)`` sums the active tiles' weights.
+    A REINFORCE agent acts on its preferences: the most probable action of its softmax policy.
+    """
+
+    weights: np.ndarray
+    features: UniformGrid | TileCoding | OneHot
+    seed: int
+    stage: str
+    env: str
+    """The environment's name, for error messages."""
+    observation_shape: tuple[int, ...]
+    """``(d,)`` of a Box environment; ``()`` for a finite one."""
+    n_states: int
+    """States of a finite environment; 0 for a Box."""
+
+    def active(self, observation: np.ndarray | int) -> np.ndarray:
+        """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling."""
+        valid = check_observation(observation, self.observation_shape, self.n_states, self.env)
+        if isinstance(self.features, OneHot):
+            return np.array([valid])
+        if isinstance(self.features, UniformGrid):
+            return np.array([cell_index(self.features, valid)])
+        out = np.empty(self.features.n_tilings, dtype=np.int64)
+        active_tiles_nd(self.features, valid, out)
+        return out
+
+    def act(self, observation: np.ndarray | int) -> int:
+        """The greedy action; :class:`ValueError` if ``observation`` is not one of the environment's."""
+        return int(np.argmax(self.weights[self.active(observation)].sum(axis=0)))
+
+
+@dataclass
+class RandomAgent:
+    """The random baseline: a uniform action whatever the (valid) observation."""
+
+    seed: int
+    stage: str
+    env: str = "MountainCar-v0"
+    observation_shape: tuple[int, ...] = (2,)
+    n_states: int = 0
+    n_actions: int = mountain_car.N_ACTIONS
+    rng: np.random.Generator = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.rng = np.random.default_rng(self.seed)
+
+    def act(self, observation: np.ndarray | int) -> int:
+        """A uniform action; :class:`ValueError` if ``observation`` is not one of the environment's."""
+        check_observation(observation, self.observation_shape, self.n_states, self.env)
+        return int(self.rng.integers(self.n_actions))
+
+
+def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent:
+    """The agent of ``seed`` at ``stage`` of a tabular run, ready for ``gymnasium.make(config.env)``
+    (``MountainCar-v0`` for the book's variant too, whose trajectories are the same)."""
+    weights = results.q_table(seed, stage)
+    c = results.config
+    env = c.environment
+    observations = {"env": c.env, "observation_shape": observation_shape(env), "n_states": env.n_states}
+    if c.algorithm == "random":
+        return RandomAgent(seed=seed, stage=stage, n_actions=weights.shape[1], **observations)
+    features = make_features(env, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
+    return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage, **observations)

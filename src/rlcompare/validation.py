@@ -1,0 +1,190 @@
+"""What a valid setting is, for every configuration rlcompare reads: the tabular and deep configurations, a
+method's hyperparameters, a sweep file and a study's options.
+
+One error, :class:`ConfigError`, names the field, quotes the value and says what is allowed. One rule each for
+an integer, a finite number, a flag and a choice, written once (:class:`Integer`, :class:`Number`, :class:`Flag`,
+:class:`Choice`), and every config checks its fields against a table of them (:func:`check_fields`). NumPy's
+scalars count as the Python values they hold (``np.int64(3)`` is an integer, ``np.float32(0.5)`` a number, and
+``np.bool_(True)`` a flag); a bool is never a number.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from rlcompare.formatting import cut, quote
+
+
+class ConfigError(ValueError):
+    """A configuration value outside what is allowed; names the field and the allowed values.
+
+    ``value`` is the value itself; the message quotes at most the start of it (:func:`~rlcompare.formatting.quote`),
+    and of an unknown field's name."""
+
+    def __init__(self, field_name: str, value: Any, allowed: str) -> None:
+        self.field_name, self.value, self.allowed = field_name, value, allowed
+        super().__init__(f"{cut(str(field_name), 80)}: got {quote(value)}; allowed: {allowed}")
+
+
+def require(ok: bool, name: str, value: Any, allowed: str) -> None:
+    """A :class:`ConfigError` naming ``name`` unless ``ok``."""
+    if not ok:
+        raise ConfigError(name, value, allowed)
+
+
+def is_integer(value: Any) -> bool:
+    """An int or a NumPy integer, not a bool."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
+
+
+def is_number(value: Any) -> bool:
+    """A finite int or float, Python's or NumPy's, not a bool (an integer too large for a float is finite)."""
+    if is_integer(value):
+        return True
+    return isinstance(value, float | np.floating) and math.isfinite(value)
+
+
+def is_flag(value: Any) -> bool:
+    """A bool, Python's or NumPy's."""
+    return isinstance(value, bool | np.bool_)
+
+
+def plain(value: Any) -> Any:
+    """A NumPy scalar as the Python value it holds (what ``config.json`` and a config's hash read); anything else
+    as it is."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+class Rule(Protocol):
+    """What a field may hold: a test, and the words that say what passes it."""
+
+    @property
+    def allowed(self) -> str: ...
+
+    def holds(self, value: Any) -> bool: ...
+
+
+@dataclass(frozen=True)
+class Integer:
+    """An integer in ``[minimum, maximum]`` (either end open where None)."""
+
+    minimum: int | None = None
+    maximum: int | None = None
+
+    @property
+    def allowed(self) -> str:
+        if self.maximum is None:
+            return "an integer" if self.minimum is None else f"an integer >= {self.minimum}"
+        if self.minimum is None:
+            return f"an integer <= {self.maximum}"
+        return f"an integer in [{self.minimum}, {self.maximum}]"
+
+    def holds(self, value: Any) -> bool:
+        return (is_integer(value) and (self.minimum is None or value >= self.minimum)
+                and (self.maximum is None or value <= self.maximum))
+
+
+@dataclass(frozen=True)
+class Number:
+    """A finite number between ``low`` and ``high``, each end included unless said open."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+
+    @property
+    def allowed(self) -> str:
+        if math.isinf(self.high):
+            if math.isinf(self.low):
+                return "a finite number"
+            return f"a finite number {'>' if self.low_open else '>='} {self.low:g}"
+        if math.isinf(self.low):
+            return f"a finite number {'<' if self.high_open else '<='} {self.high:g}"
+        return (f"a number in {'(' if self.low_open else '['}{self.low:g}, {self.high:g}"
+                f"{')' if self.high_open else ']'}")
+
+    def holds(self, value: Any) -> bool:
+        if not is_number(value):
+            return False
+        above = self.low < value if self.low_open else self.low <= value
+        below = value < self.high if self.high_open else value <= self.high
+        return bool(above and below)
+
+
+@dataclass(frozen=True)
+class Flag:
+    """True or false."""
+
+    @property
+    def allowed(self) -> str:
+        return "true or false"
+
+    def holds(self, value: Any) -> bool:
+        return is_flag(value)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One of ``values``."""
+
+    values: tuple[Any, ...]
+
+    @property
+    def allowed(self) -> str:
+        return ", ".join(map(str, self.values))
+
+    def holds(self, value: Any) -> bool:
+        try:
+            return value in self.values
+        except TypeError:  # an unhashable or incomparable value is none of them
+            return False
+
+
+@dataclass(frozen=True)
+class Widths:
+    """A tuple of layer widths, each an integer >= 1, at least one."""
+
+    @property
+    def allowed(self) -> str:
+        return "a tuple of layer widths, each an integer >= 1"
+
+    def holds(self, value: Any) -> bool:
+        return isinstance(value, tuple) and len(value) >= 1 and all(Integer(1).holds(width) for width in value)
+
+
+UNIT = Number(0.0, 1.0)
+"""[0, 1]: a probability, a discount, a trace decay."""
+STEP_SIZE = Number(0.0, 1.0, low_open=True)
+"""(0, 1]: a step size or a share."""
+POSITIVE = Number(0.0, low_open=True)
+"""A finite number > 0."""
+NON_NEGATIVE = Number(0.0)
+"""A finite number >= 0."""
+COUNT = Integer(1)
+"""An integer >= 1."""
+
+
+SEEDS_ALLOWED = "distinct integers in [0, 2**63), at least one"
+
+
+def is_seeds(value: Any) -> bool:
+    """A list or tuple of distinct integers in [0, 2**63), at least one: the seeds of a configuration."""
+    return (isinstance(value, list | tuple) and len(value) >= 1 and all(Integer(0, 2**63 - 1).holds(s) for s in value)
+            and len(set(map(int, value))) == len(value))
+
+
+def check(name: str, value: Any, rule: Rule) -> None:
+    """A :class:`ConfigError` naming ``name`` unless ``value`` holds to ``rule``."""
+    require(rule.holds(value), name, value, rule.allowed)
+
+
+def check_fields(config: Any, rules: Mapping[str, Rule]) -> None:
+    """Each field of ``config`` named in ``rules`` checked against its rule, in the table's order."""
+    for name, rule in rules.items():
+        check(name, getattr(config, name), rule)
