@@ -20,12 +20,15 @@ import hashlib
 import os
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar, overload
 
 import numba
-from numba import njit
 
 __all__ = ["holds_nothing_yet", "njit", "tend"]
+
+Function = TypeVar("Function", bound=Callable[..., Any])
 
 COMPILED_SOURCES = ("algorithms", "envs", "rng.py", "tabular/state.py", "tabular/steps.py", "tabular/episodes.py",
                     "tabular/runs.py", "tabular/borrowed.py")
@@ -54,6 +57,21 @@ def use_source_keyed_cache() -> None:
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
     numba.config.CACHE_DIR = str(_root() / f"numba-{source_digest(Path(__file__).parent)}")
+
+
+@overload
+def njit(function: Function, /) -> Function: ...
+
+
+@overload
+def njit(*, cache: bool = ..., nogil: bool = ..., inline: str = ..., forceinline: bool = ...
+         ) -> Callable[[Function], Function]: ...
+
+
+def njit(function: Any = None, /, **options: Any) -> Any:
+    """``numba.njit``, as ``@njit`` or ``@njit(cache=True, ...)``; to the type checker, the compiled function keeps
+    the Python function's signature."""
+    return numba.njit(**options) if function is None else numba.njit(function)
 
 
 def tend() -> None:
