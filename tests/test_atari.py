@@ -15,7 +15,7 @@ ale_py = pytest.importorskip("ale_py")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn, ppo, pqn  # noqa: E402
+from rlcompare.deep import dqn, dqn_config, ppo, ppo_config, pqn  # noqa: E402
 from rlcompare.deep.atari import AtariEnv, NatureCNN, atari_env, reset_seed  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.envs import jax_env, jax_env_names, learning_reward  # noqa: E402
@@ -120,9 +120,9 @@ def test_mnih_network_has_its_layers_and_reads_uint8_frames() -> None:
 TINY = {
     "pqn": (pqn, dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], total_steps=2 * 4 * 16, n_envs=4,
                                       n_steps=16, n_minibatches=2, hidden=(32,))),
-    "dqn": (dqn, dataclasses.replace(dqn.ATARI, total_steps=2 * 48, n_envs=2, buffer_size=200, learning_starts=32,
-                                      batch_size=8, hidden=(32,))),
-    "ppo": (ppo, dataclasses.replace(ppo.ATARI, total_steps=2 * 4 * 16, n_envs=4, n_steps=16, batch_size=32,
+    "dqn": (dqn, dataclasses.replace(dqn_config.ATARI, total_steps=2 * 48, n_envs=2, buffer_size=200,
+                                     learning_starts=32, batch_size=8, hidden=(32,))),
+    "ppo": (ppo, dataclasses.replace(ppo_config.ATARI, total_steps=2 * 4 * 16, n_envs=4, n_steps=16, batch_size=32,
                                       n_epochs=1, hidden=(32,))),
 }
 

@@ -14,7 +14,7 @@ pytest.importorskip("gymnax")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn  # noqa: E402
+from rlcompare.deep import dqn, dqn_config  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
 
 ENV = "Breakout-MinAtar"
@@ -24,7 +24,7 @@ def test_seeds_side_by_side_train_as_each_alone_across_learning_starts() -> None
     """Two seeds under ``vmap``, one short of ``learning_starts`` and one past it, then both past it: each seed's
     runner after an update is the one its own unbatched update gives (the first keeps its parameters)."""
     env = jax_env(ENV)
-    config = dataclasses.replace(dqn.MINATAR, buffer_size=64, learning_starts=20, hidden=(8,))
+    config = dataclasses.replace(dqn_config.MINATAR, buffer_size=64, learning_starts=20, hidden=(8,))
     update = dqn.make_update(config, env)
     with jax.enable_x64(True):
         runners = [dqn.init_runner(config, env, jax.random.key(seed)) for seed in (0, 1)]

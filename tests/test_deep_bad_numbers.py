@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 pytest.importorskip("jax")
@@ -14,23 +15,25 @@ from rlcompare.validation import ConfigError
 
 
 @pytest.mark.parametrize(("algorithm", "settings", "field", "allowed"), [
-    ("pqn_q_lambda", {"learning_rate": math.nan}, "learning_rate", "a positive finite number"),
-    ("pqn_q_lambda", {"learning_rate": math.inf}, "learning_rate", "a positive finite number"),
-    ("pqn_q_lambda", {"reward_scale": math.inf}, "reward_scale", "a positive finite number"),
-    ("pqn_q_lambda", {"max_grad_norm": -1.0}, "max_grad_norm", "a positive finite number"),
+    ("pqn_q_lambda", {"learning_rate": math.nan}, "learning_rate", "a finite number > 0"),
+    ("pqn_q_lambda", {"learning_rate": math.inf}, "learning_rate", "a finite number > 0"),
+    ("pqn_q_lambda", {"reward_scale": math.inf}, "reward_scale", "a finite number > 0"),
+    ("pqn_q_lambda", {"max_grad_norm": -1.0}, "max_grad_norm", "a finite number > 0"),
     ("pqn_q_lambda", {"lam": math.nan}, "lam", "[0, 1]"),
     ("pqn_q_lambda", {"gamma": math.inf}, "gamma", "(0, 1]"),
     ("pqn_q_lambda", {"epsilon_end": -0.1}, "epsilon_end", "[0, 1]"),
-    ("pqn_q_lambda", {"hidden": [0]}, "hidden", "positive layer widths"),
-    ("pqn_q_lambda", {"n_envs": 0}, "n_envs", "a positive integer"),
+    ("pqn_q_lambda", {"hidden": [0]}, "hidden", "each an integer >= 1"),
+    ("pqn_q_lambda", {"n_envs": 0}, "n_envs", "an integer >= 1"),
     ("dqn", {"batch_size": 0}, "batch_size", "an integer >= 1"),
     ("dqn", {"learning_rate": math.inf}, "learning_rate", "a finite number > 0"),
     ("dqn", {"learning_rate": math.nan}, "learning_rate", "a finite number > 0"),
     ("dqn", {"max_grad_norm": math.inf}, "max_grad_norm", "a finite number >= 0"),
-    ("dqn", {"hidden": [0]}, "hidden", "integers >= 1"),
+    ("dqn", {"hidden": [0]}, "hidden", "each an integer >= 1"),
     ("ppo", {"learning_rate": math.inf}, "learning_rate", "a finite number > 0"),
     ("ppo", {"ent_coef": math.nan}, "ent_coef", "a finite number >= 0"),
     ("ppo", {"batch_size": 0}, "batch_size", ""),
+    ("ppo", {"batch_size": 7}, "batch_size", "dividing n_envs * n_steps"),
+    ("dqn", {"buffer_size": 0}, "buffer_size", "an integer >= 1"),
 ])
 def test_a_bad_setting_is_refused_naming_it(algorithm: str, settings: dict, field: str, allowed: str) -> None:
     with pytest.raises(ConfigError) as refused:
@@ -38,6 +41,21 @@ def test_a_bad_setting_is_refused_naming_it(algorithm: str, settings: dict, fiel
     assert refused.value.field_name == field
     assert allowed in str(refused.value)
     assert "\n" not in str(refused.value)
+
+
+@pytest.mark.parametrize(("algorithm", "settings"), [
+    ("pqn_q_lambda", {"lam": np.float32(0.5), "n_envs": np.int64(16), "anneal_lr": np.bool_(False)}),
+    ("dqn", {"learning_rate": np.float64(1e-3), "batch_size": np.int32(64)}),
+    ("ppo", {"gamma": np.float32(0.98), "n_epochs": np.int16(4)}),
+])
+def test_numpy_scalars_are_settings_like_any_other_and_kept_as_python_values(algorithm: str, settings: dict) -> None:
+    """Every config takes NumPy's scalars for what they hold (one rule, :mod:`rlcompare.validation`), and stores
+    Python's, so that ``config.json`` and a configuration's hash read them alike."""
+    plain = {name: value.item() for name, value in settings.items()}
+    given = DeepConfig(algorithm=algorithm, env="CartPole-v1", hyperparameters=settings).method_config()
+    expected = DeepConfig(algorithm=algorithm, env="CartPole-v1", hyperparameters=plain).method_config()
+    assert given == expected
+    assert all(type(getattr(given, name)) is type(value) for name, value in plain.items())
 
 
 @pytest.mark.parametrize("seeds", [(2**63,), (-1,), (0, 0), (), (True,)])

@@ -12,7 +12,7 @@ jax = pytest.importorskip("jax")
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rlcompare.deep import dqn  # noqa: E402
+from rlcompare.deep import dqn, dqn_config, replay  # noqa: E402
 from rlcompare.deep.envs import CARTPOLE  # noqa: E402
 from rlcompare.envs import atari, minatar  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402
@@ -38,7 +38,7 @@ def test_double_dqn_target_evaluates_the_online_argmax_with_the_target_network()
 
 
 def test_loss_is_the_mean_huber_error_of_the_taken_actions() -> None:
-    batch = dqn.Transitions(observations=jnp.array([[1.0, 2.0], [0.0, 0.0]]), actions=jnp.array([1, 0]),
+    batch = replay.Transitions(observations=jnp.array([[1.0, 2.0], [0.0, 0.0]]), actions=jnp.array([1, 0]),
                             rewards=jnp.array([0.0, 3.0]), next_observations=jnp.array([[0.0, 4.0], [9.0, 9.0]]),
                             terminated=jnp.array([False, True]))
     identity = lambda params, observations: observations  # noqa: E731 - Q-values are the observations
@@ -48,14 +48,14 @@ def test_loss_is_the_mean_huber_error_of_the_taken_actions() -> None:
 
 # --- the replay buffer ---
 
-def _rows(actions: list[int]) -> dqn.Transitions:
+def _rows(actions: list[int]) -> replay.Transitions:
     a = jnp.array(actions)
     obs = jnp.stack([a, -a], axis=1).astype(jnp.float32)
-    return dqn.Transitions(obs, a, a.astype(jnp.float32), obs + 1, a % 2 == 0)
+    return replay.Transitions(obs, a, a.astype(jnp.float32), obs + 1, a % 2 == 0)
 
 
 def test_buffer_wraps_around_overwriting_the_oldest() -> None:
-    buffer = dqn.buffer_add(dqn.buffer_add(dqn.buffer_init(3, 2), _rows([0, 1])), _rows([2, 3]))
+    buffer = replay.buffer_add(replay.buffer_add(replay.buffer_init(3, 2), _rows([0, 1])), _rows([2, 3]))
     np.testing.assert_array_equal(buffer.data.actions, [3, 1, 2])
     np.testing.assert_array_equal(buffer.data.observations[:, 0], [3, 1, 2])
     assert (int(buffer.position), int(buffer.size)) == (1, 3)
@@ -64,8 +64,8 @@ def test_buffer_wraps_around_overwriting_the_oldest() -> None:
 
 
 def test_buffer_samples_only_filled_slots() -> None:
-    buffer = dqn.buffer_add(dqn.buffer_init(10, 2), _rows([5, 6, 7]))
-    batch = dqn.buffer_sample(buffer, jax.random.key(0), 600)
+    buffer = replay.buffer_add(replay.buffer_init(10, 2), _rows([5, 6, 7]))
+    batch = replay.buffer_sample(buffer, jax.random.key(0), 600)
     assert set(np.asarray(batch.actions).tolist()) == {5, 6, 7}
     np.testing.assert_array_equal(batch.observations[:, 0], batch.actions)  # rows stay whole
     np.testing.assert_array_equal(batch.next_observations[:, 1], 1 - batch.actions)
@@ -75,7 +75,7 @@ def test_buffer_samples_only_filled_slots() -> None:
 
 def test_update_stores_true_last_observations_refreshes_the_target_and_waits_for_learning_starts() -> None:
     env = dataclasses.replace(CARTPOLE, max_steps=2)  # every second step is a time-limit cut
-    config = dqn.DQNConfig(n_envs=2, train_freq=3, learning_starts=6, target_update_interval=4, buffer_size=8,
+    config = dqn_config.DQNConfig(n_envs=2, train_freq=3, learning_starts=6, target_update_interval=4, buffer_size=8,
                            batch_size=4, learning_rate=1e-2, hidden=(8,))
     update = jax.jit(dqn.make_update(config, env))
     runner = dqn.init_runner(config, env, jax.random.key(1))
@@ -140,7 +140,7 @@ def test_presets_are_the_zoos_and_the_default_changes_only_the_network() -> None
     assert set(classic) == {"CartPole-v1", "MountainCar-v0", "Acrobot-v1"}
     assert set(zoo) == set(classic) | set(atari.NAMES)
     assert set(default) - set(classic) == set(minatar.NAMES) | set(atari.NAMES)  # tests/test_minatar_dqn.py
-    assert all(zoo[env] == default[env] == dqn.ATARI for env in atari.NAMES)  # the zoo's atari entry
+    assert all(zoo[env] == default[env] == dqn_config.ATARI for env in atari.NAMES)  # the zoo's atari entry
     assert zoo["CartPole-v1"].hidden == (256, 256)
     assert zoo["CartPole-v1"].gradient_steps == 128
     for env, config in classic.items():
@@ -157,10 +157,10 @@ def test_presets_are_the_zoos_and_the_default_changes_only_the_network() -> None
 ])
 def test_bad_values_name_their_field(field: str, value: object) -> None:
     with pytest.raises(ConfigError) as error:
-        dqn.DQNConfig(**{"n_envs": 4, field: value})
+        dqn_config.DQNConfig(**{"n_envs": 4, field: value})
     assert error.value.field_name == field
 
 
 def test_make_train_checks_rounds() -> None:
     with pytest.raises(ConfigError, match="rounds"):
-        dqn.make_train(dqn.DQNConfig(), CARTPOLE, rounds=0, eval_episodes=1)
+        dqn.make_train(dqn_config.DQNConfig(), CARTPOLE, rounds=0, eval_episodes=1)

@@ -13,7 +13,7 @@ pytest.importorskip("jax")
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep import ppo
+from rlcompare.deep import ppo, ppo_config
 from rlcompare.deep.envs import CARTPOLE, MOUNTAIN_CAR, jax_env_names
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.validation import ConfigError
@@ -106,20 +106,20 @@ def test_running_statistics_equal_those_of_all_batches() -> None:
 ])
 def test_bad_values_are_refused_naming_the_field(field: str, value: object) -> None:
     with pytest.raises(ConfigError) as error:
-        dataclasses.replace(ppo.ZOO["CartPole-v1"], **{field: value})
+        dataclasses.replace(ppo_config.ZOO["CartPole-v1"], **{field: value})
     assert error.value.field_name == field
 
 
 def test_presets_are_the_zoos_for_every_deep_environment() -> None:
-    assert ppo.PRESETS["default"] is ppo.ZOO
-    assert set(ppo.ZOO) == set(jax_env_names())
-    cartpole = ppo.ZOO["CartPole-v1"]
+    assert ppo.PRESETS["default"] is ppo_config.ZOO
+    assert set(ppo_config.ZOO) == set(jax_env_names())
+    cartpole = ppo_config.ZOO["CartPole-v1"]
     assert (cartpole.n_envs, cartpole.n_steps, cartpole.batch_size, cartpole.n_epochs) == (8, 32, 256, 20)
-    assert ppo.ZOO["MountainCar-v0"].normalize_observations
+    assert ppo_config.ZOO["MountainCar-v0"].normalize_observations
 
 
 def test_each_round_needs_an_update() -> None:
-    config = ppo.ZOO["CartPole-v1"]
+    config = ppo_config.ZOO["CartPole-v1"]
     assert config.updates == 390  # 100_000 // (8 * 32)
     ppo.make_train(config, CARTPOLE, rounds=390, eval_episodes=1)
     with pytest.raises(ConfigError, match="total_steps"):
@@ -127,7 +127,7 @@ def test_each_round_needs_an_update() -> None:
 
 
 ROUNDS, UPDATES, EVAL_EPISODES = 2, 40, 16
-SMALL_CARTPOLE = dataclasses.replace(ppo.ZOO["CartPole-v1"], total_steps=UPDATES * 8 * 32)
+SMALL_CARTPOLE = dataclasses.replace(ppo_config.ZOO["CartPole-v1"], total_steps=UPDATES * 8 * 32)
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +157,7 @@ def test_same_key_same_training(cartpole_runs: tuple[TrainOutput, TrainOutput]) 
 def test_normalised_training_keeps_statistics_in_the_params() -> None:
     """The zoo's MountainCar settings (VecNormalize) for two updates: the observation statistics have seen the
     reset and every step, and the greedy policy reads raw observations through them."""
-    config = dataclasses.replace(ppo.ZOO["MountainCar-v0"], total_steps=2 * 16 * 16)
+    config = dataclasses.replace(ppo_config.ZOO["MountainCar-v0"], total_steps=2 * 16 * 16)
     out = jax.jit(ppo.make_train(config, MOUNTAIN_CAR, rounds=1, eval_episodes=2))(jax.random.key(0))
     stats = out.params.observations
     np.testing.assert_allclose(stats.count, 1e-4 + 16 * (1 + 2 * 16))

@@ -15,7 +15,7 @@ pytest.importorskip("gymnax")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn  # noqa: E402
+from rlcompare.deep import dqn, dqn_config, replay  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.minatar import minatar_env  # noqa: E402
 from rlcompare.deep.networks import ConvNet  # noqa: E402
@@ -32,7 +32,7 @@ ENV = "MinAtar/Breakout-v0"
 
 def test_buffer_stores_boolean_images_as_the_environment_gives_them() -> None:
     env = minatar_env(ENV)
-    config = dataclasses.replace(dqn.MINATAR, buffer_size=50, learning_starts=1_000)
+    config = dataclasses.replace(dqn_config.MINATAR, buffer_size=50, learning_starts=1_000)
     with jax.enable_x64(True):
         runner = dqn.init_runner(config, env, jax.random.key(0))
         data = runner.buffer.data
@@ -47,7 +47,7 @@ def test_buffer_stores_boolean_images_as_the_environment_gives_them() -> None:
 
 
 def test_classic_control_buffer_is_unchanged() -> None:
-    buffer = dqn.buffer_init(3, 4)
+    buffer = replay.buffer_init(3, 4)
     assert buffer.data.observations.shape == (3, 4)
     assert buffer.data.observations.dtype == jnp.float32
 
@@ -55,14 +55,15 @@ def test_classic_control_buffer_is_unchanged() -> None:
 # --- the preset is the paper's ---
 
 def test_every_minatar_name_has_the_papers_preset() -> None:
-    c = dqn.MINATAR
+    c = dqn_config.MINATAR
     assert all(dqn.PRESETS["default"][name] == c for name in minatar.NAMES)
     # examples/dqn.py: NUM_FRAMES, one environment, REPLAY_BUFFER_SIZE, BATCH_SIZE, TARGET_NETWORK_UPDATE_FREQ,
     # TRAINING_FREQ, REPLAY_START_SIZE
     assert (c.total_steps, c.n_envs, c.buffer_size, c.batch_size, c.target_update_interval, c.train_freq,
             c.gradient_steps, c.learning_starts) == (5_000_000, 1, 100_000, 32, 1_000, 1, 1, 5_000)
     # STEP_SIZE, SQUARED_GRAD_MOMENTUM, MIN_SQUARED_GRAD in torch's centered RMSprop; GAMMA; no clipping; 128 units
-    assert (c.optimizer, c.learning_rate, dqn.RMSPROP_DECAY, dqn.RMSPROP_EPS) == ("rmsprop", 0.00025, 0.95, 0.01)
+    assert (c.optimizer, c.learning_rate) == ("rmsprop", 0.00025)
+    assert (dqn_config.RMSPROP_DECAY, dqn_config.RMSPROP_EPS) == (0.95, 0.01)
     assert (c.gamma, c.max_grad_norm, c.hidden, c.double) == (0.99, 0.0, (128,), False)
     # ε: 1 while t < REPLAY_START_SIZE, then ((END_EPSILON - 1) / FIRST_N_FRAMES) (t - REPLAY_START_SIZE) + 1
     with jax.enable_x64(True):
@@ -76,15 +77,15 @@ def test_every_minatar_name_has_the_papers_preset() -> None:
 
 def test_a_bad_optimizer_is_refused_naming_the_field() -> None:
     with pytest.raises(ConfigError, match="adam, rmsprop") as error:
-        dqn.DQNConfig(optimizer="sgd")
+        dqn_config.DQNConfig(optimizer="sgd")
     assert error.value.field_name == "optimizer"
     with pytest.raises(ConfigError) as error:
         DeepConfig(algorithm="dqn", env=ENV, hyperparameters={"optimizer": "RMSProp"})
     assert error.value.field_name == "optimizer"
     with pytest.raises(ConfigError) as error:
-        dqn.DQNConfig(max_grad_norm=-1.0)
+        dqn_config.DQNConfig(max_grad_norm=-1.0)
     assert error.value.field_name == "max_grad_norm"
-    assert dqn.DQNConfig().optimizer == "adam"
+    assert dqn_config.DQNConfig().optimizer == "adam"
 
 
 # --- the RMSProp step, by hand ---
@@ -93,9 +94,9 @@ def test_rmsprop_steps_are_torchs_centered_rmsprop() -> None:
     """Two training steps of a tiny network equal torch's ``RMSprop(lr, alpha=0.95, eps=0.01, centered=True)``
     written out: ``v = 0.95 v + 0.05 g^2``, ``m = 0.95 m + 0.05 g``, ``θ -= lr g / (sqrt(v - m^2) + 0.01)``."""
     env = minatar_env(ENV)
-    config = dataclasses.replace(dqn.MINATAR, hidden=(4,), buffer_size=16, batch_size=8, learning_rate=0.01)
+    config = dataclasses.replace(dqn_config.MINATAR, hidden=(4,), buffer_size=16, batch_size=8, learning_rate=0.01)
     keys = jax.random.split(jax.random.key(2), 6)
-    stored = dqn.Transitions(jax.random.bernoulli(keys[0], 0.2, (16, 10, 10, 4)),
+    stored = replay.Transitions(jax.random.bernoulli(keys[0], 0.2, (16, 10, 10, 4)),
                              jax.random.randint(keys[1], (16,), 0, 6, jnp.int32),
                              jax.random.bernoulli(keys[2], 0.3, (16,)).astype(jnp.float32),
                              jax.random.bernoulli(keys[3], 0.2, (16, 10, 10, 4)),
@@ -104,14 +105,14 @@ def test_rmsprop_steps_are_torchs_centered_rmsprop() -> None:
     gradient = jax.jit(lambda params, target, batch: jax.grad(dqn.q_loss)(params, target, batch, apply, 0.99, False))
     with jax.enable_x64(True):
         runner = dqn.init_runner(config, env, keys[5])
-        runner = runner._replace(buffer=dqn.buffer_add(runner.buffer, stored))
+        runner = runner._replace(buffer=replay.buffer_add(runner.buffer, stored))
         train = jax.jit(dqn._train(config, env))
         params = initial = jax.tree.map(np.asarray, runner.params)
         v = jax.tree.map(np.zeros_like, params)
         m = jax.tree.map(np.zeros_like, params)
         for step in range(2):
             key = jax.random.key(10 + step)
-            batch = dqn.buffer_sample(runner.buffer, jax.random.split(key, 1)[0], config.batch_size)
+            batch = replay.buffer_sample(runner.buffer, jax.random.split(key, 1)[0], config.batch_size)
             g = jax.tree.map(np.asarray, gradient(params, runner.target_params, batch))
             v = jax.tree.map(lambda v, g: 0.95 * v + 0.05 * g * g, v, g)
             m = jax.tree.map(lambda m, g: 0.95 * m + 0.05 * g, m, g)

@@ -15,7 +15,7 @@ pytest.importorskip("gymnax")
 import flax.linen as nn  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import ppo  # noqa: E402
+from rlcompare.deep import ppo, ppo_config, ppo_networks  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.envs import CARTPOLE, jax_env  # noqa: E402
 from rlcompare.envs.minatar import NAMES  # noqa: E402
@@ -54,7 +54,7 @@ def test_the_actor_critic_reads_an_image(name: str, channels: int, n_actions: in
 def test_initialisation_scales_are_the_mlps() -> None:
     """Orthogonal with gain √2 for the dense layer, 0.01 for the policy head and 1 for the value head, zero biases;
     the convolution keeps flax's LeCun-normal (``nn.Conv``'s default)."""
-    network = ppo.init_params(ppo.MINATAR, jax_env(BREAKOUT), jax.random.key(2)).network["params"]
+    network = ppo.init_params(ppo_config.MINATAR, jax_env(BREAKOUT), jax.random.key(2)).network["params"]
     for head, gain in (("actor", 0.01), ("critic", 1.0)):
         for layer, scale in (("Dense_0", np.sqrt(2.0)), ("Dense_1", gain)):
             kernel = np.asarray(network[head][layer]["kernel"], np.float64)
@@ -62,7 +62,7 @@ def test_initialisation_scales_are_the_mlps() -> None:
             assert not np.any(np.asarray(network[head][layer]["bias"]))
         conv = np.asarray(network[head]["Conv3x3_0"]["Dense_0"]["kernel"])
         assert abs(conv.std() * np.sqrt(36) - 1.0) < 0.15
-    classic = ppo.init_params(ppo.ZOO["CartPole-v1"], CARTPOLE, jax.random.key(0)).network["params"]
+    classic = ppo.init_params(ppo_config.ZOO["CartPole-v1"], CARTPOLE, jax.random.key(0)).network["params"]
     assert "Conv3x3_0" not in classic["actor"]
 
 
@@ -70,7 +70,7 @@ def test_initialisation_scales_are_the_mlps() -> None:
 def test_gram_schmidt_initialisation_is_flaxs_orthogonal(shape: tuple[int, int], scale: float) -> None:
     """The same matrix as ``nn.initializers.orthogonal`` (LAPACK's QR) to float32 rounding, without LAPACK."""
     key = jax.random.key(7)
-    ours = np.asarray(ppo.orthogonal(scale)(key, shape, jnp.float32))
+    ours = np.asarray(ppo_networks.orthogonal(scale)(key, shape, jnp.float32))
     theirs = nn.initializers.orthogonal(scale)(key, shape, jnp.float32)
     np.testing.assert_allclose(ours, theirs, atol=2e-6 * scale)
 
@@ -98,7 +98,7 @@ def test_clipped_value_loss_by_hand() -> None:
     np.testing.assert_allclose(ppo.clipped_value_loss(values, old, returns, 0.2), 0.5 * (0.64 + 0.81 + 0.64) / 3,
                                rtol=1e-6)
     with pytest.raises(ConfigError) as error:
-        dataclasses.replace(ppo.MINATAR, value_loss="huber")
+        dataclasses.replace(ppo_config.MINATAR, value_loss="huber")
     assert error.value.field_name == "value_loss"
 
 

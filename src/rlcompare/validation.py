@@ -10,6 +10,7 @@ scalars count as the Python values they hold (``np.int64(3)`` is an integer, ``n
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -55,9 +56,18 @@ def is_flag(value: Any) -> bool:
 
 
 def plain(value: Any) -> Any:
-    """A NumPy scalar as the Python value it holds (what ``config.json`` and a config's hash read); anything else
-    as it is."""
+    """A NumPy scalar as the Python value it holds (what ``config.json`` and a config's hash read), a tuple's too;
+    anything else as it is."""
+    if isinstance(value, tuple):
+        return tuple(map(plain, value))
     return value.item() if isinstance(value, np.generic) else value
+
+
+def plain_fields(config: Any) -> None:
+    """Every field of the frozen dataclass ``config`` as :func:`plain` makes it (called first in its
+    ``__post_init__``, so that NumPy's scalars are accepted and stored as Python's)."""
+    for item in dataclasses.fields(config):
+        object.__setattr__(config, item.name, plain(getattr(config, item.name)))
 
 
 class Rule(Protocol):

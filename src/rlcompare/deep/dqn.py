@@ -24,10 +24,8 @@ counts gradient steps, so its refreshes land one step later); flax's initialisat
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import jax
@@ -36,220 +34,23 @@ import optax
 
 from rlcompare.deep import rollout
 from rlcompare.deep.atari import NatureCNN, is_frames
+from rlcompare.deep.dqn_config import OPTIMIZERS, PRESETS, RMSPROP_DECAY, RMSPROP_EPS, DQNConfig
 from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import MLP, ConvNet, is_image
-from rlcompare.envs import atari, minatar
-from rlcompare.validation import ConfigError
+from rlcompare.deep.replay import Buffer, Transitions, buffer_add, buffer_init, buffer_sample
+from rlcompare.validation import (
+    COUNT,
+    check,
+)
 
 Params = Any
 Apply = Callable[[Params, jax.Array], jax.Array]
 """``(params, observations) -> Q-values``, one per action."""
 
-OPTIMIZERS = ("adam", "rmsprop")
-"""``adam``: SB3's DQN (torch's Adam, ε 1e-8). ``rmsprop``: MinAtar's DQN, torch's centered RMSProp with the
-reference's settings (:data:`RMSPROP_DECAY`, :data:`RMSPROP_EPS`)."""
-RMSPROP_DECAY = 0.95
-"""Decay of RMSProp's averages of the gradient and its square (MinAtar ``examples/dqn.py``,
-``SQUARED_GRAD_MOMENTUM``, torch's ``alpha``; the DQN paper's gradient and squared-gradient momentum)."""
-RMSPROP_EPS = 0.01
-"""Added to RMSProp's denominator outside the square root, as torch does (MinAtar ``examples/dqn.py``,
-``MIN_SQUARED_GRAD`` passed as torch's ``eps``): the update is ``g / (sqrt(E[g^2] - E[g]^2) + 0.01)``."""
 
-
-@dataclass(frozen=True)
-class DQNConfig:
-    """One DQN or Double DQN training, per seed. Defaults are SB3's ``DQN`` defaults (its MlpPolicy's 64 x 64
-    network); frozen and validated on creation."""
-
-    double: bool = False
-    """Double DQN (van Hasselt et al. 2016): the online network picks the next action, the target network
-    values it. False: DQN's max over the target network (Mnih et al. 2015)."""
-    n_envs: int = 1
-    """Environments stepped side by side, >= 1; each environment step counts ``n_envs`` steps."""
-    total_steps: int = 1_000_000
-    """Environment steps of the training (over all environments; the zoo's ``n_timesteps``), >= 1. The
-    exploration schedule spans it; the training runs whole updates, so it may take a little more."""
-    learning_rate: float = 1e-4
-    """The optimizer's step size, > 0."""
-    optimizer: str = "adam"
-    """``adam`` (SB3's) or ``rmsprop`` (MinAtar's centered RMSProp, :data:`OPTIMIZERS`)."""
-    buffer_size: int = 1_000_000
-    """Transitions the replay buffer holds (over all environments), >= ``n_envs``; the oldest go first."""
-    learning_starts: int = 100
-    """Environment steps of uniformly random actions before learning; training starts once more are stored."""
-    batch_size: int = 32
-    """Transitions per gradient step, drawn uniformly (with replacement) from the buffer, >= 1."""
-    gamma: float = 0.99
-    """Discount γ, in [0, 1]."""
-    train_freq: int = 4
-    """Steps of every environment collected between two trainings, >= 1."""
-    gradient_steps: int = 1
-    """Gradient steps per training, >= 1 (SB3's ``-1`` is ``train_freq * n_envs``)."""
-    target_update_interval: int = 10_000
-    """Environment steps between copies of the online network into the target network, >= 1 (with several
-    environments, SB3's ``max(target_update_interval // n_envs, 1)`` steps of all of them)."""
-    epsilon_start: float = 1.0
-    """ε of the ε-greedy exploration at the start (SB3's ``exploration_initial_eps``), in [0, 1]."""
-    epsilon_end: float = 0.05
-    """ε once the decay has run its course (SB3's ``exploration_final_eps``), in [0, 1]."""
-    decay_fraction: float = 0.1
-    """Share of ``total_steps`` over which ε goes linearly from start to end (SB3's ``exploration_fraction``),
-    in (0, 1]."""
-    decay_after_learning_starts: bool = False
-    """ε's decay begins once ``learning_starts`` steps are taken (MinAtar's reference); False: at the first step
-    (SB3's)."""
-    max_grad_norm: float = 10.0
-    """Gradients are scaled down to this global norm, >= 0; 0: not clipped (MinAtar's reference)."""
-    hidden: tuple[int, ...] = (64, 64)
-    """Widths of the Q-network's hidden layers (ReLU), each >= 1."""
-
-    def __post_init__(self) -> None:
-        for name in ("double", "decay_after_learning_starts"):
-            _require(name, isinstance(getattr(self, name), bool), getattr(self, name), "True or False")
-        _require("optimizer", isinstance(self.optimizer, str) and self.optimizer in OPTIMIZERS, self.optimizer,
-                 ", ".join(OPTIMIZERS))
-        for name, low in _INTEGER_MINIMUMS.items():
-            value = getattr(self, name)
-            _require(name, _is_integer(value) and value >= low, value, f"an integer >= {low}")
-        _require("buffer_size", _is_integer(self.buffer_size) and self.buffer_size >= self.n_envs,
-                 self.buffer_size, f"an integer >= n_envs ({self.n_envs})")
-        for name, (low, high, low_open) in _NUMBER_RANGES.items():
-            value = getattr(self, name)
-            ok = _is_number(value) and (low < value if low_open else low <= value) and value <= high
-            allowed = (f"a number in {'(' if low_open else '['}{low}, {high}]" if math.isfinite(high)
-                       else f"a finite number {'>' if low_open else '>='} {low}")
-            _require(name, ok, value, allowed)
-        _require("hidden", isinstance(self.hidden, tuple) and all(_is_integer(w) and w >= 1 for w in self.hidden),
-                 self.hidden, "a tuple of integers >= 1")
-
-
-_INTEGER_MINIMUMS = {"n_envs": 1, "total_steps": 1, "learning_starts": 0, "batch_size": 1, "train_freq": 1,
-                     "gradient_steps": 1, "target_update_interval": 1}
-_NUMBER_RANGES = {"learning_rate": (0, math.inf, True), "gamma": (0, 1, False), "epsilon_start": (0, 1, False),
-                  "epsilon_end": (0, 1, False), "decay_fraction": (0, 1, True), "max_grad_norm": (0, math.inf, False)}
-"""``name: (low, high, low excluded)``; ``high`` is included (infinity excluded by finiteness)."""
-
-
-def _is_integer(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _is_number(value: Any) -> bool:
-    """A finite int or float, not a bool."""
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _require(name: str, ok: bool, value: Any, allowed: str) -> None:
-    if not ok:
-        raise ConfigError(name, value, allowed)
-
-
-ZOO = ("rl-baselines3-zoo, hyperparams/dqn.yml (github.com/DLR-RM/rl-baselines3-zoo, commit 22e3ff2, "
-       "file last changed in eec15dc, 2026-04-01)")
-"""Where the ``default`` presets come from."""
-_ZOO_SETTINGS = {
-    # "Almost Tuned"
-    "CartPole-v1": DQNConfig(total_steps=50_000, learning_rate=2.3e-3, batch_size=64, buffer_size=100_000,
-                             learning_starts=1000, gamma=0.99, target_update_interval=10, train_freq=256,
-                             gradient_steps=128, decay_fraction=0.16, epsilon_end=0.04, hidden=(256, 256)),
-    # "Tuned"
-    "MountainCar-v0": DQNConfig(total_steps=120_000, learning_rate=4e-3, batch_size=128, buffer_size=10_000,
-                                learning_starts=1000, gamma=0.98, target_update_interval=600, train_freq=16,
-                                gradient_steps=8, decay_fraction=0.2, epsilon_end=0.07, hidden=(256, 256)),
-    # "Tuned"; the zoo's gradient_steps -1 is SB3's "as many as steps collected": train_freq * n_envs = 4.
-    "Acrobot-v1": DQNConfig(total_steps=100_000, learning_rate=6.3e-4, batch_size=128, buffer_size=50_000,
-                            learning_starts=0, gamma=0.99, target_update_interval=250, train_freq=4,
-                            gradient_steps=4, decay_fraction=0.12, epsilon_end=0.1, hidden=(256, 256)),
-}
-
-
-def small(config: DQNConfig) -> DQNConfig:
-    """The same settings with a 2 x 64 network (SB3's default MlpPolicy): about a fifteenth of the 256 x 256's
-    multiply-adds."""
-    return dataclasses.replace(config, hidden=(64, 64))
-
-
-MINATAR_SOURCE = ("Young and Tian 2019 (arXiv 1903.03176) and its reference code, examples/dqn.py in "
-                  "github.com/kenjyoung/MinAtar (commit 4241f24, 2024-12-19)")
-"""Where the MinAtar preset comes from."""
-MINATAR = DQNConfig(total_steps=5_000_000, n_envs=1, learning_rate=2.5e-4, optimizer="rmsprop", buffer_size=100_000,
-                    learning_starts=5_000, batch_size=32, gamma=0.99, train_freq=1, gradient_steps=1,
-                    target_update_interval=1_000, epsilon_start=1.0, epsilon_end=0.1, decay_fraction=0.02,
-                    decay_after_learning_starts=True, max_grad_norm=0.0, hidden=(128,))
-"""MinAtar's DQN (:data:`MINATAR_SOURCE`): ``NUM_FRAMES`` 5 M, ``REPLAY_BUFFER_SIZE`` 100,000, ``BATCH_SIZE`` 32,
-``TARGET_NETWORK_UPDATE_FREQ`` 1,000, ``TRAINING_FREQ`` 1, centered RMSProp (``STEP_SIZE`` 0.00025,
-``SQUARED_GRAD_MOMENTUM`` 0.95, ``MIN_SQUARED_GRAD`` 0.01), ``GAMMA`` 0.99, ``REPLAY_START_SIZE`` 5,000 uniformly
-random steps, then ε from 1 to ``END_EPSILON`` 0.1 over ``FIRST_N_FRAMES`` 100,000 (0.02 of 5 M), Huber loss, no
-gradient clipping; MinAtar's network (a 3 x 3 convolution of 16, a dense layer of 128). Double DQN takes the same
-settings (van Hasselt et al. 2016 keep DQN's); MinAtar's paper ran only DQN."""
-
-ATARI = DQNConfig(total_steps=10_000_000, buffer_size=100_000, learning_rate=1e-4, batch_size=32,
-                  learning_starts=100_000, target_update_interval=1_000, train_freq=4, gradient_steps=1,
-                  decay_fraction=0.1, epsilon_end=0.01, hidden=(512,))
-"""Atari: rl-baselines3-zoo's ``atari`` entry of ``hyperparams/dqn.yml`` (10 M steps, replay 100,000, Adam at 1e-4,
-batch 32, 100,000 random steps first, target every 1,000, a gradient step every 4, ε 1 -> 0.01 over the first
-tenth; SB3's Huber loss and gradients clipped at 10) with Mnih et al. (2015)'s network, learning from the score's
-sign as SB3's Atari wrapper does."""
-
-PRESETS = {"default": {**{env: small(config) for env, config in _ZOO_SETTINGS.items()},
-                       **dict.fromkeys(minatar.NAMES, MINATAR), **dict.fromkeys(atari.NAMES, ATARI)},
-           "zoo": {**_ZOO_SETTINGS, **dict.fromkeys(atari.NAMES, ATARI)}}
-"""Preset name -> environment -> config, with ``double=False`` (the registry fixes it per method). ``zoo``: the
-zoo's DQN settings (:data:`ZOO`), SB3's defaults elsewhere (``exploration_initial_eps`` 1.0, ``max_grad_norm``
-10); ``default``: the same on a 2 x 64 network, which trains many seeds in minutes on a CPU, and on every MinAtar
-name (both protocols) the MinAtar paper's DQN, :data:`MINATAR` (:data:`MINATAR_SOURCE`)."""
-
-
-# --- the replay buffer ---
-
-class Transitions(NamedTuple):
-    """Transitions along a leading axis, as the buffer stores them."""
-
-    observations: jax.Array
-    """(n, *observation shape) in the environment's dtype: float32 vectors (classic control), booleans (MinAtar)"""
-    actions: jax.Array
-    """(n,) int32"""
-    rewards: jax.Array
-    """(n,) float32"""
-    next_observations: jax.Array
-    """(n, *observation shape), as ``observations``: the observation the action led to, before any reset (a
-    time-limit cut bootstraps from it)."""
-    terminated: jax.Array
-    """(n,) bool: a terminal state, whose value is zero; a time-limit cut is not one."""
-
-
-class Buffer(NamedTuple):
-    """A circular replay buffer (Mnih et al. 2015; Lin 1992): the newest transitions overwrite the oldest."""
-
-    data: Transitions
-    """``capacity`` rows; those past ``size`` are zeros."""
-    position: jax.Array
-    """int32, the slot the next transition goes to."""
-    size: jax.Array
-    """int32, filled slots."""
-
-
-def buffer_init(capacity: int, observation_shape: int | tuple[int, ...], dtype: jnp.dtype = jnp.float32) -> Buffer:
-    """An empty buffer of ``capacity`` transitions whose observations have ``observation_shape`` (a size: a vector)
-    and ``dtype`` (MinAtar's booleans take a byte a cell: 100,000 x 10 x 10 x 10 is 10 MB a copy, not 40)."""
-    shape = (capacity, observation_shape) if isinstance(observation_shape, int) else (capacity, *observation_shape)
-    data = Transitions(jnp.zeros(shape, dtype), jnp.zeros(capacity, jnp.int32), jnp.zeros(capacity, jnp.float32),
-                       jnp.zeros(shape, dtype), jnp.zeros(capacity, bool))
-    return Buffer(data, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
-
-
-def buffer_add(buffer: Buffer, batch: Transitions) -> Buffer:
-    """``batch`` (at most ``capacity`` rows, cast to the buffer's dtypes) written after the newest, wrapping."""
-    capacity, n = buffer.data.actions.shape[0], batch.actions.shape[0]
-    slots = (buffer.position + jnp.arange(n, dtype=jnp.int32)) % capacity
-    data = jax.tree.map(lambda store, new: store.at[slots].set(new.astype(store.dtype)), buffer.data, batch)
-    return Buffer(data, (buffer.position + n) % capacity, jnp.minimum(buffer.size + n, capacity))
-
-
-def buffer_sample(buffer: Buffer, key: jax.Array, batch_size: int) -> Transitions:
-    """``batch_size`` filled transitions drawn uniformly with replacement (SB3's ``ReplayBuffer.sample``)."""
-    index = jax.random.randint(key, (batch_size,), 0, buffer.size)
-    return jax.tree.map(lambda store: store[index], buffer.data)
+Config = DQNConfig
+"""The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
+__all__ = ["OPTIMIZERS", "PRESETS", "Config", "act", "make_train", "network"]
 
 
 # --- the learning rule ---
@@ -462,8 +263,8 @@ def make_train(config: DQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
                ) -> Callable[[jax.Array], rollout.TrainOutput]:
     """``key -> TrainOutput``: one seed's whole training, ``rounds`` rounds of :func:`updates_per_round` updates
     with a greedy evaluation of ``eval_episodes`` episodes after each; jit-able and vmap-able over keys."""
-    _require("rounds", _is_integer(rounds) and rounds >= 1, rounds, "an integer >= 1")
-    _require("eval_episodes", _is_integer(eval_episodes) and eval_episodes >= 1, eval_episodes, "an integer >= 1")
+    check("rounds", rounds, COUNT)
+    check("eval_episodes", eval_episodes, COUNT)
     train = rollout.train_in_rounds(make_update(config, env), lambda runner: runner.params, env, act(config, env),
                                     rounds, updates_per_round(config, rounds), eval_episodes)
 

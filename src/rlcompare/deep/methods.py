@@ -1,19 +1,54 @@
 """Every deep method, one entry each, and the named presets of their hyperparameters (sources in ``docs/deep.md``).
 
-A method is a module (:mod:`~rlcompare.deep.pqn`, :mod:`~rlcompare.deep.dqn`, :mod:`~rlcompare.deep.ppo`) and the
-settings that make it that method; each module has a frozen config class, ``PRESETS`` (preset name -> environment
--> config), ``make_train(config, env, rounds, eval_episodes)``, ``act(config, env)`` and ``network(config, env)``.
+A method is a module that offers :class:`MethodModule` (:mod:`~rlcompare.deep.pqn`, :mod:`~rlcompare.deep.dqn`,
+:mod:`~rlcompare.deep.ppo`), and the settings that make it that method (:class:`DeepMethod`). Adding one is a module
+and an entry in :data:`DEEP_METHODS`; nothing else lists the methods (``docs/extending.md``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from types import ModuleType
-from typing import Any
+from typing import Any, Protocol
+
+import flax.linen as nn
+import jax
 
 from rlcompare.deep import dqn, ppo, pqn
-from rlcompare.validation import ConfigError
+from rlcompare.deep.envs import DeepEnv
+from rlcompare.deep.rollout import Act, TrainOutput
+from rlcompare.validation import ConfigError, is_flag, is_integer, plain, require
+
+
+class MethodModule(Protocol):
+    """What a deep method's module offers; a type checker holds every module in :data:`DEEP_METHODS` to it."""
+
+    @property
+    def Config(self) -> type[Any]:
+        """Its frozen settings, validated on creation (a :class:`~rlcompare.validation.ConfigError` names a bad
+        one)."""
+        ...
+
+    @property
+    def PRESETS(self) -> Mapping[str, Mapping[str, Any]]:
+        """Preset name -> environment -> settings, each with its source."""
+        ...
+
+    def make_train(self, config: Any, env: DeepEnv, rounds: int, eval_episodes: int
+                   ) -> Callable[[jax.Array], TrainOutput]:
+        """``key -> TrainOutput``: one seed's whole training in ``rounds`` rounds, each ended by a greedy evaluation
+        of ``eval_episodes`` episodes; jit-able and vmap-able over keys. Building it validates the settings against
+        the environment and cheaply (closures only)."""
+        ...
+
+    def act(self, config: Any, env: DeepEnv) -> Act:
+        """``(params, observations) -> actions``: the greedy policy of trained parameters."""
+        ...
+
+    def network(self, config: Any, env: DeepEnv) -> nn.Module:
+        """The network whose parameters it learns."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -22,7 +57,7 @@ class DeepMethod:
 
     name: str
     label: str
-    module: ModuleType
+    module: MethodModule
     fixed: dict[str, Any]
     """Settings that make the module this method (PQN's bootstrap target, DQN's double estimator)."""
     policy: str
@@ -76,21 +111,19 @@ def hyperparameters(name: str, env: str, preset: str, overrides: dict[str, Any])
 
 def _typed(base: Any, field_name: str, value: Any) -> Any:
     """``value`` as the field's own type (JSON's lists as tuples, whole numbers as floats where a float is
-    wanted); a value of another kind is a :class:`ConfigError` naming the field."""
-    current = getattr(base, field_name)
-    name = f"hyperparameters.{field_name}"
+    wanted, NumPy's scalars as Python's); a value of another kind is a :class:`ConfigError` naming the field."""
+    current, value = getattr(base, field_name), plain(value)
     if isinstance(current, bool):
-        ok = isinstance(value, bool)
+        ok = is_flag(value)
     elif isinstance(current, int):
-        ok = isinstance(value, int) and not isinstance(value, bool)
+        ok = is_integer(value)
     elif isinstance(current, float):
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        ok = is_integer(value) or isinstance(value, float)
         value = float(value) if ok else value
     elif isinstance(current, tuple):
-        ok = isinstance(value, (list, tuple)) and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
-        value = tuple(value) if ok else value
+        ok = isinstance(value, list | tuple) and all(is_integer(v) for v in value)
+        value = tuple(plain(v) for v in value) if ok else value
     else:
         ok = isinstance(value, type(current))
-    if not ok:
-        raise ConfigError(name, value, f"a value like {current!r} ({type(current).__name__})")
+    require(ok, f"hyperparameters.{field_name}", value, f"a value like {current!r} ({type(current).__name__})")
     return value

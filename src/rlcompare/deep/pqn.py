@@ -22,7 +22,6 @@ purejaxql.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -38,7 +37,19 @@ from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all,
 from rlcompare.deep.networks import MLP, ConvNet, is_image
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.envs import acrobot, atari, minatar, mountain_car
-from rlcompare.validation import ConfigError
+from rlcompare.validation import (
+    COUNT,
+    POSITIVE,
+    STEP_SIZE,
+    UNIT,
+    Choice,
+    Flag,
+    Rule,
+    Widths,
+    check_fields,
+    plain_fields,
+    require,
+)
 
 TARGETS = ("max", "sample", "expected")
 NEXT_ACTIONS = (BEFORE_UPDATE, AFTER_UPDATE)
@@ -93,33 +104,27 @@ class PQNConfig:
     """Map a bounded observation box onto [-1, 1] before the network (Mountain Car's velocity spans ±0.07)."""
 
     def __post_init__(self) -> None:
-        _check(self.target in TARGETS, "target", self.target, ", ".join(TARGETS))
-        _check(self.next_action in NEXT_ACTIONS, "next_action", self.next_action, ", ".join(NEXT_ACTIONS))
-        _check(0.0 <= self.lam <= 1.0, "lam", self.lam, "a number in [0, 1]")
-        _check(0.0 < self.gamma <= 1.0, "gamma", self.gamma, "a number in (0, 1]")
-        for name in ("learning_rate", "max_grad_norm", "reward_scale"):
-            value = getattr(self, name)
-            _check(0.0 < value < math.inf, name, value, "a positive finite number")
-        for name in ("epsilon_start", "epsilon_end"):
-            _check(0.0 <= getattr(self, name) <= 1.0, name, getattr(self, name), "a number in [0, 1]")
-        _check(0.0 < self.decay_fraction <= 1.0, "decay_fraction", self.decay_fraction, "a number in (0, 1]")
-        for name in ("n_envs", "n_steps", "n_epochs", "n_minibatches", "total_steps"):
-            _check(getattr(self, name) >= 1, name, getattr(self, name), "a positive integer")
-        _check((self.n_envs * self.n_steps) % self.n_minibatches == 0, "n_minibatches", self.n_minibatches,
-               f"a divisor of n_envs x n_steps = {self.n_envs * self.n_steps}")
-        _check(self.total_steps >= self.n_envs * self.n_steps, "total_steps", self.total_steps,
-               f"at least one rollout, n_envs x n_steps = {self.n_envs * self.n_steps}")
-        _check(len(self.hidden) >= 1 and all(w >= 1 for w in self.hidden), "hidden", self.hidden,
-               "one or more positive layer widths")
+        plain_fields(self)
+        check_fields(self, RULES)
+        rollout = self.n_envs * self.n_steps
+        require(rollout % self.n_minibatches == 0, "n_minibatches", self.n_minibatches,
+                f"a divisor of n_envs x n_steps = {rollout}")
+        require(self.total_steps >= rollout, "total_steps", self.total_steps,
+                f"at least one rollout, n_envs x n_steps = {rollout}")
 
     @property
     def updates(self) -> int:
         return self.total_steps // (self.n_envs * self.n_steps)
 
 
-def _check(ok: bool, name: str, value: object, allowed: str) -> None:
-    if not ok:
-        raise ConfigError(name, value, allowed)
+RULES: dict[str, Rule] = {
+    "target": Choice(TARGETS), "next_action": Choice(NEXT_ACTIONS), "lam": UNIT, "gamma": STEP_SIZE,
+    "learning_rate": POSITIVE, "max_grad_norm": POSITIVE, "reward_scale": POSITIVE, "epsilon_start": UNIT,
+    "epsilon_end": UNIT, "decay_fraction": STEP_SIZE, "n_envs": COUNT, "n_steps": COUNT, "n_epochs": COUNT,
+    "n_minibatches": COUNT, "total_steps": COUNT, "anneal_lr": Flag(), "scale_observations": Flag(),
+    "hidden": Widths(),
+}
+"""What each setting may hold (:mod:`rlcompare.validation`), checked in this order."""
 
 
 _SMALL = PQNConfig(total_steps=500_000, n_envs=16, n_steps=128, n_epochs=4, n_minibatches=4, hidden=(64, 64),
@@ -146,6 +151,8 @@ rewards unscaled, 10 M steps) with MinAtar's network, LayerNorm after the convol
 Atari: purejaxql's ``pqn_atari.yaml`` (128 environments x 32 steps, 2 epochs x 32 minibatches, RAdam at 2.5e-4 not
 decayed, λ 0.65, ε 1 -> 0.001 over the first tenth, 10 M steps) with Mnih et al.'s network, LayerNorm after each
 layer; it learns from the score's sign, as there."""
+Config = PQNConfig
+"""The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
 
 
 class Rollout(NamedTuple):
@@ -246,8 +253,8 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
     """One seed's whole training, jittable and vmappable over keys: ``rounds`` x (``updates // rounds``) updates,
     each one rollout of ``n_envs`` x ``n_steps`` steps and ``n_epochs`` x ``n_minibatches`` gradient steps."""
     updates_per_round = config.updates // rounds
-    _check(updates_per_round >= 1, "total_steps", config.total_steps,
-           f"at least {rounds} rollouts of n_envs x n_steps = {config.n_envs * config.n_steps} steps")
+    require(updates_per_round >= 1, "total_steps", config.total_steps,
+            f"at least {rounds} rollouts of n_envs x n_steps = {config.n_envs * config.n_steps} steps")
     net = network(config, env)
     updates = updates_per_round * rounds
     decay_updates = max(1, int(config.decay_fraction * updates))
