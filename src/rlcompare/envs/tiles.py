@@ -38,6 +38,7 @@ from typing import NamedTuple
 import numpy as np
 
 from rlcompare.compiled import njit
+from rlcompare.validation import Integer, is_integer
 
 _MASK32 = 0xFFFFFFFF
 _SEED = 0x9E3779B9
@@ -72,10 +73,6 @@ class TileCoding(NamedTuple):
         """Number of tilings, the number of active features of every point (compiled code reads
         ``offsets.shape[0]``)."""
         return int(self.offsets.shape[0])
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
 def _per_dim_ints(name: str, value, dims: int) -> np.ndarray:
@@ -121,7 +118,7 @@ def make_tile_coding(
         raise ValueError(f"tile coding needs high > low in every dimension, got low={low_array}, high={high_array}")
     dims = low_array.size
 
-    if not _is_int(tilings) or tilings < 1:
+    if not is_integer(tilings) or tilings < 1:
         raise ValueError(f"tilings must be an integer >= 1, got {tilings!r}")
     tilings = int(tilings)
     per_dim = _per_dim_ints("tiles", tiles, dims)
@@ -136,7 +133,7 @@ def make_tile_coding(
         steps = _per_dim_ints("displacement", steps, dims)
         if np.any(steps < 1):
             raise ValueError(f"displacement must hold positive integers, got {displacement!r}")
-    if hash_size is not None and (not _is_int(hash_size) or not 1 <= hash_size <= MAX_HASH_SIZE):
+    if hash_size is not None and not Integer(1, MAX_HASH_SIZE).holds(hash_size):
         raise ValueError(f"hash_size must be None or an integer in [1, 2**32], got {hash_size!r}")
 
     scale = per_dim / extent

@@ -58,7 +58,7 @@ else:  # pragma: no cover - Python 3.10
 
 from rlcompare.experiment.engines import ENGINES
 from rlcompare.formatting import cut, quote
-from rlcompare.validation import ConfigError
+from rlcompare.validation import ConfigError, Integer
 
 SECTIONS = ("sweep", "fixed", "grid", "include")
 SWEEP_KEYS = ("name", "root_seed", "seeds", "engine")
@@ -279,11 +279,11 @@ def _header(header: dict, problems: list[str]) -> tuple[str, int, int, str | Non
                         "'.', '_' and '-' (at most 100 characters, not starting with '.')")
         name = "sweep"
     root_seed = header.get("root_seed", 0)
-    if not _is_int(root_seed) or not 0 <= root_seed < 2**63:
+    if not Integer(0, 2**63 - 1).holds(root_seed):
         problems.append(f"sweep.root_seed: got {quote(root_seed)}; allowed: an integer in [0, 2**63)")
         root_seed = 0
     count = header.get("seeds", 10)
-    if not _is_int(count) or not 1 <= count <= MAX_TRIALS:
+    if not Integer(1, MAX_TRIALS).holds(count):
         problems.append(f"sweep.seeds: got {quote(count)}; allowed: an integer in [1, {MAX_TRIALS:,}] (seeds per "
                         "configuration)")
         count = 1
@@ -298,10 +298,6 @@ def is_sweep_name(name: Any) -> bool:
     """Whether ``name`` is one safe directory name: ASCII letters, digits, '.', '_', '-', at most 100
     characters, not starting with '.' (so neither '.' nor '..', and never a path)."""
     return isinstance(name, str) and NAME.fullmatch(name) is not None
-
-
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _combinations(fixed: dict, grid: dict) -> list[tuple[str, dict, dict[str, str]]]:

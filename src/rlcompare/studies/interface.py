@@ -20,7 +20,7 @@ from typing import Any
 
 import pandas as pd
 
-from rlcompare.validation import ConfigError
+from rlcompare.validation import ConfigError, Integer, check, plain_fields
 
 Advance = Callable[[str, int], None]
 """``advance(task, n)``: ``n`` more units of one task of a progress display done."""
@@ -36,14 +36,14 @@ def option(default: Any, *, minimum: int | None = None, spellings: tuple[str, ..
 class Options:
     """A study's options, one field each, with its docstring as help. Frozen and checked on creation: an
     integer below its field's ``minimum``, or what :meth:`check` refuses, is a
-    :class:`~rlcompare.tabular.config.ConfigError` naming the field."""
+    :class:`~rlcompare.validation.ConfigError` naming the field."""
 
     def __post_init__(self) -> None:
+        plain_fields(self)
         for item in dataclasses.fields(self):
             minimum, value = item.metadata.get("minimum"), getattr(self, item.name)
-            if minimum is not None and value is not None and (
-                    not isinstance(value, int) or isinstance(value, bool) or value < minimum):
-                raise ConfigError(item.name, value, f"an integer >= {minimum}")
+            if minimum is not None and value is not None:
+                check(item.name, value, Integer(minimum))
         self.check()
 
     def check(self) -> None:
