@@ -22,7 +22,8 @@ LAYERS = (
     ("experiment",),
     ("stats",),
     ("report",),
-    ("studies", "bench"),
+    ("studies",),
+    ("bench",),
     ("cli", "__init__", "__main__"),
 )
 """From the bottom up: what each top-level package or module of rlcompare is, by the layer it stands in."""

@@ -11,14 +11,14 @@ import pytest
 from scipy import stats
 
 from rlcompare.stats import verdicts
-from rlcompare.stats.intervals import (
+from rlcompare.stats.intervals import Estimate
+from rlcompare.stats.significance import (
     CONTRADICTED,
     NO_DATA,
     NOT_RESOLVED,
     SUPPORTED,
     UNDECIDABLE,
     Equivalence,
-    Estimate,
     equivalence_verdict,
     holm_factors,
     robust_to_censoring,

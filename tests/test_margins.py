@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rlcompare.stats.intervals import tost
 from rlcompare.stats.power import POWER, detectable_difference, provable_margin
+from rlcompare.stats.significance import tost
 from rlcompare.studies.margins import MARGINS, margin
 
 

@@ -19,7 +19,8 @@ from rlcompare.experiment import rundir, store
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.stats import verdicts
 from rlcompare.stats.convergence import RULES
-from rlcompare.stats.intervals import VERDICTS, interval
+from rlcompare.stats.intervals import interval
+from rlcompare.stats.significance import VERDICTS
 from rlcompare.stats.verdicts import columns, is_fragile
 from rlcompare.studies.measures import per_seed_metrics
 from rlcompare.studies.paper import paper_configs, reproduce

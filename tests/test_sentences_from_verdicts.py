@@ -10,7 +10,7 @@ import pytest
 
 from rlcompare.report.findings import _verdict_words, gap_and_interval, opening, tally
 from rlcompare.stats.compare import Judged, compare_paired
-from rlcompare.stats.intervals import VERDICTS
+from rlcompare.stats.significance import VERDICTS
 from rlcompare.studies.paper_report import paper_claim, within
 
 CLAIMS = [paper_claim("a", "constant", "behaviour_return"), paper_claim("b", "constant", "greedy_return"),
@@ -58,7 +58,8 @@ def test_the_papers_answer_states_the_seeds_own_numbers() -> None:
                                    "no data"])
 def test_the_minatar_answer_states_each_games_own_label(label: str) -> None:
     pytest.importorskip("jax")
-    from rlcompare.studies.minatar import OVERALL, answer
+    from rlcompare.studies.paired import OVERALL
+    from rlcompare.studies.paired_report import answer
 
     rng = np.random.default_rng(1)
     paired = compare_paired(rng.normal(3, 1, 8), rng.normal(2, 1, 8), 1.0)

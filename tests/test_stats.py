@@ -7,19 +7,8 @@ import pytest
 from scipy import stats
 
 from rlcompare.stats.compare import compare_paired, comparison_label
-from rlcompare.stats.intervals import (
-    CONTRADICTED,
-    NOT_RESOLVED,
-    SUPPORTED,
-    VERDICTS,
-    Estimate,
-    interval,
-    iqm,
-    paired_difference,
-    probability_of_improvement,
-    rank_test,
-    verdict,
-)
+from rlcompare.stats.intervals import Estimate, interval, iqm, paired_difference, probability_of_improvement
+from rlcompare.stats.significance import CONTRADICTED, NOT_RESOLVED, SUPPORTED, VERDICTS, rank_test, verdict
 
 # --- interquartile mean ---------------------------------------------------------------------------
 

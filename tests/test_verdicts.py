@@ -11,14 +11,14 @@ from rlcompare.envs.discretize import make_grid
 from rlcompare.envs.features import grid_bounds
 from rlcompare.stats import verdicts
 from rlcompare.stats.convergence import RULES, Rule, convergence_episodes, convergence_on_rounds
-from rlcompare.stats.intervals import (
+from rlcompare.stats.intervals import Estimate
+from rlcompare.stats.significance import (
     CONTRADICTED,
     NO_DATA,
     NOT_RESOLVED,
     SUPPORTED,
     UNDECIDABLE,
     VERDICTS,
-    Estimate,
     NoiseFloor,
     equivalence_verdict,
     holm,

@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.stats.compare import compare_paired
-from rlcompare.stats.intervals import CONTRADICTED, NO_DATA, NOT_RESOLVED, SUPPORTED, UNDECIDABLE, Estimate
+from rlcompare.stats.intervals import Estimate
+from rlcompare.stats.significance import CONTRADICTED, NO_DATA, NOT_RESOLVED, SUPPORTED, UNDECIDABLE
 from rlcompare.stats.verdicts import Claim
 
 SCHEDULE_TEXT = {"constant": "ε constant", "decay": "ε decaying"}

@@ -3,7 +3,7 @@
 :func:`compare_paired` gives the paired difference with its interval, the Wilcoxon p-value, the probability of
 improvement and, where a margin is declared, the test of equivalence (:mod:`rlcompare.stats.intervals`);
 :func:`comparison_label` says what it found in the words every report uses ("A better", "B better", "equivalent
-(within ±m)", "not resolved", "no data"), read off :func:`~rlcompare.stats.intervals.verdict`, the rule a claim is
+(within ±m)", "not resolved", "no data"), read off :func:`~rlcompare.stats.significance.verdict`, the rule a claim is
 judged by.
 """
 
@@ -15,24 +15,26 @@ from typing import NamedTuple
 import numpy as np
 
 from rlcompare.stats.intervals import (
-    _NAN,
+    NO_ESTIMATE,
+    Estimate,
+    paired_difference,
+    per_seed_values,
+    probability_of_improvement,
+)
+from rlcompare.stats.power import detectable_difference
+from rlcompare.stats.significance import (
     ALPHA,
     CONTRADICTED,
     NO_DATA,
     NOT_RESOLVED,
     SUPPORTED,
     Equivalence,
-    Estimate,
-    _per_seed,
     equivalence_verdict,
     holm,
-    paired_difference,
-    probability_of_improvement,
     rank_test,
     tost,
     verdict,
 )
-from rlcompare.stats.power import detectable_difference
 
 
 class Paired(NamedTuple):
@@ -59,11 +61,11 @@ def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *,
     """A against B on paired seeds: means, the difference with its interval, the rank test, the probability of
     improvement (unless ``improvement`` is False: a bootstrap of its own, which a grid of many cells may skip)
     and, where ``margin`` is given, the test of equivalence within ±margin."""
-    a, b = _per_seed(a), _per_seed(b)
+    a, b = per_seed_values(a), per_seed_values(b)
     finite = bool(np.isfinite(a - b).all())
     return Paired(float(np.mean(a)), float(np.mean(b)), paired_difference(a, b),
                   rank_test(a, b) if finite else np.nan,
-                  probability_of_improvement(a, b) if improvement else _NAN, int(a.size),
+                  probability_of_improvement(a, b) if improvement else NO_ESTIMATE, int(a.size),
                   None if margin is None else tost(a - b, -margin, margin),
                   float(np.std(a - b, ddof=1)) if a.size > 1 and finite else np.nan)
 

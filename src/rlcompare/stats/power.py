@@ -9,7 +9,7 @@ import math
 
 from scipy import optimize, stats
 
-from rlcompare.stats.intervals import ALPHA
+from rlcompare.stats.significance import ALPHA
 
 POWER = 0.8
 """The chance of detection the power columns are read at (Cohen 1988's convention)."""

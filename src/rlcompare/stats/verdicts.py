@@ -19,7 +19,9 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.stats.compare import compare_paired
-from rlcompare.stats.intervals import (
+from rlcompare.stats.intervals import paired_difference, probability_of_improvement
+from rlcompare.stats.power import provable_margin
+from rlcompare.stats.significance import (
     ALPHA,
     CONTRADICTED,
     NO_DATA,
@@ -31,8 +33,6 @@ from rlcompare.stats.intervals import (
     equivalence_verdict,
     holm,
     holm_factors,
-    paired_difference,
-    probability_of_improvement,
     rank_test,
     ratio_tost,
     robust_to_censoring,
@@ -40,7 +40,6 @@ from rlcompare.stats.intervals import (
     verdict,
     worst_case_sign_p,
 )
-from rlcompare.stats.power import provable_margin
 
 CONVERGENCE = "convergence_episode"
 RATIO_FACTOR = 1.25

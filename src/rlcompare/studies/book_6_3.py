@@ -35,7 +35,8 @@ from rlcompare.experiment import rundir, store
 from rlcompare.experiment.runner import run
 from rlcompare.formatting import cut
 from rlcompare.report.page import Section, save_figure, write_report, write_table
-from rlcompare.stats.intervals import ALPHA, Estimate, interval, mean_interval
+from rlcompare.stats.intervals import Estimate, interval, mean_interval
+from rlcompare.stats.significance import ALPHA
 from rlcompare.stats.verdicts import Claim, judge, margin_text
 from rlcompare.studies.margins import margin
 from rlcompare.tabular.config import ExperimentConfig, records_bytes
@@ -245,7 +246,7 @@ def claims() -> list[Claim]:
 
 
 def verdicts(found: list[Claim], runs: dict[str, PhaseRuns]) -> pd.DataFrame:
-    """Each claim tested by one-sided t tests against its margin (:func:`~rlcompare.stats.intervals.tost` with one
+    """Each claim tested by one-sided t tests against its margin (:func:`~rlcompare.stats.significance.tost` with one
     bound infinite), Holm-corrected across the whole family (:func:`~rlcompare.stats.verdicts.judge`): supported
     where the mean lies on the claimed side of the margin at the family-wise level, contradicted where it lies on
     the other side, else not resolved."""

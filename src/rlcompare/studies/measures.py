@@ -17,8 +17,9 @@ from rlcompare.stats.convergence import (
     convergence_on_rounds,
     episodes_to_seconds,
 )
-from rlcompare.stats.intervals import NoiseFloor, interval, noise_floor
+from rlcompare.stats.intervals import interval
 from rlcompare.stats.metrics import returns_per_seed
+from rlcompare.stats.significance import NoiseFloor, noise_floor
 from rlcompare.studies.start_region import final_first_action_shares, has_start_region, start_cells
 from rlcompare.tabular.results import Results
 
@@ -85,7 +86,7 @@ def convergence_by_rule(results: Results, rules: tuple[Rule, ...] = RULES) -> pd
 
 def first_action_floor(results: Results) -> NoiseFloor:
     """The noise floor of the first greedy action: final action values in the cells of the start region,
-    each cell weighted by its share of start states (:func:`~rlcompare.stats.intervals.noise_floor`)."""
+    each cell weighted by its share of start states (:func:`~rlcompare.stats.significance.noise_floor`)."""
     c = results.config
     cells = start_cells(make_grid(*grid_bounds(c.environment, c.bounds), c.bins), c.environment.start_box)
     return noise_floor(results.records.snapshots[:, -1][:, cells])

@@ -26,7 +26,8 @@ from rlcompare.report.page import Section, save_figure, write_report, write_tabl
 from rlcompare.report.video import VideoJob, VideoRenders, plan_stage_videos, start_videos
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.convergence import DEFAULT_RULE, RULES
-from rlcompare.stats.intervals import ALPHA, interval
+from rlcompare.stats.intervals import interval
+from rlcompare.stats.significance import ALPHA
 from rlcompare.stats.verdicts import RATIO_FACTOR, Claim, family, judge_by_rule
 from rlcompare.studies.interface import Report
 from rlcompare.studies.margins import margin

@@ -24,8 +24,9 @@ from rlcompare.experiment.sweep_store import (
 )
 from rlcompare.formatting import cut, quote
 from rlcompare.stats.compare import compare_paired, comparison_label
-from rlcompare.stats.intervals import Estimate, holm
+from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.metrics import returns_from_tables
+from rlcompare.stats.significance import holm
 from rlcompare.studies.registry import SensitivityOptions
 from rlcompare.tabular.config import ExperimentConfig
 
