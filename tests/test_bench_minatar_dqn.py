@@ -1,4 +1,4 @@
-"""DQN on MinAtar as ``rlcompare bench --deep`` times it: the seeds trained side by side under ``vmap`` train as each
+"""DQN on MinAtar as ``rlcompare bench deep`` times it: the seeds trained side by side under ``vmap`` train as each
 alone does, and Stable-Baselines3's counterpart (the ``bench`` extra) has the same network: our weights carried
 into it give our Q-values."""
 
@@ -81,7 +81,7 @@ def test_sb3s_dqn_has_our_network_and_settings() -> None:
     pytest.importorskip("stable_baselines3")
     import torch
 
-    from rlcompare.bench import deep as bench
+    from rlcompare.bench import minatar as bench
 
     config = dqn.PRESETS["default"][ENV]
     model = bench.sb3_minatar_dqn(config)

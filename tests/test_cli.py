@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import subprocess
 import sys
@@ -93,50 +92,6 @@ def test_every_configuration_field_is_an_option_whose_help_is_its_docstring() ->
         else:
             assert (option.help, option.default) == (plain(docs[field.name]), field.default), field.name
     assert sorted(options) == ["--first-seed", "--force", "--out"]
-
-
-def test_bench_prints_the_tables_the_benchmark_builds(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    from rlcompare.bench import tabular as benchmark
-
-    loop = benchmark.Measurement("MountainCar-v0, Gymnasium loop", 1, 1000, 1.0)
-    reference = benchmark.Measurement("sarsa, reference kernel", 1, 5000, 0.1)
-    measured = [loop, benchmark.Measurement("sarsa (grid)", 1, 5000, 0.05, reference)]
-    def run_benchmark(report=lambda m: None):
-        for measurement in measured:
-            report(measurement)
-        return measured
-
-    monkeypatch.setattr(benchmark, "run_benchmark", run_benchmark)
-    result = invoke("bench", "--no-environments", "--no-study", "--out", str(tmp_path / "bench"))
-    assert result.exit_code == 0, result.output
-    assert "sarsa (grid), 1 thread: 100,000 steps/s, 2.00x its reference kernel" in result.output  # as taken
-    assert "Every algorithm on MountainCar-v0" in result.output
-    for cell in ("100,000", "50,000", "2.00x", "100x", "1.00x"):  # steps/s, the reference's, against it, against
-        assert cell in result.output                                # Gymnasium's loop, against 1 thread
-    written = json.loads((tmp_path / "bench" / "bench.json").read_text())
-    (row,) = written["kernels"]
-    assert (row["label"], row["vs_reference"], row["vs_gymnasium"]) == ("sarsa (grid)", 2.0, 100.0)
-    assert row["reference"]["steps_per_second"] == 50_000
-    assert written["tables"][0]["rows"][1][:5] == ["sarsa (grid)", "1", "100,000", "50,000", "2.00x"]
-    again = invoke("bench", "--no-environments", "--no-study", "--out", str(tmp_path / "bench"))
-    assert again.exit_code == 0, again.output  # its own file, rewritten
-    shown = invoke("report", str(tmp_path / "bench"))  # the tables again, from the file
-    assert shown.exit_code == 0, shown.output
-    assert shown.output.split("\n", 1)[1] == again.output[again.output.index("Every algorithm"):
-                                                          again.output.index("Written:")]
-    assert shown.output.startswith(f"bench.json: measured {written['created'][:10]}")
-    (tmp_path / "bench" / "bench.json").write_text(json.dumps({**written, "tables": [{"title": "x"}]}))
-    tampered = invoke("report", str(tmp_path / "bench"))
-    assert tampered.exit_code == 2
-    assert tampered.output.strip() == f"Error: {tmp_path / 'bench' / 'bench.json'}: not a benchmark rlcompare " \
-                                      "wrote (no 'columns')"
-
-
-def test_bench_sweeps_on_a_cluster_that_is_not_there_ends_with_one_line() -> None:
-    result = invoke("bench", "--sweeps", "--address", "127.0.0.1:1")
-    assert result.exit_code == 2
-    assert "no Ray cluster at '127.0.0.1:1'" in result.output
-    assert "Traceback" not in result.output
 
 
 @pytest.mark.parametrize(

@@ -24,6 +24,7 @@ from rlcompare.studies.registry import STUDIES
 from rlcompare.tabular.config import field_docs
 
 HEAVY = ("numpy", "pandas", "numba", "jax", "matplotlib", "scipy", "pyarrow")
+BENCH_COMMANDS = ("kernels", "envs", "study", "sweeps", "deep")
 TINY = ExperimentConfig(algorithm="sarsa", seeds=(0, 1, 2), episodes=20, eval_every=10, eval_episodes=2)
 
 
@@ -46,7 +47,7 @@ def squeezed(text: str) -> str:
 def every_help() -> dict[str, str]:
     """The help of the app, of every command and of every study, by command line."""
     lines = [[], *([name] for name in ("run", "sweep", "report", "bench", "reproduce")),
-             *(["reproduce", name] for name in STUDIES)]
+             *(["bench", name] for name in BENCH_COMMANDS), *(["reproduce", name] for name in STUDIES)]
     return {" ".join(args) or "rlcompare": invoke(*args, "--help").output for args in lines}
 
 
@@ -81,7 +82,7 @@ def test_the_fast_help_is_the_whole_apps_help() -> None:
 
 def test_no_help_names_a_python_type() -> None:
     helps = every_help()
-    assert len(helps) == 6 + len(STUDIES)
+    assert len(helps) == 6 + len(BENCH_COMMANDS) + len(STUDIES)
     for line, text in helps.items():
         assert "Usage:" in text, line
         for noise in ("<str>", "<int>", "<bool>", "<float>", "<path>", "<list", "{"):
@@ -172,7 +173,8 @@ def test_a_wide_table_wraps_instead_of_being_cut(width: int, monkeypatch: pytest
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     import pandas as pd
 
-    from rlcompare.bench.tabular import Measurement, kernel_table
+    from rlcompare.bench.harness import Measurement
+    from rlcompare.bench.kernels import kernel_table
 
     monkeypatch.setenv("COLUMNS", str(width))  # the console reads it at each print
     names = ["q_learning-constant-before_update", "double_expected_sarsa-constant", "random"]

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from rlcompare import ConfigError, ExperimentConfig
 from rlcompare.algorithms.registry import BEFORE_UPDATE, FAMILIES, METHODS, label
 from rlcompare.algorithms.registry import rule_for as method_rule
-from rlcompare.bench.tabular import MULTI_STEP, ONE_STEP
+from rlcompare.bench.kernels import MULTI_STEP, ONE_STEP
 from rlcompare.cli import app
 from rlcompare.tabular.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
 from rlcompare.tabular.episodes import LOOPS
@@ -77,7 +77,7 @@ def test_every_study_listed_is_one_the_command_can_run():
 
 
 def test_what_figures_videos_and_the_benchmark_say_of_an_environment_is_its_entrys():
-    from rlcompare.bench.tabular import PORT_EPISODES
+    from rlcompare.bench.ports import PORT_EPISODES
     from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, environment
 
     assert set(PORT_EPISODES) == {*PORTS, *TABLE_ENVIRONMENTS} - {"MountainCar-book"}

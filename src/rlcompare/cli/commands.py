@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 from rich.text import Text
 
+from rlcompare.cli.bench import bench_app
 from rlcompare.cli.config_options import ALGORITHM_HELP, config_options
 from rlcompare.cli.console import (
     ConsoleUI,
@@ -19,8 +20,6 @@ from rlcompare.cli.console import (
     check_out,
     console,
     done_line,
-    fail,
-    measurement_lines,
     one_line_errors,
     out_path,
     plural,
@@ -42,6 +41,7 @@ if TYPE_CHECKING:
 __all__ = ["ALGORITHM_HELP", "app"]
 
 app = new_app()
+app.add_typer(bench_app(), name="bench", short_help=SUMMARIES["bench"])
 app.add_typer(reproduce_app(), name="reproduce", short_help=SUMMARIES["reproduce"])
 Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
 
@@ -186,7 +186,7 @@ def _run_report(run_dir: Path) -> None:
 def _bench_report(directory: Path) -> None:
     """A benchmark's directory: the tables of each file ``bench`` wrote there, as it printed them, with when and
     where they were measured."""
-    from rlcompare.bench.tabular import BENCH_FILES, read_bench_document
+    from rlcompare.bench.tables import BENCH_FILES, read_bench_document
 
     listed = store.listed_outputs(directory)
     for name in BENCH_FILES:
@@ -230,90 +230,3 @@ def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
     for problem in problems:
         console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
     console.print(f"Report: {path}")
-
-
-@app.command(short_help=SUMMARIES["bench"], cls=PlainCommand)
-@one_line_errors
-def bench(
-    environments: Annotated[bool, typer.Option(help="Also measure every ported environment against its own "
-                                                    "Gymnasium loop and through the adapter.")] = True,
-    study: Annotated[bool, typer.Option(help="Also train the paper's study as reproduce does (9 configurations x "
-                                             "10 seeds x 5000 episodes) on 1 and all threads, about 30 s.")] = True,
-    sweeps: Annotated[bool, typer.Option(help="Only measure sweeps: trials per second of short trials on the "
-                                              "local backend (1 and 2 workers) and on Ray.")] = False,
-    address: Annotated[str | None, typer.Option(help="With --sweeps: the Ray cluster (default: a new local Ray "
-                                                     "instance with 2 CPUs).")] = None,
-    deep: Annotated[bool, typer.Option(help="Only measure the deep engine, beside Stable-Baselines3 where the "
-                                            "'bench' extra is installed.")] = False,
-    to_score: Annotated[bool, typer.Option(help="With --deep: also the wall time to a greedy return of 475 on "
-                                                "CartPole, ours beside Stable-Baselines3 (several minutes).")] = False,
-    out: Annotated[str | None, typer.Option(
-        help="Directory of the JSON file of every row measured: bench.json (sweeps.json with --sweeps, deep.json "
-             "with --deep), rewritten by each run; a new directory or one rlcompare wrote. Default: runs/bench.",
-        show_default=False)] = None,
-) -> None:
-    """Steps per second of the kernels on 1 and all threads against a plain reference kernel of each method and
-    a plain Gymnasium loop."""
-    from rlcompare.bench import tabular as benchmark
-    from rlcompare.experiment.backends import BackendError
-
-    owner, out_dir = store.BENCH, out_path(out, Path("runs/bench"))
-    check_out(out_dir, owner, False)
-    path = out_dir / ("deep.json" if deep else "sweeps.json" if sweeps else "bench.json")
-    tables: list[benchmark.BenchTable] = []
-    sections: dict[str, Any] = {}
-
-    def show(table: benchmark.BenchTable) -> None:
-        """Print a table, and write every table and section so far (what is measured stays, whatever follows)."""
-        print_bench(table)
-        tables.append(table)
-        with store.output_directory(out_dir, owner) as directory:
-            store.write_json_atomic(directory / path.name, benchmark.bench_document(tables, **sections))
-
-    if deep:
-        try:
-            from rlcompare.bench.deep import deep_table, minatar_table, score_table
-        except ImportError as error:  # the deep engine's DeepUnavailable says how to install the extra
-            fail(str(error))
-        with console.status("Measuring the deep engine and Stable-Baselines3 (a few minutes)"):
-            show(deep_table())
-            show(minatar_table())
-            if to_score:
-                show(score_table())
-        console.print(f"Written: {path}", highlight=False)
-        return
-    if sweeps:
-        try:
-            with console.status("Measuring sweeps of 200 short trials: the local backend with 1 and 2 workers, "
-                                "then Ray"):
-                show(benchmark.sweep_benchmark(address))
-        except BackendError as error:
-            fail(str(error))
-        console.print(f"Written: {path}", highlight=False)
-        return
-    with measurement_lines("every algorithm on MountainCar-v0, on 1 and all threads, after a plain Gymnasium "
-                           "loop; each method with a reference kernel in turn with it") as say:
-        measured = benchmark.run_benchmark(report=lambda m: say(
-            f"{m.label}, {plural(m.threads, 'thread')}: {m.steps_per_second:,.0f} steps/s"
-            + ("" if m.vs_reference is None else f", {m.vs_reference:.2f}x its reference kernel")))
-    sections.update(gymnasium_loop=measured[0].as_dict(), kernels=benchmark.kernel_rows(measured))
-    show(benchmark.kernel_table(measured))
-    if study:
-        from rlcompare.studies.paper import paper_configs
-
-        with measurement_lines("the paper's study on 1 and all threads, in turn") as say:
-            threads = benchmark.study_threads(paper_configs(tuple(range(10)), 5000), report=lambda m: say(
-                f"{plural(m.threads, 'thread')}: {m.seconds:.2f} s, {m.steps_per_second:,.0f} steps/s"))
-        sections.update(study=[m.as_dict() for m in threads])
-        show(benchmark.study_table(threads))
-    if environments:
-        with measurement_lines("each ported environment: Gymnasium's loop, the port, the adapter") as say:
-            ports = benchmark.run_port_benchmark(report=lambda m: say(
-                f"{m.env}: Gymnasium loop {m.gymnasium.steps_per_second:,.0f}, port "
-                f"{max(x.steps_per_second for x in m.port):,.0f}, adapter {m.adapter.steps_per_second:,.0f} "
-                "steps/s"))
-        sections.update(ports=[{"env": m.env, "gymnasium": m.gymnasium.as_dict(),
-                                "port": [x.as_dict() for x in m.port], "adapter": m.adapter.as_dict()}
-                               for m in ports])
-        show(benchmark.port_table(ports))
-    console.print(f"Written: {path}", highlight=False)

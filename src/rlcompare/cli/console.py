@@ -27,7 +27,7 @@ from rlcompare.validation import ConfigError
 if TYPE_CHECKING:
     import pandas as pd
 
-    from rlcompare.bench.tabular import BenchTable
+    from rlcompare.bench.tables import BenchTable
 
 class _Console(Console):
     """rich's console, its width read at each print: a width given to it, else COLUMNS where it is set, else a
