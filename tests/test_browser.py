@@ -14,7 +14,9 @@ from pathlib import Path
 import pytest
 
 from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_report import CLAIMS, CONFIGURATIONS, _video_plan, build_report, load_study
+from rlcompare.studies.paper_claims import CLAIMS
+from rlcompare.studies.paper_report import build_report, load_study
+from rlcompare.studies.paper_videos import CONFIGURATIONS, video_plan
 
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-sync",
                  "--disable-background-networking", "--disable-component-update"]
@@ -76,7 +78,7 @@ def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_pat
 
     assert len(images) >= 7 + 4 + 2  # figures 3-9, a stage figure per learner, visits, first actions
     assert all(width > 0 for _, width in images), images
-    assert len(videos) == len(_video_plan(tmp_path, load_study(tmp_path)[0], None))  # median seed x 3, extremes
+    assert len(videos) == len(video_plan(tmp_path, load_study(tmp_path)[0], None))  # median seed x 3, extremes
     assert len(videos) > 1 + 4 * 3
     assert all(state >= 2 and duration > 0 and width > 0 for _, state, duration, width in videos), videos
     ablation = ["q_learning-constant-before_update", "q_learning-decay-before_update", "sarsa-constant-after_update",

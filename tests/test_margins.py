@@ -45,13 +45,13 @@ def test_power_scales_with_the_spread_and_shrinks_with_the_seeds() -> None:
 
 
 def test_every_margin_has_its_reason_and_the_studies_read_them_from_the_table() -> None:
-    from rlcompare.studies import book_6_3, deep, paper_report
+    from rlcompare.studies import book_6_3, deep, paper_claims
 
     assert all(m.reason and m.unit and m.value > 0 for m in MARGINS.values())
     assert {env: margin("deep", f"{env} (final greedy return)") for env in deep.MARGIN} == deep.MARGIN
     assert margin("book 6.3", "Expected SARSA at least as good as SARSA") == book_6_3.NONINFERIORITY_MARGIN
     assert margin("book 6.3", "an asymptote collapses") == book_6_3.COLLAPSE_MARGIN
-    same = {c.metric: c.bounds[1] for c in paper_report.CLAIMS if c.kind == "within"}
+    same = {c.metric: c.bounds[1] for c in paper_claims.CLAIMS if c.kind == "within"}
     assert same == {"convergence_episode": margin("paper", "a similar time frame (convergence)"),
                     "greedy_return": margin("paper", "the same solution (greedy return)")}
 

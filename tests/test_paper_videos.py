@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rlcompare.studies.paper_report import _video_plan, video_seeds
+from rlcompare.studies.paper_videos import video_plan, video_seeds
 
 
 def runs_with_final_returns(final: list[float]) -> SimpleNamespace:
@@ -34,9 +34,9 @@ def test_the_plan_shows_the_median_seed_at_every_stage_and_the_extremes_at_the_e
                if c.name in ("random", "sarsa-constant")]
     list(reproduce(tmp_path, configs))
     runs, _ = load_study(tmp_path)
-    plan = _video_plan(tmp_path, runs, None)
+    plan = video_plan(tmp_path, runs, None)
     chosen = video_seeds(runs["sarsa-constant"])
     expected = [f"median seed {chosen['median']}: {stage}" for stage in ("early", "middle", "final")]
     expected += [f"{role} seed {seed}: final" for role, seed in chosen.items() if role != "median"]
     assert [caption.rsplit(", ", 1)[1] for caption, _ in plan] == ["seed 0: random policy", *expected]
-    assert _video_plan(tmp_path, runs, 2)[1][0].endswith("seed 2: early")  # a seed asked for: that seed alone
+    assert video_plan(tmp_path, runs, 2)[1][0].endswith("seed 2: early")  # a seed asked for: that seed alone

@@ -24,17 +24,10 @@ from rlcompare.stats.significance import VERDICTS
 from rlcompare.stats.verdicts import columns, is_fragile
 from rlcompare.studies.measures import per_seed_metrics
 from rlcompare.studies.paper import paper_configs, reproduce
+from rlcompare.studies.paper_claims import CLAIMS, NAMES, paper_claim, within
 from rlcompare.studies.paper_figures import curve_figure, paired_difference_figure, stages_figure, visits_figure
-from rlcompare.studies.paper_report import (
-    CLAIMS,
-    CONFIGURATIONS,
-    FIGURES,
-    NAMES,
-    build_report,
-    load_study,
-    paper_claim,
-    within,
-)
+from rlcompare.studies.paper_report import FIGURES, build_report, load_study
+from rlcompare.studies.paper_videos import CONFIGURATIONS
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 from rlcompare.tabular.state import Records

@@ -11,7 +11,7 @@ import pytest
 
 from rlcompare.studies import why
 from rlcompare.studies.interface import UI
-from rlcompare.studies.paper_report import paper_claim, within
+from rlcompare.studies.paper_claims import paper_claim, within
 from rlcompare.studies.registry import WhyOptions
 from rlcompare.studies.why import TERMS, decomposition, per_seed_returns, term_per_seed, why_configs
 
@@ -94,7 +94,8 @@ def test_report_opens_with_findings_and_names_every_term(study):
 
 def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findings(study):
     from rlcompare.studies.paper import paper_configs, reproduce
-    from rlcompare.studies.paper_report import CLAIMS, build_report
+    from rlcompare.studies.paper_claims import CLAIMS
+    from rlcompare.studies.paper_report import build_report
 
     out, runs = study
     paper_dir = out.parent / "paper"

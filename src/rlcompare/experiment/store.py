@@ -23,13 +23,13 @@ import fnmatch
 import glob
 import json
 import os
-import tempfile
 import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from rlcompare.experiment.atomic import FILE_MODE, atomic_file
 from rlcompare.formatting import cut, quote
 
 MARKER_FILE = ".rlcompare.json"
@@ -40,13 +40,6 @@ MAX_JSON_BYTES = 16 * 2**20
 MAX_NAME_BYTES = 255
 
 
-def _default_file_mode() -> int:
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-_FILE_MODE = _default_file_mode()
 
 
 class StoreError(OSError):
@@ -128,7 +121,7 @@ def _read_marker(marker: Path) -> dict:
 
 def _write_marker(directory: Path, owner: Owner, outputs: list[str]) -> None:
     data = {"written_by": "rlcompare", "kind": owner.kind, "name": owner.name, "outputs": sorted(set(outputs))}
-    with _atomic_file(Path(directory) / MARKER_FILE, "w") as handle:
+    with atomic_file(Path(directory) / MARKER_FILE, "w") as handle:
         json.dump(data, handle, indent=1)
 
 
@@ -278,7 +271,7 @@ def locked(directory: Path) -> Iterator[None]:
 
 def _acquire(directory: Path) -> int:
     try:
-        fd = os.open(directory / LOCK_FILE, os.O_RDWR | os.O_CREAT, _FILE_MODE)
+        fd = os.open(directory / LOCK_FILE, os.O_RDWR | os.O_CREAT, FILE_MODE)
     except OSError as error:
         raise StoreError(f"{directory}: cannot write here ({error.strerror})") from None
     try:
@@ -353,29 +346,13 @@ def output_directory(directory: Path, owner: Owner, *, force: bool = False) -> I
 # --- atomic writes ----------------------------------------------------------------------------------------
 
 @contextlib.contextmanager
-def _atomic_file(path: Path, mode: str) -> Iterator[IO[Any]]:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.chmod(tmp, _FILE_MODE)
-        with os.fdopen(fd, mode) as handle:
-            yield handle
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-@contextlib.contextmanager
 def _owned_file(path: Path, mode: str) -> Iterator[IO[Any]]:
     """An atomic write of a file rlcompare may write (:func:`enter_outputs`), with OS errors as one line."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         enter_outputs(path)
-        with _atomic_file(path, mode) as handle:
+        with atomic_file(path, mode) as handle:
             yield handle
     except StoreError:
         raise

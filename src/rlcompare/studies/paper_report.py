@@ -9,10 +9,8 @@ then stay out, and its claims are tested as they would read there.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -23,14 +21,13 @@ from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.report.drawn import Drawn
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, opening, paper_findings
 from rlcompare.report.page import Section, save_figure, write_report, write_table
-from rlcompare.report.video import VideoJob, VideoRenders, plan_stage_videos, start_videos
+from rlcompare.report.video import VideoJob, VideoRenders, start_videos
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.convergence import DEFAULT_RULE, RULES
 from rlcompare.stats.intervals import interval
 from rlcompare.stats.significance import ALPHA
-from rlcompare.stats.verdicts import RATIO_FACTOR, Claim, family, judge_by_rule
+from rlcompare.stats.verdicts import RATIO_FACTOR, family, judge_by_rule
 from rlcompare.studies.interface import Report
-from rlcompare.studies.margins import margin
 from rlcompare.studies.measures import (
     PAPER_TABLE_I,
     PAPER_TABLE_II,
@@ -40,6 +37,7 @@ from rlcompare.studies.measures import (
     table_i,
     table_ii,
 )
+from rlcompare.studies.paper_claims import CLAIMS, NAMES, scaled
 from rlcompare.studies.paper_figures import (
     curve_figure,
     first_actions_figure,
@@ -49,12 +47,12 @@ from rlcompare.studies.paper_figures import (
     stages_figure,
     visits_figure,
 )
+from rlcompare.studies.paper_videos import CONFIGURATIONS, WATCH_FOR, video_key, video_plan
 from rlcompare.studies.start_region import has_start_region
 from rlcompare.studies.why import decomposition, decomposition_figure, formatted, in_brief
 from rlcompare.studies.why import findings as why_findings
 from rlcompare.tabular.results import Results
 
-CONFIGURATIONS = ("random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant")
 FIGURES = (
     ("fig3-random", ("random",), "Fig. 3: the random baseline"),
     ("fig4-q_learning-constant", ("q_learning-constant",), "Fig. 4: Q-Learning with ε constant at 0.5"),
@@ -64,51 +62,6 @@ FIGURES = (
     ("fig8-sarsa-decay", ("sarsa-decay",), "Fig. 8: SARSA with ε decaying from 1"),
     ("fig9-decay", ("q_learning-decay", "sarsa-decay"), "Fig. 9: Q-Learning and SARSA, ε decaying"),
 )
-NAMES = ("SARSA", "Q-Learning")
-"""What the verdicts call A and B: every claim of the paper sets SARSA against Q-Learning on one schedule."""
-
-
-def paper_claim(text: str, schedule: str, metric: str, **how: Any) -> Claim:
-    """A claim of the paper: SARSA (A) against Q-Learning (B) with ε ``schedule``."""
-    return Claim(text, f"sarsa-{schedule}", f"q_learning-{schedule}", metric, **how)
-
-
-def within(share: float) -> tuple[float, float]:
-    return (-share, share)
-
-
-CLAIMS = (
-    paper_claim("With ε decaying, Q-Learning takes about 4 times as long as SARSA to converge (Table I: 41.5 vs "
-                "10.7)", "decay", "convergence_episode", kind="ratio", value=41.5 / 10.7),
-    paper_claim("With ε decaying, SARSA converges faster than Q-Learning", "decay", "convergence_episode", sign=-1),
-    paper_claim("With ε constant, both converge within a similar time frame (Table I: 13.8 vs 11.5): within 10% of "
-                "training", "constant", "convergence_episode", kind="within",
-                bounds=within(margin("paper", "a similar time frame (convergence)"))),
-    paper_claim("With ε constant, SARSA has the higher mean cumulative reward (Table II: -176 vs -262)", "constant",
-                "behaviour_return", sign=1),
-    paper_claim("With ε constant, SARSA finds a better solution: its greedy policy returns more", "constant",
-                "greedy_return", sign=1),
-    paper_claim("With ε decaying, SARSA has the higher mean cumulative reward (Table II: -174 vs -191)", "decay",
-                "behaviour_return", sign=1),
-    paper_claim("With ε decaying, both find the same solution (-174 to -191): greedy returns within 20", "decay",
-                "greedy_return", kind="within", bounds=within(margin("paper", "the same solution (greedy return)"))),
-    paper_claim("With ε decaying, SARSA finds a better solution: its greedy policy returns more (the constant-ε "
-                "claim, asked of decaying ε)", "decay", "greedy_return", sign=1),
-    paper_claim("With ε constant, SARSA accelerates backwards first: push left from most start states", "constant",
-                "first_action_left", kind="level", sign=1, value=0.5, reads="a", floor=True),
-    paper_claim("With ε constant, Q-Learning accelerates forward first: push left from few start states", "constant",
-                "first_action_left", kind="level", sign=-1, value=0.5, reads="b", floor=True),
-)
-"""The paper's claims, with their margins declared before any run is read (``docs/why.md``, "Verdicts")."""
-
-
-def _scaled(claim: Claim, episodes: int) -> Claim:
-    """A "same time frame" margin given as a share of training, in episodes."""
-    if claim.kind == "within" and claim.metric == "convergence_episode":
-        return dataclasses.replace(claim, bounds=(claim.bounds[0] * episodes, claim.bounds[1] * episodes))
-    return claim
-
-
 def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
     """Every configuration that loads, and a line for each that does not: the paper's five, then any other
     algorithm run on the paper's grid (``reproduce --algorithms``), which adds rows to the tables."""
@@ -137,43 +90,6 @@ def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None
     """
     with store.rewriting(Path(study_dir), "study"):
         return _build_report(Path(study_dir), videos, video_seed, video_workers)
-
-
-def video_seeds(results: Results) -> dict[str, int]:
-    """The seeds whose final greedy return is the median, the lowest and the highest (the lower middle one of an
-    even count; ties to the earlier seed), in that order and each once."""
-    final = results.records.eval_returns[:, -1].mean(axis=-1) if results.records.eval_returns.shape[1] else \
-        results.records.returns[:, -1]
-    order = np.argsort(final, kind="stable")
-    chosen: dict[str, int] = {}
-    for role, index in (("median", order[(len(order) - 1) // 2]), ("lowest", order[0]), ("highest", order[-1])):
-        seed = int(results.seeds[index])
-        if seed not in chosen.values():
-            chosen[role] = seed
-    return chosen
-
-
-WATCH_FOR = ("Watch the first seconds: the car must back up the left hill to gain the momentum it lacks; the paper "
-             "says SARSA with ε constant learns to push left first and Q-Learning to push forward first.")
-
-
-def _video_plan(study_dir: Path, runs: dict[str, Results], video_seed: int | None) -> list[tuple[str, VideoJob]]:
-    """Each video of the paper's configurations with its caption in the report, in the report's order: the median
-    seed (by its final greedy return) at every stage of learning, then the lowest and highest seeds' final
-    policies; only ``video_seed`` where one is asked for. The random baseline once."""
-    plan = []
-    for name, results in ((n, r) for n, r in runs.items() if n in CONFIGURATIONS):
-        if video_seed is not None or results.config.algorithm == "random":
-            chosen = {"": results.seeds[0] if video_seed is None else video_seed}
-        else:
-            chosen = video_seeds(results)
-        for role, seed in chosen.items():
-            stages = None if role in ("", "median") else ["final"]
-            for job in plan_stage_videos(study_dir / name, study_dir / "videos", seed=seed, stages=stages,
-                                         config=results.config):
-                stage = "random policy" if results.config.algorithm == "random" else job.stage
-                plan.append((f"{label(results)}, {f'{role} ' if role else ''}seed {seed}: {stage}", job))
-    return plan
 
 
 AGGREGATE_POINTS = 50
@@ -207,21 +123,13 @@ def _build_report(study_dir: Path, videos: bool, video_seed: int | None, video_w
     if not runs:
         raise store.StoreError(f"{study_dir}: no configuration of the paper study could be read: "
                                + "; ".join(problems))
-    plan = _video_plan(study_dir, runs, video_seed) if videos else []
+    plan = video_plan(study_dir, runs, video_seed) if videos else []
     drawn = Drawn(study_dir)
     keys = {job.mp4: video_key(runs, job) for _, job in plan}
     kept = {path for _, job in plan for path in job.outputs if drawn.kept(path, keys[job.mp4])}
     pending = [job for _, job in plan if not set(job.outputs) <= kept]
     with start_videos(pending, workers=video_workers) as renders:
         return _build_report_beside(study_dir, runs, problems, plan, renders, started, drawn, keys, kept)
-
-
-def video_key(runs: dict[str, Results], job: VideoJob) -> str | None:
-    """What a video is drawn from (:mod:`rlcompare.report.drawn`): its run and everything the job says but where
-    the files go."""
-    shown = {field.name: getattr(job, field.name) for field in dataclasses.fields(job)
-             if field.name not in ("run_dir", "mp4", "gif")}
-    return Drawn.key([runs[job.run_dir.name]], shown | {"files": [path.name for path in job.outputs]})
 
 
 def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: list[str],
@@ -239,7 +147,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
     claims = [c for c in CLAIMS if {c.a, c.b} <= set(runs) and (position_velocity or c.metric != "first_action_left")]
-    judgement = judge_by_rule([_scaled(c, episodes) for c in claims], metrics, episodes, names=NAMES,
+    judgement = judge_by_rule([scaled(c, episodes) for c in claims], metrics, episodes, names=NAMES,
                               floors=noise_floors(runs) if position_velocity else {},
                               rules={name: convergence_by_rule(r) for name, r in runs.items() if name != "random"})
     tables = {
