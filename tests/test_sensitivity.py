@@ -18,7 +18,7 @@ from rlcompare.experiment import store
 from rlcompare.experiment.sweep import SweepError, derive_seeds
 from rlcompare.experiment.sweep_store import read_manifest, trial_path
 from rlcompare.stats.intervals import Estimate, paired_difference
-from rlcompare.studies import sensitivity_grid, sensitivity_report
+from rlcompare.studies import sensitivity_figures, sensitivity_grid, sensitivity_words
 from rlcompare.studies.sensitivity_grid import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
 from rlcompare.tabular.config import ExperimentConfig
 
@@ -325,7 +325,7 @@ SCHEDULE_NEVER = ("The conclusion never flips on this metric over the ε schedul
 
 
 def test_the_summary_counts_each_way_and_says_where_the_conclusion_flips() -> None:
-    lines = sensitivity_report.summary(synthetic_cells())
+    lines = sensitivity_words.summary(synthetic_cells())
     text = "\n".join(lines)
     assert "SARSA better in 12 of 16 cells, Q-Learning better in 2, not resolved in 2" in text
     assert "The conclusion flips (Q-Learning better) in 2 cells, 2 regions" in text
@@ -341,7 +341,7 @@ def test_the_summary_counts_each_way_and_says_where_the_conclusion_flips() -> No
 
 
 def test_a_flip_in_the_schedule_block_is_named_with_its_numbers_from_the_cells() -> None:
-    lines = sensitivity_report.summary(schedule_cells(flip=True))
+    lines = sensitivity_words.summary(schedule_cells(flip=True))
     region = ("Flips at constant ε = 0.5 with γ = 1 (α = 0.05, time limit terminal): SARSA - Q-Learning -10.0 [-12.9, "
               "-6.4] at γ = 1 (beside it, γ = 0.9: -0.6 [-2.7, 1.4], not resolved).")
     for metric in ("Behaviour", "Greedy"):
@@ -358,7 +358,7 @@ def test_a_flip_in_the_schedule_block_is_named_with_its_numbers_from_the_cells()
 
 
 def test_without_a_flip_the_summary_says_never_flips_over_each_blocks_axes() -> None:
-    lines = sensitivity_report.summary(schedule_cells(flip=False))
+    lines = sensitivity_words.summary(schedule_cells(flip=False))
     assert lines.count(CROSS_NEVER) == 2
     assert lines.count(SCHEDULE_NEVER) == 2
     assert not any("Flips at" in line or "The conclusion flips" in line for line in lines)
@@ -376,14 +376,14 @@ def test_a_region_is_each_run_of_neighbouring_gammas_that_flip(flipped: tuple[bo
     cells = pd.DataFrame([cell("constant", 0.05, gamma, 0.5, True, -7.0 if flips else 3.0,
                                Q_BETTER if flips else NOT_RESOLVED)
                           for gamma, flips in zip((0.9, 0.99, 1.0), flipped, strict=True)])
-    found = sensitivity_report.flip_regions(cells, "behaviour")
+    found = sensitivity_words.flip_regions(cells, "behaviour")
     assert [text.split(" (α")[0] for text in found] == [f"constant ε = 0.5 with {region}" for region in regions]
     for text in found:
         assert "-7.0 [-12.0, -2.0] at γ = " in text
 
 
 def test_the_heatmap_has_a_panel_per_gamma_and_time_limit_and_annotates_each_cell() -> None:
-    figure = sensitivity_report.heatmap_figure(synthetic_cells(), "greedy")
+    figure = sensitivity_figures.heatmap_figure(synthetic_cells(), "greedy")
     panels = [ax for ax in figure.axes if ax.get_title()]
     assert len(panels) == 4
     assert {ax.get_title() for ax in panels} == {f"γ = {g}, time limit {t}" for g in ("0.9", "1")
@@ -396,14 +396,14 @@ def test_the_heatmap_has_a_panel_per_gamma_and_time_limit_and_annotates_each_cel
 
 
 def test_the_cross_heatmap_leaves_the_constant_cells_to_the_schedule_map() -> None:
-    figure = sensitivity_report.heatmap_figure(schedule_cells(flip=True), "behaviour")
+    figure = sensitivity_figures.heatmap_figure(schedule_cells(flip=True), "behaviour")
     texts = [t.get_text() for ax in figure.axes for t in ax.texts]
     assert len(texts) == 16
     assert set(texts) == {"+30.0\nSARSA"}
 
 
 def test_the_schedule_map_draws_the_schedule_by_gamma_cells_with_their_marks() -> None:
-    figure = sensitivity_report.schedule_figure(schedule_cells(flip=True), "behaviour")
+    figure = sensitivity_figures.schedule_figure(schedule_cells(flip=True), "behaviour")
     panels = [ax for ax in figure.axes if ax.get_title()]
     assert len(panels) == 1
     (ax,) = panels
