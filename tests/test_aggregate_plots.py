@@ -122,34 +122,47 @@ def _deep_run(algorithm: str, env: str, finals: list[float], steps_per_round: in
                            evaluations=pd.DataFrame(rows))
 
 
-def test_the_deep_study_normalises_each_environment_between_random_and_its_best_method(tmp_path, monkeypatch):
+def _findings(runs, envs, across=None, drawn=(None, {})):
+    """What the deep study's report reads of its aggregates, as :func:`~rlcompare.studies.paired_report.findings`
+    gives it."""
+    from rlcompare.studies.paired_report import Findings
+
+    return Findings(runs, {}, [], envs, {}, pd.DataFrame(), across, *drawn)
+
+
+def test_the_deep_study_normalises_each_environment_between_random_and_its_best_method(tmp_path):
     deep = pytest.importorskip("rlcompare.studies.deep")  # the deep extra
+    from rlcompare.studies.paired_report import across as across_environments
+    from rlcompare.studies.paired_report import draw_across
+
     runs = {"pqn_q_lambda-CartPole-v1": _deep_run("pqn_q_lambda", "CartPole-v1", [100, 200, 300], 1000),
             "dqn-CartPole-v1": _deep_run("dqn", "CartPole-v1", [400, 500, 500], 500),
             "pqn_q_lambda-Acrobot-v1": _deep_run("pqn_q_lambda", "Acrobot-v1", [-300, -200, -100], 1000),
             "dqn-Acrobot-v1": _deep_run("dqn", "Acrobot-v1", [-500, -500, -500], 500),
             "ppo-Acrobot-v1": _deep_run("ppo", "Acrobot-v1", [-90, -90, -90], 700)}  # not run on CartPole
     floors = {"CartPole-v1": 20.0, "Acrobot-v1": -500.0}
-    across = deep.across_environments(runs, floors)
-    assert across.envs == ["CartPole-v1", "Acrobot-v1"]
-    assert list(across.scores) == ["Q(λ), network", "DQN"]  # PPO ran one environment of the two
+    envs = ["CartPole-v1", "Acrobot-v1"]
+    across = across_environments(runs, envs, floors, deep.DEEP.method_order)
+    assert across.envs == envs
+    assert list(across.scores) == ["pqn_q_lambda", "dqn"]  # PPO ran one environment of the two
     cartpole_best = 1400 / 3 - 20  # DQN's mean final return over the random policy's
-    np.testing.assert_allclose(across.scores["DQN"][0], (np.array([400, 500, 500]) - 20) / cartpole_best)
+    np.testing.assert_allclose(across.scores["dqn"][0], (np.array([400, 500, 500]) - 20) / cartpole_best)
     # on Acrobot, Q(λ)'s mean -200 is the best of the two kept (PPO's -90 is not), the floor -500
-    np.testing.assert_allclose(across.scores["Q(λ), network"][1], [2 / 3, 1, 4 / 3])
-    np.testing.assert_allclose(across.scores["DQN"][1], 0)
+    np.testing.assert_allclose(across.scores["pqn_q_lambda"][1], [2 / 3, 1, 4 / 3])
+    np.testing.assert_allclose(across.scores["dqn"][1], 0)
     assert across.xlabel == "share of each training's environment steps"  # budgets differ by method
     np.testing.assert_allclose(across.x, [0.25, 0.5, 0.75, 1])
-    np.testing.assert_allclose(across.curves["DQN"][..., -1], across.scores["DQN"])
+    np.testing.assert_allclose(across.curves["dqn"][..., -1], across.scores["dqn"])
     same = {name: run for name, run in runs.items() if name.startswith("pqn")}
     same["ppo-CartPole-v1"] = _deep_run("ppo", "CartPole-v1", [30, 40, 50], 1000)
-    assert deep.across_environments(same, floors).xlabel == "environment steps"
+    assert across_environments(same, envs, floors, deep.DEEP.method_order).xlabel == "environment steps"
 
-    monkeypatch.setattr(deep, "random_returns", lambda env: np.array([floors[env]]))
-    section = deep.aggregate_section(runs, tmp_path / "tables", tmp_path / "figures")
+    drawn = draw_across(deep.DEEP, across, tmp_path / "tables", tmp_path / "figures")
+    section = deep.aggregate_section(_findings(runs, envs, across, drawn))
     assert [table[0] for table in section.tables] == ["Aggregates of normalised final returns",
                                                       "Probability of improvement"]
     assert section.tables[0][2] == "tables/deep_aggregates.csv"
+    assert section.tables[0][1]["method"].tolist() == ["Q(λ), network", "DQN"]  # the study's labels
     assert len(section.tables[1][1]) == 2  # both ordered pairs
     assert [path for path, _ in section.figures] == [
         "figures/aggregate-intervals.png", "figures/probability-of-improvement.png",
@@ -157,7 +170,10 @@ def test_the_deep_study_normalises_each_environment_between_random_and_its_best_
     assert all((tmp_path / path).is_file() for path, _ in section.figures)
     assert (tmp_path / "tables" / "deep_aggregates.csv").is_file()
     assert "Acrobot-v1 -500.0" in section.paragraphs[0]
-    alone = deep.aggregate_section({"dqn-CartPole-v1": runs["dqn-CartPole-v1"]}, tmp_path / "t", tmp_path / "f")
+    one_method = across_environments({"dqn-CartPole-v1": runs["dqn-CartPole-v1"],
+                                      "dqn-Acrobot-v1": runs["dqn-Acrobot-v1"]}, envs, floors, ["dqn"])
+    assert draw_across(deep.DEEP, one_method, tmp_path / "t", tmp_path / "f") == (None, {})
+    alone = deep.aggregate_section(_findings({"dqn-CartPole-v1": runs["dqn-CartPole-v1"]}, ["CartPole-v1"]))
     assert alone.figures == []
     assert "two or more" in alone.paragraphs[0]
 

@@ -135,9 +135,12 @@ def test_bad_deep_configurations_name_the_field(fields, named):
 def test_without_jax_the_deep_study_says_how_to_install_it(monkeypatch, tmp_path):
     import rlcompare.studies
 
-    for name in [m for m in sys.modules if m.startswith(("rlcompare.deep", "rlcompare.studies.deep"))]:
+    needing_jax = ("deep", "minatar", "paired", "paired_report", "seed_blocks")
+    for name in [m for m in sys.modules if m.startswith(("rlcompare.deep", *(f"rlcompare.studies.{study}"
+                                                                              for study in needing_jax)))]:
         monkeypatch.delitem(sys.modules, name)
-    monkeypatch.delattr(rlcompare.studies, "deep", raising=False)
+    for study in needing_jax:
+        monkeypatch.delattr(rlcompare.studies, study, raising=False)
     monkeypatch.setitem(sys.modules, "jax", None)
     result = CliRunner().invoke(app, ["reproduce", "deep", "--out", str(tmp_path / "x")])
     assert result.exit_code == 2

@@ -22,8 +22,8 @@ from rlcompare.cli import app  # noqa: E402
 from rlcompare.deep import float64  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
-from rlcompare.studies.deep import random_returns  # noqa: E402
 from rlcompare.studies.minatar import plan_of  # noqa: E402
+from rlcompare.studies.paired import random_returns  # noqa: E402
 from rlcompare.studies.paper_report import CLAIMS as PAPER_CLAIMS  # noqa: E402
 from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 
@@ -197,19 +197,22 @@ def test_every_method_trains_with_its_minatar_preset_when_asked():
     assert {c.env for c in configs.values()} == {"MinAtar/Seaquest-v0"}
 
 
-def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path, monkeypatch):
-    from rlcompare.experiment.backends import LocalBackend
-    from rlcompare.studies import minatar as minatar_study
+def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path):
+    import dataclasses
 
-    monkeypatch.setattr(minatar_study, "VMAP_WIDTH", 1)  # two seeds: two blocks, each its own task
+    from rlcompare.experiment.backends import LocalBackend
+    from rlcompare.studies.paired import reproduce
+    from rlcompare.studies.seed_blocks import seed_blocks
+
     plan = plan_of(MinAtarOptions(seeds=2, games="breakout", steps=40960, methods="pqn_q_lambda"))
-    assert [b.seeds for b in minatar_study.seed_blocks(plan.configs()["pqn_q_lambda-breakout"])] == [(0,), (1,)]
-    whole = list(minatar_study.reproduce(tmp_path / "whole", plan))
-    tasks = list(minatar_study.reproduce(tmp_path / "tasks", plan, backend=LocalBackend(2)))
+    plan = dataclasses.replace(plan, vmap_width=1)  # two seeds: two blocks, each its own task
+    assert [b.seeds for b in seed_blocks(plan.configs()["pqn_q_lambda-breakout"])] == [(0,), (1,)]
+    whole = list(reproduce(tmp_path / "whole", "minatar", plan))
+    tasks = list(reproduce(tmp_path / "tasks", "minatar", plan, backend=LocalBackend(2)))
     assert [(name, reused) for name, _, reused in tasks] == [("pqn_q_lambda-breakout", False)]
     assert tasks[0][1].meta["seeds"] == whole[0][1].meta["seeds"] == [0, 1]
     assert_same_runs(tmp_path / "tasks", tmp_path / "whole", ["pqn_q_lambda-breakout"])
-    again = list(minatar_study.reproduce(tmp_path / "tasks", plan, backend=LocalBackend(2)))
+    again = list(reproduce(tmp_path / "tasks", "minatar", plan, backend=LocalBackend(2)))
     assert [(name, reused) for name, _, reused in again] == [("pqn_q_lambda-breakout", True)]
 
 
@@ -246,21 +249,15 @@ def _results_with_finals(method: str, env: str, finals: np.ndarray):
     from rlcompare.deep.results import DeepResults
 
     seeds = tuple(range(len(finals)))
+    episodes = pd.DataFrame({"seed": seeds, "return": 0.0})
     evaluations = pd.DataFrame({"seed": seeds, "round": 0, "after_step": 100, "return": finals,
                                 "length": 10, "terminated": True})
-    return DeepResults(DeepConfig(algorithm=method, env=env, seeds=seeds), pd.DataFrame(), evaluations, {}, {})
+    return DeepResults(DeepConfig(algorithm=method, env=env, seeds=seeds), episodes, evaluations, {}, {})
 
 
 def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_the_games():
-    from rlcompare.studies.minatar import (
-        MARGIN,
-        OVERALL_MARGIN,
-        answer,
-        comparisons,
-        normalised,
-        normalised_curves,
-        verdict_table,
-    )
+    from rlcompare.studies.minatar import MARGIN, MINATAR, OVERALL_MARGIN, by_game
+    from rlcompare.studies.paired_report import across, answer, judged, verdict_table
 
     rng = np.random.default_rng(0)
     floors = {"MinAtar/Breakout-v0": 0.5, "MinAtar/Asterix-v0": 1.0}
@@ -269,13 +266,13 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
               ("pqn_sarsa_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8),
               ("pqn_q_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8)}
     runs = {f"{m}-{e}": _results_with_finals(m, e, f) for (m, e), f in finals.items()}
-    scores = normalised(runs, floors)
-    curves = normalised_curves(runs, floors)
-    for method, values in scores.items():  # the curves on the same scales: their last round is the final score
-        np.testing.assert_array_equal(curves[method][..., -1], values)
-    compared = comparisons(runs, ["breakout", "asterix"], scores)
-    verdicts = verdict_table(compared)
-    assert verdicts["game"].tolist() == ["Breakout", "Asterix", "overall (normalised)"]
+    spread = across(runs, list(floors), floors, MINATAR.method_order)
+    assert spread.envs == ["MinAtar/Breakout-v0", "MinAtar/Asterix-v0"]
+    for method, values in spread.scores.items():  # the curves on the same scales: their last round is the final
+        np.testing.assert_array_equal(spread.curves[method][..., -1], values)
+    compared = judged(MINATAR, runs, {}, spread.scores)
+    verdicts = verdict_table(MINATAR, compared)
+    assert verdicts["game"].tolist() == ["Asterix", "Breakout", "overall (normalised)"]  # the games' order
     breakout_scale = finals[("pqn_sarsa_lambda", "MinAtar/Breakout-v0")].mean() - 0.5
     asterix_scale = max(finals[(m, "MinAtar/Asterix-v0")].mean() for m in ("pqn_sarsa_lambda", "pqn_q_lambda")) - 1
     by_hand = np.mean([(finals[("pqn_sarsa_lambda", e)] - finals[("pqn_q_lambda", e)]) / scale
@@ -286,15 +283,16 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
     p_values = verdicts["p (Holm)"].to_numpy()
     # every Breakout seed on one side: 2 / 2^8, the second smallest of the family's six p-values (three directions,
     # three equivalences; Asterix's equivalence within ±1 is the smallest), so Holm multiplies it by 5
-    assert p_values[0] == pytest.approx(5 * 2 / 2**8)
-    assert verdicts["verdict"].iloc[1] == f"equivalent (within ±{MARGIN:g})"
-    assert verdicts["p equivalent (Holm)"].iloc[1] < 0.05
-    assert verdicts["verdict"].iloc[0].startswith("on-policy")
+    assert p_values[1] == pytest.approx(5 * 2 / 2**8)
+    assert verdicts["verdict"].iloc[0] == f"equivalent (within ±{MARGIN:g})"
+    assert verdicts["p equivalent (Holm)"].iloc[0] < 0.05
+    assert verdicts["verdict"].iloc[1].startswith("on-policy")
     assert verdicts["verdict"].iloc[2].startswith("on-policy")
-    games, overall = answer(compared, 8)
+    games, overall = answer(by_game(compared), 8)
     assert games.startswith("On-policy SARSA(λ) against off-policy Q(λ), final greedy return per episode, 8 paired "
-                            "seeds: SARSA(λ) scores on Breakout 4.")
-    assert "; on-policy better); on Asterix " in games
+                            "seeds: SARSA(λ) scores on Asterix ")
+    assert "); on Breakout 4." in games
+    assert games.endswith("; on-policy better).")
     assert overall.startswith(f"Over the games, in scores normalised between the random policy (0) and the best "
                               f"method here (1), SARSA(λ) scores {by_hand:.1f} more (95% interval")
 

@@ -1,0 +1,244 @@
+"""The paired study: the paper's question, on-policy against off-policy target, asked with networks.
+
+SARSA(λ) and Q(λ) in one PQN-style engine whose only switch is the bootstrap (purejaxql's ``pqn_gymnax.py``), on
+paired seeds, beside any other deep method. Each set of environments it is asked on is a configuration of it:
+classic control with the tabular pair beside (:mod:`rlcompare.studies.deep`), MinAtar's games
+(:mod:`rlcompare.studies.minatar`). A configuration gives a :class:`PairedStudy` (environments, margins, labels),
+a :class:`Plan` from its options, and the registry's ``run`` (:func:`train`) and ``report``
+(:func:`rlcompare.studies.paired_report.findings`, then sections of its own). Here, written once: a plan trained
+or loaded, on this machine or as a backend's tasks, and what a report reads of each run (greedy curves, each
+seed's returns, a random policy's).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.deep import float64
+from rlcompare.deep.config import DeepConfig
+from rlcompare.deep.envs import jax_env
+from rlcompare.deep.results import DeepResults
+from rlcompare.deep.rollout import evaluate
+from rlcompare.experiment import store
+from rlcompare.experiment.engines import load_run
+from rlcompare.experiment.runner import run_or_load
+from rlcompare.stats.compare import Paired
+from rlcompare.stats.metrics import returns_per_seed
+from rlcompare.studies.interface import UI, Advance
+from rlcompare.studies.seed_blocks import Backend, trained_on
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
+from rlcompare.validation import ConfigError
+
+PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
+"""The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
+OVERALL = "overall (normalised)"
+"""The comparison of each seed's normalised score averaged over the environments."""
+VMAP_WIDTH = 10
+"""Seeds trained side by side in one program, at most."""
+RANDOM_EPISODES = 200
+"""Episodes of the uniformly random policy per environment, in the port: the floor (0) of the normalised scores."""
+
+
+class Key(NamedTuple):
+    """What one paired comparison compares: on an environment (or :data:`OVERALL`), in an engine, one metric."""
+
+    env: str
+    engine: str = "network"
+    metric: str = "greedy_return"
+
+
+def no_others(env: str, beside: Mapping[str, Results]) -> dict[Key, Paired]:
+    return {}
+
+
+@dataclass(frozen=True)
+class PairedStudy:
+    """A configuration of the study: its environments, margins, and what its tables and figures call them."""
+
+    name: str
+    """``rlcompare reproduce NAME``: the owner of its directory and the prefix of its tables."""
+    envs: tuple[str, ...]
+    """Every environment it can run, in the order its report shows them."""
+    margins: Mapping[str, float]
+    """Per environment, the difference of mean return that counts as none, declared before any run
+    (:mod:`rlcompare.studies.margins`)."""
+    columns: Callable[[Key], dict[str, str]]
+    """The verdict table's first columns, naming what a row compares."""
+    label: Callable[[str], str]
+    """A method's name in the aggregates' tables and figures."""
+    method_order: tuple[str, ...]
+    """The order of the methods in the aggregates."""
+    tasks: str
+    """What rliable's captions call the environments."""
+    digits: int = 2
+    """Digits of the difference in the verdict table."""
+    metrics: tuple[str, ...] = ("greedy_return",)
+    """The columns of :func:`per_seed` compared on the pair, in each environment."""
+    overall_margin: float | None = None
+    """With a margin, the pair is compared over two or more environments too (:data:`OVERALL`)."""
+    prefix: str = ""
+    """The aggregates' figures' file names begin with it."""
+    others: Callable[[str, Mapping[str, Results]], dict[Key, Paired]] = no_others
+    """The comparisons on an environment of another engine's runs beside the networks, after the pair's (the deep
+    study's tabular pair)."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a configuration of the study trains: each method on each environment on the same seeds, and how long;
+    and, trained first, another engine's configurations beside the networks (the deep study's tabular pair)."""
+
+    seeds: tuple[int, ...]
+    methods: tuple[str, ...]
+    envs: dict[str, str]
+    """Each environment by the name its runs carry (``{method}-{name}``)."""
+    steps: int | None
+    """Environment steps of every training in place of each preset's (None: the presets')."""
+    workers: int
+    """Trainings at once on this machine (each one's results depend on its configuration alone)."""
+    eval_rounds: int = DeepConfig.eval_rounds
+    """Greedy evaluations over each training."""
+    eval_episodes: int = DeepConfig.eval_episodes
+    vmap_width: int = VMAP_WIDTH
+    """Seeds trained side by side, at most: a seed's numbers depend on it (:mod:`rlcompare.deep.config`)."""
+    beside: dict[str, ExperimentConfig] = field(default_factory=dict)
+    """The other engine's configurations, by run name."""
+
+    def configs(self) -> dict[str, DeepConfig]:
+        """Each method on each environment with its preset for it."""
+        overrides = {} if self.steps is None else {"total_steps": self.steps}
+        return {f"{method}-{name}": DeepConfig(algorithm=method, env=env, seeds=self.seeds, hyperparameters=overrides,
+                                               vmap_width=min(len(self.seeds), self.vmap_width),
+                                               eval_rounds=self.eval_rounds, eval_episodes=self.eval_episodes)
+                for name, env in self.envs.items() for method in self.methods}
+
+
+def checked(plan: Plan) -> Plan:
+    """``plan``, its configurations built once to check them; a method's ``total_steps`` refused is named as the
+    study's ``steps`` option, the one its user gave."""
+    try:
+        plan.configs()
+    except ConfigError as error:
+        raise ConfigError("steps" if error.field_name == "total_steps" else error.field_name, error.value,
+                          error.allowed) from None
+    return plan
+
+
+def reproduce(out: Path, study: str, plan: Plan, *, progress: Advance | None = None, force: bool = False,
+              backend: Backend | None = None) -> Iterator[tuple[str, DeepResults | Results, bool]]:
+    """Train (or load, where finished) the configurations beside the networks, then every network's, into
+    ``out``: on this machine, or with ``backend`` (connected) as tasks, a block of seeds each
+    (:mod:`rlcompare.studies.seed_blocks`)."""
+    def advance(task: str) -> Callable[[int], None] | None:
+        return None if progress is None else (lambda n: progress(task, n))
+
+    if plan.beside:
+        yield from run_or_load(Path(out), plan.beside, study=study, progress=advance("tabular"), force=force)
+    if backend is None:
+        yield from run_or_load(Path(out), plan.configs(), study=study, progress=advance("deep"), force=force,
+                               workers=plan.workers)
+    else:
+        yield from trained_on(backend, Path(out), study, plan.configs(), progress=advance("deep"), force=force)
+
+
+def train(out: Path, study: str, plan: Plan, ui: UI, *, force: bool = False, backend: Backend | None = None
+          ) -> dict[str, Any]:
+    """:func:`reproduce`, telling ``ui`` of each configuration as it finishes."""
+    groups: dict[str, Mapping[str, DeepConfig | ExperimentConfig]] = {"tabular": plan.beside, "deep": plan.configs()}
+    runs = {}
+    with ui.tasks({task: sum(c.progress_total for c in configs.values())
+                   for task, configs in groups.items() if configs}) as advance:
+        for name, results, reused in reproduce(out, study, plan, progress=advance, force=force, backend=backend):
+            runs[name] = results
+            ui.done(name, results, reused)
+    return runs
+
+
+# --- what a report computes from the run directories ------------------------------------------------------
+
+def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], list[str]]:
+    """The finished runs of a study directory, deep and tabular, and what is missing or broken."""
+    deep: dict[str, DeepResults] = {}
+    tabular: dict[str, Results] = {}
+    problems = []
+    for run_dir in sorted(p for p in Path(out).iterdir() if p.is_dir() and store.owner_of(p) == store.RUN):
+        try:
+            results = load_run(run_dir)
+            if isinstance(results, Results):
+                tabular[run_dir.name] = results
+            else:
+                deep[run_dir.name] = results
+        except (store.StoreError, ValueError) as error:
+            problems.append(str(error))
+    return deep, tabular, problems
+
+
+def eval_curves(results: DeepResults) -> tuple[np.ndarray, np.ndarray]:
+    """``(after_step, (seeds, rounds) mean greedy return)``."""
+    frame = results.evaluations.groupby(["seed", "round"], sort=True)["return"].mean()
+    curves = frame.to_numpy().reshape(len(results.seeds), -1)
+    steps = np.sort(results.evaluations["after_step"].unique())
+    return steps, curves
+
+
+def final_returns(results: DeepResults) -> np.ndarray:
+    """Each seed's mean greedy return in the last evaluation round."""
+    return eval_curves(results)[1][:, -1]
+
+
+def per_seed(results: DeepResults) -> pd.DataFrame:
+    """One row per seed: :func:`~rlcompare.stats.metrics.returns_per_seed` (behaviour, final greedy return, area
+    under the greedy curve)."""
+    training = results.episodes.groupby("seed", sort=False)["return"]
+    return returns_per_seed(results.seeds, [training.get_group(seed).to_numpy() for seed in results.seeds],
+                            eval_curves(results)[1])
+
+
+def seconds_per_step(results: DeepResults) -> float:
+    """Wall-clock seconds per environment step of one seed: its group of ``vmap_width`` seeds trains side by side
+    at a steady pace, so a seed reached step ``k`` about ``k`` times this after its group began."""
+    groups = -(-len(results.seeds) // results.config.vmap_width)
+    return float(results.meta["timings"]["wall_seconds"] / (groups * results.meta["timings"]["training_steps"]))
+
+
+def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0) -> np.ndarray:
+    """Returns of the uniformly random policy in the port (``evaluate`` at ε = 1), from ``jax.random.key(seed)``.
+    JAX is imported here, after :mod:`rlcompare.deep` has said how to install it where it is missing."""
+    import jax
+    import jax.numpy as jnp
+
+    env = jax_env(env_name)
+
+    def no_op(params: None, observations: jax.Array) -> jax.Array:
+        return jnp.zeros(observations.shape[0], jnp.int32)
+
+    @float64
+    def play() -> np.ndarray:
+        return np.asarray(jax.jit(lambda key: evaluate(env, no_op, None, key, episodes, epsilon=1.0)[0])(
+            jax.random.key(seed)))
+
+    return play()
+
+
+@functools.cache
+def random_floor(env_name: str) -> float:
+    """The mean of :func:`random_returns`, once per process."""
+    return float(random_returns(env_name).mean())
+
+
+def run_of(runs: Mapping[str, DeepResults], env: str, method: str) -> DeepResults | None:
+    return next((r for r in runs.values() if r.config.env == env and r.config.algorithm == method), None)
+
+
+def pair_of(runs: Mapping[str, DeepResults], env: str) -> tuple[DeepResults, DeepResults] | None:
+    """The on- and off-policy runs of :data:`PAIR` on ``env``, where both ran on the same seeds."""
+    on, off = (run_of(runs, env, method) for method in PAIR)
+    return (on, off) if on is not None and off is not None and on.seeds == off.seeds else None

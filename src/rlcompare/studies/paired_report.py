@@ -1,0 +1,242 @@
+"""What every configuration of the paired study (:mod:`rlcompare.studies.paired`) reports, computed once.
+
+Every paired comparison judged as one family (:func:`~rlcompare.stats.compare.judge_family`: directions and
+equivalences Holm-adjusted together), the verdict table, the answer in words; the deep methods' final returns
+normalised per environment between a uniformly random policy (0) and the best method here (1), as rliable's
+aggregates take them (Agarwal et al. 2021, "Deep Reinforcement Learning at the Edge of the Statistical
+Precipice"); the learning curves and the seed-by-seed differences of the pair.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.results import DeepResults
+from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
+from rlcompare.report.findings import gap_and_interval
+from rlcompare.report.page import plain_number, save_figure, write_table
+from rlcompare.report.plots import plot_paired_differences, plot_return_curves
+from rlcompare.stats.aggregates import by_method, score_scales
+from rlcompare.stats.compare import Judged, Paired, compare_paired, judge_family
+from rlcompare.studies.paired import (
+    OVERALL,
+    PAIR,
+    Key,
+    PairedStudy,
+    eval_curves,
+    final_returns,
+    load_runs,
+    pair_of,
+    per_seed,
+    random_floor,
+    run_of,
+    seconds_per_step,
+)
+from rlcompare.tabular.results import Results
+
+TARGETS = ("on-policy", "off-policy")
+"""How the verdicts name the better side of the pair."""
+
+
+@dataclass(frozen=True)
+class Across:
+    """The deep methods over the environments, as rliable's aggregates take them: per method, ``scores``
+    ``(envs, seeds)`` final greedy returns and ``curves`` ``(envs, seeds, rounds)`` greedy returns at each
+    evaluation round, normalised per environment between ``floors`` (0) and the best method's mean final return
+    (1), with the curves' ``x`` and what it is."""
+
+    envs: list[str]
+    floors: dict[str, float]
+    scores: dict[str, np.ndarray]
+    curves: dict[str, np.ndarray]
+    x: np.ndarray
+    xlabel: str
+
+
+def across(runs: Mapping[str, DeepResults], envs: Sequence[str], floors: dict[str, float], methods: Sequence[str]
+           ) -> Across:
+    """Each of ``methods``' runs on every one of ``envs`` that two or more methods ran (a method missing one is
+    left out), normalised between ``floors`` (the random policy's mean return) and the best mean final greedy
+    return of the methods kept. The curves are drawn against environment steps where every training evaluated at
+    the same steps, else against the share of each training's own steps (budgets may differ by method)."""
+    finals: dict[str, dict[str, np.ndarray]] = {}
+    rounds: dict[str, dict[str, np.ndarray]] = {}
+    steps: dict[tuple[str, str], np.ndarray] = {}
+    for env in envs:
+        for method in methods:
+            results = run_of(runs, env, method)
+            if results is not None:
+                steps[env, method], curves = eval_curves(results)
+                finals.setdefault(env, {})[method] = curves[:, -1]
+                rounds.setdefault(env, {})[method] = curves
+    kept = by_method(finals)
+    kept_envs = [env for env, ran in finals.items() if len(ran) > 1]
+    finals = {env: {method: finals[env][method] for method in kept} for env in kept_envs}  # 1: the best of these
+    scales = score_scales(finals, floors)
+    scores = by_method(finals, scales)
+    drawn_curves = {method: values for method, values in by_method(rounds, scales).items() if method in scores}
+    drawn = [steps[env, method] for env in kept_envs for method in drawn_curves]
+    x, xlabel = (drawn[0], "environment steps") if drawn else (np.zeros(0), "")
+    if any(not np.array_equal(s, x) for s in drawn):
+        x, xlabel = x / x[-1], "share of each training's environment steps"
+        if any(s.shape != x.shape or not np.allclose(s / s[-1], x) for s in drawn):
+            drawn_curves, x, xlabel = {}, np.zeros(0), ""
+    return Across(kept_envs, floors, scores, drawn_curves, x, xlabel)
+
+
+def judged(study: PairedStudy, runs: Mapping[str, DeepResults], beside: Mapping[str, Results],
+           scores: Mapping[str, np.ndarray]) -> dict[Key, Judged]:
+    """Per environment, :data:`PAIR` on paired seeds (each of the study's metrics), then the study's ``others``
+    (of the runs ``beside`` the networks); over two or more environments, where the study declares a margin for
+    it, the pair overall (each seed's normalised score in ``scores`` averaged over the environments). All one
+    family (:func:`~rlcompare.stats.compare.judge_family`: directions and equivalences Holm-adjusted together)."""
+    found: dict[Key, Paired] = {}
+    compared = 0
+    for env in study.envs:
+        pair = pair_of(runs, env)
+        if pair is not None:
+            on, off = (per_seed(results) for results in pair)
+            found |= {Key(env, metric=m): compare_paired(on[m].to_numpy(), off[m].to_numpy(), study.margins[env])
+                      for m in study.metrics}
+            compared += 1
+        found |= study.others(env, beside)
+    on_scores, off_scores = (scores.get(method) for method in PAIR)
+    if (study.overall_margin is not None and compared > 1 and on_scores is not None and off_scores is not None
+            and on_scores.shape == off_scores.shape):
+        found[Key(OVERALL)] = compare_paired(on_scores.mean(axis=0), off_scores.mean(axis=0), study.overall_margin)
+    family: dict[Hashable, Paired] = {key: paired for key, paired in found.items()}
+    judgements = judge_family(family, TARGETS)
+    return {key: judgements[key] for key in found}
+
+
+def verdict_table(study: PairedStudy, compared: Mapping[Key, Judged]) -> pd.DataFrame:
+    """One row per comparison, with the difference each row's seeds could detect."""
+    return pd.DataFrame([{
+        **study.columns(key), "on - off (mean, 95% CI)": j.paired.difference.format(study.digits),
+        "P(on > off)": j.paired.improvement.format(2), "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence,
+        "detectable (80% power)": plain_number(j.detectable), "verdict": j.label,
+    } for key, j in compared.items()])
+
+
+def short_label(method: str) -> str:
+    """``SARSA(λ)`` for ``SARSA(λ), network``, where every method has a network."""
+    return DEEP_METHODS[method].label.removesuffix(", network")
+
+
+def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games") -> list[str]:
+    """The answer in plain words, from :func:`judged` by each row's name: a sentence for the environments, one for
+    the comparison :data:`OVERALL`."""
+    on, off = (short_label(method) for method in PAIR)
+    each = []
+    for name, j in compared.items():
+        if name != OVERALL:
+            gap, interval = gap_and_interval(j.paired.difference)
+            each.append(f"on {name} {gap} ({interval}; {j.label})")
+    sentences = [f"On-policy {on} against off-policy {off}, final greedy return per episode, {seeds} paired seeds: "
+                 f"{on} scores {'; '.join(each)}."] if each else []
+    if OVERALL in compared:
+        paired, label = compared[OVERALL].paired, compared[OVERALL].label
+        gap, interval = gap_and_interval(paired.difference)
+        sentences.append(f"Over {over}, in scores normalised between the random policy (0) and the best method "
+                         f"here (1), {on} scores {gap} ({interval}; {label}).")
+    return sentences
+
+
+@dataclass(frozen=True)
+class Findings:
+    """What every configuration's report shows, from its run directories: the runs (and those beside the
+    networks), what could not be read, the environments run in the study's order, the comparisons judged, the
+    aggregates over the environments (two or more run) and the tables written, by name."""
+
+    runs: dict[str, DeepResults]
+    beside: dict[str, Results]
+    problems: list[str]
+    envs: list[str]
+    judged: dict[Key, Judged]
+    verdicts: pd.DataFrame
+    across: Across | None
+    aggregates: Aggregates | None
+    files: dict[str, str]
+
+
+def labelled(study: PairedStudy, scores: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    return {study.label(method): values for method, values in scores.items()}
+
+
+def findings(out: Path, study: PairedStudy) -> Findings:
+    """``out``'s runs loaded, the comparisons judged (:func:`judged`) and rliable's aggregates drawn
+    (:func:`draw_across`); the verdicts written into ``out / "tables"`` as ``{study.name}_verdicts``."""
+    runs, beside, problems = load_runs(out)
+    envs = [env for env in study.envs if any(r.config.env == env for r in runs.values())]
+    floors = {env: random_floor(env) for env in envs} if len(envs) > 1 else {}
+    spread = across(runs, envs, floors, study.method_order) if len(envs) > 1 else None
+    compared = judged(study, runs, beside, spread.scores if spread else {})
+    verdicts = verdict_table(study, compared)
+    written = write_table(verdicts, out / "tables", f"{study.name}_verdicts")
+    aggregates, files = draw_across(study, spread, out / "tables", out / "figures") if spread else (None, {})
+    return Findings(runs, beside, problems, envs, compared, verdicts, spread, aggregates,
+                    {"verdicts": written, **files})
+
+
+def draw_across(study: PairedStudy, spread: Across, tables: Path, figures: Path
+                ) -> tuple[Aggregates | None, dict[str, str]]:
+    """rliable's aggregates of ``spread`` drawn into ``figures`` and written into ``tables``
+    (``{study.name}_aggregates``, ``_improvement``), with those files by name; none unless two or more methods
+    ran on two or more environments alike."""
+    if len(spread.envs) < 2 or len(spread.scores) < 2:
+        return None, {}
+    aggregates = draw_aggregates(labelled(study, spread.scores), figures, tasks=study.tasks,
+                                 curves=labelled(study, spread.curves), x=spread.x, curve_xlabel=spread.xlabel,
+                                 prefix=study.prefix)
+    return aggregates, {name: write_table(frame, tables, f"{study.name}_{name}") for name, frame in (
+        ("aggregates", aggregates.intervals), ("improvement", aggregates.improvements))}
+
+
+def curves_figure(runs: Mapping[str, DeepResults], env: str, against: str) -> Figure:
+    """Greedy return against environment steps (``steps``) or wall-clock seconds (``seconds``), mean over seeds
+    with a 95% bootstrap band, one line per method."""
+    figure = Figure(figsize=(7, 4.2))
+    ax = figure.subplots()
+    for results in (r for r in runs.values() if r.config.env == env):
+        steps, curves = eval_curves(results)
+        x = steps if against == "steps" else steps * seconds_per_step(results)
+        plot_return_curves(ax, x, {DEEP_METHODS[results.config.algorithm].label: curves}, window=1,
+                           ylabel="greedy return")
+    ax.set_xlabel("environment steps" if against == "steps" else "seconds of training")
+    ax.set_title(env)
+    return figure
+
+
+def curves_drawn(runs: Mapping[str, DeepResults], env: str, against: str, path: Path, words: str
+                 ) -> tuple[str, str]:
+    """:func:`curves_figure` saved at ``path``, and its caption (``words``: what it is drawn against)."""
+    return (save_figure(curves_figure(runs, env, against), path),
+            f"{env}: greedy return against {words} (mean over seeds, 95% band)")
+
+
+def pair_finals(runs: Mapping[str, DeepResults], envs: Sequence[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per environment where :data:`PAIR` ran on the same seeds, the final greedy returns of each."""
+    pairs = {env: pair_of(runs, env) for env in envs}
+    return {env: (final_returns(pair[0]), final_returns(pair[1])) for env, pair in pairs.items() if pair is not None}
+
+
+def difference_figure(pairs: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> Figure | None:
+    """The answer in one picture: per environment (by its name), SARSA(λ) minus Q(λ) seed by seed, from ``pairs``
+    of their final greedy returns, with the mean and its interval."""
+    if not pairs:
+        return None
+    figure = Figure(figsize=(3.4 * len(pairs) + 1, 4), layout="constrained")
+    axes = figure.subplots(1, len(pairs), squeeze=False)[0]
+    for ax, (name, (on, off)) in zip(axes, pairs.items(), strict=True):
+        plot_paired_differences(ax, {name: on - off}, {name: f"{name}\n{len(on)} seeds"})
+        ax.set_ylabel("SARSA(λ) - Q(λ), final greedy return")
+    figure.suptitle("SARSA(λ) minus Q(λ) on the same seeds:\neach dot one seed, the bar the mean with its 95% "
+                    "BCa interval")
+    return figure
