@@ -183,13 +183,14 @@ def test_a_run_written_before_a_setting_was_added_loads_when_the_default_keeps_w
 def test_the_study_killed_with_sigkill_resumes_to_the_same_numbers(study, tmp_path):
     """``reproduce deep`` killed once one run of a network finished: the same command loads the finished runs,
     trains the rest, and every run equals the uninterrupted study's, episode by episode and parameter by
-    parameter; its verdicts are the same bytes."""
+    parameter; its verdicts are the same bytes. It trains one network at a time, so the second is still compiling
+    or training when the first is seen finished."""
     import subprocess
 
     from test_kills import ENV, assert_same_runs, finished_runs, kill_when, start
 
     killed, log = tmp_path / "killed", tmp_path / "killed.log"
-    command = [sys.executable, "-m", "rlcompare.cli", *TINY, "--out", str(killed)]
+    command = [sys.executable, "-m", "rlcompare.cli", *TINY, "--workers", "1", "--out", str(killed)]
     kill_when(start(command, log), lambda: any(name.startswith("pqn") for name in finished_runs(killed)), log)
     finished = finished_runs(killed)
     assert 1 <= len(finished) < 4, finished
@@ -201,3 +202,4 @@ def test_the_study_killed_with_sigkill_resumes_to_the_same_numbers(study, tmp_pa
     assert_same_runs(killed, study[0], runs)
     for table in ("deep_verdicts.csv",):
         assert (killed / "tables" / table).read_bytes() == (study[0] / "tables" / table).read_bytes()
+
