@@ -22,6 +22,7 @@ from rlcompare.deep.train import compiled_program
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run as deep_run
+from rlcompare.studies.interface import UI
 from rlcompare.validation import ConfigError
 
 TINY = ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50", "--methods",
@@ -203,3 +204,102 @@ def test_the_study_killed_with_sigkill_resumes_to_the_same_numbers(study, tmp_pa
     for table in ("deep_verdicts.csv",):
         assert (killed / "tables" / table).read_bytes() == (study[0] / "tables" / table).read_bytes()
 
+
+# --- the paired study written once: a third configuration, made here, trains and reports through the same code ---
+
+def _third_study():
+    """A configuration unlike deep's and MinAtar's: runs named apart from their environments, the environments in
+    an order of its own, one metric, a comparison of its own after the pair's in each environment, an overall
+    row, its own labels, digits and prefix."""
+    from rlcompare.stats.compare import compare_paired
+    from rlcompare.studies.paired import Key, PairedStudy
+
+    def others(env, beside):
+        return {Key(env, "constant"): compare_paired(np.array([1.0, 2.0, 3.0]), np.array([0.0, 1.0, 2.0]), 0.5)}
+
+    return PairedStudy("third", ("Acrobot-v1", "CartPole-v1"), {"Acrobot-v1": 25.0, "CartPole-v1": 25.0},
+                       lambda key: {"task": key.env, "engine": key.engine}, label=str.upper,
+                       method_order=("pqn_sarsa_lambda", "pqn_q_lambda"), tasks="tasks", digits=3,
+                       metrics=("greedy_auc",), overall_margin=0.05, prefix="third-", others=others)
+
+
+class _Recorded(UI):
+    """A UI that keeps each finished configuration's name and whether it was loaded."""
+
+    def __init__(self):
+        self.finished = []
+
+    def done(self, name, results, reused):
+        self.finished.append((name, reused))
+
+
+def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_the_same_code(study, tmp_path):
+    from rlcompare.studies.paired import OVERALL, PAIR, Key, Plan, final_returns, per_seed, run_of, train
+    from rlcompare.studies.paired_report import answer, difference_figure, findings, pair_finals
+
+    third, out = _third_study(), tmp_path / "third"
+    plan = Plan((0, 1), PAIR, {"balance": "CartPole-v1", "swing": "Acrobot-v1"}, 41000, workers=2)
+    names = sorted(f"{method}-{name}" for method in PAIR for name in ("balance", "swing"))
+    for reused in (False, True):
+        recorded = _Recorded()
+        train(out, "third", plan, recorded)
+        assert sorted(recorded.finished) == [(name, reused) for name in names]
+
+    found = findings(out, third)
+    assert found.envs == ["Acrobot-v1", "CartPole-v1"]  # the study's order, not the runs'
+    assert list(found.judged) == [Key("Acrobot-v1", metric="greedy_auc"), Key("Acrobot-v1", "constant"),
+                                  Key("CartPole-v1", metric="greedy_auc"), Key("CartPole-v1", "constant"),
+                                  Key(OVERALL)]
+    written = pd.read_csv(out / "tables" / "third_verdicts.csv")
+    assert written.columns[:3].tolist() == ["task", "engine", "on - off (mean, 95% CI)"]
+    assert written["on - off (mean, 95% CI)"].str.match(r"-?\d+\.\d{3} \[").all()
+    # the same runs give the deep study's numbers: CartPole's trainings are its configurations
+    deep = pd.read_csv(study[0] / "tables" / "deep_verdicts.csv").set_index("metric")
+    cartpole = found.judged[Key("CartPole-v1", metric="greedy_auc")].paired
+    assert cartpole.difference.format(1) == deep.loc["area under the greedy curve", "on - off (mean, 95% CI)"]
+    on, off = (per_seed(found.runs[f"{m}-swing"])["greedy_auc"].to_numpy() for m in PAIR)
+    assert found.judged[Key("Acrobot-v1", metric="greedy_auc")].paired.difference.value == pytest.approx(
+        np.mean(on - off))
+
+    across = found.across
+    assert across is not None
+    assert across.envs == found.envs
+    assert list(across.scores) == list(third.method_order)
+    for index, env in enumerate(across.envs):  # the best method's mean is 1 where it beat the random policy
+        raw, floor = max(final_returns(run_of(found.runs, env, m)).mean() for m in PAIR), across.floors[env]
+        best = max(scores[index].mean() for scores in across.scores.values())
+        assert best == pytest.approx(1.0 if raw > floor else raw - floor)
+    overall = found.judged[Key(OVERALL)].paired
+    assert overall.difference.value == pytest.approx(np.mean(
+        across.scores[PAIR[0]].mean(axis=0) - across.scores[PAIR[1]].mean(axis=0)))
+    assert found.files == {name: f"tables/third_{name}.csv" for name in ("verdicts", "aggregates", "improvement")}
+    aggregates = pd.read_csv(out / "tables" / "third_aggregates.csv")
+    assert aggregates["method"].tolist() == ["PQN_SARSA_LAMBDA", "PQN_Q_LAMBDA"]
+    assert aggregates["tasks"].tolist() == [2, 2]
+    assert all(path.startswith("figures/third-") and (out / path).is_file() for path, _ in found.aggregates.figures)
+
+    sentences = answer({key.env: j for key, j in found.judged.items() if key.engine == "network"}, 2, "the tasks")
+    assert sentences[0].startswith("On-policy SARSA(λ) against off-policy Q(λ), final greedy return per episode, 2 "
+                                   "paired seeds: SARSA(λ) scores on Acrobot-v1 ")
+    assert sentences[1].startswith("Over the tasks, in scores normalised")
+    pairs = pair_finals(found.runs, found.envs)
+    assert list(pairs) == found.envs
+    assert len(difference_figure(pairs).axes) == 2
+
+
+def test_a_configuration_with_one_environment_has_no_aggregates_and_no_overall_row(study, tmp_path):
+    import shutil
+
+    from rlcompare.studies.paired import OVERALL, Key
+    from rlcompare.studies.paired_report import findings
+
+    out = tmp_path / "one"
+    for name in ("pqn_q_lambda-CartPole-v1", "pqn_sarsa_lambda-CartPole-v1"):
+        shutil.copytree(study[0] / name, out / name, ignore=shutil.ignore_patterns(".rlcompare.lock"))
+    found = findings(out, _third_study())
+    assert found.envs == ["CartPole-v1"]
+    assert (found.across, found.aggregates) == (None, None)
+    assert Key(OVERALL) not in found.judged
+    assert list(found.judged) == [Key("Acrobot-v1", "constant"),  # others are asked of every environment
+                                  Key("CartPole-v1", metric="greedy_auc"), Key("CartPole-v1", "constant")]
+    assert found.files == {"verdicts": "tables/third_verdicts.csv"}
