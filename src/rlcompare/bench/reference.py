@@ -1,12 +1,13 @@
 """The reference kernels: the yardstick of the benchmark's kernel rows.
 
 For each method, a kernel written by hand for tabular Mountain Car on the 20 x 20 grid and nothing else, with
-the dynamics, the grid and the update inline (the ε-greedy choice is :mod:`rlcompare.algorithms.policies`', a
-loop over one row). Each trains every run of ``w`` (runs, cells, actions) over the episodes of ``epsilons`` and
-keeps what rlcompare's records keep per episode (return and length); it draws from the same per-run streams
-(``rng[run, 0]`` resets, ``rng[run, 1]`` the agent's choices) in the same order, so its returns equal
-rlcompare's (tests/test_benchmark.py checks it). A row's ratio to its reference is what rlcompare's composition
-(environments, features and methods chosen by type, records, evaluation hooks) costs or saves.
+the dynamics, the grid and the update inline (the greedy choice, ties broken at random, is
+:mod:`rlcompare.algorithms.policies`', a loop over one row). Each trains every run of ``w`` (runs, cells, actions)
+over the episodes of ``epsilons`` and keeps what rlcompare's records keep per episode (return and length); it draws
+from the same per-run streams (``rng[run, 0]`` resets, ``rng[run, 1]`` the agent's choices) in the same order, so
+its returns equal rlcompare's (tests/test_benchmark.py checks it). A row's ratio to its reference is what
+rlcompare's composition (environments, features and methods chosen by type, records, evaluation hooks) costs or
+saves.
 
 The one-step methods share one loop whose rule is a constant each kernel passes, as the two λ methods share
 theirs: numba inlines the loop and the compiler drops the branches of the other rules.
@@ -19,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action
+from rlcompare.algorithms.policies import greedy_action, greedy_action_random_ties
 from rlcompare.compiled import njit
 from rlcompare.envs.discretize import UniformGrid
 from rlcompare.rng import next_double
@@ -66,19 +67,28 @@ def _start(rng: np.ndarray) -> tuple[float, float]:
 
 
 @njit(inline="always")
-def _expected_value(row: np.ndarray, epsilon: float) -> float:
-    """The ε-greedy policy's mean of ``row``, the greedy share split among tied maxima (Expected SARSA, 6.6)."""
-    n_actions = row.size
-    best, ties = row[0], 1
+def _epsilon_greedy(row: np.ndarray, epsilon: float, rng: np.ndarray) -> int:
+    """A uniform action with probability ε, else a greedy one, ties broken uniformly. The uniform draw is written
+    out: through :func:`~rlcompare.algorithms.policies.uniform_action` Q-Learning's kernel ran at half its speed."""
+    if next_double(rng) < epsilon:
+        return int(next_double(rng) * row.size)
+    return greedy_action_random_ties(row, rng)
+
+
+@njit(inline="always")
+def _expected_value(q: np.ndarray, s: int, epsilon: float) -> float:
+    """The ε-greedy policy's mean of ``q[s]``, the greedy share split among tied maxima (Expected SARSA, 6.6)."""
+    n_actions = q.shape[1]
+    best, ties = q[s, 0], 1
     for a in range(1, n_actions):
-        if row[a] > best:
-            best, ties = row[a], 1
-        elif row[a] == best:
+        if q[s, a] > best:
+            best, ties = q[s, a], 1
+        elif q[s, a] == best:
             ties += 1
     explore = epsilon / n_actions
     greedy, expected = explore + (1.0 - epsilon) / ties, 0.0
     for a in range(n_actions):
-        expected += (greedy if row[a] == best else explore) * row[a]
+        expected += (greedy if q[s, a] == best else explore) * q[s, a]
     return expected
 
 
@@ -89,49 +99,57 @@ def _act(q1: np.ndarray, q2: np.ndarray, s: int, both: np.ndarray, epsilon: floa
     if double:
         for a in range(both.size):
             both[a] = q1[s, a] + q2[s, a]
-        return epsilon_greedy_action(both, epsilon, rng)
-    return epsilon_greedy_action(q1[s], epsilon, rng)
+        return _epsilon_greedy(both, epsilon, rng)
+    return _epsilon_greedy(q1[s], epsilon, rng)
+
+
+@njit(inline="always")
+def _double_q_update(learner: np.ndarray, other: np.ndarray, s: int, action: int, s_next: int, terminated: bool,
+                     alpha: float, gamma: float) -> None:
+    """Double Q-Learning's update (6.7): the table that learns picks the next action, the other values it."""
+    target = -1.0
+    if not terminated:
+        target += gamma * other[s_next, greedy_action(learner[s_next])]
+    learner[s, action] += alpha * (target - learner[s, action])
 
 
 @njit(inline="always")
 def _one_step(rng: np.ndarray, epsilons: np.ndarray, grid: UniformGrid, w: np.ndarray, w2: np.ndarray,
               alpha: float, gamma: float, limit: int, returns: np.ndarray, lengths: np.ndarray, rule: int) -> None:
     """Q-Learning, SARSA, Expected SARSA or Double Q-Learning, by ``rule``. SARSA draws A' before its update,
-    which bootstraps on it; the others draw it after. Double Q-Learning's fair coin picks the table that learns,
-    which picks the next action that the other values."""
+    which bootstraps on it; the others draw it after. Double Q-Learning's fair coin picks the table that learns."""
     double, drawn_before = rule == DOUBLE_Q_LEARNING, rule == SARSA
     both = np.empty(w.shape[2])
     for i in range(w.shape[0]):
-        q1, q2, env_rng, agent_rng = w[i], w2[i], rng[i, 0], rng[i, 1]
+        q, q2, env_rng, agent_rng = w[i], w2[i], rng[i, 0], rng[i, 1]
         for episode in range(epsilons.size):
             epsilon = epsilons[episode]
             position, velocity = _start(env_rng)
             s = _cell(grid, position, velocity)
-            action = _act(q1, q2, s, both, epsilon, agent_rng, double)
+            action = _act(q, q2, s, both, epsilon, agent_rng, double)
             steps = 0
             while True:
                 position, velocity, terminated = _mountain_car(position, velocity, action)
                 steps += 1
-                s_next = _cell(grid, position, velocity)
-                q, other = q1, q2
-                if double and next_double(agent_rng) >= 0.5:
-                    q, other = q2, q1
-                target, next_action = -1.0, 0
-                if not terminated:
-                    if drawn_before:
-                        next_action = _act(q1, q2, s_next, both, epsilon, agent_rng, double)
-                        target += gamma * q[s_next, next_action]
-                    elif rule == EXPECTED_SARSA:
-                        target += gamma * _expected_value(q[s_next], epsilon)
-                    elif double:
-                        target += gamma * other[s_next, greedy_action(q[s_next])]
-                    else:
-                        target += gamma * max(q[s_next, 0], q[s_next, 1], q[s_next, 2])
-                q[s, action] += alpha * (target - q[s, action])
+                s_next, next_action = _cell(grid, position, velocity), 0
+                if double:
+                    learner, other = (q, q2) if next_double(agent_rng) < 0.5 else (q2, q)
+                    _double_q_update(learner, other, s, action, s_next, terminated, alpha, gamma)
+                else:
+                    target = -1.0
+                    if not terminated:
+                        if drawn_before:
+                            next_action = _act(q, q2, s_next, both, epsilon, agent_rng, double)
+                            target += gamma * q[s_next, next_action]
+                        elif rule == EXPECTED_SARSA:
+                            target += gamma * _expected_value(q, s_next, epsilon)
+                        else:
+                            target += gamma * max(q[s_next, 0], q[s_next, 1], q[s_next, 2])
+                    q[s, action] += alpha * (target - q[s, action])
                 if terminated or steps >= limit:
                     break
                 if not drawn_before:
-                    next_action = _act(q1, q2, s_next, both, epsilon, agent_rng, double)
+                    next_action = _act(q, q2, s_next, both, epsilon, agent_rng, double)
                 s, action = s_next, next_action
             returns[i, episode], lengths[i, episode] = -float(steps), steps
 
@@ -183,7 +201,7 @@ def reference_n_step_sarsa(rng: np.ndarray, epsilons: np.ndarray, grid: UniformG
             epsilon = epsilons[episode]
             position, velocity = _start(env_rng)
             states[0] = _cell(grid, position, velocity)
-            actions[0] = epsilon_greedy_action(q[states[0]], epsilon, agent_rng)
+            actions[0] = _epsilon_greedy(q[states[0]], epsilon, agent_rng)
             horizon, cut, t = limit + n + 1, False, 0
             while True:
                 if t < horizon:
@@ -193,7 +211,7 @@ def reference_n_step_sarsa(rng: np.ndarray, epsilons: np.ndarray, grid: UniformG
                     if terminated or t + 1 >= limit:
                         horizon, cut = t + 1, not terminated
                     if not terminated:
-                        actions[later] = epsilon_greedy_action(q[states[later]], epsilon, agent_rng)
+                        actions[later] = _epsilon_greedy(q[states[later]], epsilon, agent_rng)
                 tau = t - n + 1
                 if tau >= 0:
                     end, ret = min(tau + n, horizon), 0.0
@@ -223,7 +241,7 @@ def _lambda(rng: np.ndarray, epsilons: np.ndarray, grid: UniformGrid, w: np.ndar
             epsilon, steps, count = epsilons[episode], 0, 0
             position, velocity = _start(env_rng)
             s = _cell(grid, position, velocity)
-            action = epsilon_greedy_action(q[s], epsilon, agent_rng)
+            action = _epsilon_greedy(q[s], epsilon, agent_rng)
             while True:
                 position, velocity, terminated = _mountain_car(position, velocity, action)
                 steps += 1
@@ -233,7 +251,7 @@ def _lambda(rng: np.ndarray, epsilons: np.ndarray, grid: UniformGrid, w: np.ndar
                 z[pair] = 1.0
                 s_next, next_action, exploratory = _cell(grid, position, velocity), 0, False
                 if not terminated:
-                    next_action = epsilon_greedy_action(q[s_next], epsilon, agent_rng)
+                    next_action = _epsilon_greedy(q[s_next], epsilon, agent_rng)
                     best = max(q[s_next, 0], q[s_next, 1], q[s_next, 2])
                     exploratory = q[s_next, next_action] < best
                     delta += gamma * (best if watkins else q[s_next, next_action])
