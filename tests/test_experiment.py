@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet
 import pytest
 from gymnasium_play import gymnasium_returns
 
@@ -101,7 +102,7 @@ def test_failed_write_leaves_nothing_that_looks_finished(
         handle.write(b"PAR1 half a file")
         raise OSError("disk full")
 
-    monkeypatch.setattr(rundir.pq, "write_table", broken_parquet)
+    monkeypatch.setattr(pyarrow.parquet, "write_table", broken_parquet)
     with pytest.raises(OSError, match="disk full"):
         run(small_config, out=tmp_path / "run")
     assert not (tmp_path / "run").exists()  # created by the run and nothing written into it: removed again

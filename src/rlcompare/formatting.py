@@ -10,8 +10,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 NO_DATA = "no data"
 """What a table or a sentence shows where there is no number."""
 MAX_QUOTE = 80
@@ -29,6 +27,8 @@ def number(value: float | None, digits: int = 3) -> str:
         return f"{int(value):,}"
     if abs(value) >= 10 ** (digits - 1):
         return f"{value:,.0f}"
+    import numpy as np  # the one number of numpy's this module reads: imported when a fraction is written
+
     text = np.format_float_positional(value, precision=digits, unique=True, fractional=False, trim="-")
     return text.rstrip(".")
 

@@ -5,18 +5,18 @@ One error, :class:`ConfigError`, names the field, quotes the value and says what
 an integer, a finite number, a flag and a choice, written once (:class:`Integer`, :class:`Number`, :class:`Flag`,
 :class:`Choice`), and every config checks its fields against a table of them (:func:`check_fields`). NumPy's
 scalars count as the Python values they hold (``np.int64(3)`` is an integer, ``np.float32(0.5)`` a number, and
-``np.bool_(True)`` a flag); a bool is never a number.
+``np.bool_(True)`` a flag), known by the abstract numbers they register as (:mod:`numbers`), so that checking a
+setting imports no NumPy; a bool is never a number.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
-
-import numpy as np
 
 from rlcompare.formatting import cut, quote
 
@@ -38,21 +38,21 @@ def require(ok: bool, name: str, value: Any, allowed: str) -> None:
         raise ConfigError(name, value, allowed)
 
 
+def is_flag(value: Any) -> bool:
+    """A bool, Python's or NumPy's."""
+    return isinstance(value, bool) or _is_numpy(value, "bool")
+
+
 def is_integer(value: Any) -> bool:
     """An int or a NumPy integer, not a bool."""
-    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
+    return isinstance(value, numbers.Integral) and not is_flag(value)
 
 
 def is_number(value: Any) -> bool:
     """A finite int or float, Python's or NumPy's, not a bool (an integer too large for a float is finite)."""
     if is_integer(value):
         return True
-    return isinstance(value, float | np.floating) and math.isfinite(value)
-
-
-def is_flag(value: Any) -> bool:
-    """A bool, Python's or NumPy's."""
-    return isinstance(value, bool | np.bool_)
+    return isinstance(value, numbers.Real) and not is_flag(value) and math.isfinite(value)
 
 
 def plain(value: Any) -> Any:
@@ -60,7 +60,14 @@ def plain(value: Any) -> Any:
     anything else as it is."""
     if isinstance(value, tuple):
         return tuple(map(plain, value))
-    return value.item() if isinstance(value, np.generic) else value
+    return value.item() if _is_numpy(value) else value
+
+
+def _is_numpy(value: Any, kind: str = "") -> bool:
+    """Whether ``value`` is a NumPy scalar (of ``kind``, as NumPy names its type: ``bool``), without importing
+    NumPy."""
+    cls = type(value)
+    return cls.__module__ == "numpy" and hasattr(value, "item") and cls.__name__.startswith(kind)
 
 
 def plain_fields(config: Any) -> None:

@@ -16,7 +16,7 @@ from rlcompare.cli.console import bad_option, option_flag
 from rlcompare.tabular.config import DEFAULT_STAGES, ExperimentConfig, field_docs
 from rlcompare.validation import ConfigError
 
-_DEFAULT_SEEDS = len(ExperimentConfig().seeds)
+_DEFAULT_SEEDS = len(next(f for f in dataclasses.fields(ExperimentConfig) if f.name == "seeds").default)
 
 
 def _method_help(name: str, reads: tuple[str, ...], book: str) -> str:

@@ -14,8 +14,10 @@ registration (all six actions, sticky actions 0.1, difficulty ramping), ``<Game>
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 ACTION_NAMES = ("no-op", "left", "up", "right", "down", "fire")
 """MinAtar's six actions, in the reference's order (``n l u r d f``)."""
@@ -95,6 +97,7 @@ def palette(n_channels: int) -> np.ndarray:
     ``render_mode="rgb_array"`` (``minatar/gym.py``) uses seaborn's ``cubehelix`` palette, which is matplotlib's
     cubehelix colour map at ``n`` evenly spaced inner points."""
     import matplotlib
+    import numpy as np
 
     inner = np.linspace(0.0, 1.0, n_channels + 2)[1:-1]
     colours = np.vstack([np.zeros(3), matplotlib.colormaps["cubehelix"](inner)[:, :3]])
@@ -104,6 +107,8 @@ def palette(n_channels: int) -> np.ndarray:
 def picture(observation: np.ndarray, colours: np.ndarray, cell: int = CELL) -> np.ndarray:
     """``(10 cell, 10 cell, 3)`` uint8: each cell in the colour of the highest channel set in it, black where none
     is."""
+    import numpy as np
+
     channels = observation.shape[-1]
     index = np.max(observation.astype(np.int64) * np.arange(1, channels + 1), axis=-1)
     return np.repeat(np.repeat(colours[index], cell, axis=0), cell, axis=1)

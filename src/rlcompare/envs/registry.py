@@ -18,11 +18,12 @@ The grid and the tiles span the observation box, except where it is unbounded (C
 where the episode ends before its edge (CartPole's position and angle): ``docs/environments.md`` gives
 every default and why. ``bounds`` in the configuration replaces them.
 
-Compiled code is given the entry's ``dynamics`` and picks the module that steps it by its type
-(:data:`DYNAMICS`); every dynamics module has ``reset(env, rng) -> state``, ``step(env, state, action, rng) ->
-(state, reward, terminated)`` and ``observe(env, state) -> observation``. Features likewise (:data:`FEATURES`):
+Compiled code is given the entry's ``dynamics`` and steps it with the functions of the module its type is defined
+in (:mod:`rlcompare.tabular.steps`): every dynamics module has ``reset(env, rng) -> state``, ``step(env, state,
+action, rng) -> (state, reward, terminated)`` and ``observe(env, state) -> observation``; a features module has
 ``states_buffer(features, size)`` and ``features_of(features, observation, buffer, at)``. Adding a port is its
-dynamics file, its line in :data:`DYNAMICS` and its entry in ``_PORTED``.
+dynamics file and its entry in ``_PORTED``. An entry imports its port when it is first asked for, so that reading
+the registry's names compiles nothing.
 """
 
 from __future__ import annotations
@@ -31,34 +32,15 @@ import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from rlcompare.envs import atari, minatar
 
-from rlcompare.envs import (
-    acrobot,
-    atari,
-    cartpole,
-    discretize,
-    features,
-    gymnasium_env,
-    minatar,
-    mountain_car,
-    table,
-    tiles,
-)
-from rlcompare.envs.mountain_car_picture import MountainCarPainter
-from rlcompare.envs.table import TableEnv, from_gymnasium
+if TYPE_CHECKING:
+    import numpy as np
 
-DYNAMICS = {
-    mountain_car.MountainCar: mountain_car,
-    cartpole.CartPole: cartpole,
-    acrobot.Acrobot: acrobot,
-    table.TableEnv: table,
-    gymnasium_env.Adapted: gymnasium_env,
-}
-"""The module that steps each type of dynamics."""
-FEATURES = {discretize.UniformGrid: discretize, tiles.TileCoding: tiles, features.OneHot: features}
-"""The module that computes each type of features."""
+    from rlcompare.envs.table import TableEnv
+
 _CARTPOLE_VELOCITY = 3.0  # m/s; see docs/environments.md
 _CARTPOLE_ANGULAR_VELOCITY = 3.5  # rad/s
 
@@ -125,8 +107,15 @@ class Environment:
         return self.dynamics is not None
 
 
-def _mountain_car(name: str, right: float, bench_episodes: int = 0, shown_as: str = "", jax_port: str = ""
+def _mountain_car(name: str, *, book: bool = False, bench_episodes: int = 0, shown_as: str = "", jax_port: str = ""
                   ) -> Environment:
+    """Gymnasium's Mountain Car, or the book's (Example 10.1: the position bounded at the goal)."""
+    import numpy as np
+
+    from rlcompare.envs import mountain_car
+    from rlcompare.envs.mountain_car_picture import MountainCarPainter
+
+    right = mountain_car.BOOK_MAX_POSITION if book else mountain_car.MAX_POSITION
     low, high = mountain_car.OBSERVATION_LOW.astype(np.float64), mountain_car.OBSERVATION_HIGH.astype(np.float64)
     high[0] = np.float32(right)
     return Environment(name, mountain_car.MountainCar(right), mountain_car.N_ACTIONS, 0, low, high, 1000, 20,
@@ -138,6 +127,10 @@ def _mountain_car(name: str, right: float, bench_episodes: int = 0, shown_as: st
 
 
 def _cartpole() -> Environment:
+    import numpy as np
+
+    from rlcompare.envs import cartpole
+
     theta = np.float32(cartpole.THETA_THRESHOLD)
     high = np.array([np.float32(cartpole.X_THRESHOLD), _CARTPOLE_VELOCITY, theta, _CARTPOLE_ANGULAR_VELOCITY])
     return Environment(cartpole.ENV_ID, cartpole.CartPole(), cartpole.N_ACTIONS, 0, -high, high, 500, (1, 1, 6, 12),
@@ -146,6 +139,10 @@ def _cartpole() -> Environment:
 
 
 def _acrobot() -> Environment:
+    import numpy as np
+
+    from rlcompare.envs import acrobot
+
     return Environment(acrobot.ENV_ID, acrobot.Acrobot(), acrobot.N_ACTIONS, 0,
                        acrobot.OBSERVATION_LOW.astype(np.float64), acrobot.OBSERVATION_HIGH.astype(np.float64), 500,
                        (4, 4, 4, 4, 8, 8),
@@ -156,6 +153,8 @@ def _acrobot() -> Environment:
 def _minatar(name: str) -> Environment:
     """A MinAtar game under a protocol (:mod:`rlcompare.envs.minatar`); ``max_steps`` 0 where only the game
     ends an episode."""
+    import numpy as np
+
     game, protocol = minatar.NAMES[name]
     shape = (10, 10, len(game.channels))
     actions = minatar.actions(game, protocol)
@@ -168,6 +167,8 @@ def _minatar(name: str) -> Environment:
 
 def _atari(name: str) -> Environment:
     """An Atari 2600 game under Machado et al.'s protocol (:mod:`rlcompare.envs.atari`), through ale-py."""
+    import numpy as np
+
     shape = atari.PROTOCOL.observation_shape
     size = int(np.prod(shape))
     return Environment(name, None, len(atari.ACTION_NAMES), 0, np.zeros(size), np.full(size, 255.0),
@@ -177,10 +178,9 @@ def _atari(name: str) -> Environment:
 
 
 _PORTED = {
-    "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", mountain_car.MAX_POSITION, bench_episodes=300,
+    "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", bench_episodes=300,
                                             jax_port="rlcompare.deep.envs:MOUNTAIN_CAR"),
-    "MountainCar-book": lambda: _mountain_car("MountainCar-book", mountain_car.BOOK_MAX_POSITION,
-                                              shown_as="MountainCar-v0"),
+    "MountainCar-book": lambda: _mountain_car("MountainCar-book", book=True, shown_as="MountainCar-v0"),
     "CartPole-v1": _cartpole,
     "Acrobot-v1": _acrobot,
 }
@@ -197,6 +197,10 @@ def environment(name: str, adapter: bool = False) -> Environment:
     """The environment called ``name``: a port, a table, or any Gymnasium environment the adapter can run
     (:class:`rlcompare.envs.gymnasium_env.UnsupportedEnvironment` otherwise). ``adapter``: step a port's
     environment through Gymnasium's API instead, with the port's defaults."""
+    import numpy as np
+
+    from rlcompare.envs import gymnasium_env
+
     if adapter and name in (*PORTS, *TABLE_ENVIRONMENTS):
         gymnasium_env.describe(name)  # MountainCar-book is not one of Gymnasium's
         port = environment(name)
@@ -219,12 +223,16 @@ def environment(name: str, adapter: bool = False) -> Environment:
 
 @functools.cache
 def table_of(name: str) -> TableEnv:
+    from rlcompare.envs.table import from_gymnasium
+
     return from_gymnasium(name)
 
 
-def make_env(env: Environment, handle: int = -1) -> tuple:
+def make_env(env: Environment, handle: int = -1) -> Any:
     """What compiled code steps for ``env``: its port or table, or, for the adapter, the Gymnasium environments
     opened under ``handle``."""
+    from rlcompare.envs import gymnasium_env
+
     if env.is_ported:
         return env.dynamics
     return gymnasium_env.Adapted(handle, 0, env.observation_size)

@@ -25,16 +25,15 @@ import hashlib
 import io
 import json
 from pathlib import Path
-from typing import Any, Protocol, TypeVar
-
-import numpy as np
-import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 from rlcompare.experiment import store
 from rlcompare.experiment.store import StoreError
 from rlcompare.formatting import cut
+
+if TYPE_CHECKING:
+    import numpy as np
+    import pandas as pd
 
 CONFIG_FILE = "config.json"
 EPISODES_FILE = "episodes.parquet"
@@ -190,6 +189,9 @@ def write_results(run_dir: Path, results: RunResults) -> Path:
 def read_results(run_dir: Path, results: type[R], expected: Any = None) -> R:
     """The results of a finished run directory whose files belong together (:func:`read_run`), in ``results``'
     type; anything else is a :class:`StoreError` naming the file."""
+    import numpy as np  # what reads the tables and arrays: imported once a run is read
+    import pandas as pd
+
     run_dir = Path(run_dir)
     meta, stored = read_run(run_dir, files_of(results))
     try:
@@ -211,6 +213,10 @@ def read_results(run_dir: Path, results: type[R], expected: Any = None) -> R:
 
 def _parquet_bytes(labels: dict[str, str], columns: dict[str, np.ndarray]) -> bytes:
     """The labels, each one dictionary-encoded (categorical) column, then ``columns``, in Parquet."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     rows = len(next(iter(columns.values())))
     label_columns = {name: pa.DictionaryArray.from_arrays(np.zeros(rows, dtype=np.int32), pa.array([str(value)]))
                      for name, value in labels.items()}
@@ -220,6 +226,8 @@ def _parquet_bytes(labels: dict[str, str], columns: dict[str, np.ndarray]) -> by
 
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    import numpy as np
+
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
     return buffer.getvalue()

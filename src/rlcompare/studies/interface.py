@@ -16,11 +16,12 @@ import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from rlcompare.validation import ConfigError, Integer, check, plain_fields
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 Advance = Callable[[str, int], None]
 """``advance(task, n)``: ``n`` more units of one task of a progress display done."""

@@ -23,8 +23,6 @@ from typing import Any, ClassVar
 from rlcompare import machine
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.schedules import SCHEDULES
-from rlcompare.envs.features import feature_count, make_features
-from rlcompare.envs.gymnasium_env import UnsupportedEnvironment
 from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, Environment, environment
 from rlcompare.formatting import cut
 from rlcompare.validation import (
@@ -172,6 +170,8 @@ class ExperimentConfig:
     @property
     def environment(self) -> Environment:
         """What is known of ``env``: how it is stepped and its defaults."""
+        from rlcompare.envs.gymnasium_env import UnsupportedEnvironment  # Gymnasium: once a config is checked
+
         try:
             entry = environment(self.env, self.adapter)
         except UnsupportedEnvironment as error:
@@ -306,6 +306,13 @@ def _check_stages(c: ExperimentConfig) -> None:
     require(all(0 < f <= 1 for _, f in c.stages), "stages", c.stages, "shares of the episodes in (0, 1]")
 
 
+def _features(c: ExperimentConfig) -> int:
+    """How many features the configuration's layout has (compiled code: imported once a config is checked)."""
+    from rlcompare.envs.features import feature_count
+
+    return feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+
+
 def _check_grid(c: ExperimentConfig) -> None:
     """Bins and bounds that fit the observations, and weights that fit in memory."""
     env = c.environment
@@ -323,7 +330,7 @@ def _check_grid(c: ExperimentConfig) -> None:
         require(len(c.bounds) == dims and all(math.isfinite(lo) and math.isfinite(hi) and lo < hi
                                                for lo, hi in c.bounds), "bounds", c.bounds,
                  f"{dims} pairs of finite numbers (low, high) with low < high, one per observation dimension")
-    features = feature_count(env, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+    features = _features(c)
     needed = features * env.n_actions * len(c.seeds) * (2 + len(c.stages)) * 8
     require(needed <= MAX_WEIGHT_BYTES, "bins" if c.features == "grid" else "tiles", c.bins if c.features == "grid"
              else c.tiles, f"a layout whose {features:,} features x {env.n_actions} actions x {len(c.seeds)} seeds "
@@ -333,6 +340,8 @@ def _check_grid(c: ExperimentConfig) -> None:
 def _check_tiles(c: ExperimentConfig) -> None:
     if c.features != "tiles" or c.environment.n_states:
         return
+    from rlcompare.envs.features import make_features
+
     try:
         make_features(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
     except ValueError as error:
@@ -348,7 +357,7 @@ def records_parts(c: ExperimentConfig) -> dict[str, int]:
     snapshots' episodes)."""
     runs, per_episode = len(c.seeds), 8 + 8 + 1
     stages = len(c.stage_episodes())
-    features = feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+    features = _features(c)
     return {
         "episodes": runs * c.episodes * per_episode + c.episodes * 8,
         "eval_episodes": runs * c.evaluation_rounds * c.eval_episodes * per_episode,
@@ -378,7 +387,7 @@ def check_memory(c: ExperimentConfig) -> None:
         shape = f"{runs} x {c.evaluation_rounds:,} evaluations x {c.eval_episodes:,} episodes"
     else:
         name, value = ("bins", c.bins) if c.features == "grid" else ("tiles", c.tiles)
-        features = feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+        features = _features(c)
         shape = (f"{runs} x {len(c.stage_episodes())} snapshots x {features:,} features x "
                  f"{c.environment.n_actions} actions")
     raise ConfigError(name, value, f"a run whose records fit in memory: {shape} need {machine.gib(needed)}; this "
