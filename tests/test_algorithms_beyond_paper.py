@@ -85,10 +85,10 @@ def _compiled(fn):
 
 
 def _settings(*, alpha: float = ALPHA, gamma: float = GAMMA, max_steps: int = 100,
-              truncation_is_terminal: bool = False, eval_every: int = 0) -> Settings:
+              truncation_as_terminal: bool = False, eval_every: int = 0) -> Settings:
     """Settings with the scalar types the engine is compiled for (another type would compile anew)."""
     return Settings(alpha=float(alpha), gamma=float(gamma), max_steps=int(max_steps),
-                    truncation_is_terminal=bool(truncation_is_terminal), eval_every=int(eval_every))
+                    truncation_as_terminal=bool(truncation_as_terminal), eval_every=int(eval_every))
 
 
 def _rule(algorithm: str, *, draw_before: bool | None = None, n: int = 1, lam: float = 0.0, replacing: bool = True,
@@ -529,7 +529,7 @@ MC_EPISODES = 200
 
 
 def _train_mountain_car(algorithm: str, *, features: str = "grid", episodes: int = MC_EPISODES,
-                        max_steps: int = 1000, truncation_is_terminal: bool = False, n: int = 1, lam: float = 0.0,
+                        max_steps: int = 1000, truncation_as_terminal: bool = False, n: int = 1, lam: float = 0.0,
                         replacing: bool = True) -> tuple[RunState, Records]:
     """Mountain Car with 20 bins (or 4x4 tiles x 4 tilings); ε from 1 to 0.01 over half the episodes; evaluation
     every 50 episodes; snapshots at 100 and 200."""
@@ -538,7 +538,7 @@ def _train_mountain_car(algorithm: str, *, features: str = "grid", episodes: int
     state = initial_state(MC_SEEDS, feats.n_features, mountain_car.N_ACTIONS)
     stages = np.array([e for e in (100, 200) if e <= episodes], dtype=np.int64)
     records = allocate_records(len(MC_SEEDS), episodes, episodes // 50, 3, stages, state.w.shape[1:])
-    settings = _settings(alpha=0.05, gamma=0.9, max_steps=max_steps, truncation_is_terminal=truncation_is_terminal,
+    settings = _settings(alpha=0.05, gamma=0.9, max_steps=max_steps, truncation_as_terminal=truncation_as_terminal,
                          eval_every=50)
     rule = _rule(algorithm, n=n, lam=lam, replacing=replacing, n_actions=mountain_car.N_ACTIONS)
     train_runs(rule, settings, make_env(environment("MountainCar-v0")), feats, state, epsilons, 0, episodes, records)
@@ -602,7 +602,7 @@ class Reference:
             state, reward, terminated = mountain_car.step.py_func(self.env, state, a, None)
             ret, steps = ret + reward, steps + 1
             truncated = not terminated and steps >= max_steps
-            terminal = terminated or (truncated and self.settings.truncation_is_terminal)
+            terminal = terminated or (truncated and self.settings.truncation_as_terminal)
             s_next, a_next = self.cell(state), 0
             if before and not terminal:
                 a_next = epsilon_greedy_action.py_func(self.values(w, w2, s_next), epsilon, agent_rng)
@@ -692,14 +692,14 @@ def _mountain_car_reference_runs(rule: tuple, settings: Settings, engine: bool) 
     return state, records
 
 
-@pytest.mark.parametrize("truncation_is_terminal", [False, True], ids=["bootstrap", "terminal"])
+@pytest.mark.parametrize("truncation_as_terminal", [False, True], ids=["bootstrap", "terminal"])
 @pytest.mark.parametrize(("algorithm", "before", "target_epsilon"), REFERENCE_CASES)
-def test_engine_equals_plain_python_reference(algorithm, before, target_epsilon, truncation_is_terminal):
+def test_engine_equals_plain_python_reference(algorithm, before, target_epsilon, truncation_as_terminal):
     """The one-step methods (drawing A' before or after the update) and the random baseline: the same records,
     tables and streams, bit for bit, as the plain-Python reference, the engine's run split into two chunks.
     Episodes both reach the goal and are cut by the limit, and a cut bootstraps (or not) as asked."""
     rule = _rule(algorithm, draw_before=before, target_epsilon=target_epsilon, n_actions=mountain_car.N_ACTIONS)
-    settings = _settings(alpha=0.5, gamma=0.9, max_steps=400, truncation_is_terminal=truncation_is_terminal,
+    settings = _settings(alpha=0.5, gamma=0.9, max_steps=400, truncation_as_terminal=truncation_as_terminal,
                          eval_every=4)
     engine = _mountain_car_reference_runs(rule, settings, engine=True)
     _assert_same_run(engine, _mountain_car_reference_runs(rule, settings, engine=False))
@@ -712,13 +712,13 @@ def test_engine_equals_plain_python_reference(algorithm, before, target_epsilon,
 
 
 @pytest.mark.parametrize(
-    ("features", "max_steps", "truncation_is_terminal"),
+    ("features", "max_steps", "truncation_as_terminal"),
     [("grid", 1000, False), ("grid", 150, False), ("grid", 150, True), ("tiles", 300, False)],
 )
-def test_one_step_n_step_sarsa_is_sarsa(features, max_steps, truncation_is_terminal):
+def test_one_step_n_step_sarsa_is_sarsa(features, max_steps, truncation_as_terminal):
     """n = 1: G = R + γ q(S', A') with A' drawn before the update, bootstrapping through a time-limit cut
     unless it is terminal: SARSA, bit for bit."""
-    common = {"features": features, "max_steps": max_steps, "truncation_is_terminal": truncation_is_terminal}
+    common = {"features": features, "max_steps": max_steps, "truncation_as_terminal": truncation_as_terminal}
     sarsa = _train_mountain_car("sarsa", **common)
     _assert_same_run(_train_mountain_car("n_step_sarsa", n=1, **common), sarsa)
     if max_steps < 1000:

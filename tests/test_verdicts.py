@@ -28,7 +28,7 @@ from rlcompare.stats.significance import (
     tost,
     verdict,
 )
-from rlcompare.stats.verdicts import columns, family
+from rlcompare.stats.verdicts import columns, holm_family
 from rlcompare.studies.measures import convergence, convergence_by_rule, first_action_floor
 from rlcompare.studies.paper_claims import NAMES, paper_claim, within
 from rlcompare.studies.start_region import start_cells
@@ -312,7 +312,7 @@ def test_holm_turns_two_marginal_claims_into_not_resolved():
     pair = judge([one, paper_claim("SARSA higher too", "decay", "behaviour_return")], metrics, episodes=10)
     np.testing.assert_allclose(pair["p (Holm)"], [0.0625, 0.0625])
     assert list(pair["verdict"]) == [NOT_RESOLVED, NOT_RESOLVED]
-    assert family(pair) == "Holm's family: the 2 claims of this table that have data to test (of 2), " \
+    assert holm_family(pair) == "Holm's family: the 2 claims of this table that have data to test (of 2), " \
                            "family-wise α = 0.05."
 
 

@@ -362,7 +362,7 @@ def judge(claims: list[Claim], metrics: dict[str, pd.DataFrame], episodes: int, 
     return judge_by_rule(claims, metrics, episodes, names=names, floors=floors, rules=rules).verdicts
 
 
-def family(verdicts: pd.DataFrame) -> str:
+def holm_family(verdicts: pd.DataFrame) -> str:
     """The sentence naming Holm's family of a verdicts table: which claims, how many, at which level."""
     tested = verdicts[verdicts["p"].notna()]
     return (f"Holm's family: the {len(tested)} claims of this table that have data to test (of {len(verdicts)}), "

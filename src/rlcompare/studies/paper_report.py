@@ -26,7 +26,7 @@ from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.convergence import DEFAULT_RULE, RULES
 from rlcompare.stats.intervals import interval
 from rlcompare.stats.significance import ALPHA
-from rlcompare.stats.verdicts import RATIO_FACTOR, family, judge_by_rule
+from rlcompare.stats.verdicts import RATIO_FACTOR, holm_family, judge_by_rule
 from rlcompare.studies.interface import Report
 from rlcompare.studies.measures import (
     PAPER_TABLE_I,
@@ -345,7 +345,7 @@ def _sections(first, runs, metrics, tables, files, curve_figures, explanation_fi
             "Behaviour: the ε-greedy return averaged over every training episode of a seed. Greedy: the return "
             "of the final greedy policy. Mean and interquartile mean over seeds, 95% bootstrap intervals."],
             tables=[("Table II", tables["table_ii"], files["table_ii"])]),
-        Section("Verdicts on the paper's claims", [*_verdict_text(), family(tables["verdicts"])],
+        Section("Verdicts on the paper's claims", [*_verdict_text(), holm_family(tables["verdicts"])],
                 tables=[("Verdicts", tables["verdicts"], files["verdicts"]),
                         ("Convergence verdicts under each rule", tables["verdict_rules"], files["verdict_rules"])]),
         Section("Learning curves (the paper's Figures 3 to 9)", figures=curve_figures),

@@ -12,7 +12,7 @@ times the compile time.
 
 Every loop draws from the same streams in the same order: the start state from ``env_rng``, the agent's choices
 from ``agent_rng``, stochastic outcomes from ``transitions``. A time-limit cut is not terminal: the last target
-bootstraps unless ``settings.truncation_is_terminal``.
+bootstraps unless ``settings.truncation_as_terminal``.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ class Traces(NamedTuple):
 def _outcome(settings: Settings, steps: int, terminated: bool) -> tuple[bool, bool]:
     """``(truncated, terminal)`` after ``steps`` steps: cut by the limit, and whether the target stops there."""
     truncated = not terminated and steps >= settings.max_steps
-    return truncated, terminated or (truncated and settings.truncation_is_terminal)
+    return truncated, terminated or (truncated and settings.truncation_as_terminal)
 
 
 # --- one-step methods -----------------------------------------------------------------------------------

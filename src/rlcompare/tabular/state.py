@@ -28,7 +28,7 @@ class Settings(NamedTuple):
     alpha: float
     gamma: float
     max_steps: int
-    truncation_is_terminal: bool
+    truncation_as_terminal: bool
     eval_every: int
 
 
