@@ -53,7 +53,7 @@ EVAL_FIELDS = ("eval_returns", "eval_lengths", "eval_terminated")
 def make_settings(
     *,
     max_steps: int = MAX_STEPS,
-    truncation_is_terminal: bool = False,
+    truncation_as_terminal: bool = False,
     eval_every: int = EVAL_EVERY,
     alpha: float = ALPHA,
     gamma: float = GAMMA,
@@ -63,7 +63,7 @@ def make_settings(
         alpha=float(alpha),
         gamma=float(gamma),
         max_steps=int(max_steps),
-        truncation_is_terminal=bool(truncation_is_terminal),
+        truncation_as_terminal=bool(truncation_as_terminal),
         eval_every=int(eval_every),
     )
 
@@ -77,11 +77,11 @@ def train(
     eval_every: int = EVAL_EVERY,
     eval_episodes: int = EVAL_EPISODES,
     max_steps: int = MAX_STEPS,
-    truncation_is_terminal: bool = False,
+    truncation_as_terminal: bool = False,
     epsilons: np.ndarray = EPSILONS,
 ):
     """Train every seed with ``train_runs``, over ``chunks`` of episodes (one call by default)."""
-    settings = make_settings(max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=eval_every)
+    settings = make_settings(max_steps=max_steps, truncation_as_terminal=truncation_as_terminal, eval_every=eval_every)
     state = initial_state(list(seeds), GRID.n_cells, mountain_car.N_ACTIONS)
     rounds = episodes // eval_every if eval_every else 0
     snapshots = np.array([e for e in SNAPSHOT_EPISODES if e <= episodes], dtype=np.int64)
@@ -346,14 +346,14 @@ def test_truncation_as_terminal_changes_learning_only(algorithm):
     the behaviour is the same up to and including each run's first truncated episode."""
     common = {"max_steps": 200, "eval_every": 0}
     bootstrap_state, bootstrap = train(algorithm, episodes=100, **common)
-    terminal_state, terminal = train(algorithm, episodes=100, truncation_is_terminal=True, **common)
+    terminal_state, terminal = train(algorithm, episodes=100, truncation_as_terminal=True, **common)
     assert not np.array_equal(bootstrap_state.w, terminal_state.w)
     assert not np.array_equal(bootstrap.visits, terminal.visits)
     for run, seed in enumerate(SEEDS):
         assert not np.array_equal(bootstrap.visits[run], terminal.visits[run])
         first_cut = int(np.flatnonzero(~bootstrap.terminated[run])[0])
         before = [
-            train(algorithm, seeds=[seed], episodes=first_cut + 1, truncation_is_terminal=flag, **common)[1]
+            train(algorithm, seeds=[seed], episodes=first_cut + 1, truncation_as_terminal=flag, **common)[1]
             for flag in (False, True)
         ]
         assert_records_equal(before[0], before[1], TRAINING_FIELDS)
@@ -363,14 +363,14 @@ def test_truncation_as_terminal_changes_learning_only(algorithm):
 def test_truncation_as_terminal_does_not_affect_the_random_baseline():
     """The baseline learns nothing, so the flag changes nothing."""
     a = train("random", max_steps=50, episodes=60, eval_every=0)
-    b = train("random", max_steps=50, episodes=60, eval_every=0, truncation_is_terminal=True)
+    b = train("random", max_steps=50, episodes=60, eval_every=0, truncation_as_terminal=True)
     assert_results_equal(a, b)
 
 
 # --- one episode by hand ---------------------------------------------------------------------------
 
 
-def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_steps, truncation_is_terminal,
+def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_steps, truncation_as_terminal,
                     visits):
     """One training episode written out in plain Python, with the helpers' ``py_func`` versions."""
     reset, step = mountain_car.reset.py_func, mountain_car.step.py_func
@@ -387,7 +387,7 @@ def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_
         episode_return += reward
         steps += 1
         truncated = not terminated and steps >= max_steps
-        terminal = terminated or (truncated and truncation_is_terminal)
+        terminal = terminated or (truncated and truncation_as_terminal)
         next_state = cell(GRID, (position, velocity))
         if algorithm == "q_learning":
             target = reward if terminal else reward + GAMMA * max(q[next_state])
@@ -415,10 +415,10 @@ def _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_
 
 @pytest.mark.parametrize("q_init", ["zeros", "random", "bang_bang"])
 @pytest.mark.parametrize(
-    ("max_steps", "truncation_is_terminal"), [(1000, False), (60, False), (60, True)], ids=["1000", "60", "60-cut"]
+    ("max_steps", "truncation_as_terminal"), [(1000, False), (60, False), (60, True)], ids=["1000", "60", "60-cut"]
 )
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_engine_equals_python_episodes(algorithm, max_steps, truncation_is_terminal, q_init):
+def test_engine_equals_python_episodes(algorithm, max_steps, truncation_as_terminal, q_init):
     """Three training episodes of the engine equal the plain-Python re-implementation exactly: the table,
     the visit counts, the records, where the reset and agent streams end, and the transition stream, which
     the deterministic Mountain Car never draws from."""
@@ -437,12 +437,12 @@ def test_engine_equals_python_episodes(algorithm, max_steps, truncation_is_termi
     visits = np.zeros(GRID.n_cells, dtype=np.int64)
     with np.errstate(over="ignore"):
         expected = [
-            _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_steps, truncation_is_terminal,
+            _python_episode(algorithm, q, epsilon, env_rng, agent_rng, transitions, max_steps, truncation_as_terminal,
                             visits)
             for _ in range(episodes)
         ]
 
-    settings = make_settings(max_steps=max_steps, truncation_is_terminal=truncation_is_terminal, eval_every=0)
+    settings = make_settings(max_steps=max_steps, truncation_as_terminal=truncation_as_terminal, eval_every=0)
     records = allocate_records(1, episodes, 0, 0, np.zeros(0, dtype=np.int64), q.shape)
     train_block(0, 1, RULES[algorithm], settings, ENV, GRID, state, np.full(episodes, epsilon), 0, episodes, records)
 

@@ -53,7 +53,7 @@ def _no_traces() -> episodes.Traces:
     return episodes.Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
-SETTINGS = Settings(alpha=0.5, gamma=0.5, max_steps=100, truncation_is_terminal=False, eval_every=0)
+SETTINGS = Settings(alpha=0.5, gamma=0.5, max_steps=100, truncation_as_terminal=False, eval_every=0)
 
 
 def _chain_episode(algorithm: str, before: bool, seed: int = 0, w2=None):
@@ -138,7 +138,7 @@ def _mountain_car_runs(algorithm: str, before: bool, target_epsilon: float, epis
     epsilons = linear_decay_epsilon(episodes, epsilon_start, 0.0, 0.5)
     state = initial_state([0, 1], feats.n_features, mountain_car.N_ACTIONS)
     records = allocate_records(2, episodes, 2, 2, np.array([episodes], np.int64), state.w.shape[1:])
-    settings = Settings(alpha=0.05, gamma=0.9, max_steps=1000, truncation_is_terminal=False, eval_every=30)
+    settings = Settings(alpha=0.05, gamma=0.9, max_steps=1000, truncation_as_terminal=False, eval_every=30)
     train_runs(_rule(algorithm, before, target_epsilon), settings, make_env(environment("MountainCar-v0")), feats,
                state, epsilons, 0, episodes, records)
     return state, records
