@@ -24,7 +24,7 @@ from rlcompare.deep.envs import jax_env  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
 from rlcompare.studies.minatar import plan_of  # noqa: E402
 from rlcompare.studies.paired import random_returns  # noqa: E402
-from rlcompare.studies.paper_report import CLAIMS as PAPER_CLAIMS  # noqa: E402
+from rlcompare.studies.paper_claims import CLAIMS as PAPER_CLAIMS  # noqa: E402
 from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 
 TINY = ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960"]
