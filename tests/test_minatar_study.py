@@ -22,6 +22,7 @@ from rlcompare.cli import app  # noqa: E402
 from rlcompare.deep import float64  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
+from rlcompare.formatting import number  # noqa: E402
 from rlcompare.studies.minatar import plan_of  # noqa: E402
 from rlcompare.studies.paired import random_returns  # noqa: E402
 from rlcompare.studies.paper_claims import CLAIMS as PAPER_CLAIMS  # noqa: E402
@@ -294,7 +295,7 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
     assert "); on Breakout 4." in games
     assert games.endswith("; on-policy better).")
     assert overall.startswith(f"Over the games, in scores normalised between the random policy (0) and the best "
-                              f"method here (1), SARSA(λ) scores {by_hand:.1f} more (95% interval")
+                              f"method here (1), SARSA(λ) scores {number(by_hand)} more (95% interval")
 
 
 # --- the same question on tables and on classic control, beside the study's own verdicts ---------------------

@@ -9,15 +9,24 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rlcompare.report.page import NO_DATA, Section, plain_number, render_report, shown, write_table
+from rlcompare.formatting import NO_DATA, distinct_numbers, number
+from rlcompare.report.page import Section, render_report, shown, write_table
 
 
 @pytest.mark.parametrize(("value", "text"), [
     (2490.0, "2,490"), (-176.4, "-176"), (8.6789, "8.68"), (12.345, "12.3"), (0.00123, "0.00123"),
     (1e-7, "0.0000001"), (3.0, "3"), (1234567.8, "1,234,568"), (float("nan"), NO_DATA), (-0.5, "-0.5"),
+    (8.7, "8.7"), (5.3e-05, "0.000053"), (1440.4, "1,440"), (float("inf"), "∞"), (None, NO_DATA),
 ])
 def test_numbers_are_written_as_a_reader_writes_them(value: float, text: str) -> None:
-    assert plain_number(value) == text
+    """One formatter for tables, notes and sentences: about three significant digits, never an exponent."""
+    assert number(value) == text
+
+
+def test_two_numbers_get_the_digits_that_tell_them_apart() -> None:
+    assert distinct_numbers(5.31e-05, 6.9e-05) == ("0.000053", "0.000069")
+    assert distinct_numbers(0.12341, 0.12349) == ("0.1234", "0.1235")
+    assert distinct_numbers(2.0, 2.0) == ("2", "2")
 
 
 TABLE = pd.DataFrame({"configuration": ["sarsa-constant", "q_learning-constant"], "episodes": [2490.0, np.nan],

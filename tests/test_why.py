@@ -144,10 +144,11 @@ def test_the_opening_says_the_gaps_in_words_with_the_labels():
     assert " less reward per episode than Q-Learning while it learns (95% interval" in sentences[1]
     assert "; Q-Learning better, with the 5 claims corrected together)" in sentences[1]  # the claim: SARSA lower
     assert "; the same within ±20: supported)" in sentences[1]
-    assert more_or_less(Estimate(8.68, 1.89, 14.5)) == "8.7 more (95% interval 1.9 to 14.5)"
-    assert more_or_less(Estimate(-3.1, -5.0, -1.2)) == "3.1 less (95% interval 1.2 to 5.0)"
-    assert more_or_less(Estimate(14.2, -19.8, 88.0)) == "14.2 more (95% interval 19.8 less to 88.0 more)"
+    assert more_or_less(Estimate(8.68, 1.89, 14.5)) == "8.68 more (95% interval 1.89 to 14.5)"
+    assert more_or_less(Estimate(-3.1, -5.0, -1.2)) == "3.1 less (95% interval 1.2 to 5)"
+    assert more_or_less(Estimate(14.2, -19.8, 88.0)) == "14.2 more (95% interval 19.8 less to 88 more)"
     assert more_or_less(Estimate(-250.0, -600.0, -120.0)) == "250 less (95% interval 120 to 600)"
+    assert more_or_less(Estimate(5.3e-05, 1e-06, 9.9e-05)) == "0.000053 more (95% interval 0.000001 to 0.000099)"
     assert tally(verdicts) == ("Of the paper's 5 claims tested here: 3 supported, 2 not resolved; "
                                "1 of them fragile (another convergence rule decides it the other way).")
 

@@ -12,6 +12,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
+from rlcompare.formatting import number
 from rlcompare.stats.compare import compare_paired
 from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.significance import CONTRADICTED, NO_DATA, NOT_RESOLVED, SUPPORTED, UNDECIDABLE
@@ -32,11 +33,6 @@ BEHAVIOUR_AND_GREEDY = (
 
 def _bare(label: str) -> str:
     return label.removesuffix(" (fragile)")
-
-
-def number(value: float) -> str:
-    """A plain number: one decimal below 100 in size, none above, never an exponent."""
-    return f"{value:,.1f}" if abs(value) < 100 else f"{value:,.0f}"
 
 
 def amount(estimate: Estimate, signed: bool = False) -> str:
@@ -72,7 +68,7 @@ def _verdict_words(claim: Claim, label: str, claims: int) -> str:
     if label == NO_DATA:
         return "no data to test"
     if claim.kind == "within":
-        what = f"the same within ±{claim.bounds[1]:g}"
+        what = f"the same within ±{number(claim.bounds[1])}"
         return {SUPPORTED: f"{what}: supported", CONTRADICTED: f"not {what}: contradicted"}.get(
             label, f"whether they are {what} is {label}")
     if label in (SUPPORTED, CONTRADICTED):

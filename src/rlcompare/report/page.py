@@ -7,7 +7,6 @@ archived as a whole and opened without a server or a network.
 from __future__ import annotations
 
 import html
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +16,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.experiment.store import write_atomic
+from rlcompare.formatting import NO_DATA, number
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2rem auto; max-width: 1200px; color: #222; line-height: 1.45; }
@@ -65,32 +65,14 @@ def _verdict_cell(match: re.Match[str]) -> str:
     return f'<td class="{classes}">{label}{fragile or ""}</td>'
 
 
-NO_DATA = "no data"
-"""What a table shows where it has no number."""
-
-
-def plain_number(value: float) -> str:
-    """A number as a reader writes it: thousands separated, about three significant digits, never an exponent
-    (``2,490``, ``-176``, ``8.68``, ``0.0012``); NaN is :data:`NO_DATA`."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return NO_DATA
-    if float(value).is_integer() and abs(value) < 1e15:
-        return f"{int(value):,}"
-    size = abs(value)
-    if size >= 100:
-        return f"{value:,.0f}"
-    if size >= 1:
-        return f"{value:.{2 if size < 10 else 1}f}"
-    return np.format_float_positional(value, precision=3, unique=True, fractional=False, trim="-")
-
-
 def shown(frame: pd.DataFrame) -> pd.DataFrame:
-    """``frame`` as a reader sees it: numbers plain (:func:`plain_number`), missing values :data:`NO_DATA`."""
+    """``frame`` as a reader sees it: numbers plain (:func:`~rlcompare.formatting.number`), missing values
+    :data:`~rlcompare.formatting.NO_DATA`."""
     def cell(value: object) -> object:
         if isinstance(value, bool | np.bool_):
             return value
         if isinstance(value, int | float | np.integer | np.floating):
-            return plain_number(float(value))
+            return number(float(value))
         return NO_DATA if value is None or value is pd.NA else value
 
     return frame.map(cell) if not frame.empty else frame

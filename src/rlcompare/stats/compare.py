@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rlcompare.formatting import number
 from rlcompare.stats.intervals import (
     NO_ESTIMATE,
     Estimate,
@@ -84,7 +85,7 @@ def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, 
     if direction == NO_DATA:
         return NO_DATA
     if equivalence is not None and equivalence_verdict(equivalence, p_equivalence, level) == SUPPORTED:
-        return f"equivalent (within ±{equivalence.upper:g})"
+        return f"equivalent (within ±{number(equivalence.upper)})"
     return NOT_RESOLVED
 
 

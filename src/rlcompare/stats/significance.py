@@ -22,6 +22,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from scipy import stats
 
+from rlcompare.formatting import distinct_numbers
 from rlcompare.stats.intervals import NO_ESTIMATE, Estimate, per_seed_values
 
 Verdict = Literal["supported", "contradicted", "not resolved", "undecidable here", "no data"]
@@ -205,8 +206,8 @@ class NoiseFloor(NamedTuple):
 
     def format(self) -> str:
         """``gap 0.0008 < spread 0.003``, with as many significant digits (2 to 6) as tell the two apart."""
-        digits = next((d for d in range(2, 7) if f"{self.gap:.{d}g}" != f"{self.spread:.{d}g}"), 6)
-        return f"gap {self.gap:.{digits}g} {'<' if self.below else '>='} spread {self.spread:.{digits}g}"
+        gap, spread = distinct_numbers(self.gap, self.spread)
+        return f"gap {gap} {'<' if self.below else '>='} spread {spread}"
 
 
 def holm_factors(p_values: Iterable[float]) -> np.ndarray:

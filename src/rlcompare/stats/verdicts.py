@@ -18,6 +18,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import pandas as pd
 
+from rlcompare.formatting import number
 from rlcompare.stats.compare import compare_paired
 from rlcompare.stats.intervals import paired_difference, probability_of_improvement
 from rlcompare.stats.power import provable_margin
@@ -155,8 +156,8 @@ def underpowered(differences: np.ndarray, margin_value: float, scale: str = "") 
     if not provable > margin_value:
         return ""
     where = f" {scale}" if scale else ""
-    return (f"underpowered for its margin: {differences.size} seeds prove ±{provable:.3g}{where} four times in five, "
-            f"wider than ±{margin_value:.3g}")
+    return (f"underpowered for its margin: {differences.size} seeds prove ±{number(provable)}{where} four times in "
+            f"five, wider than ±{number(margin_value)}")
 
 
 def _direction(difference, p_value: float, sign: int) -> tuple[Verdict, int]:
@@ -174,8 +175,8 @@ def margin_text(bounds: tuple[float, float]) -> str:
     """Where a claim's difference holds: ``> -5``, ``< 0``, ``in [-20, 20]``."""
     lower, upper = bounds
     if math.isinf(upper):
-        return f"> {lower:g}"
-    return f"< {upper:g}" if math.isinf(lower) else f"in [{lower:g}, {upper:g}]"
+        return f"> {number(lower)}"
+    return f"< {number(upper)}" if math.isinf(lower) else f"in [{number(lower)}, {number(upper)}]"
 
 
 def _test_text(claim: Claim, names: tuple[str, str]) -> str:
@@ -186,13 +187,13 @@ def _test_text(claim: Claim, names: tuple[str, str]) -> str:
         return f"{difference} {side} 0: Wilcoxon signed-rank"
     if claim.kind == "ratio":
         return (f"{names[1]} / {names[0]} in [{claim.value / RATIO_FACTOR:.2f}, {claim.value * RATIO_FACTOR:.2f}] "
-                f"(about {claim.value:.2g} times): TOST on log ratios")
+                f"(about {number(claim.value, 2)} times): TOST on log ratios")
     if claim.kind == "within":
         lower, upper = claim.bounds
         if lower == -upper:
-            return f"|{difference}| < {upper:g}: TOST, paired t"
+            return f"|{difference}| < {number(upper)}: TOST, paired t"
         return f"{difference} {margin_text(claim.bounds)}: one-sided t"
-    return f"{names[0 if claim.reads == 'a' else 1]} {side} {claim.value:g}: Wilcoxon signed-rank"
+    return f"{names[0 if claim.reads == 'a' else 1]} {side} {number(claim.value)}: Wilcoxon signed-rank"
 
 
 def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int, names: tuple[str, str]) -> _Outcome:
@@ -251,7 +252,7 @@ def _label(claim: Claim, outcome: _Outcome, p_adjusted: float, holm_factor: floa
             return (NOT_RESOLVED, floor_text,
                     f"{label} from censored values: seeds that never converged could overturn it")
         return label, floor_text, (f"{label} whatever the never-converged seeds' true times: the sign test with "
-                                   f"each at its worst gives p (Holm) {worst:.2g}")
+                                   f"each at its worst gives p (Holm) {number(worst, 2)}")
     return label, floor_text, ""
 
 

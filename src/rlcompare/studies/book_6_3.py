@@ -33,7 +33,7 @@ from rlcompare.algorithms.registry import label as method_label
 from rlcompare.envs.features import feature_count
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.runner import run
-from rlcompare.formatting import cut
+from rlcompare.formatting import cut, number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.intervals import Estimate, interval, mean_interval
 from rlcompare.stats.significance import ALPHA
@@ -254,7 +254,7 @@ def verdicts(found: list[Claim], runs: dict[str, PhaseRuns]) -> pd.DataFrame:
     return pd.DataFrame({
         "claim": judged["claim"], "reads": [c.about for c in found], "runs": [len(runs[c.a].seeds) for c in found],
         "mean [95% t interval]": judged["estimate"], "holds where": [margin_text(c.bounds) for c in found],
-        "p (Holm)": [f"{p:.2g}" for p in judged["p (Holm)"]], "verdict": judged["verdict"]})
+        "p (Holm)": [number(p, 2) for p in judged["p (Holm)"]], "verdict": judged["verdict"]})
 
 
 # --- the report -------------------------------------------------------------------------------------------

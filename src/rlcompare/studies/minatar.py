@@ -31,6 +31,7 @@ from rlcompare.deep.train import params_template
 from rlcompare.envs import minatar
 from rlcompare.experiment import store
 from rlcompare.experiment.backends import make_backend
+from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.stage_video import Episodes, render_stages
 from rlcompare.stats import intervals as stats
@@ -253,7 +254,7 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
             f"game, ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
             f"the games; random 0, the best method here 1). p-values Holm-adjusted over the games and the overall "
             f"row; with {seeds} seeds the signed-rank test cannot give a p below "
-            f"{smallest_p(seeds):.3g}."], [("Verdicts", found.verdicts, files["verdicts"])]),
+            f"{number(smallest_p(seeds))}."], [("Verdicts", found.verdicts, files["verdicts"])]),
         Section("The same question on tables and on classic control", [SAME_QUESTION, *elsewhere.paragraphs],
                 [(same_question.CAPTION, elsewhere.table, files["same_question"])]),
         Section("Every game", [

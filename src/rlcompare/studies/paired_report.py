@@ -19,9 +19,10 @@ from matplotlib.figure import Figure
 
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.results import DeepResults
+from rlcompare.formatting import number
 from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
-from rlcompare.report.page import plain_number, save_figure, write_table
+from rlcompare.report.page import save_figure, write_table
 from rlcompare.report.plots import plot_paired_differences, plot_return_curves
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import Judged, Paired, compare_paired, judge_family
@@ -121,7 +122,7 @@ def verdict_table(study: PairedStudy, compared: Mapping[Key, Judged]) -> pd.Data
     return pd.DataFrame([{
         **study.columns(key), "on - off (mean, 95% CI)": j.paired.difference.format(study.digits),
         "P(on > off)": j.paired.improvement.format(2), "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence,
-        "detectable (80% power)": plain_number(j.detectable), "verdict": j.label,
+        "detectable (80% power)": number(j.detectable), "verdict": j.label,
     } for key, j in compared.items()])
 
 

@@ -34,7 +34,8 @@ from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
-from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less, number
+from rlcompare.formatting import number
+from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less
 from rlcompare.report.page import NO_DATA, Section, save_figure, write_report, write_table
 from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.stats.metrics import returns_per_seed
