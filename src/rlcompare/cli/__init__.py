@@ -1,6 +1,6 @@
 """The ``rlcompare`` command line: parse, call one library function, print.
 
-``rlcompare``, ``rlcompare --help`` and ``rlcompare --version`` are answered by :mod:`rlcompare.cli.face`, which
+``rlcompare``, ``rlcompare --help`` and ``rlcompare --version`` are answered by :mod:`rlcompare.cli.app_help`, which
 imports nothing heavier than typer, so they start at once; anything else builds the whole app
 (:mod:`rlcompare.cli.commands`), whose commands take their options from the configuration classes.
 """
@@ -12,15 +12,15 @@ from typing import Any
 
 __all__ = ["ALGORITHM_HELP", "app", "main"]
 
-_FACE_ONLY = ([], ["--help"], ["--version"])
-"""Command lines the face answers alone."""
+_SUMMARY_ONLY = ([], ["--help"], ["--version"])
+"""Command lines the summary app answers alone."""
 
 
 def main() -> None:
-    if sys.argv[1:] in _FACE_ONLY:
-        from rlcompare.cli.face import face_app
+    if sys.argv[1:] in _SUMMARY_ONLY:
+        from rlcompare.cli.app_help import summary_app
 
-        face_app()()
+        summary_app()()
     else:
         from rlcompare.cli.commands import app
 

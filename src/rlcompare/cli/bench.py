@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from rlcompare.cli.app_help import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.cli.console import (
     check_out,
     console,
@@ -18,7 +19,6 @@ from rlcompare.cli.console import (
     out_path,
     print_bench,
 )
-from rlcompare.cli.face import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.experiment import store
 
 if TYPE_CHECKING:

@@ -1,6 +1,6 @@
 """The ``rlcompare`` app with every command: parse, call one library function, print.
 
-Its top-level help is :mod:`rlcompare.cli.face`'s, which answers ``rlcompare --help`` without importing this
+Its top-level help is :mod:`rlcompare.cli.app_help`'s, which answers ``rlcompare --help`` without importing this
 module.
 """
 
@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 from rich.text import Text
 
+from rlcompare.cli.app_help import SUMMARIES, PlainCommand, new_app
 from rlcompare.cli.bench import bench_app
 from rlcompare.cli.config_options import ALGORITHM_HELP, config_options
 from rlcompare.cli.console import (
@@ -29,7 +30,6 @@ from rlcompare.cli.console import (
     print_report,
     progress_bars,
 )
-from rlcompare.cli.face import SUMMARIES, PlainCommand, new_app
 from rlcompare.cli.reproduce import FORCE_HELP, reproduce_app
 from rlcompare.experiment import store
 from rlcompare.studies.registry import STUDIES

@@ -12,6 +12,7 @@ from typing import Annotated, Any, get_type_hints
 
 import typer
 
+from rlcompare.cli.app_help import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.cli.console import (
     ConsoleUI,
     announce_compiling,
@@ -24,7 +25,6 @@ from rlcompare.cli.console import (
     out_path,
     print_report,
 )
-from rlcompare.cli.face import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.experiment import store
 from rlcompare.studies.interface import Options
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study

@@ -49,8 +49,6 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-import numpy as np
-
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
@@ -152,6 +150,8 @@ def swept_value(config: Any, key: str) -> Any:
 
 def derive_seeds(root_seed: int, count: int) -> tuple[int, ...]:
     """``count`` run seeds from ``SeedSequence(root_seed).spawn(count)``, each below 2**63."""
+    import numpy as np
+
     children = np.random.SeedSequence(root_seed).spawn(count)
     return tuple(int(child.generate_state(1, np.uint64)[0] >> np.uint64(1)) for child in children)
 

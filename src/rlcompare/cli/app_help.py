@@ -2,9 +2,8 @@
 command's one-line summary, the version option, and help that names no Python types.
 
 ``rlcompare`` alone, ``--help`` and ``--version`` are answered from here (:func:`rlcompare.cli.main`) without
-importing the commands, whose options come from the configuration classes (numba, numpy, pandas: seconds to
-import); every other command line builds the whole app (:mod:`rlcompare.cli.commands`), whose top-level help is
-the same text (tested).
+importing the commands; every other command line builds the whole app (:mod:`rlcompare.cli.commands`), whose
+top-level help is the same text (tested).
 """
 
 from __future__ import annotations
@@ -107,7 +106,7 @@ def new_app() -> typer.Typer:
     return app
 
 
-def face_app() -> typer.Typer:
+def summary_app() -> typer.Typer:
     """``rlcompare`` with each command's name and summary only: what ``rlcompare --help`` shows, built without the
     commands' options."""
     app = new_app()

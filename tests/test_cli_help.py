@@ -1,4 +1,4 @@
-"""The command line's face: a fast --help and --version, help in plain words, report on a single run directory,
+"""The command line's help: a fast --help and --version, help in plain words, report on a single run directory,
 tables that fit 80 columns, and what a run says of the steps it was given."""
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from typer.testing import CliRunner
 
 from rlcompare import ExperimentConfig, cli, run
 from rlcompare.cli import console as console_module
+from rlcompare.cli.app_help import summary_app
 from rlcompare.cli.config_options import PLAIN_WORDS
-from rlcompare.cli.face import face_app
 from rlcompare.studies.registry import STUDIES
 from rlcompare.tabular.config import field_docs
 
@@ -69,13 +69,13 @@ def test_version_is_the_installed_packages() -> None:
 
 
 def test_the_fast_help_is_the_whole_apps_help() -> None:
-    face = CliRunner(env={"COLUMNS": "100"}).invoke(face_app(), ["--help"], prog_name="rlcompare")
+    summary = CliRunner(env={"COLUMNS": "100"}).invoke(summary_app(), ["--help"], prog_name="rlcompare")
     whole = invoke("--help", columns=100)
-    assert face.exit_code == whole.exit_code == 0
-    assert face.output == whole.output
+    assert summary.exit_code == whole.exit_code == 0
+    assert summary.output == whole.output
     for name in ("run", "sweep", "report", "bench", "reproduce", "--version"):
-        assert name in face.output
-    as_run = command_line("--help", columns=100).stdout  # by main(), which answers from the face alone
+        assert name in summary.output
+    as_run = command_line("--help", columns=100).stdout  # by main(), which answers from the summary app alone
     assert [line.rstrip() for line in as_run.replace("python -m rlcompare.cli", "rlcompare").splitlines()] == [
         line.rstrip() for line in whole.output.splitlines()]
 
