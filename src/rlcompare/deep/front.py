@@ -4,6 +4,7 @@ configuration that vmaps over seeds (:mod:`rlcompare.deep.train`)."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from rlcompare.deep.agent import agent
 from rlcompare.deep.config import DeepConfig as Config
@@ -24,7 +25,7 @@ FIXED_IN_SWEEP = {"vmap_width": "fixed at 1 in a sweep (each trial trains one se
 PREFIX = NESTED + "."
 
 
-def sweep_config(values: dict, seeds: tuple[int, ...]) -> Config:
+def sweep_config(values: dict[str, Any], seeds: tuple[int, ...]) -> Config:
     """One seed's configuration of a sweep, ``hyperparameters.NAME`` flat in ``values``; hyperparameters the preset
     already has are dropped, so that a configuration has one hash however it is written. A method's own check
     names its hyperparameter (``hyperparameters.lam``)."""

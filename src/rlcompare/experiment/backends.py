@@ -21,10 +21,10 @@ from __future__ import annotations
 import importlib.util
 import os
 import socket
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from rlcompare.experiment import engines
 from rlcompare.experiment.runner import run
@@ -39,7 +39,19 @@ class BackendError(RuntimeError):
     """A backend that cannot start: Ray missing, or no cluster at the address."""
 
 
-def run_trial(config: dict) -> Any:
+class Backend(Protocol):
+    """Where a sweep's trials run: joined first, then given the trials."""
+
+    def connect(self) -> None:
+        """Join the machines the trials run on, or fail with a :class:`BackendError` saying why."""
+        ...
+
+    def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
+        """Run every trial, calling ``on_done(trial, results)`` as each one finishes."""
+        ...
+
+
+def run_trial(config: dict[str, Any]) -> Any:
     """Train one trial from its configuration (a plain dict, cheap to ship to a remote worker) on the engine it
     names (:mod:`rlcompare.experiment.engines`), imported only then."""
     return run(engines.config_from_dict(config))
@@ -59,7 +71,7 @@ class LocalBackend:
         finished, and let the trials in flight end (a compiled run cannot be stopped midway)."""
         pending = iter(trials)
         with ThreadPoolExecutor(self.workers, thread_name_prefix="trial") as pool:
-            running: dict[Future, Trial] = {}
+            running: dict[Future[None], Trial] = {}
             try:
                 self._fill(pool, running, pending, on_done)
                 while running:
@@ -73,7 +85,8 @@ class LocalBackend:
                     future.cancel()
                 raise
 
-    def _fill(self, pool: ThreadPoolExecutor, running: dict[Future, Trial], pending, on_done: OnDone) -> None:
+    def _fill(self, pool: ThreadPoolExecutor, running: dict[Future[None], Trial], pending: Iterator[Trial],
+              on_done: OnDone) -> None:
         while len(running) < self.workers:
             trial = next(pending, None)
             if trial is None:
@@ -147,7 +160,7 @@ def ray_installed() -> bool:
     return importlib.util.find_spec("ray") is not None
 
 
-def _import_ray():
+def _import_ray() -> Any:
     try:
         import ray
     except ImportError:
@@ -155,7 +168,7 @@ def _import_ray():
     return ray
 
 
-def make_backend(name: str, *, workers: int | None = None, address: str | None = "auto"):
+def make_backend(name: str, *, workers: int | None = None, address: str | None = "auto") -> LocalBackend | RayBackend:
     if name == "local":
         return LocalBackend(workers or os.cpu_count() or 1)
     if name == "ray":

@@ -24,16 +24,30 @@ class EngineFront(Protocol):
     """What an engine's front module offers: its configuration and results types, how it trains, merges seeds,
     makes an agent, and what a sweep file may set of its configurations."""
 
-    Config: type[Any]
-    """Its frozen configuration: ``to_dict()``, ``from_dict(data)``, ``seeds``, ``name``, ``progress_total``."""
-    Results: type[rundir.RunResults]
-    """What a run produces (:class:`~rlcompare.experiment.rundir.RunResults`)."""
-    SWEEP_KEYS: tuple[str, ...]
-    """What a sweep file may set."""
-    NESTED: str | None
-    """The table of a sweep file whose keys are nested settings (the deep engine's ``hyperparameters``)."""
-    FIXED_IN_SWEEP: Mapping[str, str]
-    """Fields a sweep may not set, with the reason."""
+    @property
+    def Config(self) -> type[Any]:
+        """Its frozen configuration: ``to_dict()``, ``from_dict(data)``, ``seeds``, ``name``, ``progress_total``."""
+        ...
+
+    @property
+    def Results(self) -> type[rundir.RunResults]:
+        """What a run produces (:class:`~rlcompare.experiment.rundir.RunResults`)."""
+        ...
+
+    @property
+    def SWEEP_KEYS(self) -> tuple[str, ...]:
+        """What a sweep file may set."""
+        ...
+
+    @property
+    def NESTED(self) -> str | None:
+        """The table of a sweep file whose keys are nested settings (the deep engine's ``hyperparameters``)."""
+        ...
+
+    @property
+    def FIXED_IN_SWEEP(self) -> Mapping[str, str]:
+        """Fields a sweep may not set, with the reason."""
+        ...
 
     def train(self, config: Any, *, study: str = "", progress: Callable[[int], None] | None = None) -> Any:
         """Every seed of ``config`` trained, in memory."""

@@ -25,7 +25,7 @@ import hashlib
 import io
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
 
 from rlcompare.experiment import store
 from rlcompare.experiment.store import StoreError
@@ -52,8 +52,8 @@ def is_complete(run_dir: Path, files: tuple[str, ...] = RUN_FILES) -> bool:
     return all((Path(run_dir) / name).is_file() for name in files)
 
 
-def write_run(run_dir: Path, config: dict, contents: dict[str, bytes], meta: dict, record: dict | None = None
-              ) -> Path:
+def write_run(run_dir: Path, config: dict[str, Any], contents: dict[str, bytes], meta: dict[str, Any],
+              record: dict[str, Any] | None = None) -> Path:
     """Write a run directory, the one way every engine and study does: ``config.json`` and ``contents``
     (file name -> bytes) each under a temporary name renamed into place, then ``meta.json`` last, with
     ``record`` (what the run holds: seeds, rows, shapes) and the size and checksum of every other file. A
@@ -71,8 +71,8 @@ def write_run(run_dir: Path, config: dict, contents: dict[str, bytes], meta: dic
     return run_dir
 
 
-def read_run(run_dir: Path, content_files: tuple[str, ...], expected_config: dict | None = None
-             ) -> tuple[dict, dict]:
+def read_run(run_dir: Path, content_files: tuple[str, ...], expected_config: dict[str, Any] | None = None
+             ) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(meta, config)`` of a finished run directory whose files belong together (:func:`verify_run`);
     anything else is a :class:`StoreError` naming the file."""
     meta = verify_run(run_dir, expected_config, content_files)
@@ -86,7 +86,8 @@ def file_record(data: bytes) -> dict[str, Any]:
     return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
-def verify_run(run_dir: Path, expected_config: dict | None, content_files: tuple[str, ...]) -> dict:
+def verify_run(run_dir: Path, expected_config: dict[str, Any] | None, content_files: tuple[str, ...]
+               ) -> dict[str, Any]:
     """``meta.json`` of a finished run whose files belong together: each one's size and checksum equal what
     ``meta.json`` recorded when the run was written, and ``config.json`` is ``expected_config`` where given.
     Anything else is a :class:`StoreError` naming the file."""
@@ -97,7 +98,7 @@ def verify_run(run_dir: Path, expected_config: dict | None, content_files: tuple
     meta = store.read_json(run_dir / META_FILE)
     contents = meta.get("contents") if isinstance(meta, dict) else None
     files = contents.get("files") if isinstance(contents, dict) else None
-    if not isinstance(files, dict) or sorted(files) != sorted(content_files):
+    if not isinstance(meta, dict) or not isinstance(files, dict) or sorted(files) != sorted(content_files):
         raise StoreError(f"{run_dir / META_FILE}: no record of the run's contents (not written by this version of "
                          "rlcompare, or damaged); run it again")
     for name in content_files:
@@ -135,12 +136,15 @@ R = TypeVar("R", bound="RunResults")
 class RunResults(Protocol):
     """What a run of either engine produces, as its run directory holds it."""
 
-    arrays_file: str
+    arrays_file: ClassVar[str]
     """The file of arrays beside the tables: ``qtables.npz`` or ``params.npz``."""
     meta: dict[str, Any]
 
     @property
     def config(self) -> Any: ...
+
+    @property
+    def seeds(self) -> tuple[int, ...]: ...
 
     def labels(self) -> dict[str, str]:
         """The columns every row of its tables carries: study, env, algorithm, schedule."""
@@ -226,8 +230,9 @@ def _parquet_bytes(labels: dict[str, str], columns: dict[str, np.ndarray]) -> by
 
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """The arrays in a compressed ``.npz``, without pickles: :func:`read_results` loads none."""
     import numpy as np
 
     buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
+    np.savez_compressed(buffer, allow_pickle=False, **arrays)
     return buffer.getvalue()

@@ -111,7 +111,7 @@ def listed_outputs(directory: Path) -> set[str]:
         return set()
 
 
-def _read_marker(marker: Path) -> dict:
+def _read_marker(marker: Path) -> dict[str, Any]:
     data = read_json(marker)
     if not (isinstance(data, dict) and data.get("written_by") == "rlcompare" and isinstance(data.get("kind"), str)
             and isinstance(data.get("name"), str) and isinstance(data.get("outputs"), list)):
@@ -246,7 +246,8 @@ def remove_outputs(directory: Path, pattern: str) -> list[str]:
 
 # --- locks ------------------------------------------------------------------------------------------------
 
-_held: dict[Path, list] = {}
+_held: dict[Path, list[int]] = {}
+"""Each directory this process holds the lock of -> ``[its lock file's descriptor, how many hold it]``."""
 _held_lock = threading.Lock()
 
 
@@ -361,7 +362,7 @@ def _owned_file(path: Path, mode: str) -> Iterator[IO[Any]]:
         raise StoreError(f"{path}: cannot write ({cut(reason, 200)})") from None
 
 
-def write_atomic(path: Path, write: Callable[[IO[bytes]], None]) -> None:
+def write_atomic(path: Path, write: Callable[[IO[bytes]], object]) -> None:
     """Call ``write`` on a binary handle to a temporary file, then rename it to ``path``."""
     with _owned_file(Path(path), "wb") as handle:
         write(handle)

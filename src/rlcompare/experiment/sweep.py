@@ -46,8 +46,7 @@ import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -57,6 +56,9 @@ else:  # pragma: no cover - Python 3.10
 from rlcompare.experiment.engines import ENGINES
 from rlcompare.formatting import cut, quote
 from rlcompare.validation import ConfigError, Integer
+
+if TYPE_CHECKING:
+    from rlcompare.experiment.engines import EngineFront
 
 SECTIONS = ("sweep", "fixed", "grid", "include")
 SWEEP_KEYS = ("name", "root_seed", "seeds", "engine")
@@ -87,7 +89,7 @@ class Trial:
 
     @property
     def seed(self) -> int:
-        return self.config.seeds[0]
+        return int(self.config.seeds[0])
 
     @property
     def trial_id(self) -> str:
@@ -101,7 +103,7 @@ class _Built:
     config: Any
     where: str
     """``grid`` or ``include[k]``."""
-    values: dict
+    values: dict[str, Any]
     origin: dict[str, str]
     """The path of each value given: ``fixed.alpha``, ``grid.alpha[1]``, ``include[0].alpha``."""
 
@@ -135,9 +137,10 @@ def config_hash(config: Any) -> str:
     return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def config_dict(config: Any) -> dict:
+def config_dict(config: Any) -> dict[str, Any]:
     """The configuration as its trial's ``config.json`` holds it (JSON's lists for tuples)."""
-    return json.loads(json.dumps(config.to_dict()))
+    data: dict[str, Any] = json.loads(json.dumps(config.to_dict()))
+    return data
 
 
 def swept_value(config: Any, key: str) -> Any:
@@ -180,7 +183,7 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
         problems.append("grid: empty; allowed: at least one [grid] list or one [[include]] table")
     name, root_seed, count, engine_name = _header(_table(data, "sweep", problems), problems)
     engine = _engine(engine_name, problems)
-    if engine is None:  # the keys of an unknown or unavailable engine cannot be checked
+    if engine is None or engine_name is None:  # the keys of an unknown or unavailable engine cannot be checked
         raise SweepError(source, problems)
     fixed = _known("fixed", _table(data, "fixed", problems), engine, problems)
     grid = _known("grid", _table(data, "grid", problems), engine, problems)
@@ -215,7 +218,7 @@ def parse_sweep(text: str, source: str = "<sweep>") -> Sweep:
     return Sweep(name, root_seed, seeds, tuple(configs), swept, engine_name)
 
 
-def _engine(name: str | None, problems: list[str]) -> ModuleType | None:
+def _engine(name: str | None, problems: list[str]) -> EngineFront | None:
     """The front of the engine named in [sweep] (:mod:`rlcompare.experiment.engines`); None, with the problem
     reported, where it is unknown or not installed."""
     if name not in ENGINES:
@@ -227,11 +230,11 @@ def _engine(name: str | None, problems: list[str]) -> ModuleType | None:
     return None
 
 
-def _known(section: str, table: dict, engine: ModuleType, problems: list[str]) -> dict:
+def _known(section: str, table: dict[str, Any], engine: EngineFront, problems: list[str]) -> dict[str, Any]:
     """The table's configuration keys (the engine's nested table, a deep sweep's ``hyperparameters``, flattened
     to ``hyperparameters.NAME``); every other key reported."""
     nested = engine.NESTED
-    known = {}
+    known: dict[str, Any] = {}
     for key, value in table.items():
         if key == "seeds":
             problems.append(f"{section}.seeds: the seeds are set once, in [sweep] (seeds = N)")
@@ -251,7 +254,7 @@ def _known(section: str, table: dict, engine: ModuleType, problems: list[str]) -
     return known
 
 
-def _table(data: dict, section: str, problems: list[str]) -> dict:
+def _table(data: dict[str, Any], section: str, problems: list[str]) -> dict[str, Any]:
     value = data.get(section, {})
     if not isinstance(value, dict):
         problems.append(f"{section}: got {quote(value)}; allowed: a table ([{section}])")
@@ -259,7 +262,7 @@ def _table(data: dict, section: str, problems: list[str]) -> dict:
     return value
 
 
-def _includes(data: dict, problems: list[str]) -> list[dict]:
+def _includes(data: dict[str, Any], problems: list[str]) -> list[dict[str, Any]]:
     value = data.get("include", [])
     if not isinstance(value, list) or not all(isinstance(item, dict) for item in value):
         problems.append(f"include: got {quote(value)}; allowed: tables ([[include]])")
@@ -267,7 +270,7 @@ def _includes(data: dict, problems: list[str]) -> list[dict]:
     return value
 
 
-def _header(header: dict, problems: list[str]) -> tuple[str, int, int, str | None]:
+def _header(header: dict[str, Any], problems: list[str]) -> tuple[str, int, int, str | None]:
     """Name, root seed, seeds per configuration and engine; a bad value is reported and replaced by its default
     (an unknown engine by None)."""
     for key in header:
@@ -300,7 +303,7 @@ def is_sweep_name(name: Any) -> bool:
     return isinstance(name, str) and NAME.fullmatch(name) is not None
 
 
-def _combinations(fixed: dict, grid: dict) -> list[tuple[str, dict, dict[str, str]]]:
+def _combinations(fixed: dict[str, Any], grid: dict[str, Any]) -> list[tuple[str, dict[str, Any], dict[str, str]]]:
     """Every combination of the grid over the fixed values, with the path each value came from."""
     keys = list(grid)
     out = []
@@ -312,15 +315,17 @@ def _combinations(fixed: dict, grid: dict) -> list[tuple[str, dict, dict[str, st
     return out
 
 
-def _configs(sources: Iterable[tuple[str, dict, dict[str, str]]], seeds: tuple[int, ...],
-             build: Callable[[dict, tuple[int, ...]], Any], problems: list[str]) -> list[_Built]:
+def _configs(sources: Iterable[tuple[str, dict[str, Any], dict[str, str]]], seeds: tuple[int, ...],
+             build: Callable[[dict[str, Any], tuple[int, ...]], Any], problems: list[str]) -> list[_Built]:
     """The valid configurations; every problem of the others, each reported once.
 
     A configuration stops at its first bad value, so each bad value is set back to its default and the rest
     checked again, until none is left. A problem that a value has in every configuration it is part of is
     reported at its path alone; one that depends on the other values names the first combination it has.
     Configurations valid only with a value set back are not returned."""
-    built, failures, appearances = [], {}, {}
+    built: list[_Built] = []
+    failures: dict[str, tuple[str, list[str]]] = {}  # problem -> its path, and the other values of each that had it
+    appearances: dict[str, int] = {}
     for where_from, given, origin in sources:
         for path in origin.values():
             appearances[path] = appearances.get(path, 0) + 1

@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 import pyarrow as pa
@@ -30,6 +30,9 @@ import pyarrow.dataset as ds
 
 from rlcompare.experiment import engines, rundir, store
 from rlcompare.experiment.sweep import Sweep, Trial, config_dict, config_hash, swept_value
+
+if TYPE_CHECKING:
+    from rlcompare.experiment.backends import Backend
 
 MANIFEST_FILE = "manifest.json"
 SWEEP_FILE = "sweep.toml"
@@ -71,7 +74,7 @@ class SweepStore:
         self._write_manifest()
         return [t for t in self._trials if self._status[t.trial_id] == PENDING]
 
-    def save(self, trial: Trial, results) -> None:
+    def save(self, trial: Trial, results: rundir.RunResults) -> None:
         """Write a finished trial's run directory; mark it done in the manifest."""
         rundir.write_results(self.trial_dir(trial), results)  # over an earlier attempt that did not finish, if any
         with self._lock:
@@ -97,7 +100,8 @@ class SweepStore:
         })
 
 
-def _plain(value):
+def _plain(value: Any) -> Any:
+    """``value`` as JSON writes it, its tuples (nested too) as lists."""
     return list(map(_plain, value)) if isinstance(value, tuple) else value
 
 
@@ -105,7 +109,7 @@ def trial_path(root: Path, config_hash: str, seed: int) -> Path:
     return Path(root) / TRIALS_DIR / f"config={config_hash}" / f"trial={seed}"
 
 
-def is_finished(trial_dir: Path, config: dict | None = None, engine: str = engines.DEFAULT) -> bool:
+def is_finished(trial_dir: Path, config: dict[str, Any] | None = None, engine: str = engines.DEFAULT) -> bool:
     """Whether a trial's run directory is finished and its files belong together (and hold ``config``);
     ``engine``: the sweep's, whose results say what files a trial has."""
     try:
@@ -115,9 +119,9 @@ def is_finished(trial_dir: Path, config: dict | None = None, engine: str = engin
     return True
 
 
-def engine_of(manifest: dict) -> str:
+def engine_of(manifest: dict[str, Any]) -> str:
     """The engine of a sweep's trials (stores written before deep sweeps say none: tabular)."""
-    return manifest.get("engine", engines.DEFAULT)
+    return str(manifest.get("engine", engines.DEFAULT))
 
 
 def read_table(root: Path, name: str = rundir.EPISODES_FILE) -> pd.DataFrame:
@@ -130,14 +134,14 @@ def read_table(root: Path, name: str = rundir.EPISODES_FILE) -> pd.DataFrame:
     if not files:
         return pd.DataFrame()
     partitioning = ds.partitioning(pa.schema([("config", pa.string()), ("trial", pa.int64())]), flavor="hive")
-    frame = ds.dataset(files, format="parquet", partitioning=partitioning,
+    frame: pd.DataFrame = ds.dataset(files, format="parquet", partitioning=partitioning,
                        partition_base_dir=str(Path(root) / TRIALS_DIR)).to_table().to_pandas()
     swept = pd.DataFrame([{"config": e["config_hash"], **e["swept"]} for e in manifest["trials"]])
     extra = ["config", *(key for key in swept.columns if key not in frame.columns)]
     return frame.drop(columns="trial").merge(swept[extra].drop_duplicates("config"), on="config", how="left")
 
 
-def read_manifest(root: Path) -> dict:
+def read_manifest(root: Path) -> dict[str, Any]:
     path = Path(root) / MANIFEST_FILE
     if not path.is_file():
         raise store.StoreError(f"{root}: not a sweep directory (no {MANIFEST_FILE})")
@@ -155,8 +159,8 @@ def load_configurations(root: Path) -> tuple[dict[str, Any], list[str]]:
     manifest = read_manifest(root)
     front = engines.engine(engine_of(manifest)).front()  # the deep engine is imported only for a deep sweep
     files = (*rundir.files_of(front.Results), rundir.META_FILE)
-    by_config: dict[str, list] = {}
-    problems = []
+    by_config: dict[str, list[rundir.RunResults]] = {}
+    problems: list[str] = []
     for entry in manifest["trials"]:
         run_dir = trial_path(root, entry["config_hash"], entry["seed"])
         if rundir.is_complete(run_dir, files):
@@ -177,8 +181,8 @@ def load_configurations(root: Path) -> tuple[dict[str, Any], list[str]]:
     return {h: front.merge(trials) for h, trials in by_config.items()}, problems
 
 
-def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Callable[[Trial], None] | None = None,
-              *, force: bool = False) -> tuple[int, int]:
+def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend: Backend,
+              progress: Callable[[Trial], None] | None = None, *, force: bool = False) -> tuple[int, int]:
     """Run every trial of ``sweep`` that ``out`` does not hold yet on ``backend``, saving each as it finishes.
     ``out`` is claimed as a sweep's store and locked while the sweep runs (``force``: even beside files
     rlcompare did not write). Returns (trials already finished, trials run now)."""
@@ -187,7 +191,7 @@ def run_sweep(sweep: Sweep, sweep_text: str, out: Path, backend, progress: Calla
         sweep_store = SweepStore(out)
         todo = sweep_store.open(sweep, sweep_text)
 
-        def on_done(trial: Trial, results) -> None:
+        def on_done(trial: Trial, results: rundir.RunResults) -> None:
             sweep_store.save(trial, results)
             if progress is not None:
                 progress(trial)
