@@ -16,13 +16,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from itertools import permutations
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from rlcompare.stats.intervals import Estimate, improvement_share, iqm
 
-Aggregate = Callable[[np.ndarray], np.ndarray]
+Aggregate = Callable[[np.ndarray], "np.ndarray | float"]
+"""A metric over the last two axes of ``values``: one number for ``(tasks, runs)``, an array for resamples."""
 
 
 def stratified_resamples(values: np.ndarray, resamples: int, seed: int = 0) -> np.ndarray:
@@ -34,31 +36,34 @@ def stratified_resamples(values: np.ndarray, resamples: int, seed: int = 0) -> n
     return values[np.arange(tasks)[:, None], draws]
 
 
-def _percentiles(resampled: np.ndarray, confidence: float) -> tuple[np.ndarray, np.ndarray]:
+def _percentiles(resampled: np.ndarray | float, confidence: float) -> tuple[np.ndarray, np.ndarray]:
     low, high = np.percentile(resampled, [50 * (1 - confidence), 50 * (1 + confidence)], axis=0)
     return low, high
 
 
-def pooled_iqm(values: np.ndarray) -> np.ndarray:
+def pooled_iqm(values: np.ndarray) -> np.ndarray | float:
     """IQM of every run of every task pooled, over the last two axes (rliable's ``aggregate_iqm``)."""
     return iqm(values.reshape(*values.shape[:-2], -1), axis=-1)
 
 
-def aggregate_mean(values: np.ndarray) -> np.ndarray:
+def aggregate_mean(values: np.ndarray) -> np.ndarray | float:
     """The mean over tasks of each task's mean over runs, over the last two axes (rliable's ``aggregate_mean``)."""
-    return np.asarray(values).mean(axis=-1).mean(axis=-1)
+    mean: np.ndarray | float = np.asarray(values).mean(axis=-1).mean(axis=-1)
+    return mean
 
 
-def aggregate_median(values: np.ndarray) -> np.ndarray:
+def aggregate_median(values: np.ndarray) -> np.ndarray | float:
     """The median over tasks of each task's mean over runs, over the last two axes (rliable's ``aggregate_median``:
     a median of task means, not of runs)."""
-    return np.median(np.asarray(values).mean(axis=-1), axis=-1)
+    median: np.ndarray | float = np.median(np.asarray(values).mean(axis=-1), axis=-1)
+    return median
 
 
-def optimality_gap(values: np.ndarray, gamma: float = 1.0) -> np.ndarray:
+def optimality_gap(values: np.ndarray, gamma: float = 1.0) -> np.ndarray | float:
     """How far runs fall short of ``gamma``: the mean of ``max(gamma - x, 0)`` over every run of every task, over
     the last two axes (rliable's ``aggregate_optimality_gap``, ``gamma - mean(min(x, gamma))``); lower is better."""
-    return np.maximum(gamma - np.asarray(values), 0.0).mean(axis=(-2, -1))
+    gap: np.ndarray | float = np.maximum(gamma - np.asarray(values), 0.0).mean(axis=(-2, -1))
+    return gap
 
 
 AGGREGATES: dict[str, Aggregate] = {"median": aggregate_median, "IQM": pooled_iqm, "mean": aggregate_mean,
@@ -81,7 +86,7 @@ def aggregate_estimates(values: np.ndarray, confidence: float = 0.95, resamples:
     ``get_interval_estimates``)."""
     values = np.asarray(values, np.float64)
     resampled = stratified_resamples(values, resamples, seed) if values.shape[1] > 1 else None
-    found = {}
+    found: dict[str, Estimate] = {}
     for name, statistic in metrics.items():
         low, high = (np.nan, np.nan) if resampled is None else _percentiles(statistic(resampled), confidence)
         found[name] = Estimate(float(statistic(values)), float(low), float(high))
@@ -101,7 +106,7 @@ def interval_estimates(scores: Mapping[str, np.ndarray], confidence: float = 0.9
     return pd.DataFrame(rows, columns=["method", "metric", "value", "low", "high", "tasks", "runs"])
 
 
-def _shown(row, digits: int) -> str:
+def _shown(row: Any, digits: int) -> str:
     """``value [low, high]``; "no data" where there is no value (a NaN score)."""
     return "no data" if np.isnan(row.value) else Estimate(row.value, row.low, row.high).format(digits)
 
@@ -109,7 +114,7 @@ def _shown(row, digits: int) -> str:
 def interval_table(estimates: pd.DataFrame, digits: int = 2, tasks: str = "tasks") -> pd.DataFrame:
     """:func:`interval_estimates` as a report shows it: one row per method, each metric as ``value [low, high]``
     (``tasks``: what the column of the number of tasks is called)."""
-    rows = {}
+    rows: dict[object, dict[str, Any]] = {}  # by method
     for row in estimates.itertuples():
         entry = rows.setdefault(row.method, {"method": row.method, tasks: row.tasks, "runs each": row.runs})
         entry[f"{row.metric} [95% CI]"] = _shown(row, digits)
@@ -120,7 +125,8 @@ def performance_profile(values: np.ndarray, thresholds: np.ndarray) -> np.ndarra
     """The fraction of runs, over every task, whose score is above each threshold (rliable's run-score
     distribution, ``create_performance_profile``); over the last two axes of ``values``."""
     pooled = np.asarray(values).reshape(*np.shape(values)[:-2], -1)
-    return (pooled[..., None, :] > np.asarray(thresholds)[:, None]).mean(axis=-1)
+    profile: np.ndarray = (pooled[..., None, :] > np.asarray(thresholds)[:, None]).mean(axis=-1)
+    return profile
 
 
 def profile_band(values: np.ndarray, thresholds: np.ndarray, confidence: float = 0.95, resamples: int = 2000,
@@ -132,11 +138,12 @@ def profile_band(values: np.ndarray, thresholds: np.ndarray, confidence: float =
     return performance_profile(values, thresholds), low, high
 
 
-def average_improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def average_improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray | float:
     """P(X > Y): over tasks, the mean of the chance that a run of ``x`` beats a run of ``y`` on the task (ties
     count half; the Mann-Whitney U over ``n m``), over the last two axes (rliable's
     ``probability_of_improvement``). A monotone rescaling of a task changes nothing, so raw scores will do."""
-    return improvement_share(np.asarray(x), np.asarray(y)).mean(axis=-1)
+    average: np.ndarray | float = np.mean(improvement_share(np.asarray(x), np.asarray(y)), axis=-1)
+    return average
 
 
 def improvement_interval(x: np.ndarray, y: np.ndarray, confidence: float = 0.95, resamples: int = 2000,
@@ -174,7 +181,7 @@ def improvement_table(estimates: pd.DataFrame, digits: int = 2, tasks: str = "ta
 def iqm_curve(curves: np.ndarray) -> np.ndarray:
     """The IQM over every task and run at each point of ``(..., tasks, runs, points)`` curves: ``(..., points)``
     (rliable's sample-efficiency curves, ``aggregate_iqm`` at each frame)."""
-    return pooled_iqm(np.moveaxis(np.asarray(curves), -1, -3))
+    return np.asarray(pooled_iqm(np.moveaxis(np.asarray(curves), -1, -3)))  # an array already: one IQM a point
 
 
 def curve_band(curves: np.ndarray, confidence: float = 0.95, resamples: int = 2000, seed: int = 0

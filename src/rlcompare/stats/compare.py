@@ -110,7 +110,7 @@ def judge_family(found: dict[Hashable, Paired], names: tuple[str, str], level: f
     family-wise error rate; each labelled by :func:`comparison_label`, with the difference its seeds could detect."""
     keys = list(found)
     directions = [found[k].p_value for k in keys]
-    equivalences = [np.nan if found[k].equivalence is None else found[k].equivalence.p_equivalent for k in keys]
+    equivalences = [np.nan if (test := found[k].equivalence) is None else test.p_equivalent for k in keys]
     adjusted = holm([*directions, *equivalences])
     size = int(np.sum(~np.isnan([*directions, *equivalences])))
     strictest = level / max(size, 1)

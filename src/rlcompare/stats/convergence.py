@@ -33,7 +33,7 @@ a verdict that changes with the rule is marked fragile (``docs/why.md``, "Verdic
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -129,7 +129,7 @@ RULES: tuple[Rule, ...] = (
 """The reasonable rules a convergence verdict is checked under: bands x windows, and the greedy curve."""
 
 
-def convergence_on_rounds(curve: np.ndarray, every: int, window: int = 100, **rule) -> np.ndarray:
+def convergence_on_rounds(curve: np.ndarray, every: int, window: int = 100, **rule: Any) -> np.ndarray:
     """Settling time of a curve sampled once every ``every`` training episodes (greedy-evaluation rounds),
     in training episodes: round ``k`` (counted from 1) comes after ``k * every`` episodes.
 

@@ -14,7 +14,8 @@ def moving_average(values: np.ndarray, window: int) -> np.ndarray:
     shifted = np.zeros_like(cumulative)
     shifted[..., window:] = cumulative[..., :-window]
     counts = np.minimum(np.arange(1, values.shape[-1] + 1), window)
-    return (cumulative - shifted) / counts
+    averaged: np.ndarray = (cumulative - shifted) / counts
+    return averaged
 
 
 def thinned(n_points: int, max_points: int = 500) -> np.ndarray:
@@ -44,7 +45,7 @@ def mean_band(
     return mean.copy(), low.copy(), high.copy()
 
 
-_BANDS: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+_BANDS: dict[tuple[str, tuple[int, ...], float, int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 """The last bands computed, by a digest of their curves and the bootstrap's settings."""
 
 

@@ -17,6 +17,7 @@ Shared conventions for the intervals:
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -25,6 +26,9 @@ from scipy import stats
 from rlcompare.compiled import njit
 
 Statistic = Literal["mean", "iqm"]
+Method = Literal["BCa", "percentile"]
+OverSeeds = Callable[..., "np.ndarray | float"]
+"""A statistic over the seeds on ``axis``: one number for one seed's values, an array over resamples."""
 
 
 class Estimate(NamedTuple):
@@ -53,7 +57,8 @@ def iqm(values: np.ndarray, axis: int = -1) -> np.ndarray | float:
 
     ``scipy.stats.trim_mean(values, 0.25, axis)``: ``int(0.25 * n)`` values are cut from each end.
     """
-    return stats.trim_mean(values, 0.25, axis=axis)
+    trimmed: np.ndarray | float = stats.trim_mean(values, 0.25, axis=axis)
+    return trimmed
 
 
 def per_seed_values(per_seed: np.ndarray) -> np.ndarray:
@@ -84,13 +89,13 @@ def interval(
     values = per_seed_values(per_seed)
     if not np.all(np.isfinite(values)):
         return NO_ESTIMATE
-    function = np.mean if statistic == "mean" else iqm
+    function: OverSeeds = np.mean if statistic == "mean" else iqm
     value = float(function(values, axis=-1))
     if values.size < 2:
         return Estimate(value, np.nan, np.nan)
     if np.all(values == values[0]):
         return Estimate(value, value, value)
-    method = "BCa" if statistic == "mean" else "percentile"
+    method: Method = "BCa" if statistic == "mean" else "percentile"
     low, high = _bootstrap((values,), function, method, confidence, n_resamples, seed)
     return Estimate(value, low, high)
 
@@ -112,8 +117,8 @@ def mean_interval(per_seed: np.ndarray, confidence: float = 0.95) -> Estimate:
     return Estimate(mean, mean - half, mean + half)
 
 
-def _bootstrap(data: tuple[np.ndarray, ...], function, method: str, confidence: float, n_resamples: int,
-               seed: int) -> tuple[float, float]:
+def _bootstrap(data: tuple[np.ndarray, ...], function: OverSeeds, method: Method,
+               confidence: float, n_resamples: int, seed: int) -> tuple[float, float]:
     """``scipy.stats.bootstrap`` bounds; BCa that cannot be computed falls back to the percentile interval.
 
     BCa is undefined when every resampled statistic lies on one side of the estimate (possible with two
@@ -124,9 +129,11 @@ def _bootstrap(data: tuple[np.ndarray, ...], function, method: str, confidence: 
         raise ValueError(f"n_resamples must be at least 2, got {n_resamples}")
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", stats.DegenerateDataWarning)
-        result = stats.bootstrap(data, function, n_resamples=n_resamples, confidence_level=confidence,
-                                 method=method, vectorized=True, paired=False,
-                                 rng=np.random.default_rng(seed))
+        # scipy-stubs take a statistic typed to return numbers or one typed to return arrays, not one typed to
+        # return either (vectorized, as here, it returns the array of the resamples' statistics)
+        result = stats.bootstrap(data, function,  # type: ignore[arg-type]
+                                 n_resamples=n_resamples, confidence_level=confidence, method=method,
+                                 vectorized=True, paired=False, rng=np.random.default_rng(seed))
     low, high = float(result.confidence_interval.low), float(result.confidence_interval.high)
     if method == "BCa" and (np.isnan(low) or np.isnan(high)):
         return _bootstrap(data, function, "percentile", confidence, n_resamples, seed)
@@ -167,7 +174,7 @@ def _twice_u(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def improvement_share(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+def improvement_share(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray | float:
     """P(X_a > X_b) + ½ P(X_a = X_b) over all pairs, as the Mann-Whitney U of ``a`` over ``n·m``.
 
     Vectorised over leading axes (bootstrap resamples). Up to :data:`PAIRS_COUNTED` pairs the pairs are counted
@@ -176,15 +183,16 @@ def improvement_share(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarra
     in O(n + m) memory per resample. Both give U exactly (a whole number or a half), so the same bits.
     """
     a, b = np.moveaxis(np.asarray(a), axis, -1), np.moveaxis(np.asarray(b), axis, -1)
-    n, m = a.shape[-1], b.shape[-1]
+    n: int = a.shape[-1]
+    m: int = b.shape[-1]
     if 0 < n * m <= PAIRS_COUNTED and np.isfinite(a).all() and np.isfinite(b).all():
         lead = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
         rows_a = np.ascontiguousarray(np.broadcast_to(a, (*lead, n)), dtype=np.float64).reshape(-1, n)
         rows_b = np.ascontiguousarray(np.broadcast_to(b, (*lead, m)), dtype=np.float64).reshape(-1, m)
-        u = (_twice_u(rows_a, rows_b) * 0.5).reshape(lead)
-        return u / (n * m) if lead else np.float64(u / (n * m))
+        counted = (_twice_u(rows_a, rows_b) * 0.5).reshape(lead)
+        return counted / (n * m) if lead else np.float64(counted / (n * m))
     ranks = stats.rankdata(np.concatenate([a, b], axis=-1), axis=-1)
-    u = ranks[..., :n].sum(axis=-1) - n * (n + 1) / 2
+    u: np.ndarray | float = ranks[..., :n].sum(axis=-1) - n * (n + 1) / 2
     return u / (n * m)
 
 

@@ -20,7 +20,7 @@ import pandas as pd
 
 from rlcompare.formatting import number
 from rlcompare.stats.compare import compare_paired
-from rlcompare.stats.intervals import paired_difference, probability_of_improvement
+from rlcompare.stats.intervals import Estimate, paired_difference, probability_of_improvement
 from rlcompare.stats.power import provable_margin
 from rlcompare.stats.significance import (
     ALPHA,
@@ -29,6 +29,7 @@ from rlcompare.stats.significance import (
     NOT_RESOLVED,
     SUPPORTED,
     UNDECIDABLE,
+    Equivalence,
     NoiseFloor,
     Verdict,
     equivalence_verdict,
@@ -160,12 +161,12 @@ def underpowered(differences: np.ndarray, margin_value: float, scale: str = "") 
             f"five, wider than ±{number(margin_value)}")
 
 
-def _direction(difference, p_value: float, sign: int) -> tuple[Verdict, int]:
+def _direction(difference: Estimate, p_value: float, sign: int) -> tuple[Verdict, int]:
     label = verdict(difference, p_value, sign)
     return label, (sign if label == SUPPORTED else -sign)
 
 
-def _equivalence(test, p_value: float) -> tuple[Verdict, int]:
+def _equivalence(test: Equivalence, p_value: float) -> tuple[Verdict, int]:
     label = equivalence_verdict(test, p_value)
     side = 0 if test.inside else (1 if test.estimate.value > test.upper else -1)
     return label, side
@@ -246,7 +247,7 @@ def _label(claim: Claim, outcome: _Outcome, p_adjusted: float, holm_factor: floa
     below = [name for name, f in floor if f.below]
     if below:
         return UNDECIDABLE, floor_text, f"below the noise floor in {', '.join(below)}: more seeds will not settle it"
-    if label != NOT_RESOLVED and not robust_to_censoring(side, outcome.bias):
+    if label != NOT_RESOLVED and outcome.worst_case is not None and not robust_to_censoring(side, outcome.bias):
         worst = max(p_adjusted, min(1.0, holm_factor * outcome.worst_case(side)))
         if not worst < ALPHA:
             return (NOT_RESOLVED, floor_text,
