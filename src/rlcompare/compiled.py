@@ -48,6 +48,12 @@ def source_digest(package: Path) -> str:
     return digest.hexdigest()[:16]
 
 
+def numba_settings() -> dict[str, Any]:
+    """Numba's settings (``CACHE_DIR``, ...): globals its config module makes from the environment at import,
+    which the type checker does not see."""
+    return vars(numba.config)
+
+
 def _root() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare"
 
@@ -56,7 +62,7 @@ def use_source_keyed_cache() -> None:
     """Point numba's cache at this version's directory (no file is touched)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
-    numba.config.CACHE_DIR = str(_root() / f"numba-{source_digest(Path(__file__).parent)}")
+    numba_settings()["CACHE_DIR"] = str(_root() / f"numba-{source_digest(Path(__file__).parent)}")
 
 
 @overload
@@ -79,7 +85,7 @@ def tend() -> None:
     :data:`KEEP_UNUSED_DAYS` days (nothing where ``NUMBA_CACHE_DIR`` chose the directory)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
-    current = Path(numba.config.CACHE_DIR)
+    current = Path(numba_settings()["CACHE_DIR"])
     try:
         current.mkdir(parents=True, exist_ok=True)
         os.utime(current)
@@ -90,8 +96,8 @@ def tend() -> None:
 
 def holds_nothing_yet() -> bool:
     """Whether this version's cache holds no compiled kernel yet: the next run compiles them."""
-    directory = Path(numba.config.CACHE_DIR or "")
-    return bool(numba.config.CACHE_DIR) and not any(directory.rglob("*.nbi"))
+    cache_dir = numba_settings()["CACHE_DIR"]
+    return bool(cache_dir) and not any(Path(cache_dir).rglob("*.nbi"))
 
 
 def prune_unused(root: Path, keep: Path, days: float = KEEP_UNUSED_DAYS) -> None:

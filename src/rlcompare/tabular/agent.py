@@ -14,7 +14,7 @@ import numpy as np
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import UniformGrid, cell_index
 from rlcompare.envs.features import OneHot, make_features
-from rlcompare.envs.observations import check_observation
+from rlcompare.envs.observations import check_box_observation, check_observation, check_state
 from rlcompare.envs.registry import Environment
 from rlcompare.envs.tiles import TileCoding, active_tiles_nd
 from rlcompare.tabular.results import Results
@@ -45,10 +45,11 @@ class GreedyAgent:
     """States of a finite environment; 0 for a Box."""
 
     def active(self, observation: np.ndarray | int) -> np.ndarray:
-        """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling."""
-        valid = check_observation(observation, self.observation_shape, self.n_states, self.env)
+        """The active features: the grid cell ``DiscretizeObservation`` would give, or one tile per tiling (a
+        finite environment's state is its one feature)."""
         if isinstance(self.features, OneHot):
-            return np.array([valid])
+            return np.array([check_state(observation, self.n_states, self.env)])
+        valid = check_box_observation(observation, self.observation_shape, self.env)
         if isinstance(self.features, UniformGrid):
             return np.array([cell_index(self.features, valid)])
         out = np.empty(self.features.n_tilings, dtype=np.int64)
@@ -87,8 +88,10 @@ def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | Ra
     weights = results.q_table(seed, stage)
     c = results.config
     env = c.environment
-    observations = {"env": c.env, "observation_shape": observation_shape(env), "n_states": env.n_states}
+    shape = observation_shape(env)
     if c.algorithm == "random":
-        return RandomAgent(seed=seed, stage=stage, n_actions=weights.shape[1], **observations)
-    features = make_features(env, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
-    return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage, **observations)
+        return RandomAgent(seed=seed, stage=stage, env=c.env, observation_shape=shape, n_states=env.n_states,
+                           n_actions=weights.shape[1])
+    features = make_features(env, c.features, c.grid_bins, c.tilings, c.tiles, c.hash_size, c.bounds)
+    return GreedyAgent(weights=weights, features=features, seed=seed, stage=stage, env=c.env,
+                       observation_shape=shape, n_states=env.n_states)

@@ -14,39 +14,72 @@ loop: numba frees an array after the last use of its owner, and a view is not a 
 
 from __future__ import annotations
 
-from numba.core import cgutils, types
+from collections.abc import Callable
+from typing import Any, Protocol, TypeVar, cast
+
+import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.core.typing.templates import Signature
 from numba.extending import intrinsic
 
+Arrays = TypeVar("Arrays", bound=np.ndarray | tuple[np.ndarray, ...])
+Codegen = Callable[[Any, Any, Signature, tuple[Any, ...]], Any]
+"""``codegen(context, builder, signature, arguments)``: an intrinsic's LLVM code (llvmlite has no types)."""
 
-def _view(context, builder, array_type, value):
+
+def _view(context: Any, builder: Any, array_type: types.Array, value: Any) -> Any:
     source = context.make_array(array_type)(context, builder, value=value)
     view = context.make_array(array_type)(context, builder)
     for field in ("nitems", "itemsize", "data", "shape", "strides"):
         setattr(view, field, getattr(source, field))
-    view.meminfo = cgutils.get_null_value(view.meminfo.type)
-    view.parent = cgutils.get_null_value(view.parent.type)
+    view.meminfo = ir.Constant(view.meminfo.type, None)  # a null pointer: no owner
+    view.parent = ir.Constant(view.parent.type, None)
     return view._getvalue()
 
 
+def _members(arrays: types.Type) -> list[types.Array] | None:
+    """The types of the arrays in a tuple of arrays (named or not); None for any other type."""
+    if not isinstance(arrays, types.UniTuple | types.Tuple | types.NamedUniTuple | types.NamedTuple):
+        return None
+    members = list(arrays)
+    return members if all(isinstance(t, types.Array) for t in members) else None
+
+
 @intrinsic
-def borrowed(typingctx, arrays):
-    """The same array (data, shape, strides and type) without its owner, so that no reference to it is counted; a
-    tuple of arrays gives the tuple of their views."""
+def _borrowed(typingctx: Any, arrays: types.Type) -> tuple[Signature, Codegen] | None:
     if isinstance(arrays, types.Array):
         return arrays(arrays), lambda context, builder, signature, arguments: _view(
             context, builder, arrays, arguments[0])
-    if not (isinstance(arrays, types.BaseTuple) and all(isinstance(t, types.Array) for t in arrays)):
+    members = _members(arrays)
+    if members is None:
         return None
 
-    def codegen(context, builder, signature, arguments):
-        views = [_view(context, builder, t, builder.extract_value(arguments[0], k)) for k, t in enumerate(arrays)]
+    def codegen(context: Any, builder: Any, signature: Signature, arguments: tuple[Any, ...]) -> Any:
+        views = [_view(context, builder, t, builder.extract_value(arguments[0], k)) for k, t in enumerate(members)]
         return context.make_tuple(builder, arrays, views)
 
     return arrays(arrays), codegen
 
 
 @intrinsic
-def kept(typingctx, owners):
-    """Nothing, but ``owners`` (arrays, or a tuple of them) are alive until here: called after the last use of the
-    views borrowed from them."""
+def _kept(typingctx: Any, owners: types.Type) -> tuple[Signature, Codegen]:
     return types.none(owners), lambda context, builder, signature, arguments: context.get_dummy_value()
+
+
+class Borrowing(Protocol):
+    def __call__(self, arrays: Arrays, /) -> Arrays:
+        """The same array (data, shape, strides and type) without its owner, so that no reference to it is
+        counted; a tuple of arrays gives the tuple of their views. Compiled code only."""
+
+
+class Keeping(Protocol):
+    def __call__(self, owners: np.ndarray | tuple[np.ndarray, ...], /) -> None:
+        """Nothing, but ``owners`` (arrays, or a tuple of them) are alive until here: called after the last use of
+        the views borrowed from them. Compiled code only."""
+
+
+borrowed = cast(Borrowing, _borrowed)
+"""An intrinsic: its typing function takes numba's typing context before the arrays, and called from Python it
+raises; to the type checker, the function compiled code calls."""
+kept = cast(Keeping, _kept)

@@ -184,6 +184,16 @@ class ExperimentConfig:
         return entry
 
     @property
+    def grid_bins(self) -> int | tuple[int, ...]:
+        """``bins``, which creation fills in with the environment's default grid where it was None."""
+        return self.environment.bins if self.bins is None else self.bins
+
+    @property
+    def step_limit(self) -> int:
+        """``max_steps``, which creation fills in with the environment's default limit where it was None."""
+        return self.environment.max_steps if self.max_steps is None else self.max_steps
+
+    @property
     def name(self) -> str:
         """Short label, also the run directory's name in a study: ``q_learning-decay``, ``random``; a learner
         drawing its next action off its box says so: ``q_learning-decay-before_update``."""
@@ -211,7 +221,8 @@ class ExperimentConfig:
         return {name: max(1, round(share * self.episodes)) for name, share in self.stages}
 
     def to_dict(self) -> dict[str, Any]:
-        return json.loads(json.dumps(dataclasses.asdict(self)))  # tuples as lists, as config.json holds them
+        data: dict[str, Any] = json.loads(json.dumps(dataclasses.asdict(self)))  # tuples as lists, as in config.json
+        return data
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ExperimentConfig:
@@ -235,7 +246,8 @@ def field_docs(cls: type | None = None) -> dict[str, str]:
     for klass in reversed((cls or ExperimentConfig).__mro__):
         if not dataclasses.is_dataclass(klass):
             continue
-        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0].body
+        definition = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0]
+        body = definition.body if isinstance(definition, ast.ClassDef) else []
         for statement, following in itertools.pairwise(body):
             if (isinstance(statement, ast.AnnAssign) and isinstance(statement.target, ast.Name)
                     and isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
@@ -310,7 +322,7 @@ def _features(c: ExperimentConfig) -> int:
     """How many features the configuration's layout has (compiled code: imported once a config is checked)."""
     from rlcompare.envs.features import feature_count
 
-    return feature_count(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size)
+    return feature_count(c.environment, c.features, c.grid_bins, c.tilings, c.tiles, c.hash_size)
 
 
 def _check_grid(c: ExperimentConfig) -> None:
@@ -343,7 +355,7 @@ def _check_tiles(c: ExperimentConfig) -> None:
     from rlcompare.envs.features import make_features
 
     try:
-        make_features(c.environment, c.features, c.bins, c.tilings, c.tiles, c.hash_size, c.bounds)
+        make_features(c.environment, c.features, c.grid_bins, c.tilings, c.tiles, c.hash_size, c.bounds)
     except ValueError as error:
         raise ConfigError("tiles", (c.tilings, c.tiles, c.hash_size),
                           f"a layout that fits the bounds ({error})") from None
@@ -380,13 +392,14 @@ def check_memory(c: ExperimentConfig) -> None:
         return
     runs = f"{len(c.seeds):,} seeds"
     largest = max(parts, key=parts.__getitem__)
+    value: int | tuple[int, ...]  # the field that grows the records most: a count, or the grid's bins
     if largest == "episodes":
         name, value, shape = "episodes", c.episodes, f"{runs} x {c.episodes:,} episodes"
     elif largest == "eval_episodes":
         name, value = "eval_episodes", c.eval_episodes
         shape = f"{runs} x {c.evaluation_rounds:,} evaluations x {c.eval_episodes:,} episodes"
     else:
-        name, value = ("bins", c.bins) if c.features == "grid" else ("tiles", c.tiles)
+        name, value = ("bins", c.grid_bins) if c.features == "grid" else ("tiles", c.tiles)
         features = _features(c)
         shape = (f"{runs} x {len(c.stage_episodes())} snapshots x {features:,} features x "
                  f"{c.environment.n_actions} actions")

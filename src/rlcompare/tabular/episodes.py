@@ -18,7 +18,7 @@ bootstraps unless ``settings.truncation_as_terminal``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -32,7 +32,14 @@ from rlcompare.algorithms.td import Rates, Transition
 from rlcompare.compiled import njit
 from rlcompare.tabular.borrowed import borrowed, kept
 from rlcompare.tabular.state import Settings
-from rlcompare.tabular.steps import by_type, features_of, observe, reset, states_buffer, step
+from rlcompare.tabular.steps import COMPILED_ONLY, by_type, features_of, observe, reset, states_buffer, step
+
+Episode = Callable[..., tuple[float, int, bool]]
+"""An episode loop (compiled): ``(return, steps, terminated)``."""
+Values = Callable[..., np.ndarray]
+"""``values(rule, w, w2, s, out, scratch)``: the action values a method acts on."""
+TargetAction = Callable[..., int]
+"""``target_action(rule, w, w2, s, q, scratch, rng)``: the action of a target policy."""
 
 
 class Traces(NamedTuple):
@@ -55,20 +62,21 @@ def _outcome(settings: Settings, steps: int, terminated: bool) -> tuple[bool, bo
 
 
 @njit(inline="always")
-def values_of_w(rule, w: np.ndarray, w2: np.ndarray, s, out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
+def values_of_w(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, out: np.ndarray,
+                scratch: np.ndarray) -> np.ndarray:
     """``q(s, .)``: what a method acts on unless its entry says otherwise (Double Q-Learning's ``Q1 + Q2``)."""
     return action_values(w, s, out)
 
 
-def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes_next_action: bool = False,
-                  ) -> Callable:
+def one_step_loop(update: Callable[..., None], values: Values = values_of_w, target_takes_next_action: bool = False,
+                  ) -> Episode:
     """The one-step loop (6.4-6.7) of a method with this update of ``q(S, A)`` and these behaviour values;
     ``target_takes_next_action``: its update reads the A' drawn before it (SARSA)."""
 
     @njit
-    def one_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
-                         epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
-                         visits: np.ndarray) -> tuple[float, int, bool]:
+    def one_step_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                         work: Traces, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray,
+                         transitions: np.ndarray, visits: np.ndarray) -> tuple[float, int, bool]:
         """One episode. The next action A' is drawn before the update of ``q(S, A)`` (SARSA's box) or after it,
         at the top of the loop (Algorithm 1's), as ``rule.draw_before`` says."""
         w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
@@ -108,8 +116,8 @@ def one_step_loop(update: Callable, values: Callable = values_of_w, target_takes
 
 
 @njit
-def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
-                   epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+def random_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                   work: Traces, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
     """One episode of uniformly random actions; nothing is learned, the visits are counted."""
     w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
@@ -134,8 +142,8 @@ def random_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
 
 
 @njit
-def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
-                   epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+def n_step_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                   work: Traces, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
     """n-step SARSA (7.2): the n-step return updates ``q(S_τ, A_τ)``. States, actions and rewards live in ring
     buffers of ``n + 1`` entries. A time-limit cut bootstraps from ``q(S_T, A_T)``, with ``A_T`` drawn from the
@@ -186,8 +194,8 @@ def n_step_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
 
 
 @njit
-def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
-                   epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+def lambda_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                   work: Traces, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
     """SARSA(λ) (12.7) or Watkins's Q(λ) (12.10) with binary features; Q(λ) cuts every trace after an
     exploratory (non-greedy) action."""
@@ -234,26 +242,27 @@ def lambda_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: n
 
 
 @njit(inline="always")
-def _false(rule):
+def _false(rule: Any) -> bool:
     return False
 
 
 @njit(inline="always")
-def _true(rule):
+def _true(rule: Any) -> bool:
     return True
 
 
 @by_type({m.rule: _true for m in METHODS.values() if m.cuts_traces}, default=_false)
-def cuts_traces(rule):
+def cuts_traces(rule: Any) -> bool:
     """Whether the rule's method cuts every trace after an exploratory action (Watkins's Q(λ))."""
+    raise NotImplementedError(COMPILED_ONLY)
 
 
 # --- REINFORCE ------------------------------------------------------------------------------------------
 
 
 @njit
-def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray, work: Traces,
-                      epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+def reinforce_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                      work: Traces, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                       visits: np.ndarray) -> tuple[float, int, bool]:
     """REINFORCE (13.3, 13.4): a softmax policy over the preferences ``w`` acts for a whole episode, then
     :func:`~rlcompare.algorithms.reinforce.episode_update` learns from it (the baseline's weights in
@@ -282,32 +291,35 @@ def reinforce_episode(rule, settings: Settings, env, features, w: np.ndarray, w2
 # --- evaluation -----------------------------------------------------------------------------------------
 
 
-def greedy(values: Callable = values_of_w) -> Callable:
+def greedy(values: Values = values_of_w) -> TargetAction:
     """The first action of highest value (``np.argmax``) in these values, as a loaded agent acts."""
 
     @njit(inline="always")
-    def greedy_in(rule, w, w2, s, q, scratch, rng):
+    def greedy_in(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray, scratch: np.ndarray,
+                  rng: np.ndarray) -> int:
         return greedy_action(values(rule, w, w2, s, q, scratch))
 
     return greedy_in
 
 
 @njit(inline="always")
-def softmax_policy(rule, w, w2, s, q, scratch, rng):
+def softmax_policy(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray,
+                   scratch: np.ndarray, rng: np.ndarray) -> int:
     """REINFORCE's target policy is its behaviour: the softmax over its preferences."""
     return sample_softmax(action_values(w, s, q), scratch, rng)
 
 
 @njit(inline="always")
-def uniform(rule, w, w2, s, q, scratch, rng):
+def uniform(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray, scratch: np.ndarray,
+            rng: np.ndarray) -> int:
     return uniform_action(w.shape[1], rng)
 
 
-def evaluation_loop(target_action: Callable) -> Callable:
+def evaluation_loop(target_action: TargetAction) -> Episode:
     """Episodes of the target policy whose action in a state is ``target_action(...)``."""
 
     @njit
-    def evaluation_episode(rule, settings: Settings, env, features, w: np.ndarray, w2: np.ndarray,
+    def evaluation_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
                            env_rng: np.ndarray, agent_rng: np.ndarray,
                            transitions: np.ndarray) -> tuple[float, int, bool]:
         """One episode of the target policy, drawing from the evaluation's own streams."""
@@ -329,13 +341,15 @@ def evaluation_loop(target_action: Callable) -> Callable:
     return evaluation_episode
 
 
-def _loops(method: Method) -> tuple[Callable, Callable]:
+def _loops(method: Method) -> tuple[Episode, Episode]:
     """A method's training episode and its target policy's episode: greedy in the learned values, the softmax
     policy for REINFORCE, uniform for the baseline."""
     values = method.values or values_of_w
     if method.family == "one-step":
-        return (one_step_loop(method.update, values, method.target_takes_next_action),
-                evaluation_loop(greedy(values)))
+        update = method.update
+        if update is None:
+            raise ValueError(f"the one-step method {method.name!r} names no update (update_at)")
+        return (one_step_loop(update, values, method.target_takes_next_action), evaluation_loop(greedy(values)))
     train, act = {"baseline": (random_episode, uniform), "n-step": (n_step_episode, greedy()),
                   "traces": (lambda_episode, greedy()), "policy gradient": (reinforce_episode, softmax_policy),
                   }[method.family]
@@ -347,10 +361,15 @@ LOOPS = {m.rule: _loops(m) for m in METHODS.values()}
 
 
 @by_type({rule: loops[0] for rule, loops in LOOPS.items()})
-def train_episode(rule, settings, env, features, w, w2, work, epsilon, env_rng, agent_rng, transitions, visits):
+def train_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray, work: Traces,
+                  epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
+                  visits: np.ndarray) -> tuple[float, int, bool]:
     """One training episode of the rule's method: ``(return, steps, terminated)``."""
+    raise NotImplementedError(COMPILED_ONLY)
 
 
 @by_type({rule: loops[1] for rule, loops in LOOPS.items()})
-def evaluation_episode(rule, settings, env, features, w, w2, env_rng, agent_rng, transitions):
+def evaluation_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                       env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray) -> tuple[float, int, bool]:
     """One episode of the rule's target policy: ``(return, steps, terminated)``."""
+    raise NotImplementedError(COMPILED_ONLY)

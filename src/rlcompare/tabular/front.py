@@ -4,6 +4,7 @@ linear features, one :class:`~rlcompare.tabular.config.ExperimentConfig` at a ti
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,7 @@ FIXED_IN_SWEEP: dict[str, str] = {}
 """Fields a sweep may not set, with the reason."""
 
 
-def sweep_config(values: dict, seeds: tuple[int, ...]) -> Config:
+def sweep_config(values: dict[str, Any], seeds: tuple[int, ...]) -> Config:
     """One configuration of a sweep from the values its sections give and its seeds; records of all its seeds
     that would not fit in this machine's memory are refused here, where the sweep is about to run."""
     config = Config(**values, seeds=seeds)

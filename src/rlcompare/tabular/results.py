@@ -92,7 +92,8 @@ class Results:
             raise KeyError(f"seed {seed} is not in this run; seeds: {list(self.seeds)}")
         if stage not in stages:
             raise KeyError(f"stage {stage!r} is not in this run; stages: {stages}")
-        return self.records.snapshots[self.seeds.index(seed), stages.index(stage)]
+        table: np.ndarray = self.records.snapshots[self.seeds.index(seed), stages.index(stage)]
+        return table
 
     @classmethod
     def read_config(cls, stored: dict[str, Any], expected: ExperimentConfig | None) -> ExperimentConfig:
@@ -136,7 +137,7 @@ class Results:
 def _labelled(labels: dict[str, str], columns: Columns) -> pd.DataFrame:
     """The columns after the labels, each label a categorical column of one value."""
     rows = len(next(iter(columns.values())))
-    return pd.DataFrame({**{name: pd.Categorical.from_codes(np.zeros(rows, np.int32), [value])
+    return pd.DataFrame({**{name: pd.Categorical.from_codes(np.zeros(rows, np.int32), pd.Index([value]))
                             for name, value in labels.items()}, **columns})
 
 

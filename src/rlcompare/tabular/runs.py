@@ -11,6 +11,7 @@ from __future__ import annotations
 import queue
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numba
 import numpy as np
@@ -29,26 +30,27 @@ from rlcompare.tabular.state import (
     RunState,
     Settings,
 )
-from rlcompare.tabular.steps import by_type, for_instance, snapshot
+from rlcompare.tabular.steps import COMPILED_ONLY, by_type, for_instance, snapshot
 
 
 @njit(inline="always")
-def _no_traces(rule, w):
+def _no_traces(rule: Any, w: np.ndarray) -> Traces:
     return Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
 
 
 @njit(inline="always")
-def _traces(rule, w):
+def _traces(rule: Any, w: np.ndarray) -> Traces:
     return Traces(np.zeros(w.size), np.empty(w.size, np.int64), np.zeros(w.size, np.bool_))
 
 
 @by_type({m.rule: _traces for m in METHODS.values() if m.family == "traces"}, default=_no_traces)
-def workspace(rule, w):
+def workspace(rule: Any, w: np.ndarray) -> Traces:
     """The traces a run of ``rule`` keeps between steps (a stub for methods without)."""
+    raise NotImplementedError(COMPILED_ONLY)
 
 
 @njit(inline="always")
-def record_episode(returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, at: tuple, ret: float,
+def record_episode(returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, at: tuple[int, ...], ret: float,
                    length: int, ended: bool) -> None:
     """Write one episode's return, length and termination at index ``at`` (training or evaluation)."""
     returns[at], lengths[at], terminated[at] = ret, length, ended
@@ -64,8 +66,8 @@ def evaluation_round(settings: Settings, completed: int) -> int:
 
 @njit(cache=True, nogil=True)
 def train_block(
-    first_run: int, stop_run: int, rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray,
-    first_episode: int, stop_episode: int, records: Records,
+    first_run: int, stop_run: int, rule: Any, settings: Settings, env: Any, features: Any, state: RunState,
+    epsilons: np.ndarray, first_episode: int, stop_episode: int, records: Records,
 ) -> None:
     """Episodes ``[first_episode, stop_episode)`` of runs ``[first_run, stop_run)``, with their evaluations and
     snapshots, in one call from Python: calling compiled code costs tens of microseconds a call (its arguments'
@@ -102,16 +104,16 @@ BLOCKS_PER_THREAD = 8
 
 
 def train_runs(
-    rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray, first_episode: int,
-    stop_episode: int, records: Records,
+    rule: Any, settings: Settings, env: Any, features: Any, state: RunState, epsilons: np.ndarray,
+    first_episode: int, stop_episode: int, records: Records,
 ) -> None:
     """Every run over episodes ``[first_episode, stop_episode)``, blocks of runs spread over threads."""
     train_chunks(rule, settings, env, features, state, epsilons, [(first_episode, stop_episode)], records)
 
 
 def train_chunks(
-    rule, settings: Settings, env, features, state: RunState, epsilons: np.ndarray, chunks: list[tuple[int, int]],
-    records: Records, progress: Callable[[int], None] | None = None,
+    rule: Any, settings: Settings, env: Any, features: Any, state: RunState, epsilons: np.ndarray,
+    chunks: list[tuple[int, int]], records: Records, progress: Callable[[int], None] | None = None,
 ) -> None:
     """Every run over each chunk ``[first, stop)`` of episodes in turn (:func:`over_chunks`); ``progress(n)`` is
     called in this thread with the episodes of each chunk once every run has finished it."""
@@ -142,7 +144,7 @@ def over_chunks(train: Callable[[int, int, int, int], None], runs: int, chunks: 
             if progress is not None:
                 progress(stop - first)
         return
-    finished: queue.SimpleQueue = queue.SimpleQueue()
+    finished: queue.SimpleQueue[tuple[int, int, BaseException | None]] = queue.SimpleQueue()
 
     def task(block: int, chunk: int) -> None:
         try:

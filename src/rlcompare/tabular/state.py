@@ -82,7 +82,8 @@ def seed_streams(seed: int) -> np.ndarray:
 
 
 def allocate_records(
-    runs: int, episodes: int, rounds: int, eval_episodes: int, snapshot_episodes: np.ndarray, w_shape: tuple
+    runs: int, episodes: int, rounds: int, eval_episodes: int, snapshot_episodes: np.ndarray,
+    w_shape: tuple[int, ...],
 ) -> Records:
     return Records(
         returns=np.zeros((runs, episodes)),

@@ -7,6 +7,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
+from typing import Any
 
 import numba
 import numpy as np
@@ -53,7 +54,7 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
     check_memory(config)
     compiled.tend()
     epsilons = epsilon_schedule(config)
-    features = make_features(config.environment, config.features, config.bins, config.tilings, config.tiles,
+    features = make_features(config.environment, config.features, config.grid_bins, config.tilings, config.tiles,
                              config.hash_size, config.bounds)
     state = initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
@@ -77,7 +78,7 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
 
 
 @contextlib.contextmanager
-def stepped_env(config: ExperimentConfig, state: RunState) -> Iterator[tuple]:
+def stepped_env(config: ExperimentConfig, state: RunState) -> Iterator[Any]:
     """The environment compiled code steps: a port, or Gymnasium environments opened for every run (their
     generators copies of the run's reset and transition streams) and closed afterwards."""
     if config.environment.is_ported:
@@ -85,17 +86,17 @@ def stepped_env(config: ExperimentConfig, state: RunState) -> Iterator[tuple]:
         return
     training = state.rng[:, [ENV_STREAM, TRANSITION_STREAM]]
     evaluation = state.rng[:, [EVAL_ENV_STREAM, EVAL_TRANSITION_STREAM]]
-    with gymnasium_env.opened(config.env, training, evaluation, config.max_steps) as handle:
+    with gymnasium_env.opened(config.env, training, evaluation, config.step_limit) as handle:
         yield make_env(config.environment, handle)
 
 
 def kernel_settings(config: ExperimentConfig) -> Settings:
     """The scalars every method reads, as compiled code reads them."""
-    return Settings(alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.max_steps),
+    return Settings(alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.step_limit),
                     truncation_as_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every))
 
 
-def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict:
+def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict[str, Any]:
     return {
         "study": study,
         "name": config.name,
