@@ -14,11 +14,13 @@ a method keeps one colour in every figure drawn with the same ``scores`` (:func:
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from rlcompare.report.page import save_figure
@@ -42,7 +44,7 @@ def method_colors(methods: Sequence[str]) -> dict[str, str]:
     return {method: f"C{index % 10}" for index, method in enumerate(methods)}
 
 
-def _interval_row(ax, row: int, value: float, low: float, high: float, color: str) -> None:
+def _interval_row(ax: Axes, row: int, value: float, low: float, high: float, color: str) -> None:
     """rliable's interval estimate: a bar over the interval and a black tick at the point estimate."""
     if np.isfinite(low) and np.isfinite(high):
         ax.barh(row, high - low, height=BAR, left=low, color=color, alpha=0.75)
@@ -88,8 +90,9 @@ def improvement_figure(scores: Mapping[str, np.ndarray], pairs: Sequence[tuple[s
     rows = len(estimates)
     figure = Figure(figsize=(7, 1.2 + 0.36 * rows), layout="constrained")
     ax = figure.subplots()
-    for row, pair in enumerate(estimates.itertuples()):
-        _interval_row(ax, row, pair.value, pair.low, pair.high, colors[pair.X])
+    shown = zip(estimates["X"], estimates["value"], estimates["low"], estimates["high"], strict=True)
+    for row, (x, value, low, high) in enumerate(shown):
+        _interval_row(ax, row, value, low, high, colors[x])
     ax.axvline(0.5, color="0.4", linestyle="--", linewidth=1)
     ax.set_xlim(0, 1)
     ax.set_ylim(rows - 0.5, -0.5)
@@ -190,7 +193,7 @@ def draw_aggregates(scores: Mapping[str, np.ndarray], directory: Path, *, xlabel
     over = f"{shape[0]} {tasks} x {shape[1]} runs"
     paired = ("every ordered pair of methods" if len(pairs) == len(scores) * (len(scores) - 1)
               else f"the best method by IQM ({pairs[0][0]}) against each other one")
-    drawn = [
+    drawn: list[tuple[Callable[[], Figure], str, str]] = [
         (lambda: interval_figure(scores, xlabel, estimates=intervals), "aggregate-intervals",
          f"Median and mean of the {tasks}' mean scores, IQM and optimality gap (γ = 1: the mean shortfall below 1) "
          f"of every run, over {over}: bars are 95% stratified bootstrap intervals, ticks the estimates"),
@@ -202,11 +205,23 @@ def draw_aggregates(scores: Mapping[str, np.ndarray], directory: Path, *, xlabel
          "stratified bootstrap bands)"),
     ]
     if curves:
+        if x is None:
+            raise ValueError("curves need x: the step or episode of each of their points")
         drawn.append((lambda: sample_efficiency_figure(x, curves, curve_xlabel, resamples=resamples),
                       "sample-efficiency",
                       f"Sample efficiency: the IQM of every run's {xlabel} over the {tasks} at each point of training, "
                       "with a 95% stratified bootstrap band"))
-    save = figure or (lambda path, draw: draw(path))
-    figures = [(save(Path(directory) / f"{prefix}{name}.png", lambda path, make=make: save_figure(make(), path)),
-                caption) for make, name, caption in drawn]
+    save = figure or _drawn_anew
+    figures = [(save(Path(directory) / f"{prefix}{name}.png", partial(_saved, make)), caption)
+               for make, name, caption in drawn]
     return Aggregates(interval_table(intervals, tasks=tasks), improvement_table(improvements, tasks=tasks), figures)
+
+
+def _drawn_anew(path: Path, draw: Callable[[Path], str]) -> str:
+    """The figure at ``path`` drawn and saved, whatever is there already."""
+    return draw(path)
+
+
+def _saved(make: Callable[[], Figure], path: Path) -> str:
+    """``make()``'s figure saved at ``path`` (:func:`~rlcompare.report.page.save_figure`)."""
+    return save_figure(make(), path)

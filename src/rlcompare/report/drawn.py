@@ -70,7 +70,7 @@ def file_digest(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _recorded_files(results: Any) -> dict | None:
+def _recorded_files(results: Any) -> dict[str, Any] | None:
     """The checksums ``meta.json`` recorded for a loaded run's files; None where there are none."""
     meta = getattr(results, "meta", None)
     contents = meta.get("contents") if isinstance(meta, dict) else None
@@ -87,7 +87,7 @@ class Drawn:
         """The files this report keeps or drew, by path relative to the directory: their key and sha256."""
         self._unkeyed: set[str] = set()
         """Files this report drew from runs without recorded checksums: kept on disk, never in the ledger."""
-        self._ledger: dict[str, dict] = {}
+        self._ledger: dict[str, dict[str, Any]] = {}
         self._listed = store.listed_outputs(self.directory)
         ledger = self.directory / LEDGER
         try:

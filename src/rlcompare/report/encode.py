@@ -11,7 +11,7 @@ import contextlib
 import itertools
 import os
 import secrets
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +65,7 @@ class _Mp4Encoder:
 
     def __init__(self, path: Path, fps: float) -> None:
         self.path, self.fps = path, fps
-        self._ffmpeg: Iterator | None = None
+        self._ffmpeg: Generator[None, np.ndarray | None, None] | None = None
         self._planes = np.empty(0, dtype=np.uint8)
 
     def append(self, packed: np.ndarray) -> None:

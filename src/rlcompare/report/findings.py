@@ -69,8 +69,9 @@ def _verdict_words(claim: Claim, label: str, claims: int) -> str:
         return "no data to test"
     if claim.kind == "within":
         what = f"the same within ±{number(claim.bounds[1])}"
-        return {SUPPORTED: f"{what}: supported", CONTRADICTED: f"not {what}: contradicted"}.get(
-            label, f"whether they are {what} is {label}")
+        if label == SUPPORTED:
+            return f"{what}: supported"
+        return f"not {what}: contradicted" if label == CONTRADICTED else f"whether they are {what} is {label}"
     if label in (SUPPORTED, CONTRADICTED):
         return f"{'SARSA' if (label == SUPPORTED) == (claim.sign > 0) else 'Q-Learning'} better, with the " \
                f"{claims} claims corrected together"

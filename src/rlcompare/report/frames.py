@@ -16,7 +16,8 @@ from rlcompare.compiled import njit
 def pack(rgb: np.ndarray) -> np.ndarray:
     """``(height, width, 3)`` uint8 to a packed frame."""
     rgb = rgb.astype(np.uint32)
-    return (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+    packed: np.ndarray = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+    return packed
 
 
 def unpack(packed: np.ndarray) -> np.ndarray:

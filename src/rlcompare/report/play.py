@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterator
-from typing import NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -68,7 +68,7 @@ def play(agent: Agent, episode_seed: int, max_steps: int, env_id: str,
         env.close()
 
 
-def _painter(env, env_id: str) -> Callable[[], np.ndarray]:
+def _painter(env: Any, env_id: str) -> Callable[[], np.ndarray]:
     """What draws ``env``'s current picture, packed: the registry's painter, equal to ``env.render()`` and
     quicker, where the environment has one; else ``env.render()`` itself."""
     painter = environment(env_id).painter

@@ -3,7 +3,7 @@ or the command line saves files."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, overload
 
 import matplotlib as mpl
 import numpy as np
@@ -163,6 +163,14 @@ def plot_visits(ax: Axes, visits: np.ndarray, bins: int, frame: MapFrame) -> Axe
     colorbar_beside(ax, image, "steps from cell (all seeds)").minorticks_off()  # a tick a decade
     _label_axes(ax, frame)
     return ax
+
+
+@overload
+def colorbar_beside(ax: Axes, image: ScalarMappable, label: str = "") -> Colorbar: ...
+
+
+@overload
+def colorbar_beside(ax: Axes, image: None, label: str = "") -> None: ...
 
 
 def colorbar_beside(ax: Axes, image: ScalarMappable | None, label: str = "") -> Colorbar | None:

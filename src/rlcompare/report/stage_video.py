@@ -25,14 +25,25 @@ GUTTER = 6
 class Episodes(Protocol):
     """One episode a stage, played in lockstep (:class:`rlcompare.deep.playback.Played`)."""
 
-    observations: np.ndarray
-    """(stages, steps + 1, ...): an ended episode keeps its last observation."""
-    returns: np.ndarray
-    """(stages, steps + 1): the return so far."""
-    lengths: np.ndarray
-    """(stages,): steps each episode took before it ended or the limit."""
-    ended: np.ndarray
-    """(stages,): whether the episode ended within the limit."""
+    @property
+    def observations(self) -> np.ndarray:
+        """(stages, steps + 1, ...): an ended episode keeps its last observation."""
+        ...
+
+    @property
+    def returns(self) -> np.ndarray:
+        """(stages, steps + 1): the return so far."""
+        ...
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(stages,): steps each episode took before it ended or the limit."""
+        ...
+
+    @property
+    def ended(self) -> np.ndarray:
+        """(stages,): whether the episode ended within the limit."""
+        ...
 
 
 def frames_of(played: Episodes, titles: list[str], picture: Callable[[np.ndarray], np.ndarray]

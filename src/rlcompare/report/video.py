@@ -97,6 +97,8 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
     last: Frame | None = None
     if title is None:
         for frame in played:
+            if frame.picture is None:  # not drawn: none is here, as every step is drawn
+                continue
             images.append(frames.unpack(frame.picture))
             returns.append(frame.return_so_far)
             last = frame
