@@ -12,7 +12,7 @@ from typing import Any
 
 __all__ = ["ALGORITHM_HELP", "app", "main"]
 
-_SUMMARY_ONLY = ([], ["--help"], ["--version"])
+_SUMMARY_ONLY: tuple[list[str], ...] = ([], ["--help"], ["--version"])
 """Command lines the summary app answers alone."""
 
 

@@ -28,7 +28,7 @@ SUMMARIES = {
 APP_SETTINGS: dict[str, Any] = {"no_args_is_help": True, "pretty_exceptions_enable": False,
                                 "rich_markup_mode": "rich"}
 
-_WORDS = {int: "INTEGER", float: "NUMBER", str: "TEXT", Path: "PATH"}
+_WORDS: dict[object, str] = {int: "INTEGER", float: "NUMBER", str: "TEXT", Path: "PATH"}
 """What the help shows after an option that takes a value, by its type: a word, not ``<int>``."""
 
 
@@ -59,7 +59,7 @@ class _PlainOption(TyperOption):
             return self.metavar
         if self.is_flag:
             return None
-        kind = self.type_descriptor.annotation
+        kind: object = self.type_descriptor.annotation
         kind = (get_args(kind) or (kind,))[0] if get_origin(kind) is list else kind  # repeated: the option says so
         return _WORDS.get(kind, "VALUE")
 

@@ -12,11 +12,11 @@ from typing import Annotated, Any, get_type_hints
 import typer
 
 from rlcompare.algorithms.registry import METHODS
-from rlcompare.cli.console import bad_option, option_flag
+from rlcompare.cli.console import bad_option, option_flag, with_signature
 from rlcompare.tabular.config import DEFAULT_STAGES, ExperimentConfig, field_docs
 from rlcompare.validation import ConfigError
 
-_DEFAULT_SEEDS = len(next(f for f in dataclasses.fields(ExperimentConfig) if f.name == "seeds").default)
+_DEFAULT_SEEDS = len(ExperimentConfig.seeds)
 
 
 def _method_help(name: str, reads: tuple[str, ...], book: str) -> str:
@@ -28,7 +28,7 @@ ALGORITHM_HELP = ", ".join(_method_help(name, m.reads, m.book) for name, m in ME
 FirstSeed = Annotated[int, typer.Option(help="First seed. Seed s starts episodes as env.reset(seed=s) does.")]
 
 
-def _config(**values) -> ExperimentConfig:
+def _config(**values: Any) -> ExperimentConfig:
     """Build the configuration, turning a bad value into a usage error that names the option."""
     try:
         return ExperimentConfig(**values)
@@ -158,5 +158,4 @@ def config_options(command: Callable[..., None]) -> Callable[..., None]:
     def wrapped(**options: Any) -> None:
         return command(_config_from(options), **options)
 
-    wrapped.__signature__ = inspect.Signature([*_field_options(), *rest])  # what typer reads
-    return wrapped
+    return with_signature(wrapped, inspect.Signature([*_field_options(), *rest]))

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import inspect
 import os
 import textwrap
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn, ParamSpec, TypeVar
 
 import typer
 from rich import box
@@ -29,6 +30,11 @@ if TYPE_CHECKING:
 
     from rlcompare.bench.tables import BenchTable
 
+P = ParamSpec("P")
+R = TypeVar("R")
+C = TypeVar("C", bound=Callable[..., Any])
+
+
 class _Console(Console):
     """rich's console, its width read at each print: a width given to it, else COLUMNS where it is set, else a
     terminal's own width, else (a log, a pipe) 120 columns. rich reads COLUMNS once, when the console is made,
@@ -40,7 +46,7 @@ class _Console(Console):
 
     @property
     def size(self) -> ConsoleDimensions:
-        measured = Console.size.fget(self)
+        measured = super().size
         columns = os.environ.get("COLUMNS", "")
         if self._width is not None or (self.is_terminal and not columns.isdigit()):
             return measured
@@ -48,7 +54,7 @@ class _Console(Console):
 
     @size.setter
     def size(self, new_size: tuple[int, int]) -> None:
-        Console.size.fset(self, new_size)
+        self.width, self.height = new_size
 
 
 console = _Console()
@@ -63,20 +69,20 @@ def print_error(message: str, details: tuple[str, ...] = ()) -> None:
         errors.print(Text(f"  {cut(detail, 2000)}"))
 
 
-def fail(message: str) -> None:
+def fail(message: str) -> NoReturn:
     """One line, exit code 2."""
     print_error(message)
     raise typer.Exit(2)
 
 
-def one_line_errors(command: Callable) -> Callable:
+def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
     """A command whose errors of the store or of the operating system (a full disk, a read-only directory), of a
     backend that cannot run, or of a value a run refuses, end it with one clear line and exit code 2; what was
     finished before them stays on disk."""
     from rlcompare.experiment.backends import BackendError
 
     @functools.wraps(command)
-    def wrapped(*args, **kwargs):
+    def wrapped(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
             return command(*args, **kwargs)
         except BackendError as error:
@@ -89,6 +95,13 @@ def one_line_errors(command: Callable) -> Callable:
             fail(message)
 
     return wrapped
+
+
+def with_signature(command: C, signature: inspect.Signature) -> C:
+    """``command`` with ``signature``, what typer reads of its options, in place of its own: ``inspect.signature``
+    reads a function's ``__signature__``."""
+    vars(command)["__signature__"] = signature
+    return command
 
 
 def option_flag(field_name: str) -> str:

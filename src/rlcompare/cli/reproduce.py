@@ -24,6 +24,7 @@ from rlcompare.cli.console import (
     option_flag,
     out_path,
     print_report,
+    with_signature,
 )
 from rlcompare.experiment import store
 from rlcompare.studies.interface import Options
@@ -50,7 +51,8 @@ def _common_parameters(study: str) -> list[inspect.Parameter]:
 def option_parameters(options: type[Options]) -> list[inspect.Parameter]:
     """An option per field of ``options``, named after it (and its other spellings), with its default and its
     docstring as help; a tuple of strings is given by repeating the option, a boolean as ``--x/--no-x``."""
-    docs, types = field_docs(options), get_type_hints(options)
+    # a class is hashable; mypy takes type[Options] for unhashable (python/mypy#11470)
+    docs, types = field_docs(options), get_type_hints(options)  # type: ignore[arg-type]
     parameters = []
     for field in dataclasses.fields(options):
         kind, default = types[field.name], field.default
@@ -108,9 +110,9 @@ def study_command(study: Study) -> Callable[..., None]:
     def command(**values: Any) -> None:
         reproduce_study(study, values)
 
-    command.__signature__ = inspect.Signature([*option_parameters(study.options), *_common_parameters(study.name)])
     command.__doc__ = f"{study.summary[0].upper()}{study.summary[1:]}."
-    return command
+    return with_signature(command, inspect.Signature([*option_parameters(study.options),
+                                                      *_common_parameters(study.name)]))
 
 
 def list_studies() -> None:
@@ -136,7 +138,7 @@ def default_study(ctx: typer.Context, **values: Any) -> None:
 class StudyGroup(PlainGroup):
     """The ``reproduce`` group: a name that is not a study's is a usage error listing the studies."""
 
-    def resolve_command(self, ctx: typer.Context, args: list[str]) -> Any:
+    def resolve_command(self, ctx: Any, args: list[str]) -> Any:
         if args and not args[0].startswith("-") and args[0] not in self.commands:
             raise typer.BadParameter(f"got {args[0]!r}; allowed: {', '.join(self.commands)}", ctx,
                                      param_hint="'STUDY'")
@@ -154,11 +156,10 @@ def reproduce_app() -> typer.Typer:
     def callback(ctx: typer.Context, **values: Any) -> None:
         default_study(ctx, **values)
 
-    callback.__signature__ = inspect.Signature([
+    app.callback(invoke_without_command=True)(with_signature(callback, inspect.Signature([
         inspect.Parameter("ctx", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=typer.Context),
         *option_parameters(STUDIES[DEFAULT_STUDY].options), *_common_parameters(DEFAULT_STUDY),
-        inspect.Parameter("list_studies", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=list_option)])
-    app.callback(invoke_without_command=True)(callback)
+        inspect.Parameter("list_studies", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=list_option)])))
     for name, study in STUDIES.items():
         command = study_command(study)
         app.command(name, help=command.__doc__, cls=PlainCommand)(command)
