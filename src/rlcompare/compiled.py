@@ -22,13 +22,19 @@ import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar, overload
+from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import numba
+
+if TYPE_CHECKING:
+    from numba.core.typing.templates import Signature
 
 __all__ = ["holds_nothing_yet", "njit", "tend"]
 
 Function = TypeVar("Function", bound=Callable[..., Any])
+Codegen = Callable[[Any, Any, "Signature", tuple[Any, ...]], Any]
+"""``codegen(context, builder, signature, arguments)``: the LLVM code of a numba intrinsic (llvmlite has no
+types)."""
 
 COMPILED_SOURCES = ("algorithms", "envs", "rng.py", "tabular/state.py", "tabular/steps.py", "tabular/episodes.py",
                     "tabular/runs.py", "tabular/borrowed.py")

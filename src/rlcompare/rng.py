@@ -53,6 +53,8 @@ def _multiply_high(a: np.uint64, b: np.uint64) -> np.uint64:
 @njit(forceinline=True)
 def next_uint64(state: np.ndarray) -> np.uint64:
     """Advance the stream one step and return 64 random bits (``PCG64.random_raw``)."""
+    high: np.uint64
+    low: np.uint64
     high, low = state[0], state[1]
     new_low = low * _MULTIPLIER_LOW
     new_high = _multiply_high(low, _MULTIPLIER_LOW) + high * _MULTIPLIER_LOW + low * _MULTIPLIER_HIGH

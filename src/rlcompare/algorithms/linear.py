@@ -9,6 +9,8 @@ register, as a plain tabular loop would; the functions below are written once fo
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numba import types
 from numba.extending import overload
@@ -32,22 +34,27 @@ def action_values(w: np.ndarray, s: int | np.ndarray, out: np.ndarray) -> np.nda
     return w[s] if isinstance(s, int | np.integer) else _summed_values(w, s, out)
 
 
-@overload(n_features_on)
-def _n_features_on(s):
+# Each implementation below is chosen by the numba types of the arguments. Its parameters are named as the
+# typing function's but not annotated, which numba's check of the two signatures (``strict``) takes for a
+# difference.
+
+
+@overload(n_features_on, strict=False)
+def _n_features_on(s: types.Type) -> Callable[..., int]:
     if isinstance(s, types.Integer):
         return lambda s: 1
     return lambda s: s.size
 
 
-@overload(feature_on)
-def _feature_on(s, k):
+@overload(feature_on, strict=False)
+def _feature_on(s: types.Type, k: types.Type) -> Callable[..., int]:
     if isinstance(s, types.Integer):
         return lambda s, k: s
     return lambda s, k: s[k]
 
 
-@overload(action_values, inline="always")  # a table's row read in place, as a plain tabular loop reads it
-def _action_values(w, s, out):
+@overload(action_values, strict=False, inline="always")  # a table's row read in place, as a plain loop reads it
+def _action_values(w: types.Type, s: types.Type, out: types.Type) -> Callable[..., np.ndarray]:
     if isinstance(s, types.Integer):
         return lambda w, s, out: w[s]
     return lambda w, s, out: _summed_values(w, s, out)
@@ -73,7 +80,7 @@ def _row(s: int | np.ndarray, k: int) -> np.uint64:
 def action_value(w: np.ndarray, s: int | np.ndarray, action: int) -> float:
     """``q(s, action)``."""
     column = np.uint64(action)
-    total = w[_row(s, 0), column]
+    total: float = w[_row(s, 0), column]
     for k in range(1, n_features_on(s)):
         total += w[_row(s, k), column]
     return total

@@ -30,7 +30,7 @@ def greedy_action(q_row: np.ndarray) -> int:
 def largest(q_row: np.ndarray) -> float:
     """``max(q_row)``, a loop the compiler keeps in registers (the array method ``q_row.max()`` costs as much as
     the rest of a step)."""
-    best = q_row[0]
+    best: float = q_row[0]
     for action in range(1, q_row.size):
         best = max(best, q_row[action])
     return best

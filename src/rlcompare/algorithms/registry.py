@@ -64,8 +64,9 @@ class Method:
     color: str | None = None
 
     @property
-    def rule(self) -> type:
-        return compiled_part(self.rule_at)
+    def rule(self) -> type[tuple[Any, ...]]:
+        rule: type[tuple[Any, ...]] = compiled_part(self.rule_at)
+        return rule
 
     @property
     def update(self) -> Callable[..., Any] | None:
@@ -130,14 +131,14 @@ DERIVED: dict[str, Callable[[Any, Method], Any]] = {
 """Rule fields that are not a configuration field of the same name, and how a configuration gives them."""
 
 
-def rule_for(config: Any) -> tuple:
+def rule_for(config: Any) -> tuple[Any, ...]:
     """The configured method's rule: each field of its named tuple read from the configuration's field of the
     same name (as the tuple's type), or derived (:data:`DERIVED`). A new method's rule needs nothing here unless
     a field of it is neither."""
     chosen = METHODS[config.algorithm]
-    types = typing.get_type_hints(chosen.rule)
-    return chosen.rule(**{name: DERIVED[name](config, chosen) if name in DERIVED else types[name](
-        getattr(config, name)) for name in chosen.rule._fields})
+    fields = typing.get_type_hints(chosen.rule)  # a named tuple's fields, in order, with their types
+    return chosen.rule(**{name: DERIVED[name](config, chosen) if name in DERIVED else kind(getattr(config, name))
+                          for name, kind in fields.items()})
 
 
 def label(name: str) -> str:

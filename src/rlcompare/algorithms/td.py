@@ -138,7 +138,8 @@ def double_q_target(reward: float, q_next: np.ndarray, q_next_other: np.ndarray,
     for action in range(1, q_next.size):
         if q_next[action] > q_next[best]:
             best = action
-    return reward + gamma * q_next_other[best]
+    target: float = reward + gamma * q_next_other[best]
+    return target
 
 
 @njit(inline="always")

@@ -25,15 +25,16 @@ x86-64 builds without AVX-512 kernels for them, checked by the parity test) ever
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 from llvmlite import ir
 from numba import types
-from numba.core import cgutils
+from numba.core.typing.templates import Signature
 from numba.extending import intrinsic
 
-from rlcompare.compiled import njit
+from rlcompare.compiled import Codegen, njit
 from rlcompare.rng import next_double
 
 ENV_ID = "Acrobot-v1"
@@ -72,18 +73,23 @@ def reset(env: Acrobot, rng: np.ndarray) -> tuple[float, float, float, float]:
 
 
 @intrinsic
-def _libm_pow(typingctx, x, y):
-    """The C library's ``pow``, as Python's ``x ** y`` on floats calls it. LLVM would turn ``x ** 2`` into
-    ``x * x``, which differs from ``pow(x, 2)`` in the last bit about once in a thousand; the declaration
-    is marked ``nobuiltin`` so that it stays a call."""
-
-    def codegen(context, builder, signature, args):
-        double = ir.DoubleType()
-        pow_ = cgutils.get_or_insert_function(builder.module, ir.FunctionType(double, [double, double]), "pow")
+def _pow_intrinsic(typingctx: Any, x: types.Type, y: types.Type) -> tuple[Signature, Codegen]:
+    def codegen(context: Any, builder: Any, signature: Signature, args: tuple[Any, ...]) -> Any:
+        double, module = ir.DoubleType(), builder.module
+        pow_ = module.globals.get("pow")
+        if pow_ is None:  # declared once a module
+            pow_ = ir.Function(module, ir.FunctionType(double, [double, double]), "pow")
         pow_.attributes.add("nobuiltin")
         return builder.call(pow_, args)
 
     return types.float64(types.float64, types.float64), codegen
+
+
+_libm_pow = cast(Callable[[float, float], float], _pow_intrinsic)
+"""The C library's ``pow``, as Python's ``x ** y`` on floats calls it. LLVM would turn ``x ** 2`` into
+``x * x``, which differs from ``pow(x, 2)`` in the last bit about once in a thousand; the declaration
+is marked ``nobuiltin`` so that it stays a call. An intrinsic (compiled code only), whose typing function
+takes numba's typing context first: to the type checker, the function compiled code calls."""
 
 
 @njit
@@ -143,7 +149,7 @@ def step(env: Acrobot, state: tuple[float, float, float, float], action: int,
 
 
 @njit(inline="always")
-def observe(env: Acrobot, state: tuple[float, float, float, float]) -> tuple:
+def observe(env: Acrobot, state: tuple[float, float, float, float]) -> tuple[np.float32, ...]:
     """What Gymnasium returns: ``(cos theta1, sin theta1, cos theta2, sin theta2, dtheta1, dtheta2)`` rounded
     to float32."""
     theta1, theta2, dtheta1, dtheta2 = state

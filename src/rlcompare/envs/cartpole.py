@@ -86,6 +86,6 @@ def step(env: CartPole, state: tuple[float, float, float, float], action: int,
 
 
 @njit(inline="always")
-def observe(env: CartPole, state: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+def observe(env: CartPole, state: tuple[float, float, float, float]) -> tuple[np.float32, ...]:
     """What Gymnasium returns: the state rounded to float32."""
     return np.float32(state[0]), np.float32(state[1]), np.float32(state[2]), np.float32(state[3])

@@ -65,7 +65,7 @@ def cell_indices(grid: UniformGrid, observations: np.ndarray) -> np.ndarray:
 
 
 @njit(inline="always")
-def _bin(grid: UniformGrid, dim: int, x: float) -> int:
+def _bin(grid: UniformGrid, dim: int, x: np.float32) -> int:
     """Number of inner edges of dimension ``dim`` that are ``<= x``: ``np.digitize(x, edges)``."""
     bins = grid.bins[dim]
     guess = (x - grid.low[dim]) * grid.scale[dim]
@@ -78,7 +78,7 @@ def _bin(grid: UniformGrid, dim: int, x: float) -> int:
 
 
 @njit(inline="always")
-def cell_of(grid: UniformGrid, observation: np.ndarray | tuple) -> int:
+def cell_of(grid: UniformGrid, observation: np.ndarray | tuple[np.float32, ...]) -> int:
     """Flat cell of an observation of any dimension, as ``DiscretizeObservation.observation``."""
     flat = 0
     for dim in range(len(observation)):
@@ -93,7 +93,8 @@ def states_buffer(features: UniformGrid, size: int) -> np.ndarray:
 
 
 @njit(inline="always")
-def features_of(features: UniformGrid, observation: np.ndarray | tuple, buffer: np.ndarray, at: int) -> int:
+def features_of(features: UniformGrid, observation: np.ndarray | tuple[np.float32, ...], buffer: np.ndarray,
+                at: int) -> int:
     """The observation's cell, also kept in ``buffer[at]``."""
     cell = cell_of(features, observation)
     buffer[at] = cell

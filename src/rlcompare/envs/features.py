@@ -31,7 +31,7 @@ def states_buffer(features: OneHot, size: int) -> np.ndarray:
 
 
 @njit(inline="always")
-def features_of(features: OneHot, observation: np.ndarray | tuple, buffer: np.ndarray, at: int) -> int:
+def features_of(features: OneHot, observation: np.ndarray | tuple[int], buffer: np.ndarray, at: int) -> int:
     """The state's index is its feature; also kept in ``buffer[at]``."""
     state = int(observation[0])
     buffer[at] = state
@@ -65,7 +65,7 @@ def feature_count(env: Environment, features: str, bins: int | tuple[int, ...], 
     if env.n_states:
         return env.n_states
     if features == "grid":
-        return math.prod(np.broadcast_to(np.asarray(bins), env.low.shape).tolist())
+        return int(math.prod(np.broadcast_to(np.asarray(bins), env.low.shape).tolist()))
     if hash_size:
         return hash_size
-    return tilings * math.prod(t + 1 for t in np.broadcast_to(np.asarray(tiles), env.low.shape).tolist())
+    return tilings * int(math.prod(t + 1 for t in np.broadcast_to(np.asarray(tiles), env.low.shape).tolist()))

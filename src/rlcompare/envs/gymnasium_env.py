@@ -26,14 +26,19 @@ import contextlib
 import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import objmode
 
 from rlcompare.compiled import njit
 
-_OPEN: dict[int, list[tuple]] = {}
+if TYPE_CHECKING:
+    import gymnasium as gym
+
+Opened = tuple["gym.Env[Any, Any]", np.random.Generator, np.random.Generator]
+"""An environment with the generators it resets and steps from."""
+_OPEN: dict[int, list[Opened]] = {}
 """``(env, reset generator, transition generator)`` opened by :func:`opened`, by handle; instance ``2 * run``
 trains, ``2 * run + 1`` evaluates."""
 _HANDLES = itertools.count()
@@ -102,11 +107,13 @@ def opened(env_id: str, training: np.ndarray, evaluation: np.ndarray, max_steps:
     reset stream and transition stream, copied into the generators the environments draw from."""
     import gymnasium as gym
 
-    environments, handle = [], next(_HANDLES)
+    environments: list[Opened] = []
+    handle = next(_HANDLES)
     try:
         for streams in (stream for pair in zip(training, evaluation, strict=True) for stream in pair):
             env = gym.make(env_id, max_episode_steps=max_steps, disable_env_checker=True)
-            environments.append((env, *(np.random.Generator(_pcg64(s)) for s in streams)))
+            resets, transitions = (np.random.Generator(_pcg64(s)) for s in streams)
+            environments.append((env, resets, transitions))
         _OPEN[handle] = environments
         yield handle
     finally:

@@ -74,6 +74,6 @@ def step(env: MountainCar, state: tuple[float, float], action: int,
 
 
 @njit(inline="always")
-def observe(env: MountainCar, state: tuple[float, float]) -> tuple[float, float]:
+def observe(env: MountainCar, state: tuple[float, float]) -> tuple[np.float32, np.float32]:
     """What Gymnasium returns: the state rounded to float32."""
     return np.float32(state[0]), np.float32(state[1])

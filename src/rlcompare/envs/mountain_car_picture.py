@@ -12,8 +12,12 @@ blend with the same pixels.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import pygame
 
 PACKED = (0xFF0000, 0x00FF00, 0x0000FF, 0)
 """Masks of a packed pixel, ``0x00RRGGBB`` in a ``uint32``: red, green, blue, no alpha."""
@@ -26,7 +30,7 @@ _EDGE = 2
 class MountainCarPainter:
     """Draws the state of a Gymnasium ``MountainCarEnv`` (unwrapped) as ``env.render()`` would."""
 
-    def __init__(self, env) -> None:
+    def __init__(self, env: Any) -> None:  # Gymnasium's MountainCarEnv, whose _height has no types
         import pygame
 
         self.env = env
@@ -46,9 +50,9 @@ class MountainCarPainter:
                          (self._flag_x + 25, self._flag_bottom + 45)]
         self._flag = _bounds([(self._flag_x, self._flag_bottom), *self._pennant])
 
-    def _on_screen(self, x: float, y: float, position: float) -> tuple[float, float]:
-        return (x + (position - self.env.min_position) * self.scale,
-                y + _CLEARANCE + self.env._height(position) * self.scale)
+    def _on_screen(self, point: pygame.math.Vector2, position: float) -> tuple[float, float]:
+        return (point.x + (position - self.env.min_position) * self.scale,
+                point.y + _CLEARANCE + self.env._height(position) * self.scale)
 
     def paint(self, out: np.ndarray) -> None:
         """The current frame into ``out``, ``(height, width)`` packed pixels, top row first."""
@@ -61,11 +65,11 @@ class MountainCarPainter:
         position = env.state[0]
         angle = math.cos(3 * position)
         half = _CAR_WIDTH / 2
-        body = [self._on_screen(*pygame.math.Vector2(corner).rotate_rad(angle), position)
+        body = [self._on_screen(pygame.math.Vector2(corner).rotate_rad(angle), position)
                 for corner in [(-half, 0), (-half, _CAR_HEIGHT), (half, _CAR_HEIGHT), (half, 0)]]
         gfxdraw.aapolygon(surface, body, (0, 0, 0))
         gfxdraw.filled_polygon(surface, body, (0, 0, 0))
-        wheels = [tuple(map(int, self._on_screen(*pygame.math.Vector2(offset).rotate_rad(angle), position)))
+        wheels = [tuple(map(int, self._on_screen(pygame.math.Vector2(offset).rotate_rad(angle), position)))
                   for offset in [(_CAR_WIDTH / 4, 0), (-_CAR_WIDTH / 4, 0)]]
         for x, y in wheels:
             gfxdraw.aacircle(surface, x, y, _WHEEL_RADIUS, (128, 128, 128))
@@ -78,7 +82,7 @@ class MountainCarPainter:
         out[:] = pygame.surfarray.pixels2d(surface).T[::-1]  # Gymnasium flips the picture upright
 
 
-def _bounds(points: list[tuple[float, float]]):
+def _bounds(points: list[tuple[float, float]]) -> pygame.Rect:
     """The rectangle that holds every pixel of shapes drawn through ``points``, anti-aliased edges included."""
     import pygame
 

@@ -32,7 +32,7 @@ import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from rlcompare.envs import atari, minatar
 
@@ -45,12 +45,23 @@ _CARTPOLE_VELOCITY = 3.0  # m/s; see docs/environments.md
 _CARTPOLE_ANGULAR_VELOCITY = 3.5  # rad/s
 
 
+class Painter(Protocol):
+    """What draws an environment's frames quicker than ``env.render()`` (:attr:`Environment.painter`)."""
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """``(width, height)`` of the picture, in pixels."""
+
+    def paint(self, out: np.ndarray) -> None:
+        """The current frame into ``out``, ``(height, width)`` packed pixels, top row first."""
+
+
 @dataclass(frozen=True)
 class Environment:
     """What rlcompare knows of an environment: how the kernels step it and its defaults."""
 
     name: str
-    dynamics: tuple | None
+    dynamics: tuple[Any, ...] | None
     """What compiled code steps (a port's parameters, a table); None: Gymnasium, through the adapter."""
     n_actions: int
     n_states: int
@@ -77,7 +88,7 @@ class Environment:
     book's Mountain Car is Gymnasium's, whose trajectories are the same)."""
     endings: tuple[str, str] = ("terminated", "out of time")
     """How a video's last frame says the episode ended: terminated, truncated."""
-    painter: Callable | None = None
+    painter: Callable[[Any], Painter] | None = None
     """What draws a video's frames where ``env.render()`` is slow: built from the unwrapped Gymnasium
     environment, its ``paint(out)`` writes the picture ``env.render()`` would return, as packed pixels
     (:mod:`rlcompare.report.frames`); None: ``env.render()``."""

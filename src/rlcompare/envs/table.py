@@ -13,7 +13,7 @@ is any gridworld whose dynamics fit in a table.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -32,11 +32,11 @@ class TableEnv(NamedTuple):
 
     @property
     def n_states(self) -> int:
-        return self.next_state.shape[0]
+        return int(self.next_state.shape[0])
 
     @property
     def n_actions(self) -> int:
-        return self.next_state.shape[1]
+        return int(self.next_state.shape[1])
 
 
 def make_table_env(
@@ -63,12 +63,12 @@ def make_table_env(
     return TableEnv(next_state, reward, ends, cumulative, start_cumulative)
 
 
-def from_gymnasium(env_id: str, **kwargs) -> TableEnv:
+def from_gymnasium(env_id: str, **kwargs: Any) -> TableEnv:
     """The table of a Gymnasium toy-text environment (CliffWalking-v1, FrozenLake-v1, Taxi-v4, ...), read
     from its own transition model ``P`` and start distribution, so stepping it equals stepping Gymnasium."""
     import gymnasium as gym
 
-    env = gym.make(env_id, **kwargs).unwrapped
+    env: Any = gym.make(env_id, **kwargs).unwrapped  # a toy-text environment: P and initial_state_distrib
     outcomes = {(s, a): [(p, int(target), float(r), bool(done)) for p, target, r, done in env.P[s][a]]
                 for s in env.P for a in env.P[s]}
     start = {s: float(p) for s, p in enumerate(env.initial_state_distrib) if p > 0}

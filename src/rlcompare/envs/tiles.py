@@ -36,6 +36,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from rlcompare.compiled import njit
 from rlcompare.validation import Integer, is_integer
@@ -75,7 +76,7 @@ class TileCoding(NamedTuple):
         return int(self.offsets.shape[0])
 
 
-def _per_dim_ints(name: str, value, dims: int) -> np.ndarray:
+def _per_dim_ints(name: str, value: npt.ArrayLike, dims: int) -> np.ndarray:
     """``value`` as ``(dims,)`` int64: one integer for every dimension, or a sequence of ``dims`` integers."""
     array = np.asarray(value)
     if array.ndim > 1 or not (np.issubdtype(array.dtype, np.integer) and array.dtype != np.bool_):
@@ -88,8 +89,8 @@ def _per_dim_ints(name: str, value, dims: int) -> np.ndarray:
 
 
 def make_tile_coding(
-    low,
-    high,
+    low: npt.ArrayLike,
+    high: npt.ArrayLike,
     *,
     tilings: int = 8,
     tiles: int | tuple[int, ...] = 8,
@@ -193,7 +194,7 @@ def _hash_step(state: int, coordinate: int) -> int:
 
 
 @njit(inline="always")
-def active_tiles_at(coding: TileCoding, x: np.ndarray, out: np.ndarray, row: int) -> None:
+def active_tiles_at(coding: TileCoding, x: np.ndarray | tuple[np.float32, ...], out: np.ndarray, row: int) -> None:
     """Write the ``n_tilings`` active features of the point ``x`` (``(dims,)``, or a tuple) into ``out[row]``.
 
     Tiling by tiling, its flat index (or hash state) accumulated in a register over the dimensions and written
@@ -213,10 +214,12 @@ def states_buffer(features: TileCoding, size: int) -> np.ndarray:
 
 
 @njit(inline="always")
-def features_of(features: TileCoding, observation: np.ndarray | tuple, buffer: np.ndarray, at: int) -> np.ndarray:
+def features_of(features: TileCoding, observation: np.ndarray | tuple[np.float32, ...], buffer: np.ndarray,
+                at: int) -> np.ndarray:
     """The observation's active tiles, written into and returned as ``buffer[at]``."""
     active_tiles_at(features, observation, buffer, at)
-    return buffer[at]
+    active: np.ndarray = buffer[at]
+    return active
 
 
 @njit(cache=True)

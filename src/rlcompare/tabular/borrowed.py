@@ -14,7 +14,6 @@ loop: numba frees an array after the last use of its owner, and a view is not a 
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, Protocol, TypeVar, cast
 
 import numpy as np
@@ -23,9 +22,9 @@ from numba.core import types
 from numba.core.typing.templates import Signature
 from numba.extending import intrinsic
 
+from rlcompare.compiled import Codegen
+
 Arrays = TypeVar("Arrays", bound=np.ndarray | tuple[np.ndarray, ...])
-Codegen = Callable[[Any, Any, Signature, tuple[Any, ...]], Any]
-"""``codegen(context, builder, signature, arguments)``: an intrinsic's LLVM code (llvmlite has no types)."""
 
 
 def _view(context: Any, builder: Any, array_type: types.Array, value: Any) -> Any:
