@@ -15,7 +15,7 @@ import functools
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import ParamSpec, TypeVar
 
 INSTALL_HINT = "the deep engine needs JAX, flax and optax: pip install -e '.[deep]'"
 
@@ -31,23 +31,25 @@ try:
 except ImportError as error:  # pragma: no cover - exercised where the extra is absent
     raise DeepUnavailable(f"{INSTALL_HINT} ({error})") from error
 
-Function = TypeVar("Function", bound=Callable[..., Any])
+P = ParamSpec("P")
+R = TypeVar("R")
 
 
-def float64(function: Function) -> Function:
+def float64(function: Callable[P, R]) -> Callable[P, R]:
     """``function`` run with JAX's 64-bit types on, in the calling thread only (``jax.enable_x64``)."""
 
     @functools.wraps(function)
-    def wrapped(*args: Any, **kwargs: Any) -> Any:
+    def wrapped(*args: P.args, **kwargs: P.kwargs) -> R:
         with jax.enable_x64(True):
             return function(*args, **kwargs)
 
-    return wrapped  # type: ignore[return-value]
+    return wrapped
 
 
 def use_compilation_cache() -> None:
     """Point JAX's persistent compilation cache at rlcompare's, unless the user has chosen one."""
-    if os.environ.get("JAX_COMPILATION_CACHE_DIR") or jax.config.jax_compilation_cache_dir:
+    # a setting is an attribute of jax.config, which JAX's types do not declare
+    if os.environ.get("JAX_COMPILATION_CACHE_DIR") or jax.config.jax_compilation_cache_dir:  # type: ignore[attr-defined]
         return
     cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare" / "jax"
     jax.config.update("jax_compilation_cache_dir", str(cache))

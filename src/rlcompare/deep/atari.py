@@ -15,6 +15,7 @@ from __future__ import annotations
 import atexit
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -26,7 +27,7 @@ from rlcompare.deep.envs import Step
 from rlcompare.envs import atari
 from rlcompare.envs.atari import ACTION_NAMES, PROTOCOL, Protocol
 
-_EMULATORS: dict[tuple, object] = {}
+_EMULATORS: dict[tuple[AtariEnv, str, int], Any] = {}
 """One ``AtariVectorEnv`` per (environment, role, number of games), made at its first reset."""
 
 
@@ -70,7 +71,7 @@ class AtariEnv:
         """The reward the methods learn from: the score's sign (Mnih et al. 2015); the records keep the score."""
         return jnp.sign(reward)
 
-    def emulator(self, role: str, n: int) -> object:
+    def emulator(self, role: str, n: int) -> Any:
         """The vector environment of ``n`` games that plays ``role``: the same object for each call."""
         import ale_py  # the Atari extra
 
@@ -93,7 +94,8 @@ class AtariEnv:
             observations, _ = self.emulator(role, n).reset(seed=int(seed))
             return channels_last(observations)
 
-        return io_callback(reset, self._observations(n), reset_seed(keys))
+        observations: jax.Array = io_callback(reset, self._observations(n), reset_seed(keys))
+        return observations
 
     def step_autoreset_batch(self, state: jax.Array, actions: jax.Array, keys: jax.Array, role: str = "training"
                              ) -> Step:

@@ -12,7 +12,7 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from rlcompare.deep.envs import DeepEnv, is_batched, jax_env
+from rlcompare.deep.envs import Environment, is_batched, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.validation import COUNT, SEEDS_ALLOWED, check_fields, is_seeds, plain, require
 
@@ -63,7 +63,7 @@ class DeepConfig:
         return hyperparameters(self.algorithm, self.env, self.preset, self.hyperparameters)
 
     @property
-    def environment(self) -> DeepEnv:
+    def environment(self) -> Environment:
         return jax_env(self.env)
 
     @property
@@ -86,7 +86,8 @@ class DeepConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> DeepConfig:
         known = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: (tuple(v) if k == "seeds" else v) for k, v in data.items() if k in known})
+        values: dict[str, Any] = {k: (tuple(v) if k == "seeds" else v) for k, v in data.items() if k in known}
+        return cls(**values)
 
 
 def with_settings_added_since(stored: dict[str, Any], config: DeepConfig) -> dict[str, Any]:

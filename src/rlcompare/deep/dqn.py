@@ -35,8 +35,8 @@ import optax
 from rlcompare.deep import rollout
 from rlcompare.deep.atari import NatureCNN, is_frames
 from rlcompare.deep.dqn_config import OPTIMIZERS, PRESETS, RMSPROP_DECAY, RMSPROP_EPS, DQNConfig
-from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
-from rlcompare.deep.networks import MLP, ConvNet, is_image
+from rlcompare.deep.envs import Environment, learning_reward, observe_all, reset_all, step_autoreset_all
+from rlcompare.deep.networks import MLP, ConvNet, Network, is_image
 from rlcompare.deep.replay import Buffer, Transitions, buffer_add, buffer_init, buffer_sample
 from rlcompare.validation import (
     COUNT,
@@ -61,6 +61,8 @@ def td_target(reward: jax.Array, next_q_online: jax.Array | None, next_q_target:
     Double DQN (van Hasselt et al. 2016, eq. 4): ``V = Q_target(s', argmax_a Q_online(s', a))``;
     ``next_q_online`` is read only there (it may be None for DQN). Q-values have the actions last."""
     if double:
+        if next_q_online is None:
+            raise ValueError("Double DQN's target reads the online network's Q-values at the next states")
         best = jnp.argmax(next_q_online, axis=-1)
         next_value = jnp.take_along_axis(next_q_target, best[..., None], axis=-1)[..., 0]
     else:
@@ -90,7 +92,7 @@ def epsilon(config: DQNConfig, steps: jax.Array) -> jax.Array:
     return (config.epsilon_start + progress * (config.epsilon_end - config.epsilon_start)).astype(jnp.float32)
 
 
-def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
+def network(config: DQNConfig, env: Environment) -> MLP | ConvNet | NatureCNN:
     """The Q-network: ``observations -> (..., n_actions)`` Q-values (flax's default initialisation): an MLP of
     ``hidden``, or for images MinAtar's network without LayerNorm (a 3 x 3 convolution of 16, then ``hidden``), or
     for Atari's frames Mnih et al.'s (2015)."""
@@ -101,9 +103,10 @@ def network(config: DQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
     return MLP(hidden=config.hidden, outputs=env.n_actions)
 
 
-def act(config: DQNConfig, env: DeepEnv) -> rollout.Act:
+def act(config: DQNConfig, env: Environment) -> rollout.Act:
     """``(params, observations) -> int32 actions`` greedy in the Q-values (ties: the first)."""
-    apply = network(config, env).apply
+    net: Network = network(config, env)
+    apply = net.apply
 
     def greedy(params: Params, observations: jax.Array) -> jax.Array:
         return jnp.argmax(apply(params, observations), axis=-1).astype(jnp.int32)
@@ -133,7 +136,7 @@ class Runner(NamedTuple):
     target_params: Params
     opt_state: optax.OptState
     buffer: Buffer
-    env_state: EnvState
+    env_state: Any
     """(n_envs,) environments."""
     observations: jax.Array
     """(n_envs, *observation shape) in the environment's dtype, what the agent sees now."""
@@ -142,7 +145,7 @@ class Runner(NamedTuple):
     """int64, environment steps so far over all environments (SB3's ``num_timesteps``)."""
 
 
-def init_runner(config: DQNConfig, env: DeepEnv, key: jax.Array) -> Runner:
+def init_runner(config: DQNConfig, env: Environment, key: jax.Array) -> Runner:
     """A fresh network (the target a copy of it), an empty buffer and ``n_envs`` started environments."""
     net_key, env_key = jax.random.split(key)
     params = network(config, env).init(net_key, jnp.zeros((1, *env.observation_shape), jnp.float32))
@@ -153,7 +156,8 @@ def init_runner(config: DQNConfig, env: DeepEnv, key: jax.Array) -> Runner:
                   rollout.Episodes.start(config.n_envs), jnp.zeros((), jnp.int64))
 
 
-def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
+def _collect_step(config: DQNConfig, env: Environment
+                  ) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
     """``(runner, key) -> (runner, finished)``: one step of every environment, stored in the buffer. Actions are
     uniform before ``learning_starts`` steps, then ε-greedy (each environment draws its own explore coin)."""
     greedy = act(config, env)
@@ -174,13 +178,15 @@ def _collect_step(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Arra
     return collect
 
 
-def _train(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], Runner]:
+def _train(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array], Runner]:
     """``(runner, key) -> runner`` after ``gradient_steps`` steps of :func:`optimizer` on :func:`q_loss`."""
-    apply, tx = network(config, env).apply, optimizer(config)
+    net: Network = network(config, env)
+    apply, tx = net.apply, optimizer(config)
     gradient = jax.grad(q_loss)
 
     def train(runner: Runner, key: jax.Array) -> Runner:
-        def one_step(carry: tuple[Params, optax.OptState], key: jax.Array) -> tuple[tuple, None]:
+        def one_step(carry: tuple[Params, optax.OptState], key: jax.Array
+                     ) -> tuple[tuple[Params, optax.OptState], None]:
             params, opt_state = carry
             batch = buffer_sample(runner.buffer, key, config.batch_size)
             grads = gradient(params, runner.target_params, batch, apply, config.gamma, config.double)
@@ -194,7 +200,7 @@ def _train(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], Run
     return train
 
 
-def _train_once_started(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], Runner]:
+def _train_once_started(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array], Runner]:
     """``(runner, key) -> runner`` after :func:`_train` if more than ``learning_starts`` steps were taken, as it was
     otherwise: a conditional, also under ``vmap``. There ``lax.cond`` on a predicate per seed becomes a select
     that computes the training in one program with the environment step and the buffer's write, which XLA:CPU
@@ -217,14 +223,16 @@ def _train_once_started(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, ja
         return runner._replace(params=params, opt_state=opt_state)
 
     @train_once_started.def_vmap
-    def batched(axis_size: int, in_batched: list, runner: Runner, key: jax.Array) -> tuple[Runner, Any]:
+    def batched(axis_size: int, in_batched: list[Any], runner: Runner, key: jax.Array) -> tuple[Runner, Any]:
         runner, key = jax.tree.map(lambda x, batched: x if batched else jnp.broadcast_to(x, (axis_size, *x.shape)),
                                    (runner, key), tuple(in_batched))
         started = runner.steps > config.learning_starts
 
         def some(runner: Runner, key: jax.Array) -> tuple[Params, optax.OptState]:
-            return jax.tree.map(lambda new, old: jnp.where(started.reshape(-1, *(1,) * (new.ndim - 1)), new, old),
-                                jax.vmap(trained)(runner, key), jax.vmap(kept)(runner, key))
+            chosen: tuple[Params, optax.OptState] = jax.tree.map(
+                lambda new, old: jnp.where(started.reshape(-1, *(1,) * (new.ndim - 1)), new, old),
+                jax.vmap(trained)(runner, key), jax.vmap(kept)(runner, key))
+            return chosen
 
         which = jnp.where(jnp.all(started), 2, jnp.where(jnp.any(started), 1, 0))
         params, opt_state = jax.lax.switch(which, (jax.vmap(kept), some, jax.vmap(trained)), runner, key)
@@ -234,7 +242,7 @@ def _train_once_started(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, ja
     return train_once_started
 
 
-def make_update(config: DQNConfig, env: DeepEnv) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
+def make_update(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
     """``(runner, key) -> (runner, finished)``, one update: ``train_freq`` steps of every environment
     (``finished`` is ``(train_freq, n_envs)``), the target refreshed if an interval's end was passed, then a
     training once more than ``learning_starts`` steps were taken (SB3's ``learn`` loop)."""
@@ -259,7 +267,7 @@ def updates_per_round(config: DQNConfig, rounds: int) -> int:
     return math.ceil(config.total_steps / (config.train_freq * config.n_envs * rounds))
 
 
-def make_train(config: DQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
+def make_train(config: DQNConfig, env: Environment, rounds: int, eval_episodes: int
                ) -> Callable[[jax.Array], rollout.TrainOutput]:
     """``key -> TrainOutput``: one seed's whole training, ``rounds`` rounds of :func:`updates_per_round` updates
     with a greedy evaluation of ``eval_episodes`` episodes after each; jit-able and vmap-able over keys."""

@@ -17,7 +17,9 @@ and the last bits may differ.
 
 An environment is a hashable description (static under ``jax.jit``): ``reset(key) -> EnvState`` and
 ``step(state, action) -> (state, reward, terminated, truncated)``; :func:`step_autoreset` starts a new episode
-where one ended and keeps the true last observation for bootstrapping at a time-limit cut.
+where one ended and keeps the true last observation for bootstrapping at a time-limit cut. What the engine asks
+of every environment, these ports, MinAtar's games (:mod:`rlcompare.deep.minatar`) and Atari's emulators
+(:mod:`rlcompare.deep.atari`), is :data:`Environment`.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import importlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import gymnasium as gym
 import jax
@@ -35,6 +37,9 @@ import jax.numpy as jnp
 from rlcompare.envs import acrobot, atari, cartpole, minatar, mountain_car
 from rlcompare.envs.registry import PORTS, environment
 from rlcompare.validation import ConfigError
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
 
 
 class EnvState(NamedTuple):
@@ -47,8 +52,8 @@ class EnvState(NamedTuple):
 class Step(NamedTuple):
     """One step of :func:`step_autoreset`."""
 
-    state: EnvState
-    """After a reset where the episode ended."""
+    state: Any
+    """The environment's state (a pytree) after a reset where the episode ended."""
     observation: jax.Array
     """float32, what the agent sees next (the first observation of a new episode where one ended)."""
     last_observation: jax.Array
@@ -56,6 +61,58 @@ class Step(NamedTuple):
     reward: jax.Array
     terminated: jax.Array
     truncated: jax.Array
+
+
+class Described(Protocol):
+    """What every environment of the deep engine says of itself."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def n_actions(self) -> int: ...
+
+    @property
+    def observation_shape(self) -> tuple[int, ...]: ...
+
+    @property
+    def max_steps(self) -> int | None:
+        """Its episode limit; None where the game's own end is the only one."""
+        ...
+
+
+class VmappedEnv(Described, Protocol):
+    """An environment written in JAX, one episode a state (any pytree), run many at once under ``vmap``."""
+
+    def reset(self, key: jax.Array) -> Any: ...
+
+    def step(self, state: Any, action: jax.Array, key: jax.Array) -> tuple[Any, jax.Array, jax.Array, jax.Array]:
+        """``(state, reward, terminated, truncated)``."""
+        ...
+
+    def observe(self, state: Any) -> jax.Array: ...
+
+
+class BatchedEnv(Described, Protocol):
+    """An environment the host steps all at once (an emulator), not vmapped; ``role`` (training, evaluation) names
+    which of its games play."""
+
+    @property
+    def batched(self) -> bool: ...
+
+    def reset_batch(self, keys: jax.Array, role: str = "training") -> Any: ...
+
+    def observe_batch(self, states: Any) -> jax.Array: ...
+
+    def step_batch(self, states: Any, actions: jax.Array, keys: jax.Array, role: str = "training"
+                   ) -> tuple[Any, jax.Array, jax.Array, jax.Array]: ...
+
+    def step_autoreset_batch(self, states: Any, actions: jax.Array, keys: jax.Array, role: str = "training"
+                             ) -> Step: ...
+
+
+Environment = VmappedEnv | BatchedEnv
+"""An environment of the deep engine."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +149,7 @@ class DeepEnv:
         return self.observation_of(state.physics)
 
 
-def step_autoreset(env: DeepEnv, state: EnvState, action: jax.Array, key: jax.Array) -> Step:
+def step_autoreset(env: VmappedEnv, state: Any, action: jax.Array, key: jax.Array) -> Step:
     """One step (its random parts, if any, drawn from ``key`` folded with 1), and a reset (drawn from ``key``)
     where the episode ended, as Gymnasium's vector environments do with ``autoreset_mode=SAME_STEP``."""
     state, reward, terminated, truncated = env.step(state, action, jax.random.fold_in(key, 1))
@@ -105,37 +162,37 @@ def step_autoreset(env: DeepEnv, state: EnvState, action: jax.Array, key: jax.Ar
 
 # --- Many environments at once: vmapped, or stepped together by the host where the environment is batched ---
 
-def is_batched(env: object) -> bool:
+def is_batched(env: object) -> TypeIs[BatchedEnv]:
     """Stepped all at once outside JAX (an emulator: :class:`rlcompare.deep.atari.AtariEnv`), not vmapped."""
-    return getattr(env, "batched", False)
+    return bool(getattr(env, "batched", False))
 
 
-def reset_all(env: DeepEnv, keys: jax.Array, role: str = "training") -> EnvState:
+def reset_all(env: Environment, keys: jax.Array, role: str = "training") -> Any:
     """``len(keys)`` environments started; ``role`` (training, evaluation) keeps a batched environment's games
     for one use apart from another's."""
     return env.reset_batch(keys, role) if is_batched(env) else jax.vmap(env.reset)(keys)
 
 
-def observe_all(env: DeepEnv, states: EnvState) -> jax.Array:
+def observe_all(env: Environment, states: Any) -> jax.Array:
     return env.observe_batch(states) if is_batched(env) else jax.vmap(env.observe)(states)
 
 
-def step_all(env: DeepEnv, states: EnvState, actions: jax.Array, keys: jax.Array, role: str = "training"
-             ) -> tuple[EnvState, jax.Array, jax.Array, jax.Array]:
+def step_all(env: Environment, states: Any, actions: jax.Array, keys: jax.Array, role: str = "training"
+             ) -> tuple[Any, jax.Array, jax.Array, jax.Array]:
     """One step of each environment (its ``step``): ``(states, rewards, terminated, truncated)``."""
     if is_batched(env):
         return env.step_batch(states, actions, keys, role)
     return jax.vmap(env.step)(states, actions, keys)
 
 
-def step_autoreset_all(env: DeepEnv, states: EnvState, actions: jax.Array, keys: jax.Array) -> Step:
+def step_autoreset_all(env: Environment, states: Any, actions: jax.Array, keys: jax.Array) -> Step:
     """:func:`step_autoreset` of each environment, one key each."""
     if is_batched(env):
         return env.step_autoreset_batch(states, actions, keys)
     return jax.vmap(step_autoreset, in_axes=(None, 0, 0, 0))(env, states, actions, keys)
 
 
-def learning_reward(env: DeepEnv, reward: jax.Array) -> jax.Array:
+def learning_reward(env: Environment, reward: jax.Array) -> jax.Array:
     """The reward a method learns from: the environment's own, or what its protocol makes of it (Atari's sign)."""
     transform = getattr(env, "learning_reward", None)
     return reward if transform is None else transform(reward)
@@ -147,7 +204,8 @@ def _opaque(value: float) -> jax.Array:
     """A float64 constant that XLA's algebraic simplifier cannot see, so that it computes NumPy's expression as
     written: it rewrites ``a / c`` as ``a * (1 / c)``, ``(a * c1) / c2`` as ``a * (c1 / c2)`` and ``(a + c1) + c2``
     as ``a + (c1 + c2)``, none of them equal to NumPy's. An optimisation barrier hides the value."""
-    return jax.lax.optimization_barrier(jnp.float64(value))
+    hidden: jax.Array = jax.lax.optimization_barrier(jnp.float64(value))
+    return hidden
 
 
 def _unfused(product: jax.Array) -> jax.Array:
@@ -281,12 +339,15 @@ def _acrobot_observe(physics: jax.Array) -> jax.Array:
                      ).astype(jnp.float32)
 
 
-def _port(name: str, start: Callable, dynamics: Callable, observe: Callable) -> DeepEnv:
+def _port(name: str, start: Callable[[jax.Array], jax.Array],
+          dynamics: Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array, jax.Array]],
+          observe: Callable[[jax.Array], jax.Array]) -> DeepEnv:
     """The JAX port of a registered environment: its actions and observation size from its registry entry, its
     limit Gymnasium's registered one (200 steps for Mountain Car, where the paper's tables use 1000)."""
-    entry = environment(name)
-    return DeepEnv(name, entry.n_actions, entry.observation_size, gym.spec(name).max_episode_steps, start, dynamics,
-                   observe)
+    entry, limit = environment(name), gym.spec(name).max_episode_steps
+    if limit is None:
+        raise ValueError(f"{name}: Gymnasium registers no step limit, which the JAX port needs")
+    return DeepEnv(name, entry.n_actions, entry.observation_size, limit, start, dynamics, observe)
 
 
 MOUNTAIN_CAR = _port("MountainCar-v0", _mountain_car_start, _mountain_car_dynamics, _as_float32)
@@ -299,7 +360,7 @@ def jax_env_names() -> tuple[str, ...]:
     return tuple(name for name in (*PORTS, *minatar.NAMES, *atari.NAMES) if environment(name).jax_port)
 
 
-def jax_env(name: str) -> DeepEnv:
+def jax_env(name: str) -> Environment:
     """The JAX port of ``name``, from its registry entry (:mod:`rlcompare.envs.registry`); a
     :class:`~rlcompare.tabular.config.ConfigError` naming those there are."""
     if name not in jax_env_names():

@@ -16,7 +16,7 @@ import flax.linen as nn
 import jax
 
 from rlcompare.deep import dqn, ppo, pqn
-from rlcompare.deep.envs import DeepEnv
+from rlcompare.deep.envs import Environment
 from rlcompare.deep.rollout import Act, TrainOutput
 from rlcompare.validation import ConfigError, is_flag, is_integer, plain, require
 
@@ -35,18 +35,18 @@ class MethodModule(Protocol):
         """Preset name -> environment -> settings, each with its source."""
         ...
 
-    def make_train(self, config: Any, env: DeepEnv, rounds: int, eval_episodes: int
+    def make_train(self, config: Any, env: Environment, rounds: int, eval_episodes: int
                    ) -> Callable[[jax.Array], TrainOutput]:
         """``key -> TrainOutput``: one seed's whole training in ``rounds`` rounds, each ended by a greedy evaluation
         of ``eval_episodes`` episodes; jit-able and vmap-able over keys. Building it validates the settings against
         the environment and cheaply (closures only)."""
         ...
 
-    def act(self, config: Any, env: DeepEnv) -> Act:
+    def act(self, config: Any, env: Environment) -> Act:
         """``(params, observations) -> actions``: the greedy policy of trained parameters."""
         ...
 
-    def network(self, config: Any, env: DeepEnv) -> nn.Module:
+    def network(self, config: Any, env: Environment) -> nn.Module:
         """The network whose parameters it learns."""
         ...
 

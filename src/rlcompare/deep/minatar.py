@@ -28,7 +28,7 @@ class _Asterix(asterix.MinAsterix):
     free overwrites a taken one)."""
 
     def step_env(self, key: jax.Array, state: asterix.EnvState, action: jax.Array, params: asterix.EnvParams
-                 ) -> tuple[jax.Array, asterix.EnvState, jax.Array, jax.Array, dict]:
+                 ) -> tuple[jax.Array, asterix.EnvState, jax.Array, jax.Array, dict[str, Any]]:
         spawn_now = state.spawn_timer == 0
         state = state.replace(entities=jnp.where(spawn_now, asterix_spawn(key, state.entities), state.entities),
                               spawn_timer=jnp.where(spawn_now, state.spawn_speed, state.spawn_timer))
@@ -147,7 +147,8 @@ class MinAtarEnv:
 
     def observe(self, state: MinAtarState) -> jax.Array:
         with jax.enable_x64(False):
-            return self._env.get_obs(state.game).astype(bool)
+            observation: jax.Array = self._env.get_obs(state.game).astype(bool)
+            return observation
 
 
 def _thirty_two_bits(state: Any) -> Any:

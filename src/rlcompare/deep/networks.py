@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any, Protocol
 
 import flax.linen as nn
 import jax
@@ -10,6 +11,16 @@ import jax.numpy as jnp
 import numpy as np
 
 ACTIVATIONS = {"relu": nn.relu, "tanh": nn.tanh}
+
+
+class Network(Protocol):
+    """A flax module as the methods use it: ``init(key, inputs)`` gives its variables, ``apply(variables, inputs)``
+    (or ``method=`` another of its methods) its output, an array or a tuple of them. flax types an ``apply`` as
+    possibly giving the variables it changed as well, which it does only when asked to (``mutable``), never here."""
+
+    def init(self, rngs: Any, *inputs: Any, **options: Any) -> Any: ...
+
+    def apply(self, variables: Any, *inputs: Any, **options: Any) -> Any: ...
 
 
 class MLP(nn.Module):

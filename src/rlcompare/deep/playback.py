@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlcompare.deep import float64
+from rlcompare.deep.envs import is_batched
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import stage_rounds
@@ -47,17 +48,20 @@ def play_stages(results: DeepResults, seed: int, max_steps: int = MAX_STEPS, key
     """Every stage's greedy network of ``seed`` playing one episode from ``jax.random.key(key)``."""
     config = results.config
     env = config.environment
+    if is_batched(env):
+        raise ValueError(f"{config.env}: an emulator's games are not played stage by stage here")
     act = deep_method(config.algorithm).module.act(config.method_config(), env)
     template = params_template(config)
     stacked = jax.tree.map(lambda *leaves: jnp.stack(leaves),
                            *[results.seed_params(seed, template, stage) for stage in results.stages])
 
-    def episode(params: Any, episode_key: jax.Array) -> tuple:
+    def episode(params: Any, episode_key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
         """The first episode :func:`~rlcompare.deep.rollout.evaluate` plays from ``episode_key``, to its end or
         ``max_steps``."""
         step_key = jax.random.fold_in(episode_key, 1)
 
-        def one_step(carry: tuple, t: jax.Array) -> tuple:
+        def one_step(carry: tuple[Any, jax.Array, jax.Array], t: jax.Array
+                     ) -> tuple[tuple[Any, jax.Array, jax.Array], tuple[jax.Array, jax.Array, jax.Array, jax.Array]]:
             state, running, total = carry
             observation = env.observe(state)
             action = act(params, observation[None])[0]

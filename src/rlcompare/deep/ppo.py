@@ -26,16 +26,17 @@ source is listed there.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import optax
 
-from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
-from rlcompare.deep.networks import is_image
+from rlcompare.deep.envs import Environment, learning_reward, observe_all, reset_all, step_autoreset_all
+from rlcompare.deep.networks import Network, is_image
 from rlcompare.deep.ppo_config import ADAM_EPSILON, NORMALIZE_CLIP, NORMALIZE_EPSILON, PRESETS, PPOConfig
-from rlcompare.deep.ppo_networks import ActorCritic, network
+from rlcompare.deep.ppo_networks import network
 from rlcompare.deep.rollout import Act, Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.validation import COUNT, check, require
 
@@ -44,8 +45,11 @@ Config = PPOConfig
 __all__ = ["PRESETS", "Config", "act", "make_train", "network"]
 
 
-class RunningMeanStd(NamedTuple):
-    """Running mean and (population) variance of a stream of batches (Chan et al.'s parallel update)."""
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class RunningMeanStd:
+    """Running mean and (population) variance of a stream of batches (Chan et al.'s parallel update). A pytree of
+    its three arrays, named as SB3 names them (a tuple's ``count`` would hide ``tuple.count``)."""
 
     mean: jax.Array
     var: jax.Array
@@ -87,7 +91,7 @@ class PolicyParams(NamedTuple):
     observations: RunningMeanStd
 
 
-def init_params(config: PPOConfig, env: DeepEnv, key: jax.Array) -> PolicyParams:
+def init_params(config: PPOConfig, env: Environment, key: jax.Array) -> PolicyParams:
     """Fresh parameters; also the template to restore saved ones into."""
     variables = network(config, env).init(key, jnp.zeros((1, *env.observation_shape), jnp.float32))
     return PolicyParams(variables, RunningMeanStd.start(env.observation_shape))
@@ -101,10 +105,10 @@ def _observe(config: PPOConfig, params: PolicyParams, observation: jax.Array) ->
     return observation if observation.dtype == jnp.bool_ else observation.astype(jnp.float32)
 
 
-def act(config: PPOConfig, env: DeepEnv) -> Act:
+def act(config: PPOConfig, env: Environment) -> Act:
     """``(params, raw observations) -> greedy actions``: the argmax of the logits (SB3's ``deterministic=True``),
     observations normalised with the frozen statistics where trained so (the zoo's evaluation)."""
-    module = network(config, env)
+    module: Network = network(config, env)
 
     def greedy(params: PolicyParams, observation: jax.Array) -> jax.Array:
         logits = module.apply(params.network, _observe(config, params, observation), method="logits")
@@ -185,7 +189,7 @@ class Batch(NamedTuple):
     """V(s) when the action was taken (for ``value_loss="purejaxrl"``)."""
 
 
-def ppo_loss(module: ActorCritic, variables: Any, batch: Batch, clip_range: jax.Array, config: PPOConfig
+def ppo_loss(module: Network, variables: Any, batch: Batch, clip_range: jax.Array, config: PPOConfig
              ) -> jax.Array:
     """SB3's loss: ``policy_loss - ent_coef * entropy + vf_coef * value_loss`` on one minibatch, the value loss
     SB3's or purejaxrl's (``config.value_loss``)."""
@@ -227,7 +231,7 @@ class Runner(NamedTuple):
     """Statistics of the discounted return, for ``normalize_rewards``."""
     discounted: jax.Array
     """(envs,) each environment's running discounted return, for ``normalize_rewards``."""
-    env_state: EnvState
+    env_state: Any
     observation: jax.Array
     """(envs, *observation shape): float32, normalised where ``normalize_observations``; images booleans."""
     episodes: Episodes
@@ -246,7 +250,7 @@ class Transition(NamedTuple):
     done: jax.Array
 
 
-def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
+def make_train(config: PPOConfig, env: Environment, rounds: int, eval_episodes: int
                ) -> Callable[[jax.Array], TrainOutput]:
     """``key -> TrainOutput``: one seed's training, ``config.updates // rounds`` updates in each of ``rounds``
     rounds (the remainder, fewer than ``rounds`` updates, is not run; the schedules still span ``total_steps``),
@@ -257,7 +261,7 @@ def make_train(config: PPOConfig, env: DeepEnv, rounds: int, eval_episodes: int
             f"at least {rounds} updates of n_envs x n_steps = {config.batch} steps (one per evaluation round)")
     require(not (config.normalize_observations and is_image(env.observation_shape)), "normalize_observations", True,
             "false for images (MinAtar's are booleans)")
-    module = network(config, env)
+    module: Network = network(config, env)
     tx = optimizer(config)
     greedy = act(config, env)
 

@@ -110,7 +110,7 @@ RULES: dict[str, Rule] = {
     "anneal_lr": Flag(), "gamma": STEP_SIZE, "gae_lambda": UNIT, "clip_range": POSITIVE, "anneal_clip_range": Flag(),
     "ent_coef": NON_NEGATIVE, "vf_coef": NON_NEGATIVE, "max_grad_norm": POSITIVE, "normalize_advantage": Flag(),
     "normalize_observations": Flag(), "normalize_rewards": Flag(), "hidden": Widths(),
-    "activation": Choice(ACTIVATIONS), "total_steps": COUNT, "value_loss": Choice(VALUE_LOSSES),
+    "activation": Choice(tuple(ACTIVATIONS)), "total_steps": COUNT, "value_loss": Choice(VALUE_LOSSES),
 }
 """What each setting may hold (:mod:`rlcompare.validation`), checked in this order."""
 

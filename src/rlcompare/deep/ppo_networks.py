@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlcompare.deep.atari import NatureTorso, is_frames
-from rlcompare.deep.envs import DeepEnv
+from rlcompare.deep.envs import Environment
 from rlcompare.deep.networks import ACTIVATIONS, Conv3x3, is_image
 from rlcompare.deep.ppo_config import PPOConfig
 
@@ -28,9 +28,11 @@ def gram_schmidt(a: jax.Array) -> jax.Array:
         v = jax.lax.dynamic_index_in_dim(a, j, axis=1, keepdims=False)
         for _ in range(2):
             v = v - q @ (q.T @ v)  # q's columns from j on are still 0
-        return jax.lax.dynamic_update_index_in_dim(q, v / jnp.linalg.norm(v), j, axis=1)
+        updated: jax.Array = jax.lax.dynamic_update_index_in_dim(q, v / jnp.linalg.norm(v), j, axis=1)
+        return updated
 
-    return jax.lax.fori_loop(0, a.shape[1], column, jnp.zeros_like(a))
+    orthonormal: jax.Array = jax.lax.fori_loop(0, a.shape[1], column, jnp.zeros_like(a))
+    return orthonormal
 
 
 def orthogonal(scale: float) -> nn.initializers.Initializer:
@@ -134,7 +136,7 @@ def kernel_orthogonal(scale: float) -> nn.initializers.Initializer:
     return init
 
 
-def network(config: PPOConfig, env: DeepEnv) -> ActorCritic | SharedActorCritic:
+def network(config: PPOConfig, env: Environment) -> ActorCritic | SharedActorCritic:
     """The flax module whose variables are :attr:`PolicyParams.network`: MLPs, for MinAtar's images MinAtar's
     convolution before each, for Atari's one network of Mnih et al. shared by both heads."""
     if is_frames(env.observation_shape):

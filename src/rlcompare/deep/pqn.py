@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -33,8 +33,8 @@ from flax.training.train_state import TrainState
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.deep.atari import NatureCNN, is_frames
-from rlcompare.deep.envs import DeepEnv, EnvState, learning_reward, observe_all, reset_all, step_autoreset_all
-from rlcompare.deep.networks import MLP, ConvNet, is_image
+from rlcompare.deep.envs import Environment, learning_reward, observe_all, reset_all, step_autoreset_all
+from rlcompare.deep.networks import MLP, ConvNet, Network, is_image
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.envs import acrobot, atari, minatar, mountain_car
 from rlcompare.validation import (
@@ -167,9 +167,13 @@ class Rollout(NamedTuple):
     """The observation each action led to (before a reset): the next state the return bootstraps from."""
 
 
+Collecting = tuple[Any, jax.Array, jax.Array, Episodes]
+"""A rollout in progress: the environments' states, their observations, the actions next taken, the episodes."""
+
+
 class Runner(NamedTuple):
     train_state: TrainState
-    env_state: EnvState
+    env_state: Any
     observation: jax.Array
     next_action: jax.Array
     """The action each environment takes first in the next rollout (``before_update``; redrawn ``after_update``)."""
@@ -177,7 +181,7 @@ class Runner(NamedTuple):
     update: jax.Array
 
 
-def network(config: PQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
+def network(config: PQNConfig, env: Environment) -> MLP | ConvNet | NatureCNN:
     """A LayerNorm MLP, or for images MinAtar's or Mnih et al.'s convolutional network, with LayerNorm."""
     if is_frames(env.observation_shape):
         return NatureCNN(env.n_actions, hidden=config.hidden, layer_norm=True)
@@ -187,9 +191,9 @@ def network(config: PQNConfig, env: DeepEnv) -> MLP | ConvNet | NatureCNN:
     return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True, box=box)
 
 
-def act(config: PQNConfig, env: DeepEnv) -> Callable[[dict, jax.Array], jax.Array]:
+def act(config: PQNConfig, env: Environment) -> Callable[[Any, jax.Array], jax.Array]:
     """The greedy policy: ``(params, observations) -> argmax_a Q``."""
-    net = network(config, env)
+    net: Network = network(config, env)
     return lambda params, observations: jnp.argmax(net.apply(params, observations), axis=-1)
 
 
@@ -218,7 +222,8 @@ def lambda_returns(rewards: jax.Array, terminated: jax.Array, truncated: jax.Arr
     time-limit cut from ``v_t`` alone, and so does the rollout's last step, whose ``G_{t+1}`` is not known.
     """
 
-    def backwards(later_return: jax.Array, step: tuple) -> tuple[jax.Array, jax.Array]:
+    def backwards(later_return: jax.Array, step: tuple[jax.Array, jax.Array, jax.Array, jax.Array]
+                  ) -> tuple[jax.Array, jax.Array]:
         reward, term, trunc, value = step
         continues = (1.0 - lam) * value + lam * later_return
         bootstrap = jnp.where(trunc, value, continues)
@@ -248,14 +253,14 @@ def sarsa_actions(actions: jax.Array, done: jax.Array, drawn: jax.Array, carried
     return jnp.where(done, drawn, following)
 
 
-def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
+def make_train(config: PQNConfig, env: Environment, rounds: int, eval_episodes: int
                ) -> Callable[[jax.Array], TrainOutput]:
     """One seed's whole training, jittable and vmappable over keys: ``rounds`` x (``updates // rounds``) updates,
     each one rollout of ``n_envs`` x ``n_steps`` steps and ``n_epochs`` x ``n_minibatches`` gradient steps."""
     updates_per_round = config.updates // rounds
     require(updates_per_round >= 1, "total_steps", config.total_steps,
             f"at least {rounds} rollouts of n_envs x n_steps = {config.n_envs * config.n_steps} steps")
-    net = network(config, env)
+    net: Network = network(config, env)
     updates = updates_per_round * rounds
     decay_updates = max(1, int(config.decay_fraction * updates))
     epsilon_at = optax.linear_schedule(config.epsilon_start, config.epsilon_end, decay_updates)
@@ -268,7 +273,8 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
     def collect(runner: Runner, key: jax.Array, epsilon: jax.Array) -> tuple[Runner, Rollout, Finished]:
         params = runner.train_state.params
 
-        def one_step(carry: tuple, step_key: jax.Array) -> tuple[tuple, tuple]:
+        def one_step(carry: Collecting, step_key: jax.Array
+                     ) -> tuple[Collecting, tuple[tuple[jax.Array, ...], Finished]]:
             env_state, observation, action, episodes = carry
             draw_key, reset_key = jax.random.split(step_key)
             step = step_autoreset_all(env, env_state, action, jax.random.split(reset_key, config.n_envs))
@@ -285,7 +291,7 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
                                  episodes=episodes)
         return runner, rollout, finished
 
-    def targets(params: dict, rollout: Rollout, carried: jax.Array, key: jax.Array, epsilon: jax.Array
+    def targets(params: Any, rollout: Rollout, carried: jax.Array, key: jax.Array, epsilon: jax.Array
                 ) -> jax.Array:
         q_next = q_values(params, rollout.last_observations)
         done = rollout.terminated | rollout.truncated
@@ -295,7 +301,7 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
         rewards = config.reward_scale * learning_reward(env, rollout.rewards).astype(jnp.float32)
         return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, config.gamma, config.lam)
 
-    def loss(params: dict, observations: jax.Array, actions: jax.Array, returns: jax.Array) -> jax.Array:
+    def loss(params: Any, observations: jax.Array, actions: jax.Array, returns: jax.Array) -> jax.Array:
         q = net.apply(params, observations)
         taken = jnp.take_along_axis(q, actions[:, None], axis=-1)[:, 0]
         return 0.5 * jnp.mean(jnp.square(taken - returns))
@@ -308,7 +314,8 @@ def make_train(config: PQNConfig, env: DeepEnv, rounds: int, eval_episodes: int
             order = jax.random.permutation(epoch_key, batch[1].shape[0])
             minibatches = jax.tree.map(lambda x: x[order].reshape(config.n_minibatches, -1, *x.shape[1:]), batch)
 
-            def gradient_step(state: TrainState, minibatch: tuple) -> tuple[TrainState, None]:
+            def gradient_step(state: TrainState, minibatch: tuple[jax.Array, jax.Array, jax.Array]
+                              ) -> tuple[TrainState, None]:
                 return state.apply_gradients(grads=jax.grad(loss)(state.params, *minibatch)), None
 
             return jax.lax.scan(gradient_step, state, minibatches)[0], None

@@ -56,6 +56,7 @@ def buffer_add(buffer: Buffer, batch: Transitions) -> Buffer:
 def buffer_sample(buffer: Buffer, key: jax.Array, batch_size: int) -> Transitions:
     """``batch_size`` filled transitions drawn uniformly with replacement (SB3's ``ReplayBuffer.sample``)."""
     index = jax.random.randint(key, (batch_size,), 0, buffer.size)
-    return jax.tree.map(lambda store: store[index], buffer.data)
+    sampled: Transitions = jax.tree.map(lambda store: store[index], buffer.data)
+    return sampled
 
 

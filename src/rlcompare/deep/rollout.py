@@ -9,7 +9,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import DeepEnv, observe_all, reset_all, step_all
+from rlcompare.deep.envs import Environment, observe_all, reset_all, step_all
 
 Params = Any
 Act = Callable[[Params, jax.Array], jax.Array]
@@ -73,16 +73,20 @@ class TrainOutput(NamedTuple):
     eval_terminated: jax.Array
 
 
+Evaluating = tuple[jax.Array, Any, jax.Array, jax.Array, jax.Array, jax.Array]
+"""An evaluation in progress: the step, the environments' states, which episodes are running, and each one's
+return, length and whether it terminated."""
+
 EVALUATION_STEPS = 27_000
 """Where a greedy evaluation stops an episode that has no limit of its own (MinAtar under its paper's protocol):
 the 108,000 frames of 4 that Machado et al. (2018) allow an Atari evaluation episode."""
 
 
-def evaluation_limit(env: DeepEnv) -> int:
+def evaluation_limit(env: Environment) -> int:
     return env.max_steps or EVALUATION_STEPS
 
 
-def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: int, epsilon: float = 0.0
+def evaluate(env: Environment, act: Act, params: Params, key: jax.Array, episodes: int, epsilon: float = 0.0
              ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Greedy episodes run side by side until each has ended or :func:`evaluation_limit` steps have passed:
     ``(returns, lengths, terminated)``, each ``(episodes,)``. The environments' own draws come from ``key``
@@ -92,11 +96,11 @@ def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: i
     step_key = jax.random.fold_in(key, 1)
     limit = evaluation_limit(env)
 
-    def going(carry: tuple) -> jax.Array:
+    def going(carry: Evaluating) -> jax.Array:
         t, _, running, *_ = carry
         return (t < limit) & jnp.any(running)
 
-    def one_step(carry: tuple) -> tuple:
+    def one_step(carry: Evaluating) -> Evaluating:
         t, state, running, returns, lengths, terminated = carry
         action = act(params, observe_all(env, state))
         keys = jax.random.split(jax.random.fold_in(step_key, t), episodes)
@@ -117,14 +121,15 @@ def evaluate(env: DeepEnv, act: Act, params: Params, key: jax.Array, episodes: i
 
 
 def train_in_rounds(update: Callable[[Any, jax.Array], tuple[Any, Finished]], params_of: Callable[[Any], Params],
-                    env: DeepEnv, act: Act, rounds: int, updates_per_round: int, eval_episodes: int
+                    env: Environment, act: Act, rounds: int, updates_per_round: int, eval_episodes: int
                     ) -> Callable[[Any, jax.Array], TrainOutput]:
     """``(runner, key) -> TrainOutput``: ``rounds`` x ``updates_per_round`` calls of ``update(runner, key) ->
     (runner, finished)`` (``finished`` stacked over an update's steps), a greedy evaluation after each round, and
     the parameters kept at each stage of learning."""
     kept_after = jnp.asarray(stage_rounds(rounds))
 
-    def one_round(carry: tuple[Any, Params], round_and_key: tuple[jax.Array, jax.Array]) -> tuple[tuple, tuple]:
+    def one_round(carry: tuple[Any, Params], round_and_key: tuple[jax.Array, jax.Array]
+                  ) -> tuple[tuple[Any, Params], tuple[Finished, jax.Array, jax.Array, jax.Array]]:
         runner, snapshots = carry
         index, key = round_and_key
         update_key, eval_key = jax.random.split(key)
