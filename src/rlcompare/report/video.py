@@ -208,7 +208,7 @@ def plan_stage_videos(
     known = [name for name, _ in config.stages]
     if seed not in config.seeds:
         raise KeyError(f"seed {seed} is not in this run; seeds: {list(config.seeds)}")
-    limit = config.max_steps if max_steps is None else int(max_steps)
+    limit = config.step_limit if max_steps is None else int(max_steps)
     if config.algorithm == "random":
         plan = [(known[-1], captions.stage_title(config, None), f"{config.name}-seed{seed}")]
     else:
