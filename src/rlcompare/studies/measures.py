@@ -7,8 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from rlcompare.envs.discretize import make_grid
-from rlcompare.envs.features import grid_bounds
 from rlcompare.stats.convergence import (
     DEFAULT_RULE,
     RULES,
@@ -20,7 +18,7 @@ from rlcompare.stats.convergence import (
 from rlcompare.stats.intervals import interval
 from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.stats.significance import NoiseFloor, noise_floor
-from rlcompare.studies.start_region import final_first_action_shares, has_start_region, start_cells
+from rlcompare.studies.start_region import final_first_action_shares, has_start_region, start_region_cells
 from rlcompare.tabular.results import Results
 
 PAPER_TABLE_I = {"q_learning-decay": 41.5, "q_learning-constant": 13.8, "sarsa-decay": 10.7,
@@ -36,7 +34,7 @@ def seconds_per_step(results: Results) -> float:
     """CPU seconds one run spends per step: the run's wall time times its threads over all steps."""
     timings = results.meta["timings"]
     steps = timings["training_steps"] + timings["evaluation_steps"]
-    return timings["wall_seconds"] * timings["threads"] / steps
+    return float(timings["wall_seconds"] * timings["threads"] / steps)
 
 
 def solved(rule: str, returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, max_steps: int
@@ -55,7 +53,7 @@ def _readable(results: Results, rule: Rule) -> bool:
     if rule.curve == "behaviour":
         return True
     rounds, config = results.records.eval_returns.shape[1], results.config
-    return rounds > 0 and rounds >= max(1, round(min(rule.window, config.episodes) / config.eval_every))
+    return bool(rounds > 0 and rounds >= max(1, round(min(rule.window, config.episodes) / config.eval_every)))
 
 
 def convergence(results: Results, rule: Rule = DEFAULT_RULE) -> np.ndarray:
@@ -63,18 +61,17 @@ def convergence(results: Results, rule: Rule = DEFAULT_RULE) -> np.ndarray:
     all NaN when the rule reads a greedy curve the runs did not record or that is shorter than its window.
     The greedy curve is each round's mean greedy return; a round counts as solved when most of its episodes are."""
     records, config = results.records, results.config
-    window = min(rule.window, config.episodes)
+    window, limit = min(rule.window, config.episodes), config.step_limit
     if not _readable(results, rule):
         return np.full(len(results.seeds), np.nan)
     if rule.curve == "behaviour":
-        return convergence_episodes(records.returns, window=window, tolerance=rule.tolerance,
-                                    max_steps=config.max_steps,
+        return convergence_episodes(records.returns, window=window, tolerance=rule.tolerance, max_steps=limit,
                                     solved=solved(config.environment.success, records.returns, records.lengths,
-                                                  records.terminated, config.max_steps))
+                                                  records.terminated, limit))
     greedy_solved = solved(config.environment.success, records.eval_returns, records.eval_lengths,
-                           records.eval_terminated, config.max_steps).mean(axis=2) >= 0.5
+                           records.eval_terminated, limit).mean(axis=2) >= 0.5
     return convergence_on_rounds(records.eval_returns.mean(axis=2), config.eval_every, window=window,
-                                 tolerance=rule.tolerance, max_steps=config.max_steps, solved=greedy_solved)
+                                 tolerance=rule.tolerance, max_steps=limit, solved=greedy_solved)
 
 
 def convergence_by_rule(results: Results, rules: tuple[Rule, ...] = RULES) -> pd.DataFrame:
@@ -87,9 +84,7 @@ def convergence_by_rule(results: Results, rules: tuple[Rule, ...] = RULES) -> pd
 def first_action_floor(results: Results) -> NoiseFloor:
     """The noise floor of the first greedy action: final action values in the cells of the start region,
     each cell weighted by its share of start states (:func:`~rlcompare.stats.significance.noise_floor`)."""
-    c = results.config
-    cells = start_cells(make_grid(*grid_bounds(c.environment, c.bounds), c.bins), c.environment.start_box)
-    return noise_floor(results.records.snapshots[:, -1][:, cells])
+    return noise_floor(results.records.snapshots[:, -1][:, start_region_cells(results.config)])
 
 
 def noise_floors(runs: dict[str, Results]) -> dict[str, NoiseFloor]:
@@ -106,12 +101,12 @@ def per_seed_metrics(results: Results) -> pd.DataFrame:
     rule = config.environment.success
     converged = convergence(results, DEFAULT_RULE)
     has_eval = records.eval_returns.shape[1] > 0
-    greedy_solved = solved(rule, records.eval_returns[:, -1], records.eval_lengths[:, -1],
-                           records.eval_terminated[:, -1], config.max_steps) if has_eval else None
+    greedy_success = solved(rule, records.eval_returns[:, -1], records.eval_lengths[:, -1],
+                            records.eval_terminated[:, -1], config.step_limit).mean(axis=1) if has_eval else np.nan
     first_left = (final_first_action_shares(results)[:, LEFT] if has_start_region(config)
                   else np.full(len(results.seeds), np.nan))
     return returns_per_seed(results.seeds, records.returns, records.eval_returns).assign(
-        greedy_success=greedy_solved.mean(axis=1) if has_eval else np.nan,
+        greedy_success=greedy_success,
         convergence_episode=converged,
         convergence_seconds=episodes_to_seconds(converged, records.lengths, seconds_per_step(results)),
         first_action_left=first_left,

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -31,7 +32,7 @@ cells of target x order that split SARSA minus Q-Learning into order, target and
 
 def paper_configs(
     seeds: tuple[int, ...], episodes: int = DEFAULT_EPISODES, algorithms: tuple[str, ...] = PAPER_ALGORITHMS,
-    **overrides,
+    **overrides: Any,
 ) -> list[ExperimentConfig]:
     """The paper's configurations, in the order of its tables, baseline first: each algorithm under ε
     decaying and ε constant with the paper's settings (Q-Learning and SARSA by default; any other

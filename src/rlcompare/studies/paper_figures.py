@@ -11,7 +11,8 @@ from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.registry import label as method_label
 from rlcompare.report import plots
 from rlcompare.stats.metrics import returns_per_seed
-from rlcompare.studies.start_region import final_first_action_shares, map_frame
+from rlcompare.studies.start_region import final_first_action_shares, map_of
+from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 
 SMOOTHING = 100
@@ -54,7 +55,7 @@ def curve_figure(runs: list[Results], title: str) -> Figure:
     greedy_ax.tick_params(labelleft=bool(pair))  # the panels below have their own scales, and room for labels
     plots.fixed_layout(figure, rows, 2, left=0.85, right=0.1, bottom=0.55, top=0.65,
                        column_gap=0.95 if pair else 0.45, row_gap=0.85)
-    colors = {label(r): METHODS[r.config.algorithm].color for r in runs}
+    colors = {label(r): color for r in runs if (color := METHODS[r.config.algorithm].color) is not None}
     config, seeds = runs[0].config, len(runs[0].seeds)
     episodes = np.arange(1, config.episodes + 1)
     plots.plot_return_curves(behaviour_ax, episodes, {label(r): r.records.returns for r in runs},
@@ -106,15 +107,14 @@ def stages_figure(results: Results) -> Figure:
     axes = figure.subplots(2, len(stage_names), squeeze=False)
     plots.fixed_layout(figure, 2, len(stage_names), left=0.8, right=0.65, bottom=0.5, top=1.05, column_gap=1.4,
                        row_gap=0.8)  # map_layout's, with room for the key under the title
-    floor, frame = float(results.records.snapshots.min()), map_frame(results.config)
+    floor, (frame, bins) = float(results.records.snapshots.min()), map_of(results.config)
     visits, few_visits = results.records.visits, few_visits_of(results)
     for column, stage in enumerate(stage_names):
         tables = results.records.snapshots[:, column]
-        plots.plot_policy_map(axes[0, column], tables, results.config.bins, frame, visits=visits,
-                              few_visits=few_visits, legend=False)
+        plots.plot_policy_map(axes[0, column], tables, bins, frame, visits=visits, few_visits=few_visits, legend=False)
         plots.colorbar_beside(axes[0, column], None)  # the maps above keep the width of those below
         axes[0, column].set_title(f"{stage} (episode {episodes[stage]}): greedy action")
-        plots.plot_value_map(axes[1, column], tables, results.config.bins, frame, vmin=floor, visits=visits,
+        plots.plot_value_map(axes[1, column], tables, bins, frame, vmin=floor, visits=visits,
                              few_visits=few_visits, legend=False)
         axes[1, column].set_title(f"{stage}: state value")
     figure.suptitle(f"{label(results)}: majority greedy action and mean value over {len(results.seeds)} seeds",
@@ -129,7 +129,8 @@ def visits_figure(runs: list[Results]) -> Figure:
     axes = figure.subplots(1, len(runs), squeeze=False)[0]
     plots.map_layout(figure, 1, len(runs))
     for ax, results in zip(axes, runs, strict=True):
-        plots.plot_visits(ax, results.records.visits, results.config.bins, map_frame(results.config))
+        frame, bins = map_of(results.config)
+        plots.plot_visits(ax, results.records.visits, bins, frame)
         ax.set_title(label(results))
     figure.suptitle("Where training spends its steps: state visits over all episodes and seeds")
     return figure
@@ -153,7 +154,7 @@ RETURN_PANELS = {
 }
 
 
-def schedule_text(config) -> str:
+def schedule_text(config: ExperimentConfig) -> str:
     if config.schedule == "constant":
         return f"ε constant at {config.epsilon:g}"
     return f"ε decaying {config.epsilon_start:g} → {config.epsilon_end:g}"
@@ -192,8 +193,12 @@ def paired_difference_figure(runs: dict[str, Results], metrics: dict[str, pd.Dat
 
     ``runs`` by configuration name (``load_study``); ``metrics`` as for :func:`paired_differences`."""
     differences = paired_differences(runs, metrics)
-    if not differences:
-        return None
+    return differences_figure(runs, differences) if differences else None
+
+
+def differences_figure(runs: dict[str, Results], differences: dict[str, pd.DataFrame]) -> Figure:
+    """:func:`paired_difference_figure` of the ``differences`` of ``runs`` (:func:`paired_differences`, not
+    empty)."""
     first = runs[next(name for s, name, _ in PAIRS if s in differences)].config
     panels = [m for m in RETURN_PANELS if any(np.isfinite(d[m]).all() for d in differences.values())]
     figure = Figure(figsize=(5.6 * len(panels), 4.6))

@@ -10,10 +10,13 @@ then stay out, and its claims are tested as they would read there.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import ParamSpec
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_run
@@ -40,9 +43,9 @@ from rlcompare.studies.measures import (
 from rlcompare.studies.paper_claims import CLAIMS, NAMES, scaled
 from rlcompare.studies.paper_figures import (
     curve_figure,
+    differences_figure,
     first_actions_figure,
     label,
-    paired_difference_figure,
     paired_differences,
     stages_figure,
     visits_figure,
@@ -51,7 +54,10 @@ from rlcompare.studies.paper_videos import CONFIGURATIONS, WATCH_FOR, video_key,
 from rlcompare.studies.start_region import has_start_region
 from rlcompare.studies.why import decomposition, decomposition_figure, formatted, in_brief
 from rlcompare.studies.why import findings as why_findings
+from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
+
+Arguments = ParamSpec("Arguments")
 
 FIGURES = (
     ("fig3-random", ("random",), "Fig. 3: the random baseline"),
@@ -206,11 +212,11 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
 
     answer = opening(claims, judgement.verdicts, metrics)
     brief = [in_brief(split)] if not split.empty else []
-    pictured = bool(paired_differences(runs, metrics))  # else the figure has nothing to show
+    differences = paired_differences(runs, metrics)  # none: the figure has nothing to show
     answer_figure = [(drawn.figure(figures_dir / "paired-differences.png",
-                                   _saved(paired_difference_figure, runs, metrics), runs.values()),
+                                   _saved(differences_figure, runs, differences), runs.values()),
                       "SARSA minus Q-Learning, seed by seed: each dot one seed's paired difference; the bar the mean "
-                      "and its 95% interval")] if pictured else []
+                      "and its 95% interval")] if differences else []
     sections = [Section("The answer", [*answer, *brief], figures=answer_figure),
                 Section("What the answer rests on", [*findings[len(answer):], BEHAVIOUR_AND_GREEDY]),
                 *_sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells,
@@ -224,16 +230,18 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     return Report(path=path, lines=findings, problems=problems, seconds=seconds)
 
 
-def _saved(draw, *args):
+def _saved(draw: Callable[Arguments, Figure], *args: Arguments.args, **kwargs: Arguments.kwargs
+           ) -> Callable[[Path], str]:
     """What :meth:`Drawn.figure` calls to draw a figure: ``draw(*args)`` saved at the path it is given."""
-    return lambda path: save_figure(draw(*args), path)
+    return lambda path: save_figure(draw(*args, **kwargs), path)
 
 
-def _grid_text(config) -> str:
+def _grid_text(config: ExperimentConfig) -> str:
     if config.environment.n_states:
         return f"{config.environment.n_states} states, one feature each"
-    bins = config.bins if isinstance(config.bins, tuple) else (config.bins,) * config.environment.observation_size
-    return f"{' x '.join(map(str, bins))} uniform cells"
+    bins = config.grid_bins
+    per_dim = bins if isinstance(bins, tuple) else (bins,) * config.environment.observation_size
+    return f"{' x '.join(map(str, per_dim))} uniform cells"
 
 
 def schedule_notes(runs: dict[str, Results], metrics: dict[str, pd.DataFrame]) -> list[str]:
@@ -256,7 +264,7 @@ def schedule_notes(runs: dict[str, Results], metrics: dict[str, pd.DataFrame]) -
     return notes
 
 
-def _table_i_text(config) -> str:
+def _table_i_text(config: ExperimentConfig) -> str:
     """Table I's rule in full (:mod:`rlcompare.stats.convergence`)."""
     window = min(DEFAULT_RULE.window, config.episodes)
     stay = max(2 * window, round(0.1 * config.episodes))
@@ -323,8 +331,10 @@ ORDER_TEXT = (
     "mean over seeds with 95% BCa intervals. `rlcompare reproduce why` adds Expected SARSA's expectation target.")
 
 
-def _sections(first, runs, metrics, tables, files, curve_figures, explanation_figures, video_cells,
-              aggregate_figures) -> list[Section]:
+def _sections(first: Results, runs: dict[str, Results], metrics: dict[str, pd.DataFrame],
+              tables: dict[str, pd.DataFrame], files: dict[str, str], curve_figures: list[tuple[str, str]],
+              explanation_figures: list[tuple[str, str]], video_cells: list[tuple[str, str, str]],
+              aggregate_figures: list[tuple[str, str]]) -> list[Section]:
     c = first.config
     setting = pd.DataFrame({
         "setting": ["environment", "grid", "α", "γ", "episode limit", "ε constant", "ε decay", "episodes",

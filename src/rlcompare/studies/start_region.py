@@ -27,24 +27,46 @@ def has_start_region(config: ExperimentConfig) -> bool:
     return map_frame(config) is not None and config.environment.start_box is not None
 
 
+def training_grid(config: ExperimentConfig) -> UniformGrid:
+    """The uniform grid the runs of ``config`` were trained on: its bins over its bounds."""
+    return make_grid(*grid_bounds(config.environment, config.bounds), config.grid_bins)
+
+
+def map_of(config: ExperimentConfig) -> tuple[MapFrame, int]:
+    """The frame of the maps over the grid of ``config`` (:func:`map_frame`) and the cells along each of their two
+    axes; a :class:`ValueError` where it has no maps, or not as many cells along each axis."""
+    frame = map_frame(config)
+    if frame is not None:
+        bins = {int(b) for b in training_grid(config).bins}
+        if len(bins) == 1:
+            return frame, bins.pop()
+    raise ValueError(f"{config.name}: no map with as many cells along each axis over the grid of {config.env}")
+
+
 def start_cells(grid: UniformGrid, start_box: tuple[tuple[float, float], ...], points: int = 2001) -> np.ndarray:
     """Cells of ``points`` start states spread evenly over each range of ``start_box`` together (Mountain Car's:
     ``(p, 0)`` for ``p`` in its reset range [-0.6, -0.4])."""
     return cell_indices(grid, np.column_stack([np.linspace(low, high, points) for low, high in start_box]))
 
 
-def first_action_shares(q_tables: np.ndarray, grid: UniformGrid, start_box: tuple[tuple[float, float], ...]
-                        ) -> np.ndarray:
-    """``(seeds, actions)``: for each seed, the share of start states whose first greedy action is each
-    action. The paper says Q-Learning "accelerates forward in the first few frames while SARSA
-    accelerates backwards"; this counts it over every start state and every seed."""
-    cells = start_cells(grid, start_box)
+def start_region_cells(config: ExperimentConfig) -> np.ndarray:
+    """:func:`start_cells` of the start region of ``config``'s environment on its :func:`training_grid`; a
+    :class:`ValueError` where the environment says no start region (:func:`has_start_region`)."""
+    start_box = config.environment.start_box
+    if start_box is None:
+        raise ValueError(f"{config.env} says no region where its episodes start")
+    return start_cells(training_grid(config), start_box)
+
+
+def first_action_shares(q_tables: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """``(seeds, actions)``: for each seed, the share of start states (their ``cells``, :func:`start_cells`) whose
+    first greedy action is each action. The paper says Q-Learning "accelerates forward in the first few frames
+    while SARSA accelerates backwards"; this counts it over every start state and every seed."""
     first = q_tables[:, cells].argmax(axis=2)  # (seeds, start states)
     return np.stack([(first == a).mean(axis=1) for a in range(q_tables.shape[2])], axis=1)
 
 
 def final_first_action_shares(results: Results) -> np.ndarray:
-    """:func:`first_action_shares` of the final Q-tables, on the grid the run was trained on."""
-    c = results.config
-    return first_action_shares(results.records.snapshots[:, -1], make_grid(*grid_bounds(c.environment, c.bounds),
-                                                                            c.bins), c.environment.start_box)
+    """:func:`first_action_shares` of the final Q-tables, from the start region on the grid the run was trained
+    on."""
+    return first_action_shares(results.records.snapshots[:, -1], start_region_cells(results.config))

@@ -23,6 +23,7 @@ which holds exactly for every seed, so for the means too; each term has a 95% BC
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -34,9 +35,9 @@ from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
-from rlcompare.formatting import number
+from rlcompare.formatting import NO_DATA, number
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less
-from rlcompare.report.page import NO_DATA, Section, save_figure, write_report, write_table
+from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.studies.interface import UI, Report
@@ -111,9 +112,9 @@ def per_seed_returns(results: Results, kind: str, start: int, stop: int) -> np.n
     return window["behaviour_return" if kind == "behaviour" else "greedy_auc"].to_numpy()
 
 
-def term_per_seed(cells: dict[tuple[str, str], np.ndarray], term: str) -> np.ndarray:
-    """One term of :data:`TERMS`, seed by seed."""
-    return sum(sign * cells[(algorithm, order)] for sign, algorithm, order in TERMS[term])
+def term_per_seed(cells: Mapping[tuple[str, str | None], np.ndarray], term: str) -> np.ndarray:
+    """One term of :data:`TERMS`, seed by seed: ``cells`` by (algorithm, order)."""
+    return np.asarray(sum(sign * cells[(algorithm, order)] for sign, algorithm, order in TERMS[term]))
 
 
 def decomposition(runs: dict[str, Results]) -> pd.DataFrame:
@@ -137,7 +138,7 @@ def decomposition(runs: dict[str, Results]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _has_cells(cells: dict, term: str) -> bool:
+def _has_cells(cells: Mapping[tuple[str, str | None], np.ndarray], term: str) -> bool:
     return all((algorithm, order) in cells for _, algorithm, order in TERMS[term])
 
 
@@ -161,7 +162,7 @@ def cells_table(runs: dict[str, Results]) -> pd.DataFrame:
         final = (interval(per_seed_returns(results, "greedy", c.episodes - c.eval_every, c.episodes)).format(1)
                  if c.evaluation_rounds else NO_DATA)  # no greedy evaluation in so short a training
         rows.append({"cell": name, "schedule": c.schedule, "target": _target_of(c.algorithm),
-                     "A' drawn": c.next_action.replace("_", " "),
+                     "A' drawn": str(c.drawn_next).replace("_", " "),
                      "behaviour return": interval(per_seed_returns(results, "behaviour", 0, c.episodes)).format(1),
                      "final greedy return": final})
     return pd.DataFrame(rows)
@@ -188,7 +189,7 @@ def decomposition_figure(frame: pd.DataFrame) -> Figure:
             ax.bar(x + (k - 1.5) * width, values, width, yerr=errors, color=color, label=term, capsize=2)
         ax.axhline(0, color="black", linewidth=0.8)
         ax.set_xticks(x, list(panel["episodes"]))
-        ax.set_title(f"{SCHEDULE_TEXT[schedule]}: {RETURNS[kind]}")
+        ax.set_title(f"{SCHEDULE_TEXT[str(schedule)]}: {RETURNS[str(kind)]}")
         ax.set_ylabel("difference in return")
         ax.grid(alpha=0.3, axis="y")
     axes.flat[0].legend(fontsize="small")
