@@ -20,7 +20,7 @@ which only the worst step sizes of Figure 12.10 reach.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,8 +46,9 @@ from rlcompare.studies.interface import UI, Report, Seeded
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 
-BOOK = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8, "schedule": "constant",
-        "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0, "stages": (("final", 1.0),)}
+BOOK: dict[str, Any] = {"env": "MountainCar-book", "features": "tiles", "tilings": 8, "tiles": 8,
+                        "schedule": "constant", "epsilon": 0.0, "gamma": 1.0, "max_steps": 10_000, "eval_every": 0,
+                        "stages": (("final", 1.0),)}
 FIG_10_2_ALPHAS = (0.1, 0.2, 0.5)  # times 1/8
 FIG_12_10_LAMBDAS = (0.0, 0.5, 0.9, 0.95, 0.99)
 FIG_12_10_ALPHAS = (0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4)  # times 1/8
@@ -168,8 +169,9 @@ def report_12_10(out: Path, runs: dict[str, Results]) -> Path:
     ], [])
 
 
-CLIFF = {"env": "CliffWalking-v1", "schedule": "constant", "epsilon": 0.1, "alpha": 0.5, "gamma": 1.0,
-         "episodes": 500, "max_steps": 1000, "eval_every": 500, "eval_episodes": 1, "stages": (("final", 1.0),)}
+CLIFF: dict[str, Any] = {"env": "CliffWalking-v1", "schedule": "constant", "epsilon": 0.1, "alpha": 0.5,
+                         "gamma": 1.0, "episodes": 500, "max_steps": 1000, "eval_every": 500, "eval_episodes": 1,
+                         "stages": (("final", 1.0),)}
 CLIFF_ALGORITHMS = ("sarsa", "q_learning", "expected_sarsa")
 CLIFF_SHAPE = (4, 12)
 """Rows and columns of Gymnasium's Cliff Walking grid, for drawing; the cliff is the bottom row between the
@@ -262,7 +264,7 @@ def _contrast_section(out: Path, runs: dict[str, Results]) -> Section:
                    tables=[("SARSA against Q-Learning, study by study", table)])
 
 
-def _contrast_sentence(row: dict) -> str:
+def _contrast_sentence(row: dict[Hashable, Any]) -> str:
     return (f"{row['environment']} ({row['exploration']}, {row['seeds']} seeds): online SARSA - Q-Learning = "
             f"{row['online: SARSA - Q-Learning']} ({row['online: better']}); greedy "
             f"{row['greedy: SARSA - Q-Learning']} ({row['greedy: better']}).")

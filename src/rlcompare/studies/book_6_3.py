@@ -50,8 +50,8 @@ INTERIM_EPISODES, INTERIM_RUNS = 100, 50_000
 ASYMPTOTIC_EPISODES, ASYMPTOTIC_RUNS = 100_000, 10
 MAX_STEPS = 1_000_000
 """The book gives no step limit; none of our episodes comes near this one (the report counts those cut)."""
-SETTINGS = {"env": ENV, "schedule": "constant", "epsilon": 0.1, "gamma": 1.0, "max_steps": MAX_STEPS,
-            "eval_every": 0}
+SETTINGS: dict[str, Any] = {"env": ENV, "schedule": "constant", "epsilon": 0.1, "gamma": 1.0, "max_steps": MAX_STEPS,
+                            "eval_every": 0}
 STAGES = {"interim": (), "asymptotic": (("final", 1.0),)}
 """Q-tables kept: none of the 50,000 interim runs, the final one of each asymptotic run."""
 BLOCK_BYTES = 32 * 2**20
@@ -161,7 +161,7 @@ def run_bytes(config: ExperimentConfig) -> int:
     """Bytes one run of ``config`` takes while it trains: its records (:func:`records_bytes`: returns, lengths and
     endings per episode, Q-tables at the stages, visits), its weights and second estimates, and its streams."""
     one = dataclasses.replace(config, seeds=config.seeds[:1])
-    weights = feature_count(config.environment, config.features, config.bins, config.tilings, config.tiles,
+    weights = feature_count(config.environment, config.features, config.grid_bins, config.tilings, config.tiles,
                             config.hash_size) * config.environment.n_actions * 8
     return records_bytes(one) + 2 * weights + STREAMS * 4 * 8
 
@@ -296,9 +296,9 @@ def figure_6_3(table: pd.DataFrame) -> Figure:
     ax.set_xticks(ALPHAS)
     ax.set_ylim(FLOOR, 0)
     for row in table[table["mean"] < FLOOR].itertuples():
+        colour = COLOURS[str(row.method)]
         ax.annotate(f"{row.mean:.0f}", (row.α, FLOOR), xytext=(0, 12), textcoords="offset points", ha="center",
-                    fontsize="small", color=COLOURS[row.method], arrowprops={"arrowstyle": "->",
-                                                                             "color": COLOURS[row.method]})
+                    fontsize="small", color=colour, arrowprops={"arrowstyle": "->", "color": colour})
     ax.grid(alpha=0.3)
     ax.legend(loc="lower center", fontsize="small", ncol=2)
     interim, asymptotic = (table[table["phase"] == phase].iloc[0] for phase in PHASES)
