@@ -52,6 +52,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rlcompare.experiment import store
 from rlcompare.experiment.sweep import Sweep, SweepError, Trial
@@ -64,9 +65,12 @@ from rlcompare.studies.sensitivity_grid import STUDY, SWEEP_DIR, parse_grid, pla
 from rlcompare.studies.sensitivity_report import build_report
 from rlcompare.validation import ConfigError
 
+if TYPE_CHECKING:
+    from rlcompare.experiment.backends import Backend
 
-def run_sensitivity(out: Path, sweep: Sweep, text: str, backend, progress: Callable[[Trial], None] | None = None,
-                    *, force: bool = False) -> tuple[int, int]:
+
+def run_sensitivity(out: Path, sweep: Sweep, text: str, backend: Backend,
+                    progress: Callable[[Trial], None] | None = None, *, force: bool = False) -> tuple[int, int]:
     """Claim ``out`` as the study's directory and run the trials of ``sweep`` its store lacks on ``backend``.
     Returns (trials already finished, trials run now)."""
     with store.output_directory(Path(out), store.Owner("study", STUDY), force=force):

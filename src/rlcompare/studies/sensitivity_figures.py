@@ -3,10 +3,14 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.image import AxesImage
 
 from rlcompare.studies.sensitivity_grid import (
     LEVEL,
@@ -50,26 +54,29 @@ def heatmap_figure(cells: pd.DataFrame, metric: str) -> Figure:
                     layout="constrained")
     axes = figure.subplots(len(rows), len(columns), squeeze=False)
     norm = _norm(cross, metric)
-    image = None
-    for i, truncation in enumerate(rows):
-        for j, gamma in enumerate(columns):
-            panel = cross[(cross["truncation_as_terminal"] == truncation) & (cross["gamma"] == gamma)]
-            grid = np.full((len(ends), len(alphas)), np.nan)
-            marks = np.full(grid.shape, "", dtype=object)
-            for row in panel.to_dict("records"):
-                at = (ends.index(row["epsilon_end"]), alphas.index(row["alpha"]))
-                grid[at], marks[at] = row[f"{metric}_difference"], row[f"{metric}_mark"]
-            ax = axes[i, j]
-            image = _draw(ax, grid, marks, norm, origin="lower")
-            ax.set_xticks(range(len(alphas)), [f"{a:g}" for a in alphas])
-            ax.set_yticks(range(len(ends)), [f"{e:g}" for e in ends])
-            ax.set_xlabel("α")
-            ax.set_ylabel("ε_end")
-            ax.set_title(f"γ = {gamma:g}, time limit {value_text('truncation_as_terminal', truncation)}",
-                         fontsize="medium")
-    figure.colorbar(image, ax=axes, shrink=0.8, label="SARSA - Q-Learning (return)")
+    images = [_cross_panel(axes[i, j], cross, metric, norm, truncation, gamma, alphas, ends)
+              for i, truncation in enumerate(rows) for j, gamma in enumerate(columns)]
+    figure.colorbar(images[-1], ax=axes, shrink=0.8, label="SARSA - Q-Learning (return)")
     figure.suptitle(_title(cells, metric, ", ε decaying from 1"))
     return figure
+
+
+def _cross_panel(ax: Axes, cross: pd.DataFrame, metric: str, norm: Normalize, truncation: bool, gamma: float,
+                 alphas: list[float], ends: list[float]) -> AxesImage:
+    """The panel of the cross at one time limit and γ: α x ε_end cells, drawn by :func:`_draw`."""
+    panel = cross[(cross["truncation_as_terminal"] == truncation) & (cross["gamma"] == gamma)]
+    grid = np.full((len(ends), len(alphas)), np.nan)
+    marks = np.full(grid.shape, "", dtype=object)
+    for row in panel.to_dict("records"):
+        at = (ends.index(row["epsilon_end"]), alphas.index(row["alpha"]))
+        grid[at], marks[at] = row[f"{metric}_difference"], row[f"{metric}_mark"]
+    image = _draw(ax, grid, marks, norm, origin="lower")
+    ax.set_xticks(range(len(alphas)), [f"{a:g}" for a in alphas])
+    ax.set_yticks(range(len(ends)), [f"{e:g}" for e in ends])
+    ax.set_xlabel("α")
+    ax.set_ylabel("ε_end")
+    ax.set_title(f"γ = {gamma:g}, time limit {value_text('truncation_as_terminal', truncation)}", fontsize="medium")
+    return image
 
 
 def schedule_figure(cells: pd.DataFrame, metric: str) -> Figure:
@@ -95,14 +102,16 @@ def schedule_figure(cells: pd.DataFrame, metric: str) -> Figure:
     return figure
 
 
-def _draw(ax, grid: np.ndarray, marks: np.ndarray, norm: Normalize, origin: str):
+def _draw(ax: Axes, grid: np.ndarray, marks: np.ndarray, norm: Normalize, origin: Literal["upper", "lower"]
+          ) -> AxesImage:
     """The cells of one panel, each annotated with its difference and mark (bold where resolved)."""
     image = ax.imshow(grid, cmap="RdBu", norm=norm, origin=origin, aspect="auto")
     for (y, x), value in np.ndenumerate(grid):
-        text = "n/a" if np.isnan(value) else f"{value:+.1f}\n{SHORT_MARKS.get(marks[y, x], '')}"
+        mark = str(marks[y, x])
+        text = "n/a" if np.isnan(value) else f"{value:+.1f}\n{SHORT_MARKS.get(mark, '')}"
         strong = np.isfinite(value) and abs(norm(value) - 0.5) > 0.3
         ax.text(x, y, text, ha="center", va="center", fontsize="x-small", color="white" if strong else "black",
-                fontweight="bold" if marks[y, x] in (SARSA_BETTER, Q_BETTER) else "normal")
+                fontweight="bold" if mark in (SARSA_BETTER, Q_BETTER) else "normal")
     return image
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -37,10 +38,14 @@ ROOT_SEED = 0
 DEFAULT_SEEDS = SensitivityOptions.seeds
 DEFAULT_EPISODES = SensitivityOptions.episodes
 ALGORITHMS = ("q_learning", "sarsa")
+AxisValue = float | bool
+"""A value of an axis of the grid: a number, or the time limit's flag."""
+GivenGrid = Mapping[str, Sequence[object]]
+"""Each axis of a grid and its values, as given (:func:`plan` checks them)."""
 FIXED = {"schedule": "decay"}
 """The cross: ε decays linearly from ``epsilon_start`` (1, the default) to ``epsilon_end``; the rest are the
 defaults (but a run shorter than the default evaluation interval is evaluated once, at its end)."""
-GRID: dict[str, tuple] = {
+GRID: dict[str, tuple[AxisValue, ...]] = {
     "alpha": (0.01, 0.05, 0.1, 0.2, 0.5),
     "gamma": (0.9, 0.99, 1.0),
     "epsilon_end": (0.0, 0.01, 0.05),
@@ -49,18 +54,19 @@ GRID: dict[str, tuple] = {
 """The axes of the cross, in the order of the cells; each cell runs every algorithm of :data:`ALGORITHMS`."""
 CONSTANT_EPSILONS = (0.1, 0.25, 0.5)
 """The constant ε values of the schedule block (the paper's constant runs: 0.5)."""
-AXES: dict[str, tuple] = {**GRID, "epsilon": CONSTANT_EPSILONS}
+AXES: dict[str, tuple[AxisValue, ...]] = {**GRID, "epsilon": CONSTANT_EPSILONS}
 """Every axis ``--grid`` sets: the cross's and the schedule block's constant ε."""
-SCHEDULE_BLOCK = {"alpha": 0.05, "truncation_as_terminal": True}
+SCHEDULE_BLOCK: dict[str, AxisValue] = {"alpha": 0.05, "truncation_as_terminal": True}
 """Where the schedule block sits: the paper's α and time limit. Its axes: the schedule (constant at each
 ``epsilon``, decaying to each ``epsilon_end``) x ``gamma``."""
 CELL_KEYS = ("schedule", *GRID)
 """What tells the cells apart; a constant cell's ``epsilon_end`` is its constant ε."""
 SYMBOLS = {"alpha": "α", "gamma": "γ", "epsilon_end": "ε_end", "truncation_as_terminal": "time limit",
            "epsilon": "constant ε", "schedule": "ε schedule"}
-PAPER_CELL = {"schedule": "decay", "alpha": 0.05, "gamma": 0.9, "epsilon_end": 0.0, "truncation_as_terminal": True}
+PAPER_CELL: dict[str, str | AxisValue] = {"schedule": "decay", "alpha": 0.05, "gamma": 0.9, "epsilon_end": 0.0,
+                                          "truncation_as_terminal": True}
 """The paper's setting: ε decaying from 1 to 0 (its end is not given), old Gym's ``done`` at the time limit."""
-PAPER_CONSTANT_CELL = {**PAPER_CELL, "schedule": "constant", "epsilon_end": 0.5}
+PAPER_CONSTANT_CELL: dict[str, str | AxisValue] = {**PAPER_CELL, "schedule": "constant", "epsilon_end": 0.5}
 """The paper's constant runs: ε = 0.5 throughout, the rest as :data:`PAPER_CELL`."""
 LEVEL = 0.05
 METRICS = {"behaviour": "behaviour return (mean ε-greedy return over training)",
@@ -70,7 +76,7 @@ SARSA_BETTER, Q_BETTER, NOT_RESOLVED = "SARSA better", "Q-Learning better", "not
 
 # --- the grid and its sweep ---------------------------------------------------------------------------------
 
-def parse_grid(specs: Iterable[str]) -> dict[str, tuple]:
+def parse_grid(specs: Iterable[str]) -> dict[str, tuple[AxisValue, ...]]:
     """``KEY=V1,V2,...`` pairs (``--grid alpha=0.1,0.2``) over :data:`AXES`; a key not given keeps its values.
     A :class:`ValueError` names the key and what is allowed."""
     grid = dict(AXES)
@@ -87,7 +93,7 @@ def parse_grid(specs: Iterable[str]) -> dict[str, tuple]:
     return grid
 
 
-def _grid_value(key: str, text: str) -> float | bool:
+def _grid_value(key: str, text: str) -> AxisValue:
     if key == "truncation_as_terminal":
         if text.lower() not in ("true", "false"):
             raise ValueError(f"{key}: got {quote(text)}; allowed: true or false")
@@ -101,12 +107,12 @@ def _grid_value(key: str, text: str) -> float | bool:
     return value
 
 
-def _toml(value) -> str:
+def _toml(value: object) -> str:
     """A TOML literal: JSON's spelling of numbers, booleans, strings and lists is TOML's too."""
     return json.dumps(value)
 
 
-def schedule_configs(grid: dict[str, Sequence]) -> list[dict]:
+def schedule_configs(grid: GivenGrid) -> list[dict[str, object]]:
     """The schedule block's configurations the cross lacks, as the sweep's [[include]] tables: every constant
     ε with every γ, and the decaying ones too where the cross does not hold the block's α and time limit."""
     at = dict(SCHEDULE_BLOCK)
@@ -122,7 +128,7 @@ def schedule_configs(grid: dict[str, Sequence]) -> list[dict]:
     return tables
 
 
-def sweep_text(grid: dict[str, Sequence], seeds: int, episodes: int, root_seed: int = ROOT_SEED) -> str:
+def sweep_text(grid: GivenGrid, seeds: int, episodes: int, root_seed: int = ROOT_SEED) -> str:
     """The study as a sweep file: the cross as its [grid], the schedule block's own configurations as
     [[include]] tables (none where ``grid`` has no ``epsilon``)."""
     fixed = {**FIXED, "episodes": episodes, "eval_every": min(ExperimentConfig.eval_every, episodes)}
@@ -136,7 +142,7 @@ def sweep_text(grid: dict[str, Sequence], seeds: int, episodes: int, root_seed: 
     return "\n".join(lines) + "\n"
 
 
-def plan(grid: dict[str, Sequence] | None = None, seeds: int = DEFAULT_SEEDS, episodes: int = DEFAULT_EPISODES
+def plan(grid: GivenGrid | None = None, seeds: int = DEFAULT_SEEDS, episodes: int = DEFAULT_EPISODES
          ) -> tuple[Sweep, str]:
     """The study's sweep and its file, validated: :class:`SweepError` lists every problem, by key."""
     grid = dict(AXES if grid is None else grid)
@@ -157,7 +163,7 @@ def plan(grid: dict[str, Sequence] | None = None, seeds: int = DEFAULT_SEEDS, ep
     return parse_sweep(text, "sensitivity grid"), text
 
 
-def _epsilon_problems(values: Sequence) -> list[str]:
+def _epsilon_problems(values: Sequence[object]) -> list[str]:
     """The constant ε values' problems, named at ``grid.epsilon[i]`` as the sweep names the cross's."""
     problems = []
     for i, value in enumerate(values):
@@ -169,7 +175,7 @@ def _epsilon_problems(values: Sequence) -> list[str]:
     return problems
 
 
-def cell_count(grid: dict[str, Sequence] | None = None) -> int:
+def cell_count(grid: GivenGrid | None = None) -> int:
     """How many cells the study's grid has: the cross's, and the schedule block's own."""
     grid = {**AXES, **(grid or {})}
     own = len(schedule_configs(grid)) // len(ALGORITHMS)
@@ -196,7 +202,7 @@ def seed_returns(root: Path) -> pd.DataFrame:
     frame = returns_from_tables(episodes, evaluations, ["config", "seed"]).rename(
         columns={"behaviour_return": "behaviour", "greedy_return": "greedy"})
     first_seed = frame.groupby("config")["seed"].first()
-    values = pd.DataFrame([{"config": hash_, **_cell_config(trial_path(root, hash_, seed))}
+    values = pd.DataFrame([{"config": hash_, **_cell_config(trial_path(root, str(hash_), seed))}
                            for hash_, seed in first_seed.items()])
     return frame.merge(values, on="config")[columns]
 
@@ -206,10 +212,11 @@ def _dataset(root: Path, trials: list[tuple[str, int]], name: str, columns: list
     partitioning = ds.partitioning(pa.schema([("config", pa.string()), ("trial", pa.int64())]), flavor="hive")
     dataset = ds.dataset([str(trial_path(root, hash_, seed) / name) for hash_, seed in trials], format="parquet",
                          partitioning=partitioning, partition_base_dir=str(Path(root) / TRIALS_DIR))
-    return dataset.to_table(columns=["config", *columns]).to_pandas()
+    frame: pd.DataFrame = dataset.to_table(columns=["config", *columns]).to_pandas()
+    return frame
 
 
-def _cell_config(trial_dir: Path) -> dict:
+def _cell_config(trial_dir: Path) -> dict[str, Any]:
     """A trial's algorithm and cell, from its ``config.json``: a constant schedule's ε as its ``epsilon_end``."""
     config = store.read_json(trial_dir / rundir.CONFIG_FILE)
     cell = {key: config[key] for key in ("algorithm", *CELL_KEYS)}

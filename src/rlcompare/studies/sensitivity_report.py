@@ -11,6 +11,7 @@ that block sweeps (:func:`blocks`).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -72,7 +73,8 @@ def build_report(out: Path) -> Report:
     return Report(path, lines, problems)
 
 
-def method_paragraphs(config: dict, cells: pd.DataFrame, finished: int, manifest: dict) -> list[str]:
+def method_paragraphs(config: dict[str, Any], cells: pd.DataFrame, finished: int, manifest: dict[str, Any]
+                      ) -> list[str]:
     """What ran (``config``: one trial's ``config.json``) and how the cells are marked."""
     cross = cross_cells(cells)
     grid = "; ".join(f"{SYMBOLS[k]} ∈ {{{', '.join(value_text(k, v) for v in sorted(cross[k].unique()))}}}"

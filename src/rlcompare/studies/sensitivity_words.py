@@ -3,7 +3,8 @@ grid, the regions where SARSA's lead over Q-Learning flips, and the table of eve
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Hashable, Iterable, Mapping
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
@@ -23,6 +24,7 @@ from rlcompare.studies.sensitivity_grid import (
     SCHEDULE_BLOCK,
     STUDY,
     SYMBOLS,
+    AxisValue,
 )
 
 SHORT_MARKS = {SARSA_BETTER: "SARSA", Q_BETTER: "Q-Learning", NOT_RESOLVED: "n.r."}
@@ -30,9 +32,15 @@ WORDS = ("alpha", "gamma", "exploration", "truncation_as_terminal")
 """How a cell is named: α, γ, its ε (``ε_end = 0`` or ``constant ε = 0.5``), time limit."""
 
 
+class Row(Protocol):
+    """A cell's values by key: a mapping, or a row of the cells' frame."""
+
+    def __getitem__(self, key: str, /) -> Any: ...
+
+
 # --- what is missing ----------------------------------------------------------------------------------------
 
-def missing(seeds: pd.DataFrame, manifest: dict) -> list[str]:
+def missing(seeds: pd.DataFrame, manifest: dict[str, Any]) -> list[str]:
     """What the report lacks: unfinished trials, and cells with one algorithm alone."""
     problems = []
     unfinished = len(manifest["trials"]) - len(seeds)
@@ -49,13 +57,13 @@ def missing(seeds: pd.DataFrame, manifest: dict) -> list[str]:
 
 # --- words --------------------------------------------------------------------------------------------------
 
-def value_text(key: str, value) -> str:
+def value_text(key: str, value: object) -> str:
     if key == "truncation_as_terminal":
         return "terminal" if value else "bootstrapped"
     return f"{value:g}"
 
 
-def exploration(row: dict) -> str:
+def exploration(row: Row) -> str:
     """A cell's ε: ``ε_end = 0`` (decaying from 1) or ``constant ε = 0.5``."""
     if row["schedule"] == "constant":
         return f"{SYMBOLS['epsilon']} = {row['epsilon_end']:g}"
@@ -67,7 +75,7 @@ def schedule_label(schedule: str, epsilon: float) -> str:
     return f"constant {epsilon:g}" if schedule == "constant" else f"decaying to {epsilon:g}"
 
 
-def setting(row: dict, keys: Iterable[str] = WORDS) -> str:
+def setting(row: Row, keys: Iterable[str] = WORDS) -> str:
     """``α = 0.5, γ = 1, ε_end = 0, time limit terminal`` (``constant ε = 0.5`` in place of ``ε_end`` for a
     constant cell)."""
     parts = []
@@ -115,7 +123,7 @@ def _spread(chosen: pd.DataFrame, cells: pd.DataFrame) -> str:
 
 # --- the blocks and where the conclusion flips ---------------------------------------------------------------
 
-def _at(cells: pd.DataFrame, where: dict) -> np.ndarray:
+def _at(cells: pd.DataFrame, where: Mapping[str, str | AxisValue]) -> np.ndarray:
     """Which cells have every value of ``where``."""
     at = np.ones(len(cells), dtype=bool)
     for key, value in where.items():
@@ -204,7 +212,7 @@ def flip_regions(cells: pd.DataFrame, metric: str) -> list[str]:
     return regions
 
 
-def _region(rows: list[dict], start: int, stop: int, metric: str) -> str:
+def _region(rows: list[dict[Hashable, Any]], start: int, stop: int, metric: str) -> str:
     first = rows[start]
     head = (f"{exploration(first)} with {_gamma_range([row['gamma'] for row in rows], start, stop)} "
             f"({setting(first, ('alpha', 'truncation_as_terminal'))})")
@@ -286,7 +294,7 @@ def seeds_text(cells: pd.DataFrame) -> str:
     return str(low) if low == high else f"{low} to {high}"
 
 
-def _difference(row, metric: str) -> str:
+def _difference(row: Row, metric: str) -> str:
     return Estimate(row[f"{metric}_difference"], row[f"{metric}_low"], row[f"{metric}_high"]).format(1)
 
 
