@@ -15,8 +15,8 @@
   of improvement (``tables/improvement``), performance profiles and IQM sample-efficiency curves
   (``figures/aggregate-*.png`` and beside them).
 
-A deep sweep's configurations (:class:`~rlcompare.deep.run.DeepResults`) have their own columns: the final greedy
-return (each seed's mean over the last evaluation round's episodes) and the area under the greedy curve (each
+A deep sweep's configurations (:class:`~rlcompare.deep.results.DeepResults`) have their own columns: the final
+greedy return (each seed's mean over the last evaluation round's episodes) and the area under the greedy curve (each
 seed's mean over the rounds), mean and IQM with 95% bootstrap intervals. Its figures across a swept key draw those
 two, and its learning curves are the greedy return against environment steps.
 """
@@ -24,7 +24,9 @@ two, and its learning curves are the greedy return against environment steps.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -38,9 +40,19 @@ from rlcompare.report.aggregate_plots import draw_aggregates
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.aggregates import by_method, score_scales
-from rlcompare.stats.intervals import interval
+from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.studies.measures import per_seed_metrics
+from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
+
+    from rlcompare.deep.config import DeepConfig
+    from rlcompare.deep.results import DeepResults
+
+Tables = list[tuple[str, pd.DataFrame] | tuple[str, pd.DataFrame, str]]
+"""A section's tables (:class:`~rlcompare.report.page.Section`)."""
 
 MAX_CURVES = 12
 PANELS = {"tabular": (("behaviour_return", "behaviour (ε-greedy) return, mean over training"),
@@ -49,7 +61,7 @@ PANELS = {"tabular": (("behaviour_return", "behaviour (ε-greedy) return, mean o
 """What the figures across a swept key draw, per engine: (a column of the per-seed metrics, its title)."""
 
 
-def _value(value) -> str:
+def _value(value: object) -> str:
     return json.dumps(value) if isinstance(value, list | tuple | dict) else str(value)
 
 
@@ -75,17 +87,24 @@ def configuration_rows(runs: dict[str, Results], metrics_of: dict[str, pd.DataFr
     return pd.DataFrame(rows)
 
 
-def deep_metrics(results) -> pd.DataFrame:
-    """One row per seed of a :class:`~rlcompare.deep.run.DeepResults`: ``final``, the mean greedy return of the
+def round_means(results: DeepResults) -> pd.DataFrame:
+    """The mean greedy return of each seed (a row, in the configuration's order) in each evaluation round (a
+    column) of a :class:`~rlcompare.deep.results.DeepResults`."""
+    rounds = results.evaluations.groupby(["seed", "round"], sort=True)["return"].mean().unstack("round")
+    return rounds.reindex(list(results.seeds))
+
+
+def deep_metrics(results: DeepResults) -> pd.DataFrame:
+    """One row per seed of a :class:`~rlcompare.deep.results.DeepResults`: ``final``, the mean greedy return of the
     last evaluation round, and ``auc``, the area under the greedy curve (the mean over rounds of each round's
     mean)."""
-    curves = results.evaluations.groupby(["seed", "round"], sort=True)["return"].mean().unstack("round")
-    curves = curves.reindex(list(results.seeds))
+    curves = round_means(results)
     return pd.DataFrame({"seed": list(results.seeds), "final": curves.iloc[:, -1].to_numpy(),
                          "auc": curves.mean(axis=1).to_numpy()})
 
 
-def deep_configuration_rows(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: list[str]) -> pd.DataFrame:
+def deep_configuration_rows(runs: dict[str, DeepResults], metrics_of: dict[str, pd.DataFrame], swept: list[str]
+                            ) -> pd.DataFrame:
     """One row per deep configuration: its hash, swept values, seeds, environment steps, and the final greedy
     return and the area under the greedy curve (mean and IQM over seeds, 95% bootstrap intervals)."""
     rows = []
@@ -100,12 +119,12 @@ def deep_configuration_rows(runs: dict, metrics_of: dict[str, pd.DataFrame], swe
     return pd.DataFrame(rows)
 
 
-def _numeric(values: list) -> bool:
+def _numeric(values: list[object]) -> bool:
     return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
 
 
-def across_figure(runs: dict[str, Results], metrics_of: dict[str, pd.DataFrame], key: str, swept: list[str],
-                  panels: tuple[tuple[str, str], ...] = PANELS["tabular"]) -> Figure:
+def across_figure(runs: Mapping[str, Results | DeepResults], metrics_of: dict[str, pd.DataFrame], key: str,
+                  swept: list[str], panels: tuple[tuple[str, str], ...] = PANELS["tabular"]) -> Figure:
     """Two metrics (``panels``: behaviour and greedy returns) against ``key``, a line per combination of the other
     swept keys."""
     envs = sorted({r.config.env for r in runs.values()})
@@ -113,18 +132,18 @@ def across_figure(runs: dict[str, Results], metrics_of: dict[str, pd.DataFrame],
     figure = Figure(figsize=(11, 3.8 * len(envs)), layout="constrained")
     axes = figure.subplots(len(envs), 2, squeeze=False)
     for row, env in enumerate(envs):
-        lines: dict[str, list[tuple[float, object, object]]] = {}
+        lines: dict[str, list[tuple[Any, list[Estimate]]]] = {}
         for config_hash, results in ((h, r) for h, r in runs.items() if r.config.env == env):
             metrics = metrics_of[config_hash]
             label = ", ".join(f"{k}={_value(swept_value(results.config, k))}" for k in others) or "all"
             lines.setdefault(label, []).append((swept_value(results.config, key),
-                                                *(interval(metrics[name].to_numpy()) for name, _ in panels)))
+                                                [interval(metrics[name].to_numpy()) for name, _ in panels]))
         for column, (_, title) in enumerate(panels):
             ax = axes[row, column]
             for label, points in sorted(lines.items()):
                 points.sort(key=lambda p: p[0])
                 x = [p[0] for p in points]
-                estimates = [p[1 + column] for p in points]
+                estimates = [p[1][column] for p in points]
                 y = np.array([e.value for e in estimates])
                 error = np.array([[e.value - e.low for e in estimates], [e.high - e.value for e in estimates]])
                 ax.errorbar(x, y, yerr=np.nan_to_num(error), marker="o", capsize=3, label=label)
@@ -140,9 +159,7 @@ def across_figure(runs: dict[str, Results], metrics_of: dict[str, pd.DataFrame],
 def curves_figure(runs: list[Results], swept: list[str], env: str) -> Figure:
     figure = Figure(figsize=(9, 4.5), layout="constrained")
     ax = figure.subplots()
-    others = [k for k in swept if k != "env"]
-    curves = {", ".join(f"{k}={_value(swept_value(r.config, k))}" for k in others) or r.config.name:
-              r.records.returns for r in runs}
+    curves = {_label(r.config, swept): r.records.returns for r in runs}
     episodes = np.arange(1, runs[0].config.episodes + 1)
     window = max(1, min(100, runs[0].config.episodes // 10))
     plots.plot_return_curves(ax, episodes, curves, window=window)
@@ -150,39 +167,40 @@ def curves_figure(runs: list[Results], swept: list[str], env: str) -> Figure:
     return figure
 
 
-def deep_curves_figure(runs: list, swept: list[str], env: str) -> Figure:
+def deep_curves_figure(runs: list[DeepResults], swept: list[str], env: str) -> Figure:
     """The greedy return of deep configurations against environment steps, mean over seeds with 95% bands."""
     figure = Figure(figsize=(9, 4.5), layout="constrained")
     ax = figure.subplots()
-    others = [k for k in swept if k != "env"]
     for r in runs:
-        curves = r.evaluations.groupby(["seed", "round"], sort=True)["return"].mean().unstack("round")
-        label = ", ".join(f"{k}={_value(swept_value(r.config, k))}" for k in others) or r.config.name
-        plots.plot_return_curves(ax, np.sort(r.evaluations["after_step"].unique()),
-                                 {label: curves.reindex(list(r.seeds)).to_numpy()}, window=1, ylabel="greedy return")
+        steps, curves = greedy_curve(r)
+        plots.plot_return_curves(ax, steps, {_label(r.config, swept): curves}, window=1, ylabel="greedy return")
     ax.set_xlabel("environment steps")
     ax.set_title(f"{env}: greedy return, 95% bands over seeds")
     return figure
 
 
-def _label(config, swept: list[str]) -> str:
+def _label(config: ExperimentConfig | DeepConfig, swept: list[str]) -> str:
     """A configuration as a method across environments: its swept values but the environment."""
     return ", ".join(f"{k}={_value(swept_value(config, k))}" for k in swept if k != "env") or config.name
 
 
-def greedy_curve(results) -> tuple[np.ndarray, np.ndarray]:
+def _is_tabular(results: Results | DeepResults) -> TypeIs[Results]:
+    """Whether ``results`` are a tabular configuration's: they hold records (a deep one's hold evaluations)."""
+    return hasattr(results, "records")
+
+
+def greedy_curve(results: Results | DeepResults) -> tuple[np.ndarray, np.ndarray]:
     """``(x, (seeds, rounds) mean greedy return)``: after which episode (tabular) or environment step (deep) each
     evaluation round came; no rounds where the configuration did not evaluate."""
-    if hasattr(results, "records"):
+    if _is_tabular(results):
         returns = results.records.eval_returns
-        per_round = returns.mean(axis=2) if returns.size else np.zeros(returns.shape[:2])
+        per_round: np.ndarray = returns.mean(axis=2) if returns.size else np.zeros(returns.shape[:2])
         return (np.arange(per_round.shape[1]) + 1) * results.config.eval_every, per_round
-    curves = results.evaluations.groupby(["seed", "round"], sort=True)["return"].mean().unstack("round")
-    return np.sort(results.evaluations["after_step"].unique()), curves.reindex(list(results.seeds)).to_numpy()
+    return np.sort(results.evaluations["after_step"].unique()), round_means(results).to_numpy()
 
 
-def aggregate_section(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: list[str], engine: str,
-                      tables_dir: Path, figures_dir: Path) -> Section | None:
+def aggregate_section(runs: Mapping[str, Results | DeepResults], metrics_of: dict[str, pd.DataFrame],
+                      swept: list[str], engine: str, tables_dir: Path, figures_dir: Path) -> Section | None:
     """rliable's aggregates over the environments of a sweep that ran two or more (None where it ran one): each
     configuration's swept values but ``env`` are a method, each environment a task, scores normalised per
     environment between the worst configuration's mean (0) and the best's (1)."""
@@ -196,7 +214,7 @@ def aggregate_section(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: li
                     ("behaviour_return", "behaviour return (mean over training)"))
     finals: dict[str, dict[str, np.ndarray]] = {env: {} for env in envs}
     rounds: dict[str, dict[str, np.ndarray]] = {env: {} for env in envs}
-    x_of = {}
+    x_of: dict[tuple[str, str], np.ndarray] = {}
     for config_hash, results in runs.items():
         label, env = _label(results.config, swept), results.config.env
         finals[env][label] = metrics_of[config_hash][column].to_numpy(np.float64)
@@ -213,7 +231,7 @@ def aggregate_section(runs: dict, metrics_of: dict[str, pd.DataFrame], swept: li
     scales = score_scales(finals)
     scores = by_method(finals, scales)
     xs = [x_of[env, label] for env in shared for label in scores]
-    curves = {}
+    curves: dict[str, np.ndarray] = {}
     if column != "behaviour_return" and all(x.size and np.array_equal(x, xs[0]) for x in xs):
         curves = by_method({env: {label: rounds[env][label] for label in scores} for env in shared}, scales)
     drawn = draw_aggregates(scores, figures_dir, tasks="environments", curves=curves, x=xs[0],
@@ -262,7 +280,7 @@ def _build_sweep_report(root: Path, group_by: tuple[str, ...]) -> tuple[Path, li
                for config_hash, results in runs.items()}
     table = (deep_configuration_rows if deep else configuration_rows)(runs, metrics, swept)
     write_table(table, tables_dir, "configurations")
-    grouped = []
+    grouped: Tables = []
     for key in group_by:
         for value, rows in table.groupby(key, sort=True):
             write_table(rows, tables_dir, _file(f"by-{key}-{value}"))
