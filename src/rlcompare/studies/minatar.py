@@ -15,7 +15,7 @@ from __future__ import annotations
 import functools
 import os
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -33,7 +33,7 @@ from rlcompare.experiment import store
 from rlcompare.experiment.backends import make_backend
 from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
-from rlcompare.report.stage_video import Episodes, render_stages
+from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
 from rlcompare.stats.compare import Judged
 from rlcompare.studies import same_question
@@ -206,8 +206,7 @@ def video_cells(runs: dict[str, DeepResults], videos: Path) -> list[tuple[str, s
         seed = results.seeds[0]
         played = play_stages(results, seed)
         colours = minatar.palette(played.observations.shape[-1])
-        # Played holds what Episodes asks, read-only where the protocol names attributes
-        mp4, gif = render_stages(cast(Episodes, played), stage_titles(results),
+        mp4, gif = render_stages(played, stage_titles(results),
                                  functools.partial(minatar.picture, colours=colours), videos / f"{name}.mp4",
                                  videos / f"{name}.gif")
         cells.append((f"videos/{mp4.name}", f"videos/{gif.name}",

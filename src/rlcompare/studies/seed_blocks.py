@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Protocol, cast
+from typing import Protocol
 
 from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.results import DeepResults, merge_seeds
@@ -44,7 +44,9 @@ def trained_on(backend: Backend, out: Path, study: str, configs: dict[str, DeepC
 
 def _trained_on(backend: Backend, out: Path, configs: dict[str, DeepConfig], progress: Callable[[int], None] | None
                 ) -> Iterator[tuple[str, DeepResults, bool]]:
-    trials, blocks, finished = [], {}, []
+    trials: list[Trial] = []
+    blocks: dict[str, list[DeepResults | None]] = {}
+    finished: list[tuple[str, DeepResults]] = []
     for name, config in configs.items():
         stored = engines.load_if_complete(out / name, config)
         if stored is not None:
@@ -53,7 +55,7 @@ def _trained_on(backend: Backend, out: Path, configs: dict[str, DeepConfig], pro
             yield name, stored, True
             continue
         parts = seed_blocks(config)
-        blocks[name] = cast(list[DeepResults | None], [None] * len(parts))
+        blocks[name] = [None for _ in parts]
         trials += [Trial(part, name, index) for index, part in enumerate(parts)]
 
     def save(trial: Trial, results: DeepResults) -> None:
@@ -64,9 +66,7 @@ def _trained_on(backend: Backend, out: Path, configs: dict[str, DeepConfig], pro
         if all(part is not None for part in parts):
             merged = merge_seeds([part for part in parts if part is not None])
             with store.output_directory(out / trial.config_hash, store.RUN):
-                # DeepResults holds what RunResults asks, its arrays_file a class variable where the protocol
-                # names an instance variable (rundir.RunResults)
-                rundir.write_results(out / trial.config_hash, cast(rundir.RunResults, merged))
+                rundir.write_results(out / trial.config_hash, merged)
             finished.append((trial.config_hash, merged))
 
     backend.run(trials, save)
