@@ -43,7 +43,8 @@ def test_loss_is_the_mean_huber_error_of_the_taken_actions() -> None:
                             terminated=jnp.array([False, True]))
     identity = lambda params, observations: observations  # noqa: E731 - Q-values are the observations
     # row 0: Q = 2, target 0 + 0.5 * 4 = 2, error 0; row 1: Q = 0, target 3 (terminal), Huber(3) = 3 - 0.5
-    assert float(dqn.q_loss(None, None, batch, identity, 0.5, double=False)) == pytest.approx(2.5 / 2)
+    settings = dqn_config.DQNConfig(gamma=0.5)
+    assert float(dqn.q_loss(None, None, batch, identity, settings)) == pytest.approx(2.5 / 2)
 
 
 # --- the replay buffer ---

@@ -102,11 +102,11 @@ def test_rmsprop_steps_are_torchs_centered_rmsprop() -> None:
                              jax.random.bernoulli(keys[3], 0.2, (16, 10, 10, 4)),
                              jax.random.bernoulli(keys[4], 0.2, (16,)))
     apply = dqn.network(config, env).apply
-    gradient = jax.jit(lambda params, target, batch: jax.grad(dqn.q_loss)(params, target, batch, apply, 0.99, False))
+    gradient = jax.jit(lambda params, target, batch: jax.grad(dqn.q_loss)(params, target, batch, apply, config))
     with jax.enable_x64(True):
         runner = dqn.init_runner(config, env, keys[5])
         runner = runner._replace(buffer=replay.buffer_add(runner.buffer, stored))
-        train = jax.jit(dqn._train(config, env))
+        train = jax.jit(dqn._train(config, env, dqn.dqn_targets))
         params = initial = jax.tree.map(np.asarray, runner.params)
         v = jax.tree.map(np.zeros_like, params)
         m = jax.tree.map(np.zeros_like, params)

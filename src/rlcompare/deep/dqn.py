@@ -50,7 +50,8 @@ Apply = Callable[[Params, jax.Array], jax.Array]
 
 Config = DQNConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
-__all__ = ["OPTIMIZERS", "PRESETS", "Config", "act", "make_train", "network"]
+__all__ = ["OPTIMIZERS", "PRESETS", "Apply", "Config", "Params", "Targets", "act", "dqn_targets", "make_train",
+           "network"]
 
 
 # --- the learning rule ---
@@ -70,14 +71,24 @@ def td_target(reward: jax.Array, next_q_online: jax.Array | None, next_q_target:
     return reward + gamma * jnp.where(terminated, 0.0, next_value)
 
 
-def q_loss(params: Params, target_params: Params, batch: Transitions, apply: Apply, gamma: float,
-           double: bool) -> jax.Array:
-    """Mean Huber loss (δ = 1; SB3's ``smooth_l1_loss``, Mnih et al. 2015's error clipping) between the taken
-    actions' Q-values and their :func:`td_target`, which is held fixed."""
+Targets = Callable[[Params, Params, Transitions, Apply, Any], jax.Array]
+"""``(params, target_params, batch, apply, config) -> targets``: what the taken actions' Q-values learn toward, one
+a transition (DQN's :func:`dqn_targets`; a variant of DQN gives its own to :func:`make_train`)."""
+
+
+def dqn_targets(params: Params, target_params: Params, batch: Transitions, apply: Apply, config: DQNConfig
+                ) -> jax.Array:
+    """:func:`td_target` of each transition, from the target network (and the online one for Double DQN)."""
     next_q_target = apply(target_params, batch.next_observations)
-    next_q_online = apply(params, batch.next_observations) if double else None
-    target = jax.lax.stop_gradient(td_target(batch.rewards, next_q_online, next_q_target, batch.terminated,
-                                             gamma, double))
+    next_q_online = apply(params, batch.next_observations) if config.double else None
+    return td_target(batch.rewards, next_q_online, next_q_target, batch.terminated, config.gamma, config.double)
+
+
+def q_loss(params: Params, target_params: Params, batch: Transitions, apply: Apply, config: DQNConfig,
+           targets: Targets = dqn_targets) -> jax.Array:
+    """Mean Huber loss (δ = 1; SB3's ``smooth_l1_loss``, Mnih et al. 2015's error clipping) between the taken
+    actions' Q-values and their ``targets``, which are held fixed."""
+    target = jax.lax.stop_gradient(targets(params, target_params, batch, apply, config))
     q = jnp.take_along_axis(apply(params, batch.observations), batch.actions[:, None], axis=-1)[:, 0]
     return jnp.mean(optax.huber_loss(q, target, delta=1.0))
 
@@ -178,7 +189,7 @@ def _collect_step(config: DQNConfig, env: Environment
     return collect
 
 
-def _train(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array], Runner]:
+def _train(config: DQNConfig, env: Environment, targets: Targets) -> Callable[[Runner, jax.Array], Runner]:
     """``(runner, key) -> runner`` after ``gradient_steps`` steps of :func:`optimizer` on :func:`q_loss`."""
     net: Network = network(config, env)
     apply, tx = net.apply, optimizer(config)
@@ -189,7 +200,7 @@ def _train(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array],
                      ) -> tuple[tuple[Params, optax.OptState], None]:
             params, opt_state = carry
             batch = buffer_sample(runner.buffer, key, config.batch_size)
-            grads = gradient(params, runner.target_params, batch, apply, config.gamma, config.double)
+            grads = gradient(params, runner.target_params, batch, apply, config, targets)
             updates, opt_state = tx.update(grads, opt_state, params)
             return (optax.apply_updates(params, updates), opt_state), None
 
@@ -200,7 +211,8 @@ def _train(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array],
     return train
 
 
-def _train_once_started(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array], Runner]:
+def _train_once_started(config: DQNConfig, env: Environment, targets: Targets
+                        ) -> Callable[[Runner, jax.Array], Runner]:
     """``(runner, key) -> runner`` after :func:`_train` if more than ``learning_starts`` steps were taken, as it was
     otherwise: a conditional, also under ``vmap``. There ``lax.cond`` on a predicate per seed becomes a select
     that computes the training in one program with the environment step and the buffer's write, which XLA:CPU
@@ -208,7 +220,7 @@ def _train_once_started(config: DQNConfig, env: Environment) -> Callable[[Runner
     even copied the whole buffer twice a step). Here the seeds train together where any of them has started (all
     or none: they count the same steps), and each keeps its own parameters where it has not; the results are the
     same bits."""
-    train = _train(config, env)
+    train = _train(config, env, targets)
 
     def trained(runner: Runner, key: jax.Array) -> tuple[Params, optax.OptState]:
         runner = train(runner, key)
@@ -242,11 +254,12 @@ def _train_once_started(config: DQNConfig, env: Environment) -> Callable[[Runner
     return train_once_started
 
 
-def make_update(config: DQNConfig, env: Environment) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
+def make_update(config: DQNConfig, env: Environment, targets: Targets = dqn_targets
+                ) -> Callable[[Runner, jax.Array], tuple[Runner, rollout.Finished]]:
     """``(runner, key) -> (runner, finished)``, one update: ``train_freq`` steps of every environment
     (``finished`` is ``(train_freq, n_envs)``), the target refreshed if an interval's end was passed, then a
     training once more than ``learning_starts`` steps were taken (SB3's ``learn`` loop)."""
-    collect, train = _collect_step(config, env), _train_once_started(config, env)
+    collect, train = _collect_step(config, env), _train_once_started(config, env, targets)
     interval = max(config.target_update_interval // config.n_envs, 1) * config.n_envs
 
     def update(runner: Runner, key: jax.Array) -> tuple[Runner, rollout.Finished]:
@@ -267,14 +280,15 @@ def updates_per_round(config: DQNConfig, rounds: int) -> int:
     return math.ceil(config.total_steps / (config.train_freq * config.n_envs * rounds))
 
 
-def make_train(config: DQNConfig, env: Environment, rounds: int, eval_episodes: int
+def make_train(config: DQNConfig, env: Environment, rounds: int, eval_episodes: int, targets: Targets = dqn_targets
                ) -> Callable[[jax.Array], rollout.TrainOutput]:
     """``key -> TrainOutput``: one seed's whole training, ``rounds`` rounds of :func:`updates_per_round` updates
-    with a greedy evaluation of ``eval_episodes`` episodes after each; jit-able and vmap-able over keys."""
+    with a greedy evaluation of ``eval_episodes`` episodes after each, learning toward ``targets``; jit-able and
+    vmap-able over keys."""
     check("rounds", rounds, COUNT)
     check("eval_episodes", eval_episodes, COUNT)
-    train = rollout.train_in_rounds(make_update(config, env), lambda runner: runner.params, env, act(config, env),
-                                    rounds, updates_per_round(config, rounds), eval_episodes)
+    train = rollout.train_in_rounds(make_update(config, env, targets), lambda runner: runner.params, env,
+                                    act(config, env), rounds, updates_per_round(config, rounds), eval_episodes)
 
     def run(key: jax.Array) -> rollout.TrainOutput:
         start_key, train_key = jax.random.split(key)

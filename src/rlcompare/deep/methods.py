@@ -15,7 +15,7 @@ from typing import Any, Protocol
 import flax.linen as nn
 import jax
 
-from rlcompare.deep import dqn, ppo, pqn
+from rlcompare.deep import dqn, munchausen, ppo, pqn
 from rlcompare.deep.envs import Environment
 from rlcompare.deep.rollout import Act, TrainOutput
 from rlcompare.validation import ConfigError, is_flag, is_integer, plain, require
@@ -73,6 +73,7 @@ DEEP_METHODS = {m.name: m for m in (
                "expected_sarsa"),
     DeepMethod("dqn", "DQN", dqn, {"double": False}, "off-policy", "q_learning"),
     DeepMethod("double_dqn", "Double DQN", dqn, {"double": True}, "off-policy", "double_q_learning"),
+    DeepMethod("munchausen_dqn", "Munchausen DQN", munchausen, {"double": False}, "off-policy", "q_learning"),
     DeepMethod("ppo", "PPO", ppo, {}, "on-policy", ""),
 )}
 
