@@ -21,6 +21,7 @@ from rlcompare import load_agent  # noqa: E402
 from rlcompare.cli import app  # noqa: E402
 from rlcompare.deep import float64  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
+from rlcompare.deep.methods import DEEP_METHODS  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
 from rlcompare.formatting import number  # noqa: E402
 from rlcompare.studies.minatar import plan_of  # noqa: E402
@@ -190,8 +191,7 @@ def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our
 def test_every_method_trains_with_its_minatar_preset_when_asked():
     plan = plan_of(MinAtarOptions(seeds=3, games="seaquest", methods="all", budget="paper"))
     configs = plan.configs()
-    assert sorted(configs) == sorted(f"{m}-seaquest" for m in (
-        "pqn_q_lambda", "pqn_sarsa_lambda", "pqn_expected_sarsa_lambda", "dqn", "double_dqn", "ppo"))
+    assert sorted(configs) == sorted(f"{m}-seaquest" for m in DEEP_METHODS)
     dqn = configs["dqn-seaquest"].method_config()
     assert (dqn.buffer_size, dqn.batch_size, dqn.optimizer, dqn.total_steps) == (100_000, 32, "rmsprop", 5_000_000)
     assert configs["ppo-seaquest"].method_config().n_envs == 64

@@ -25,8 +25,7 @@ class DeepConfig:
     """The engine that trains it (:mod:`rlcompare.experiment.engines`)."""
 
     algorithm: str = "pqn_q_lambda"
-    """A deep method of :data:`rlcompare.deep.methods.DEEP_METHODS` (``docs/deep.md``); ``rlcompare run --help``
-    lists them."""
+    """A deep method of :data:`rlcompare.deep.methods.DEEP_METHODS` (``docs/deep.md`` lists them)."""
     env: str = "CartPole-v1"
     """``CartPole-v1``, ``Acrobot-v1`` or ``MountainCar-v0`` at Gymnasium's registered limits, a MinAtar game, or an
     Atari game (``Breakout-Atari``: ``vmap_width`` 1)."""

@@ -104,8 +104,8 @@ class MinAtarOptions(Seeded):
     every evaluation round, so fewer or more than given where they do not divide it; each training's line then
     says how many."""
     methods: str = "pqn_sarsa_lambda,pqn_q_lambda"
-    """Comma-separated deep methods, each with its MinAtar preset: the paper's pair (the default) and any of
-    pqn_expected_sarsa_lambda, dqn, double_dqn, ppo; 'all' for every one."""
+    """Comma-separated deep methods (docs/deep.md lists them), each with its MinAtar preset: the paper's
+    pair by default; 'all' for every one."""
     workers: int | None = option(None, minimum=1)
     """Trainings at once. Default: one per core, at most 2."""
     videos: bool = True
