@@ -20,6 +20,7 @@ def _assert_same_records(a: Records, b: Records) -> None:
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
 
+@pytest.mark.slow("steps Gymnasium's environments at Python speed")
 @pytest.mark.parametrize("env", PORTED)
 def test_adapter_gives_each_ports_results_bit_for_bit(env: str) -> None:
     """Each port and Gymnasium's own environment, stepped by the same engine from the same streams, give
@@ -44,6 +45,7 @@ def test_every_episode_loop_through_the_adapter_equals_the_port(algorithm: str) 
     _assert_same_records(run(config).records, run(replace(config, adapter=True)).records)
 
 
+@pytest.mark.slow("steps Gymnasium's environments at Python speed")
 def test_adapter_on_mountain_car_learns_as_the_port_over_ten_seeds() -> None:
     """SARSA through Gymnasium equals the compiled port in the paper's setting on 10 seeds, so its greedy
     success and mean returns lie inside each other's intervals (they are the same numbers)."""
@@ -57,6 +59,7 @@ def test_adapter_on_mountain_car_learns_as_the_port_over_ten_seeds() -> None:
         assert b.low <= a.value <= b.high
 
 
+@pytest.mark.slow("steps Gymnasium's environments at Python speed")
 def test_adapter_results_do_not_depend_on_the_thread_count() -> None:
     config = ExperimentConfig(env="CliffWalking-v1", adapter=True, algorithm="sarsa", seeds=(0, 1, 2, 3), episodes=20,
                               eval_every=10, eval_episodes=1)
@@ -71,6 +74,7 @@ def test_adapter_results_do_not_depend_on_the_thread_count() -> None:
     _assert_same_records(one.records, two.records)
 
 
+@pytest.mark.slow("steps Gymnasium's environments at Python speed")
 def test_q_learning_learns_taxi_and_frozen_lake_through_the_adapter() -> None:
     """Gymnasium's Taxi-v4 and the slippery FrozenLake-v1, stepped through Gymnasium: the greedy policy
     delivers the passenger from (nearly) every start, and reaches the goal of the lake about as often as the
@@ -85,6 +89,7 @@ def test_q_learning_learns_taxi_and_frozen_lake_through_the_adapter() -> None:
     assert lake.records.eval_returns[:, -1].mean() > 0.6
 
 
+@pytest.mark.slow("steps Gymnasium's environments at Python speed")
 @pytest.mark.filterwarnings("ignore:.*out of date:DeprecationWarning")
 def test_environments_without_a_port_run_through_the_adapter() -> None:
     """A Discrete-observation environment with no port (CliffWalkingSlippery-v1, one feature per state) and a

@@ -193,6 +193,7 @@ def _tabular_configuration(env: str, algorithm: str, alpha: float, finals: list[
     return results, pd.DataFrame({"greedy_return": finals, "behaviour_return": finals / 2})
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_a_sweep_over_environments_aggregates_the_configurations_that_ran_on_all_of_them(tmp_path):
     from rlcompare.studies.sweep_report import aggregate_section
 

@@ -773,6 +773,7 @@ def test_policy_gradient_matches_finite_differences():
     assert analytic.sum() == pytest.approx(0.0, abs=1e-15)
 
 
+@pytest.mark.slow("trains many episodes")
 def test_mean_reinforce_update_is_alpha_times_the_gradient():
     """10 000 one-pull episodes of the engine from the same θ, each with its own streams: the mean update is
     α ∇J within 4 standard errors (and ∇J is tens of standard errors away from zero, so this has power)."""

@@ -146,6 +146,7 @@ print(json.dumps({"modules": len(names), "x64": bool(jax.config.jax_enable_x64),
 """
 
 
+@pytest.mark.slow("imports every module in a process of its own")
 def test_importing_every_module_changes_no_setting_of_jax_or_matplotlib_and_nothing_on_disk(tmp_path):
     """A user's notebook that imports rlcompare keeps JAX's and matplotlib's defaults, and its caches: every module,
     the studies included, imports without choosing a backend (a module that called ``matplotlib.use`` would fail
@@ -167,6 +168,7 @@ def test_importing_every_module_changes_no_setting_of_jax_or_matplotlib_and_noth
     assert found["deleted"] == []
 
 
+@pytest.mark.slow("imports every module in a process of its own")
 def test_the_deep_engine_turns_float64_on_for_its_own_calls_only():
     """Its entry points trace in float64 (the physics is Gymnasium's float64) and leave JAX's 32-bit default to the
     caller when they return."""

@@ -23,7 +23,7 @@ from rlcompare.envs import atari  # noqa: E402
 from rlcompare.envs.registry import environment  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.slow("trains on the Atari 2600's emulator")
 
 SHORT = dataclasses.replace(atari.PROTOCOL, max_frames=600)
 """Episodes cut after 150 steps, so that a short test sees both ends of an episode."""

@@ -20,6 +20,7 @@ from rlcompare.deep.envs import jax_env  # noqa: E402
 ENV = "Breakout-MinAtar"
 
 
+@pytest.mark.slow("compiles MinAtar's DQN")
 def test_seeds_side_by_side_train_as_each_alone_across_learning_starts() -> None:
     """Two seeds under ``vmap``, one short of ``learning_starts`` and one past it, then both past it: each seed's
     runner after an update is the one its own unbatched update gives (the first keeps its parameters)."""

@@ -160,6 +160,7 @@ def test_bench_alone_measures_the_kernels_the_study_and_the_ports_into_bench_jso
         assert cell in said                                       # Gymnasium's loop, against 1 thread
 
 
+@pytest.mark.slow("measures the kernels' speed")
 def test_report_shows_every_file_bench_wrote_as_it_printed_it(measured: list[str], tmp_path: Path) -> None:
     for command in ("kernels", "sweeps"):
         assert invoke("bench", command, "--out", str(tmp_path)).exit_code == 0

@@ -29,6 +29,7 @@ def invoke(*args: str):
     return runner.invoke(cli.app, list(args), prog_name="rlcompare")
 
 
+@pytest.mark.slow("trains Figure 6.3's grid")
 def test_the_default_study_is_the_books_grid_at_the_books_run_counts() -> None:
     configs = book_6_3.configs(STUDIES["book-6.3"].options().seed_range)
     assert len(configs) == 2 * 3 * 10
@@ -46,6 +47,7 @@ def test_the_default_study_is_the_books_grid_at_the_books_run_counts() -> None:
     assert book_6_3.configs((0, 1, 2), episodes=300)["asymptotic-sarsa-alpha-1"].episodes == 300
 
 
+@pytest.mark.slow("trains Figure 6.3's grid")
 def test_the_study_at_a_tiny_size_through_the_command_line(tmp_path: Path) -> None:
     out = tmp_path / "b63"
     result = invoke("reproduce", "book-6.3", "--runs", "4", "--episodes", "300", "--out", str(out))
@@ -92,6 +94,7 @@ def test_reproduce_refuses_a_bad_episode_count(tmp_path: Path) -> None:
     assert "--episodes" in result.output
 
 
+@pytest.mark.slow("trains Figure 6.3's grid")
 def test_the_asymptotic_phase_keeps_memory_bounded(monkeypatch) -> None:
     # The default asymptotic runs (10 x 100,000 episodes) train in blocks whose records stay under BLOCK_BYTES,
     # and so would any number of runs.

@@ -18,6 +18,8 @@ from rlcompare.studies.paper_claims import CLAIMS
 from rlcompare.studies.paper_report import build_report, load_study
 from rlcompare.studies.paper_videos import CONFIGURATIONS, video_plan
 
+pytestmark = pytest.mark.slow("renders a report in Chromium")
+
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-sync",
                  "--disable-background-networking", "--disable-component-update"]
 
@@ -32,7 +34,7 @@ def chromium() -> str:
     return path
 
 
-@pytest.mark.slow  # starts a browser; where chromium is missing the recorded run only saw it skipped
+@pytest.mark.slow("starts a browser; where chromium is missing the recorded run only saw it skipped")
 def test_report_renders_with_every_image_and_video_loaded(chromium: str, tmp_path: Path) -> None:
     sync_playwright = pytest.importorskip("playwright.sync_api").sync_playwright
     configs = paper_configs((0, 1, 2), episodes=300, max_steps=300, eval_every=50, eval_episodes=3)

@@ -42,6 +42,7 @@ def _acrobot_policy(kind: str, state: tuple, generator: np.random.Generator) -> 
     return 2 if state[3] >= 0 else 0
 
 
+@pytest.mark.slow("steps long episodes beside Gymnasium")
 @pytest.mark.parametrize(("port", "policy"), [(cartpole, _cartpole_policy), (acrobot, _acrobot_policy)],
                          ids=["CartPole-v1", "Acrobot-v1"])
 def test_transitions_equal_gymnasium(port, policy) -> None:

@@ -26,6 +26,7 @@ def invoke(*args: str):
     return runner.invoke(cli.app, list(args), prog_name="rlcompare")
 
 
+@pytest.mark.slow("trains studies through the command line")
 def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
     result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--no-videos", "--out", str(tmp_path))
     assert result.exit_code == 0, result.output
@@ -43,6 +44,7 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
     assert "-262" in result.output  # the paper's Table II beside ours
 
 
+@pytest.mark.slow("trains studies through the command line")
 def test_reproduce_again_loads_instead_of_training(tmp_path: Path) -> None:
     invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
     result = invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
@@ -146,6 +148,7 @@ def test_bad_input_gets_one_clear_message_and_exit_code_2(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow("trains studies through the command line")
 def test_console_script_reports_bad_input_without_a_traceback(tmp_path: Path) -> None:
     """The installed ``rlcompare`` command, as a user runs it."""
     blocker = tmp_path / "file"

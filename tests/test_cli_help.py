@@ -80,6 +80,7 @@ def test_the_fast_help_is_the_whole_apps_help() -> None:
         line.rstrip() for line in whole.output.splitlines()]
 
 
+@pytest.mark.slow("starts rlcompare in processes of its own")
 def test_no_help_names_a_python_type() -> None:
     helps = every_help()
     assert len(helps) == 6 + len(BENCH_COMMANDS) + len(STUDIES)
@@ -93,6 +94,7 @@ def test_no_help_names_a_python_type() -> None:
     assert "Usage: rlcompare report [OPTIONS] STUDY_DIR" in helps["report"]
 
 
+@pytest.mark.slow("starts rlcompare in processes of its own")
 def test_the_help_speaks_plainly() -> None:
     """No None (nobody types it), no Gymnasium space types, no attribute names of the code."""
     for line, text in every_help().items():
@@ -159,6 +161,7 @@ def test_report_refuses_a_directory_rlcompare_did_not_write(tmp_path: Path) -> N
     assert "was not written by rlcompare" in result.output
 
 
+@pytest.mark.slow("starts rlcompare in processes of its own")
 def test_a_table_fits_an_80_column_terminal(run_dir: Path) -> None:
     done = command_line("report", str(run_dir), columns=80)
     assert done.returncode == 0, done.stderr

@@ -245,6 +245,7 @@ def test_a_rate_that_is_not_a_number_in_range_is_still_an_error_quoting_it(value
 # --- what an error quotes -------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_an_error_on_a_huge_value_is_one_short_line() -> None:
     huge = "x" * 10_000_000
     with pytest.raises(ConfigError) as caught:

@@ -74,6 +74,7 @@ def deep_run(tmp_path_factory: pytest.TempPathFactory):
     return out
 
 
+@pytest.mark.slow("trains a deep run to damage")
 @pytest.mark.parametrize("name", ["params.npz", "episodes.parquet", "evaluations.parquet"])
 def test_a_tampered_file_of_a_deep_run_is_refused_naming_it(deep_run, name: str, tmp_path) -> None:
     import shutil

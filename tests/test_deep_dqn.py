@@ -55,6 +55,7 @@ def _rows(actions: list[int]) -> replay.Transitions:
     return replay.Transitions(obs, a, a.astype(jnp.float32), obs + 1, a % 2 == 0)
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_buffer_wraps_around_overwriting_the_oldest() -> None:
     buffer = replay.buffer_add(replay.buffer_add(replay.buffer_init(3, 2), _rows([0, 1])), _rows([2, 3]))
     np.testing.assert_array_equal(buffer.data.actions, [3, 1, 2])
@@ -64,6 +65,7 @@ def test_buffer_wraps_around_overwriting_the_oldest() -> None:
     assert buffer.data.actions.dtype == jnp.int32
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_buffer_samples_only_filled_slots() -> None:
     buffer = replay.buffer_add(replay.buffer_init(10, 2), _rows([5, 6, 7]))
     batch = replay.buffer_sample(buffer, jax.random.key(0), 600)
@@ -74,6 +76,7 @@ def test_buffer_samples_only_filled_slots() -> None:
 
 # --- an update's bookkeeping ---
 
+@pytest.mark.slow("trains networks on classic control")
 def test_update_stores_true_last_observations_refreshes_the_target_and_waits_for_learning_starts() -> None:
     env = dataclasses.replace(CARTPOLE, max_steps=2)  # every second step is a time-limit cut
     config = dqn_config.DQNConfig(n_envs=2, train_freq=3, learning_starts=6, target_update_interval=4, buffer_size=8,
@@ -117,6 +120,7 @@ def cartpole_runs() -> tuple:
     return jax.block_until_ready(train(keys)), jax.block_until_ready(train(keys))
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_dqn_learns_cartpole(cartpole_runs: tuple) -> None:
     out, _ = cartpole_runs
     assert out.eval_returns.shape == (2, 2, 10)
@@ -126,6 +130,7 @@ def test_dqn_learns_cartpole(cartpole_runs: tuple) -> None:
     assert out.finished.done.sum() > 20
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_same_key_same_training(cartpole_runs: tuple) -> None:
     first, second = cartpole_runs
     for a, b in zip(jax.tree.leaves(first), jax.tree.leaves(second), strict=True):

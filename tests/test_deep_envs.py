@@ -91,6 +91,7 @@ def _gymnasium_transitions(name: str) -> dict[str, np.ndarray]:
     return {key: np.array(value) for key, value in rows.items()}
 
 
+@pytest.mark.slow("steps the JAX ports beside Gymnasium")
 @pytest.mark.parametrize("name", NAMES)
 @pytest.mark.parametrize("compiled", ["jit-vmap", "jit-map"])
 def test_transitions_equal_gymnasium(name, compiled, same_trigonometry) -> None:
@@ -133,6 +134,7 @@ def _scanned_rollout(name: str) -> Callable:
     return jax.jit(rollout)
 
 
+@pytest.mark.slow("steps the JAX ports beside Gymnasium")
 @pytest.mark.parametrize("name", NAMES)
 def test_scanned_autoreset_rollout_equals_gymnasium(name, same_trigonometry) -> None:
     """Gymnasium, started from its own reset, given the same actions, and each new episode's start state copied

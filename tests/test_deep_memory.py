@@ -14,6 +14,8 @@ from rlcompare.experiment import rundir
 from rlcompare.experiment.runner import run
 from rlcompare.validation import ConfigError
 
+pytestmark = pytest.mark.slow("compiles deep programs")
+
 OBSERVATION_BYTES = 10 * 10 * 4  # Breakout's four boolean channels
 
 

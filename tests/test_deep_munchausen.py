@@ -93,6 +93,7 @@ RECORDED = [[122.8, 135.8, 210.6, 123.0], [107.8, 225.0, 157.4, 159.8]]
 seeds 0 and 1 side by side); a uniformly random policy lasts about 22 steps."""
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_a_short_training_gives_its_recorded_returns() -> None:
     config = DeepConfig(algorithm="munchausen_dqn", env="CartPole-v1", seeds=(0, 1), vmap_width=2, eval_rounds=4,
                         eval_episodes=5, hyperparameters={"total_steps": 30_000})

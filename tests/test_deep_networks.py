@@ -35,6 +35,7 @@ def test_gathered_windows_are_xlas_patches(leading: tuple[int, ...], depth: int)
         np.testing.assert_array_equal(found, expected)
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_gathered_windows_are_ordered_by_channel_then_row_then_column() -> None:
     depth = 3
     image = jnp.arange(5 * 6 * depth).reshape(5, 6, depth)  # each cell's value is its flat position

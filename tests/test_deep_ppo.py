@@ -65,6 +65,7 @@ def test_gae_matches_sb3_on_random_rollouts() -> None:
     np.testing.assert_allclose(ours, theirs, rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_clipped_surrogate_by_hand() -> None:
     """ε = 0.2: inside the range the ratio counts as it is; outside, the pessimistic (smaller) term counts."""
     ratios = jnp.array([1.1, 1.5, 0.5, 1.5, 0.5], jnp.float32)
@@ -80,6 +81,7 @@ def test_clipped_surrogate_by_hand() -> None:
     np.testing.assert_allclose(grad, -np.array([2.2, 0.0, 1.0, -1.5, 0.0]) / 5, rtol=1e-6, atol=1e-7)
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_value_loss_entropy_and_advantage_normalisation() -> None:
     np.testing.assert_allclose(ppo.value_loss(jnp.array([1.0, 2.0]), jnp.array([2.0, 4.0])), 2.5)
     np.testing.assert_allclose(ppo.entropy(jnp.zeros((2, 3), jnp.float32)), [np.log(3)] * 2, rtol=1e-6)
@@ -138,6 +140,7 @@ def cartpole_runs() -> tuple[TrainOutput, TrainOutput]:
     return jax.block_until_ready(train(key)), jax.block_until_ready(train(key))
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_cartpole_learns(cartpole_runs: tuple[TrainOutput, TrainOutput]) -> None:
     out, _ = cartpole_runs
     assert out.eval_returns.shape == (ROUNDS, EVAL_EPISODES)
@@ -148,12 +151,14 @@ def test_cartpole_learns(cartpole_runs: tuple[TrainOutput, TrainOutput]) -> None
     assert np.all(np.asarray(out.finished.lengths)[done] >= 1)
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_same_key_same_training(cartpole_runs: tuple[TrainOutput, TrainOutput]) -> None:
     first, second = cartpole_runs
     for a, b in zip(jax.tree.leaves(first), jax.tree.leaves(second), strict=True):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_normalised_training_keeps_statistics_in_the_params() -> None:
     """The zoo's MountainCar settings (VecNormalize) for two updates: the observation statistics have seen the
     reset and every step, and the greedy policy reads raw observations through them."""

@@ -43,6 +43,7 @@ def returns_by_hand(rewards, terminated, truncated, values, gamma=GAMMA, lam=LAM
     return np.array(out)
 
 
+@pytest.mark.slow("trains networks on classic control")
 @pytest.mark.parametrize(("terminated", "truncated"), [
     ([0, 0, 0, 0, 0], [0, 0, 0, 0, 0]),
     ([0, 1, 0, 0, 0], [0, 0, 0, 0, 0]),
@@ -112,12 +113,14 @@ def trained():
     return outputs
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_q_lambda_and_sarsa_lambda_learn_cartpole(trained):
     for target in ("max", "sample"):
         final = np.asarray(trained[target].eval_returns)[:, -1].mean()
         assert final > 100, (target, final)  # a random policy lasts about 22 steps
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_a_seed_does_not_depend_on_the_seeds_beside_it(trained):
     alone, beside = trained["max"], trained["neighbours"]
     assert np.array_equal(np.asarray(alone.eval_returns)[0], np.asarray(beside.eval_returns)[0])
@@ -125,6 +128,7 @@ def test_a_seed_does_not_depend_on_the_seeds_beside_it(trained):
         assert np.array_equal(np.asarray(a)[0], np.asarray(b)[0])
 
 
+@pytest.mark.slow("trains networks on classic control")
 def test_training_episodes_are_recorded_as_they_end(trained):
     finished = trained["max"].finished
     done = np.asarray(finished.done)

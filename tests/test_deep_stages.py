@@ -35,6 +35,7 @@ def test_the_stages_are_the_rounds_at_a_tenth_and_half_of_the_training() -> None
     assert stage_rounds(1) == (0, 0)  # a one-round training keeps its only round at every stage
 
 
+@pytest.mark.slow("compiles and trains deep programs")
 def test_a_kept_network_plays_its_round_s_evaluation_again() -> None:
     train = jax.jit(jax.vmap(pqn.make_train(CONFIG, CARTPOLE, ROUNDS, EPISODES)))
     keys = jnp.stack([jax.random.key(seed) for seed in SEEDS])
@@ -60,6 +61,7 @@ def stored(tmp_path_factory: pytest.TempPathFactory) -> tuple[DeepResults, DeepR
     return results, load_run(out)
 
 
+@pytest.mark.slow("compiles and trains deep programs")
 def test_a_run_directory_keeps_every_stage(stored: tuple[DeepResults, DeepResults]) -> None:
     results, loaded = stored
     assert results.stages == loaded.stages == ["early", "middle", "final"]
@@ -70,6 +72,7 @@ def test_a_run_directory_keeps_every_stage(stored: tuple[DeepResults, DeepResult
     assert not np.array_equal(next(iter(loaded.snapshots["early"].values())), next(iter(loaded.params.values())))
 
 
+@pytest.mark.slow("compiles and trains deep programs")
 def test_an_agent_acts_with_the_network_of_its_stage(stored: tuple[DeepResults, DeepResults]) -> None:
     _, loaded = stored
     observation = np.array([0.01, 0.5, -0.02, -0.4])
@@ -84,6 +87,7 @@ def test_an_agent_acts_with_the_network_of_its_stage(stored: tuple[DeepResults, 
         agent(loaded, seed=1, stage="halfway")
 
 
+@pytest.mark.slow("compiles and trains deep programs")
 def test_merged_seeds_keep_their_stages_in_order(stored: tuple[DeepResults, DeepResults]) -> None:
     _, loaded = stored
     others = dataclasses.replace(loaded, config=dataclasses.replace(loaded.config, seeds=(5, 6)))
@@ -93,6 +97,7 @@ def test_merged_seeds_keep_their_stages_in_order(stored: tuple[DeepResults, Deep
             np.testing.assert_array_equal(merged.snapshots[stage][name], np.concatenate([array, array]))
 
 
+@pytest.mark.slow("compiles and trains deep programs")
 def test_a_run_written_before_the_stages_were_kept_offers_its_final_network(
         stored: tuple[DeepResults, DeepResults], tmp_path) -> None:
     results, _ = stored

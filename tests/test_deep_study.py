@@ -37,6 +37,7 @@ def study(tmp_path_factory):
     return out, result.output
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_the_study_writes_run_directories_and_a_report(study):
     out, output = study
     names = sorted(p.name for p in out.iterdir() if p.is_dir())
@@ -53,6 +54,7 @@ def test_the_study_writes_run_directories_and_a_report(study):
     assert (out / "report.html").read_text().count("<img") == 2  # steps and seconds, CartPole only
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_episodes_are_recorded_with_the_step_at_which_they_ended(study):
     results = load_run(study[0] / "pqn_q_lambda-CartPole-v1")
     for _, episodes in results.episodes.groupby("seed"):
@@ -64,6 +66,7 @@ def test_episodes_are_recorded_with_the_step_at_which_they_ended(study):
     assert rounds.tolist() == [20, 20]
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_a_finished_study_is_loaded_not_trained_again(study):
     out, _ = study
     before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
@@ -73,6 +76,7 @@ def test_a_finished_study_is_loaded_not_trained_again(study):
     assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_a_deep_agent_acts_in_gymnasium_as_in_the_port(study):
     """The greedy agent from the run directory takes the same actions on Gymnasium's observations as on the
     port's, and both environments give the same episode."""
@@ -94,6 +98,7 @@ def test_a_deep_agent_acts_in_gymnasium_as_in_the_port(study):
         agent.act(np.zeros(3))
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_a_seed_gives_the_same_results_whatever_seeds_train_beside_it(study):
     config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=(0, 1),
                         hyperparameters={"total_steps": 41000}, vmap_width=2)
@@ -149,6 +154,7 @@ def test_without_jax_the_deep_study_says_how_to_install_it(monkeypatch, tmp_path
     assert "Traceback" not in result.output
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_a_run_written_before_a_setting_was_added_loads_when_the_default_keeps_what_it_did(study, tmp_path):
     """A method's setting added later (PPO's value_loss, DQN's optimizer) has the default that keeps the old
     behaviour: a run directory without it reads as the configuration it was; one missing a setting its preset
@@ -180,7 +186,7 @@ def test_a_run_written_before_a_setting_was_added_loads_when_the_default_keeps_w
         load_run(run)
 
 
-@pytest.mark.slow
+@pytest.mark.slow("trains and reports a deep study")
 def test_the_study_killed_with_sigkill_resumes_to_the_same_numbers(study, tmp_path):
     """``reproduce deep`` killed once one run of a network finished: the same command loads the finished runs,
     trains the rest, and every run equals the uninterrupted study's, episode by episode and parameter by
@@ -233,6 +239,7 @@ class _Recorded(UI):
         self.finished.append((name, reused))
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_the_same_code(study, tmp_path):
     from rlcompare.studies.paired import OVERALL, PAIR, Key, Plan, final_returns, per_seed, run_of, train
     from rlcompare.studies.paired_report import answer, difference_figure, findings, pair_finals
@@ -287,6 +294,7 @@ def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_th
     assert len(difference_figure(pairs).axes) == 2
 
 
+@pytest.mark.slow("trains and reports a deep study")
 def test_a_configuration_with_one_environment_has_no_aggregates_and_no_overall_row(study, tmp_path):
     import shutil
 

@@ -91,6 +91,7 @@ def test_module_bounds_give_the_same_grid(base_env):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_rollout_observations(grid, wrapper, rollout_observations):
     """Every observation of real Gymnasium episodes lands in the wrapper's cell."""
     _assert_same_cells(grid, wrapper, rollout_observations)

@@ -36,6 +36,7 @@ def stamps(directory: Path) -> dict[str, tuple[int, int]]:
             for folder in ("figures", "videos") for p in sorted((directory / folder).iterdir())}
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_a_second_report_keeps_every_figure_and_video_and_rewrites_the_tables(
         study_copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from rlcompare.report import aggregate_plots
@@ -56,6 +57,7 @@ def test_a_second_report_keeps_every_figure_and_video_and_rewrites_the_tables(
     assert (study_copy / "report.html").read_bytes() == page
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_a_file_edited_or_replaced_is_drawn_again_and_the_others_kept(study_copy: Path) -> None:
     figure, movie = study_copy / "figures" / "fig6-constant.png", study_copy / "videos" / "random-seed0.mp4"
     original_figure, original_movie = figure.read_bytes(), movie.read_bytes()
@@ -70,6 +72,7 @@ def test_a_file_edited_or_replaced_is_drawn_again_and_the_others_kept(study_copy
     assert changed == {"figures/fig6-constant.png", "videos/random-seed0.mp4", "videos/random-seed0.gif"}  # one job
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_another_key_draws_everything_again(study_copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     before = stamps(study_copy)
     monkeypatch.setattr(drawn, "code_fingerprint", lambda: "other code")
@@ -78,6 +81,7 @@ def test_another_key_draws_everything_again(study_copy: Path, monkeypatch: pytes
     assert all(after[name] != before[name] for name in before)
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_a_file_rlcompare_did_not_list_is_never_kept_nor_touched(study_copy: Path) -> None:
     mine = study_copy / "figures" / "mine.png"
     mine.write_bytes(b"a user's own file")
@@ -95,6 +99,7 @@ def test_a_file_rlcompare_did_not_list_is_never_kept_nor_touched(study_copy: Pat
     assert "figures/mine.png" not in json.loads(ledger_path.read_text())["files"]
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_no_ledger_or_a_damaged_one_keeps_nothing(study_copy: Path) -> None:
     ledger = json.loads((study_copy / drawn.LEDGER).read_text())
     figure = study_copy / "figures" / "fig3-random.png"
@@ -111,6 +116,7 @@ def test_no_ledger_or_a_damaged_one_keeps_nothing(study_copy: Path) -> None:
     assert json.loads((study_copy / drawn.LEDGER).read_text()) == ledger  # written again, whole
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_a_retrained_configuration_draws_again_only_what_shows_it(study_copy: Path) -> None:
     """Another run in one configuration's directory (another step size here) changes the key of the figures and
     videos drawn from it, and of no other."""
@@ -130,6 +136,7 @@ def test_a_retrained_configuration_draws_again_only_what_shows_it(study_copy: Pa
         name for name in after if name.startswith("videos/sarsa-decay-")}
 
 
+@pytest.mark.slow("trains a study and draws its report, twice")
 def test_a_users_own_ledger_file_is_left_alone_and_nothing_kept(tmp_path: Path) -> None:
     """A directory shared with ``--force`` whose ``.drawn.json`` is the user's: the report draws everything and
     neither reads nor replaces that file."""

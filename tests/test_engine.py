@@ -461,6 +461,7 @@ def test_engine_equals_python_episodes(algorithm, max_steps, truncation_as_termi
         assert any(t for _, _, t in expected)  # the goal transition itself was compared
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_training_frees_every_array_it_allocates_once() -> None:
     """The episode loops give numba views without owners (``engine/borrowed.py``), so that it counts no references
     on a step; numba's own allocation counters still show every array a training allocates freed, none twice."""

@@ -19,6 +19,7 @@ def invoke(*args: str):
     return runner.invoke(cli.app, list(args), prog_name="rlcompare")
 
 
+@pytest.mark.slow("trains and reports studies on other environments")
 def test_cartpole_study_runs_the_papers_grid_and_reports_it_without_the_papers_numbers(tmp_path: Path) -> None:
     out = tmp_path / "cartpole"
     result = invoke("reproduce", "cartpole", "--seeds", "3", "--episodes", "300", "--no-videos", "--out", str(out))
@@ -58,6 +59,7 @@ def studies(tmp_path_factory) -> Path:
     return root
 
 
+@pytest.mark.slow("trains and reports studies on other environments")
 def test_cliff_report_sets_the_cliff_against_mountain_car_in_numbers(studies: Path) -> None:
     table = contrast_table({"cliff": load_pairs(studies / "cliff"), **sibling_studies(studies / "cliff")})
     assert list(table["study"]) == ["cliff", "paper", "paper"]

@@ -8,12 +8,14 @@ import subprocess
 import gymnasium as gym
 import imageio_ffmpeg
 import numpy as np
+import pytest
 from PIL import Image
 
 from rlcompare.envs.registry import environment
 from rlcompare.report import frames, video
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_the_painter_draws_gymnasiums_frame_pixel_for_pixel() -> None:
     env = gym.make("MountainCar-v0", render_mode="rgb_array")
     env.reset(seed=0)

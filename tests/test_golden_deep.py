@@ -84,6 +84,7 @@ def test_params_projections_tell_float32_rounding_from_a_change():
     assert params_moved({"w": projections(changed)}, expected) == ["w"]
 
 
+@pytest.mark.slow("trains the deep engine's golden configurations")
 def test_deep_golden_outputs_are_unchanged():
     found = {name: fingerprint(deep_run(config)) for name, config in CONFIGS.items()}
     if os.environ.get("RLCOMPARE_WRITE_GOLDEN"):

@@ -20,7 +20,7 @@ from rlcompare.experiment.engines import load_run
 from rlcompare.tabular.results import Results
 from rlcompare.tabular.state import Records
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.slow("kills a study in a process of its own and runs it again")
 
 ENV = {**os.environ, "COLUMNS": "300"}
 

@@ -25,6 +25,7 @@ def test_a_paired_t_test_finds_the_detectable_difference_four_times_in_five(seed
     assert weaker.mean() < 0.5
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 @pytest.mark.parametrize("seeds", [10, 30])
 def test_two_one_sided_tests_prove_the_provable_margin_about_four_times_in_five(seeds: int) -> None:
     spread = 2.0

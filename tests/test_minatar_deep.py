@@ -18,6 +18,7 @@ from rlcompare.tabular.config import ExperimentConfig  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_image_patches_times_a_dense_layer_is_flaxs_convolution():
     images = jax.random.bernoulli(jax.random.PRNGKey(0), 0.3, (5, 10, 10, 7)).astype(jnp.float32)
     ours = Conv3x3(16)
@@ -31,6 +32,7 @@ def test_image_patches_times_a_dense_layer_is_flaxs_convolution():
     assert np.asarray(patches_3x3(images[0])).shape == (8, 8, 63)
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_minatars_network_has_its_papers_shape():
     params = ConvNet(6, layer_norm=True).init(jax.random.PRNGKey(0), jnp.zeros((1, 10, 10, 4)))["params"]
     shapes = jax.tree.map(lambda array: array.shape, params)
@@ -41,6 +43,7 @@ def test_minatars_network_has_its_papers_shape():
     assert "LayerNorm_0" not in ConvNet(6).init(jax.random.PRNGKey(0), jnp.zeros((1, 10, 10, 4)))["params"]
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_the_pqn_pair_trains_on_a_minatar_game():
     env, rollout, steps = "MinAtar/Breakout-v0", 128 * 32, 128 * 32 * 4
     results = {algorithm: deep_run(DeepConfig(algorithm=algorithm, env=env, seeds=(0, 1), vmap_width=2,
@@ -74,6 +77,7 @@ def test_the_tabular_engine_refuses_an_image_environment_in_one_line():
     assert "MinAtar/Breakout-v0" in str(unknown.value)
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_one_game_object_serves_two_traces():
     """gymnax's game is built outside the first trace that asks for it, so the second trace does not meet the
     first one's leaked tracers (``UnexpectedTracerError``)."""

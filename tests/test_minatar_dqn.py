@@ -30,6 +30,7 @@ ENV = "MinAtar/Breakout-v0"
 
 # --- the replay buffer keeps the images as booleans ---
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_buffer_stores_boolean_images_as_the_environment_gives_them() -> None:
     env = minatar_env(ENV)
     config = dataclasses.replace(dqn_config.MINATAR, buffer_size=50, learning_starts=1_000)
@@ -90,6 +91,7 @@ def test_a_bad_optimizer_is_refused_naming_the_field() -> None:
 
 # --- the RMSProp step, by hand ---
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_rmsprop_steps_are_torchs_centered_rmsprop() -> None:
     """Two training steps of a tiny network equal torch's ``RMSprop(lr, alpha=0.95, eps=0.01, centered=True)``
     written out: ``v = 0.95 v + 0.05 g^2``, ``m = 0.95 m + 0.05 g``, ``θ -= lr g / (sqrt(v - m^2) + 0.01)``."""
@@ -136,6 +138,7 @@ def breakout_runs() -> dict[str, DeepResults]:
             for algorithm in ("dqn", "double_dqn")}
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 @pytest.mark.parametrize("algorithm", ["dqn", "double_dqn"])
 def test_dqn_and_double_dqn_train_on_breakout(breakout_runs: dict[str, DeepResults], algorithm: str) -> None:
     results = breakout_runs[algorithm]
@@ -154,6 +157,7 @@ def test_dqn_and_double_dqn_train_on_breakout(breakout_runs: dict[str, DeepResul
     assert results.config.method_config().optimizer == "rmsprop"
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_dqn_and_double_dqn_learn_differently(breakout_runs: dict[str, DeepResults]) -> None:
     kernel = "['params']['Dense_1']['kernel']"
     assert not np.array_equal(breakout_runs["dqn"].params[kernel], breakout_runs["double_dqn"].params[kernel])

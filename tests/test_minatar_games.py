@@ -260,6 +260,7 @@ def play_both(game: str, case: Case, seed: int) -> dict[str, int]:
     return {"steps": case.max_steps, "score": score, **seen}
 
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 @pytest.mark.parametrize("game", sorted(CASES))
 def test_whole_episodes_equal_the_reference(game: str):
     case = CASES[game]
@@ -283,6 +284,7 @@ def test_whole_episodes_equal_the_reference(game: str):
 
 # --- The random parts, by distribution ---
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_asterix_spawns_take_a_free_row_uniformly_and_none_when_all_are_taken():
     keys = jax.random.split(jax.random.PRNGKey(0), 4000)
     taken = jnp.zeros((8, 5), jnp.int32).at[jnp.array([0, 2, 5]), 4].set(1)
@@ -301,6 +303,7 @@ def test_asterix_spawns_take_a_free_row_uniformly_and_none_when_all_are_taken():
     assert np.all(np.asarray(jax.vmap(asterix_spawn, in_axes=(0, None))(keys[:200], one_free))[:, 6, 4] == 1)
 
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_freeway_speeds_and_directions_are_drawn_as_the_reference_draws_them():
     draws = [freeway_draws(key, None) for key in jax.random.split(jax.random.PRNGKey(1), 500)]
     speeds = np.concatenate([served.values["randint"][0] for served in draws])
@@ -312,6 +315,7 @@ def test_freeway_speeds_and_directions_are_drawn_as_the_reference_draws_them():
     assert stats.binomtest(int((directions > 0).sum()), directions.size, 0.5).pvalue > 1e-3
 
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_sticky_actions_repeat_the_last_action_one_step_in_ten():
     env = minatar_env("MinAtar/Breakout-v0")
     state = env.reset(jax.random.PRNGKey(0))
@@ -328,6 +332,7 @@ def test_sticky_actions_repeat_the_last_action_one_step_in_ten():
 
 # --- The protocols ---
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_each_protocol_ends_episodes_as_it_says():
     params_limit = {name: minatar_env(name).max_steps for name in ("Breakout-MinAtar", "Freeway-MinAtar")}
     assert params_limit == {"Breakout-MinAtar": 1000, "Freeway-MinAtar": 2500}

@@ -32,6 +32,7 @@ def _float64():
         yield
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 @pytest.mark.parametrize(("name", "channels", "n_actions"), [(BREAKOUT, 4, 6), ("Seaquest-MinAtar", 10, 6),
                                                               ("Freeway-MinAtar", 7, 3)])
 def test_the_actor_critic_reads_an_image(name: str, channels: int, n_actions: int) -> None:
@@ -51,6 +52,7 @@ def test_the_actor_critic_reads_an_image(name: str, channels: int, n_actions: in
     assert params.observations.mean.shape == (10, 10, channels)  # left at its start: never normalised
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_initialisation_scales_are_the_mlps() -> None:
     """Orthogonal with gain √2 for the dense layer, 0.01 for the policy head and 1 for the value head, zero biases;
     the convolution keeps flax's LeCun-normal (``nn.Conv``'s default)."""
@@ -108,6 +110,7 @@ def test_images_are_not_normalised() -> None:
     assert error.value.field_name == "normalize_observations"
 
 
+@pytest.mark.slow("trains networks on MinAtar")
 def test_ppo_trains_on_breakout() -> None:
     """Two seeds, 16 environments x 64 steps per update for 24 updates: the records are whole and finite, and the
     training episodes of the last third score a point above those of the first (a random policy's stay flat)."""

@@ -215,6 +215,7 @@ EPISODES = [(seed, 1000, None) for seed in range(3)] + [(seed, 700, hardest) for
 """(seed, steps before the policy ends the episode, start): three from the reset, three after the last ramp."""
 
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_whole_episodes_equal_the_reference():
     played = [play_both(seed, 3000, end_after, start) for seed, end_after, start in EPISODES]
     total = sum(played, Counter())
@@ -322,6 +323,7 @@ def crowded(rng: np.random.RandomState) -> ref_seaquest.Env:
     return ref
 
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_crowded_states_step_as_the_reference_removing_by_identity():
     """Random crowded states (SQ-1 to SQ-6 and their mixtures): one step of ours equals the reference's, where the
     reference's lists remove by identity, and gymnax's MinSeaquest (with our spawns) scores or ends otherwise on
@@ -358,6 +360,7 @@ def test_crowded_states_step_as_the_reference_removing_by_identity():
 
 # --- The random parts, by distribution ---
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_spawn_draws_have_the_reference_probabilities():
     keys = jax.random.split(jax.random.PRNGKey(7), 8000)
     draws = jax.device_get(jax.vmap(seaquest_draws)(keys))
@@ -389,6 +392,7 @@ def test_spawn_draws_have_the_reference_probabilities():
         assert stats.chi2_contingency(table).pvalue > 1e-3, name
 
 
+@pytest.mark.slow("plays whole episodes beside the reference package")
 def test_spawns_under_vmap_follow_the_draws():
     """Our step, vmapped over keys from a state with both spawns due: each spawn is the one its draws name (its
     timers counted down once in the step)."""

@@ -41,6 +41,7 @@ def study(tmp_path_factory):
     return out, result.output
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_the_study_writes_its_runs_and_a_report(study):
     out, output = study
     assert sorted(p.name for p in out.iterdir() if p.is_dir()) == [
@@ -63,6 +64,7 @@ def test_the_study_writes_its_runs_and_a_report(study):
     assert "sticky actions 0.1" in page
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_a_finished_study_is_loaded_not_trained_again(study):
     out, _ = study
     before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
@@ -115,6 +117,7 @@ def play(agent, env_step, reset, episodes: int) -> np.ndarray:
     return np.asarray(returns)
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_a_trained_agent_plays_the_reference_game_and_gymnasiums_as_it_plays_our_port(study):
     import gymnasium as gym
     from minatar.gym import register_envs
@@ -157,6 +160,7 @@ def test_the_smallest_p_the_report_quotes_is_the_signed_rank_tests():
         assert stats.wilcoxon(np.arange(1.0, seeds + 1)).pvalue == pytest.approx(smallest_p(seeds))
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our_port(tmp_path):
     """``Breakout-MinAtar`` (gymnax's protocol: the minimal actions, no sticky actions) is Gymnasium's
     ``MinAtar/Breakout-v1`` with sticky actions off."""
@@ -198,6 +202,7 @@ def test_every_method_trains_with_its_minatar_preset_when_asked():
     assert {c.env for c in configs.values()} == {"MinAtar/Seaquest-v0"}
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path):
     import dataclasses
 
@@ -217,7 +222,7 @@ def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path)
     assert [(name, reused) for name, _, reused in again] == [("pqn_q_lambda-breakout", True)]
 
 
-@pytest.mark.slow  # starting and stopping the cluster take about half a minute
+@pytest.mark.slow("starting and stopping the cluster take about half a minute")
 def test_the_study_on_a_ray_cluster_killed_and_resumed_equals_the_study_here(study, tmp_path):
     """The study's seed blocks as Ray tasks; its driver killed with SIGKILL once one run is written, then run
     again: the finished run is loaded, the other trained, and both equal the study trained here."""
@@ -326,6 +331,7 @@ def _rows_of(table, study):
     return table[table["study"].str.startswith(study)]
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other_studies, tmp_path):
     import html
 
@@ -357,6 +363,7 @@ def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other
             f"the deep study's 3 verdicts ({tmp_path / 'deep' / 'tables' / 'deep_verdicts.csv'}).") in page
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_without_the_other_studies_the_report_says_how_to_make_them(study):
     import html
 
@@ -385,6 +392,7 @@ def _verdicts_unlisted(directory):
 TABLES = {"paper": "tables/verdicts.csv", "deep": "tables/deep_verdicts.csv"}
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 @pytest.mark.parametrize(("name", "made_from", "change", "said"), [
     ("paper", "deep", None, "is not the paper study's (it holds the deep study): not read"),
     ("deep", "paper", None, "is not the deep study's (it holds the paper study): not read"),
@@ -409,6 +417,7 @@ def test_a_directory_that_is_not_the_study_s_is_not_read(other_studies, tmp_path
     assert found.malformed == []
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 @pytest.mark.parametrize("content", [b"\x00\xff\xfe\"unterminated\n", b"env,engine\nCartPole-v1,network\n",
                                      b"env,engine,metric,\"on - off (mean, 95% CI)\",p (Holm),verdict\n"
                                      b"CartPole-v1,network,final greedy return,\"1.0 [0.0, 2.0]\",0.5,\n"],
@@ -428,6 +437,7 @@ def test_a_malformed_verdict_file_is_one_line_naming_it_not_a_crash(other_studie
     assert "the deep study's verdict file could not be read" in found.sentence
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_an_empty_verdict_table_is_read_as_no_rows(other_studies, tmp_path):
     """A deep study run without the pair writes a table with no rows: read as none, not as malformed."""
     from rlcompare.studies.same_question import COLUMNS, beside
@@ -440,6 +450,7 @@ def test_an_empty_verdict_table_is_read_as_no_rows(other_studies, tmp_path):
     assert f"the deep study's 0 verdicts ({tmp_path / 'deep' / 'tables' / 'deep_verdicts.csv'})" in found.sentence
 
 
+@pytest.mark.slow("trains and reports MinAtar studies")
 def test_the_other_studies_can_be_named_where_they_are(other_studies, tmp_path):
     from rlcompare.studies import minatar as minatar_study
     from rlcompare.studies.same_question import COLUMNS, beside

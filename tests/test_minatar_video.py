@@ -67,6 +67,7 @@ def evaluated_episode(results: DeepResults, seed: int, stage: str) -> tuple[floa
     return float(returns[0]), int(lengths[0])
 
 
+@pytest.mark.slow("trains a network and renders its stages")
 def test_each_stage_plays_the_episode_its_evaluation_would(results: DeepResults) -> None:
     played = play_stages(results, seed=1)
     for index, stage in enumerate(results.stages):
@@ -76,6 +77,7 @@ def test_each_stage_plays_the_episode_its_evaluation_would(results: DeepResults)
         assert np.all(played.observations[index, length:] == played.observations[index, length])
 
 
+@pytest.mark.slow("trains a network and renders its stages")
 def test_the_frames_show_every_stage_side_by_side_until_the_longest_ends(results: DeepResults) -> None:
     played = play_stages(results, seed=0)
     colours = palette(played.observations.shape[-1])
@@ -90,6 +92,7 @@ def test_the_frames_show_every_stage_side_by_side_until_the_longest_ends(results
     assert stage_steps(results) == {"early": 512, "middle": 2_560, "final": 5_120}
 
 
+@pytest.mark.slow("trains a network and renders its stages")
 def test_a_video_and_its_preview_are_written(results: DeepResults, tmp_path) -> None:
     played = play_stages(results, 0, max_steps=30)
     colours = palette(played.observations.shape[-1])

@@ -37,6 +37,7 @@ def _policy(kind: str, velocity: float, generator: np.random.Generator) -> int:
     return 2 if velocity >= 0 else 0
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_transitions_equal_gymnasium(env):
     """At least 100,000 steps: every state, reward, termination and truncation equal (``==``)."""
     generator = np.random.default_rng(2024)

@@ -95,6 +95,7 @@ HAND_CASES = [
 ]
 
 
+@pytest.mark.slow("trains every one-step method")
 @pytest.mark.parametrize(("algorithm", "before", "w", "steps", "visits", "draws"), HAND_CASES)
 def test_one_step_episode_by_hand(algorithm, before, w, steps, visits, draws):
     w_out, _, steps_out, visits_out, agent_rng = _chain_episode(algorithm, before)
@@ -104,6 +105,7 @@ def test_one_step_episode_by_hand(algorithm, before, w, steps, visits, draws):
     np.testing.assert_array_equal(agent_rng, _after(0, draws))
 
 
+@pytest.mark.slow("trains every one-step method")
 @pytest.mark.parametrize("before", [False, True])
 def test_double_q_learning_episode_by_hand(before):
     """Q2 = 0 and every coin updates Q1, so each target is R + γ Q2(S', argmax Q1) = R.

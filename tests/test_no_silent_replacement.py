@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from rlcompare import cli
@@ -23,6 +24,7 @@ def _contents(directory: Path) -> dict[str, str]:
             for p in sorted(directory.rglob("*")) if p.is_file()}
 
 
+@pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp_path: Path) -> None:
     out = tmp_path / "paper"
     first = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
@@ -57,6 +59,7 @@ def test_a_run_with_other_settings_is_refused_in_its_directory(tmp_path: Path) -
     assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
 
 
+@pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_line(tmp_path: Path) -> None:
     """A real second process: ``report`` and a second ``reproduce`` on a directory a running ``reproduce`` is
     writing are refused in one line naming its process; the first finishes untouched."""
@@ -87,6 +90,7 @@ def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_lin
     assert "Report:" in first_out
 
 
+@pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_writer(tmp_path: Path) -> None:
     """A real second process: ``report`` of a run directory ``run`` is still writing, and a second ``run`` into it,
     are refused in one line naming the writer (before, ``report`` failed on the files not yet there); the writer

@@ -93,6 +93,7 @@ def study_copy(study: Path, tmp_path: Path) -> Path:
 
 # --- 1. names, and directories that hold something else ------------------------------------------------
 
+@pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_sweep_into_a_study_directory_is_refused_and_report_builds_the_study(study_copy: Path, tmp_path: Path
                                                                            ) -> None:
     sweep_file = tmp_path / "s.toml"
@@ -146,6 +147,7 @@ def test_a_marker_whose_first_write_was_killed_is_written_again(tmp_path: Path) 
     assert sorted(p.name for p in beside.iterdir()) == [f".{store.MARKER_FILE}.k1ll3d.tmp", "notes.txt"]
 
 
+@pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_force_writes_beside_a_users_files_but_never_over_them(tmp_path: Path) -> None:
     target = tmp_path / "mine"
     target.mkdir()
@@ -170,6 +172,7 @@ def test_force_writes_beside_a_users_files_but_never_over_them(tmp_path: Path) -
     assert_untouched(run_dir, files)
 
 
+@pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_a_report_deletes_only_the_figures_it_wrote(study_copy: Path) -> None:
     assert invoke("report", str(study_copy), "--no-videos").exit_code == 0
     (study_copy / "figures" / "mine.png").write_bytes(b"my figure")
@@ -212,6 +215,7 @@ def test_another_study_into_a_study_directory_is_refused(study_copy: Path) -> No
 
 # --- 3. two processes, one store ------------------------------------------------------------------------
 
+@pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_a_second_sweep_into_a_store_in_use_stops_and_the_first_runs_each_trial_once(tmp_path: Path) -> None:
     sweep_file = tmp_path / "s.toml"
     sweep_file.write_text(SWEEP.replace("seeds = 2", "seeds = 6").replace("episodes = 20", "episodes = 20000"))
@@ -254,6 +258,7 @@ def test_the_lock_is_released_when_its_holder_dies(tmp_path: Path) -> None:
 
 # --- 4, 5. files that do not belong together -------------------------------------------------------------
 
+@pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_another_configurations_files_in_a_run_directory_are_refused_and_retrained(study_copy: Path) -> None:
     original = load_run(study_copy / "sarsa-decay")
     for name in (rundir.EPISODES_FILE, rundir.QTABLES_FILE):
@@ -444,7 +449,7 @@ def test_a_full_disk_is_one_clear_error(command: str, study: Path, tmp_path: Pat
         assert not (fs / "out").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_a_disk_that_fills_mid_study_keeps_the_finished_runs_and_resumes_once_there_is_room(tmp_path: Path) -> None:
     """``reproduce why`` on a file system with room for a few of its 12 runs: one clear line when a run cannot be
     written, every run written before it kept and whole; with room again, the same command loads those, trains

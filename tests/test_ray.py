@@ -35,6 +35,8 @@ from rlcompare.tabular.state import Records
 
 pytest.importorskip("ray")
 
+pytestmark = pytest.mark.slow("starts a Ray cluster on loopback")
+
 RAY = str(Path(sys.executable).parent / "ray")
 LOOPBACK = "127.0.0.1"
 RAY_START = f"""

@@ -56,6 +56,7 @@ def study_copy(study: Path, tmp_path: Path) -> Path:
     return Path(shutil.copytree(study, tmp_path / "study"))
 
 
+@pytest.mark.slow("trains a study and builds its report")
 def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     outcome = build_report(study_copy, videos=False)
     assert outcome.problems == []
@@ -113,6 +114,7 @@ def overlapping_or_cut(figure: Figure) -> list[str]:
     return problems
 
 
+@pytest.mark.slow("trains a study and builds its report")
 def test_figures_laid_out_by_hand_keep_every_label_inside_and_apart(study: Path) -> None:
     runs, _ = load_study(study)
     learners = [runs[name] for name in CONFIGURATIONS if name != "random"]
@@ -220,6 +222,7 @@ def test_paired_difference_figure_draws_each_seed_and_the_mean_with_its_interval
     assert paired_difference_figure({"sarsa-decay": decay[0]}) is None
 
 
+@pytest.mark.slow("trains a study and builds its report")
 def test_paired_difference_figure_reads_the_numbers_of_table_ii(study: Path) -> None:
     runs, _ = load_study(study)
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
@@ -235,6 +238,7 @@ def test_paired_difference_figure_reads_the_numbers_of_table_ii(study: Path) -> 
                                figure.axes[0].collections[0].get_offsets())  # the same numbers from the runs alone
 
 
+@pytest.mark.slow("trains a study and builds its report")
 def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_copy: Path) -> None:
     (study_copy / "sarsa-decay" / rundir.EPISODES_FILE).unlink()
     (study_copy / "q_learning-constant" / rundir.QTABLES_FILE).write_bytes(b"not a zip file")
@@ -334,6 +338,7 @@ def test_a_time_to_converge_around_the_end_of_the_decay_is_flagged_as_the_schedu
     assert notes[0].endswith("From there SARSA's target is Q-Learning's.")
 
 
+@pytest.mark.slow("trains a study and builds its report")
 def test_the_paper_report_draws_rliable_s_aggregates_of_the_four_learners(study_copy: Path) -> None:
     from rlcompare.studies.paper_report import load_study, paper_aggregates
 

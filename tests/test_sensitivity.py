@@ -50,6 +50,7 @@ def tiny_study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
 # --- the study through the command line --------------------------------------------------------------------
 
 
+@pytest.mark.slow("runs the sensitivity sweep")
 def test_the_study_runs_a_sweep_inside_its_directory_and_reports(tiny_study: tuple[Path, str]) -> None:
     out, output = tiny_study
     assert "6 configurations x 3 seeds = 18 trials of 30 episodes" in output
@@ -73,6 +74,7 @@ def test_the_study_runs_a_sweep_inside_its_directory_and_reports(tiny_study: tup
     assert "each metric is one family of 3 tests" in html
 
 
+@pytest.mark.slow("runs the sensitivity sweep")
 def test_report_rebuilds_the_study_from_its_store(tiny_study: tuple[Path, str], tmp_path: Path) -> None:
     out = tmp_path / "copy"
     shutil.copytree(tiny_study[0], out)
@@ -83,6 +85,7 @@ def test_report_rebuilds_the_study_from_its_store(tiny_study: tuple[Path, str], 
     assert "Sensitivity: SARSA against Q-Learning" in (out / "report.html").read_text()
 
 
+@pytest.mark.slow("runs the sensitivity sweep")
 def test_resume_does_not_retrain_finished_trials(tiny_study: tuple[Path, str], tmp_path: Path) -> None:
     out = tmp_path / "copy"
     shutil.copytree(tiny_study[0], out)
@@ -103,6 +106,7 @@ def test_resume_does_not_retrain_finished_trials(tiny_study: tuple[Path, str], t
     assert (removed / "meta.json").is_file()
 
 
+@pytest.mark.slow("runs the sensitivity sweep")
 def test_a_wider_schedule_block_trains_only_its_new_configurations(tiny_study: tuple[Path, str],
                                                                    tmp_path: Path) -> None:
     out = tmp_path / "copy"
@@ -117,6 +121,7 @@ def test_a_wider_schedule_block_trains_only_its_new_configurations(tiny_study: t
     assert sorted(cells.loc[cells["schedule"] == "constant", "epsilon_end"]) == [0.25, 0.5]
 
 
+@pytest.mark.slow("runs the sensitivity sweep")
 def test_the_paired_difference_of_a_cell_is_the_one_computed_by_hand(tiny_study: tuple[Path, str]) -> None:
     root = tiny_study[0] / "sweep"
     cells = sensitivity_grid.compare_cells(sensitivity_grid.seed_returns(root))

@@ -33,6 +33,7 @@ def test_iqm_follows_the_axis():
 # --- bootstrap intervals ----------------------------------------------------------------------------
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_mean_interval_covers_the_true_mean_of_skewed_data_at_about_the_nominal_rate():
     # Exponential(1), n = 30: true mean 1. BCa covers about 0.93 here (3000 datasets); 500 datasets give
     # a binomial standard error of about 0.011.
@@ -44,6 +45,7 @@ def test_mean_interval_covers_the_true_mean_of_skewed_data_at_about_the_nominal_
     assert 0.90 <= np.mean(hits) <= 0.985
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_iqm_interval_covers_the_true_iqm_at_about_the_nominal_rate():
     # Normal(0, 1), n = 40 (10 cut from each end): symmetric, so the population IQM is the mean, 0.
     rng = np.random.default_rng(7)

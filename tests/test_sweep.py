@@ -167,6 +167,7 @@ def _toml(document: dict) -> str | None:
         return None
 
 
+@pytest.mark.slow("runs sweeps")
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(DOCUMENTS)
 def test_no_sweep_document_makes_the_loader_raise_anything_but_its_own_error(document: dict) -> None:
@@ -243,6 +244,7 @@ def test_results_do_not_depend_on_the_number_of_workers(small_store: Path, tmp_p
         _assert_same_records(ours[key].records, theirs[key].records)
 
 
+@pytest.mark.slow("runs sweeps")
 def test_rerun_skips_finished_trials_and_runs_what_is_missing_or_partial(small_store: Path, tmp_path: Path) -> None:
     out = tmp_path / "copy"
     import shutil
@@ -268,6 +270,7 @@ def test_a_grown_sweep_runs_only_its_new_trials(small_store: Path, tmp_path: Pat
     assert run_sweep(parse_sweep(grown), grown, tmp_path / "grown", LocalBackend(2)) == (15, 6)
 
 
+@pytest.mark.slow("runs sweeps")
 def test_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_result(small_store: Path, tmp_path: Path) -> None:
     """The command line, killed with SIGKILL once some trials are saved, then run again: every trial once, each
     equal to the uninterrupted run's, and nothing left behind that looks finished."""
@@ -314,6 +317,7 @@ def _uninterrupted(sweep_file: Path, out: Path) -> Path:
 # --- the command line and the report ------------------------------------------------------------------
 
 
+@pytest.mark.slow("runs sweeps")
 def test_sweep_command_runs_reports_and_groups(tmp_path: Path) -> None:
     sweep_file = tmp_path / "small.toml"
     sweep_file.write_text(SMALL)

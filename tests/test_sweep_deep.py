@@ -221,6 +221,7 @@ def deep_store(tmp_path_factory) -> tuple[Path, Path, str]:
     return sweep_file, out, result.output
 
 
+@pytest.mark.slow("runs deep sweeps")
 def test_each_trial_is_a_deep_run_directory_and_the_manifest_is_done(deep_store) -> None:
     _, out, output = deep_store
     assert "deep-tiny: 2 configurations x 2 seeds = 4 trials on the local backend" in output
@@ -237,6 +238,7 @@ def test_each_trial_is_a_deep_run_directory_and_the_manifest_is_done(deep_store)
         assert store.read_json(trial_dir / rundir.CONFIG_FILE) == config_dict(trial.config)
 
 
+@pytest.mark.slow("runs deep sweeps")
 def test_trials_merge_per_configuration_in_the_sweep_order_of_seeds(deep_store) -> None:
     _, out, _ = deep_store
     sweep = parse_sweep(TINY)
@@ -257,6 +259,7 @@ def test_trials_merge_per_configuration_in_the_sweep_order_of_seeds(deep_store) 
     assert set(episodes["algorithm"]) == {"pqn_q_lambda", "pqn_sarsa_lambda"}
 
 
+@pytest.mark.slow("runs deep sweeps")
 def test_the_report_tables_every_deep_configuration(deep_store) -> None:
     _, out, _ = deep_store
     table = pd.read_csv(out / "tables" / "configurations.csv")
@@ -268,6 +271,7 @@ def test_the_report_tables_every_deep_configuration(deep_store) -> None:
     assert "4 of 4 trials finished" in (out / "report.html").read_text()
 
 
+@pytest.mark.slow("runs deep sweeps")
 def test_a_finished_deep_sweep_resumes_without_training_and_redoes_a_broken_trial(deep_store, tmp_path: Path) -> None:
     import shutil
 
@@ -316,7 +320,7 @@ def test_the_report_draws_deep_metrics_across_a_swept_hyperparameter() -> None:
 # --- the Ray backend -----------------------------------------------------------------------------------------
 
 
-@pytest.mark.slow  # starting and stopping the cluster take about half a minute
+@pytest.mark.slow("starting and stopping the cluster take about half a minute")
 def test_a_deep_sweep_on_a_ray_cluster_equals_the_local_backend(deep_store, tmp_path: Path) -> None:
     """A head node on loopback (tests/test_ray.py's), one CPU, the tiny sweep's first seed (the seeds depend on their
     index alone): every trial once, equal to the local backend's."""

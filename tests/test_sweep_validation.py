@@ -186,6 +186,7 @@ def test_a_huge_count_on_the_command_line_is_one_line_and_exit_2(option: str, va
 # --- what an error quotes -------------------------------------------------------------------------------
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_a_huge_value_in_a_sweep_file_is_quoted_in_part() -> None:
     big = "x" * 1_000_000
     text = tomli_w.dumps({"sweep": {"name": big, "root_seed": big, "seeds": big}, "fixed": {"gamma": big},

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 from rlcompare import ExperimentConfig, run
 from rlcompare.envs.table import from_gymnasium, observe, reset, step
@@ -47,6 +48,7 @@ def test_frozen_lake_table_is_gymnasiums_and_q_learning_learns_it() -> None:
     assert success > 0.6  # the optimal policy of the slippery 4x4 lake reaches the goal about 74% of the time
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_tables_stay_in_step_with_gymnasium_over_many_episodes() -> None:
     """Seeded once, then plain resets: every reset and step draws one uniform from the environment stream,
     as Gymnasium's ``categorical_sample`` does, so starts (Taxi) and slips (FrozenLake) stay equal episode

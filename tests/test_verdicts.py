@@ -375,6 +375,7 @@ def test_convergence_by_rule_reads_every_rule_and_the_greedy_curve():
     assert np.isnan(convergence(no_greedy, Rule(curve="greedy"))).all()
 
 
+@pytest.mark.slow("compiles or trains for a second or more")
 def test_a_verdict_that_changes_with_the_band_is_marked_fragile():
     sarsa, q = _curves()
     greedy = np.where(np.arange(EPISODES // 50) < 8, -1000.0, -250.0)[None, :, None].repeat(8, 0).repeat(2, 2)

@@ -117,6 +117,7 @@ def test_stage_titles_name_algorithm_schedule_stage_and_episode() -> None:
     assert captions.stage_title(ExperimentConfig(algorithm="random"), None) == "Random · uniform actions"
 
 
+@pytest.mark.slow("renders videos")
 def test_mp4_is_h264_with_every_frame(tmp_path: Path, pump_episode: video.Episode) -> None:
     path = encode.write_mp4(pump_episode.frames, tmp_path / "pump.mp4")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pump.mp4"]  # no temporary file left
@@ -145,6 +146,7 @@ def test_gif_is_smaller_and_loops(tmp_path: Path, pump_episode: video.Episode) -
     assert 0 < path.stat().st_size < 2_000_000
 
 
+@pytest.mark.slow("renders videos")
 def test_writes_are_atomic_and_sizes_made_even(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     odd = [rng.integers(0, 256, (17, 31, 3), dtype=np.uint8) for _ in range(3)]
@@ -165,6 +167,7 @@ def test_writes_are_atomic_and_sizes_made_even(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["odd.mp4"]
 
 
+@pytest.mark.slow("renders videos")
 def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir: Path) -> None:
     paths = video.render_stage_videos(run_dir, tmp_path / "all", seed=0, max_steps=40)
     stems = [f"q_learning-decay-seed0-{stage}" for stage in ("early", "middle", "final")]
@@ -185,6 +188,7 @@ def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir:
         video.render_stage_videos(run_dir, tmp_path / "x", seed=5)
 
 
+@pytest.mark.slow("renders videos")
 def test_a_stage_video_shows_every_second_step_and_its_gif_every_third(tmp_path: Path, run_dir: Path) -> None:
     """Only the steps the MP4 or the GIF shows are drawn: the MP4 holds every second step's frame (and the last),
     the GIF is the one :func:`~rlcompare.report.encode.write_gif` makes of every frame of the episode."""
@@ -201,6 +205,7 @@ def test_a_stage_video_shows_every_second_step_and_its_gif_every_third(tmp_path:
     assert gif.read_bytes() == encode.write_gif(episode.frames, tmp_path / "all.gif").read_bytes()
 
 
+@pytest.mark.slow("renders videos")
 def test_workers_write_the_same_files_as_one_process(tmp_path: Path, run_dir: Path) -> None:
     def plan(out: Path) -> list[video.VideoJob]:
         return video.plan_stage_videos(run_dir, out, seed=0, stages=["early", "final"], max_steps=40)
@@ -225,6 +230,7 @@ def test_workers_write_the_same_files_as_one_process(tmp_path: Path, run_dir: Pa
         video.render_videos([good], workers=0)
 
 
+@pytest.mark.slow("renders videos")
 def test_random_baseline_gets_one_video(tmp_path: Path) -> None:
     run(ExperimentConfig(algorithm="random", seeds=(2,), episodes=10, eval_every=0, max_steps=30),
         out=tmp_path / "random")

@@ -79,6 +79,7 @@ def test_windows_split_training_and_greedy_returns_read_the_rounds_inside():
     assert why.windows(120) == {"all training": (0, 120), "first 60": (0, 60), "last 60": (60, 120)}
 
 
+@pytest.mark.slow("trains the why study")
 def test_report_opens_with_findings_and_names_every_term(study):
     out, runs = study
     path = why.report(out, runs=runs).path
@@ -92,6 +93,7 @@ def test_report_opens_with_findings_and_names_every_term(study):
     assert (out / "tables" / "decomposition.csv").is_file()
 
 
+@pytest.mark.slow("trains the why study")
 def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findings(study):
     from rlcompare.studies.paper import paper_configs, reproduce
     from rlcompare.studies.paper_claims import CLAIMS
@@ -153,6 +155,7 @@ def test_the_opening_says_the_gaps_in_words_with_the_labels():
                                "1 of them fragile (another convergence rule decides it the other way).")
 
 
+@pytest.mark.slow("trains the why study")
 def test_reproduce_why_through_the_cli_then_report_rebuilds_it(tmp_path):
     from typer.testing import CliRunner
 
@@ -190,6 +193,7 @@ def test_bad_input_is_one_clear_message_and_exit_2(tmp_path, arguments, field):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow("trains the why study")
 def test_a_missing_or_damaged_cell_is_named_and_the_rest_still_decomposed(study, tmp_path):
     import shutil
 
@@ -221,6 +225,7 @@ def test_the_answer_names_the_largest_part_of_each_schedule_in_brief():
     assert why.in_brief(pd.DataFrame(rows[1:]).assign(schedule="decay")).count("with ε") == 1
 
 
+@pytest.mark.slow("trains the why study")
 def test_a_window_without_a_greedy_evaluation_says_so_instead_of_a_number(tmp_path):
     """30 episodes with evaluations every 50: the last window holds no greedy round; the answer says there is
     nothing to compare, never "nan"."""
