@@ -1,17 +1,28 @@
-"""What many tests share: the command line, in this process or in a process of its own, a small study of the paper,
-and the digests of a directory's files (to show that nothing changed)."""
+"""What many tests share: the command line, in this process or in a process of its own; a process killed once it has
+written what a test waits for, and runs compared bit for bit; a small study of the paper; and the digests of a
+directory's files (to show that nothing changed)."""
 
 from __future__ import annotations
 
 import hashlib
 import os
+import signal
 import subprocess
 import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pandas as pd
 from click.testing import Result
 from typer.testing import CliRunner
+
+from rlcompare.experiment import rundir
+from rlcompare.experiment.engines import load_run
+from rlcompare.tabular.results import Results
+from rlcompare.tabular.state import Records
 
 
 def invoke(*args: str, columns: int | None = 200, **options: Any) -> Result:
@@ -43,3 +54,47 @@ def paper_study(path: Path, seeds: int, episodes: int, **settings: Any) -> Path:
 
     list(reproduce(path, paper_configs(tuple(range(seeds)), episodes, **settings)))
     return path
+
+
+ENV = {**os.environ, "COLUMNS": "300"}
+
+
+def start(command: list[str], log: Path, env: dict[str, str] = ENV) -> subprocess.Popen[bytes]:
+    """``command`` in a process group of its own (killed whole), its output to ``log``."""
+    with log.open("wb") as output:
+        return subprocess.Popen(command, stdout=output, stderr=output, start_new_session=True, env=env)
+
+
+def kill_when(process: subprocess.Popen[bytes], ready: Callable[[], bool], log: Path, timeout: float = 240) -> None:
+    """Wait until ``ready()`` (the process still running), then kill its whole process group."""
+    deadline = time.monotonic() + timeout
+    while not ready() and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.02)
+    assert process.poll() is None, log.read_text()
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+
+
+def finished_runs(study: Path) -> list[str]:
+    """The runs of ``study`` that finished: those with ``meta.json``, written last."""
+    return sorted(p.parent.name for p in study.glob(f"*/{rundir.META_FILE}"))
+
+
+def assert_same_runs(resumed: Path, uninterrupted: Path, names: list[str]) -> None:
+    """Each run ``names`` of one study directory equals the other's: every record of a tabular run, every episode,
+    evaluation and parameter (final and at each stage) of a deep one."""
+    for name in names:
+        ours, theirs = load_run(resumed / name), load_run(uninterrupted / name)
+        if isinstance(theirs, Results):
+            for field in Records._fields:
+                np.testing.assert_array_equal(getattr(ours.records, field), getattr(theirs.records, field),
+                                              err_msg=f"{name}: {field}")
+            continue
+        pd.testing.assert_frame_equal(ours.episodes, theirs.episodes)
+        pd.testing.assert_frame_equal(ours.evaluations, theirs.evaluations)
+        assert ours.params.keys() == theirs.params.keys()
+        assert ours.snapshots.keys() == theirs.snapshots.keys()
+        for stage, arrays in [("final", theirs.params), *theirs.snapshots.items()]:
+            mine = ours.params if stage == "final" else ours.snapshots[stage]
+            for key, array in arrays.items():
+                np.testing.assert_array_equal(mine[key], array, err_msg=f"{name}: {stage} {key}")

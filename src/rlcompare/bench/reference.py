@@ -5,7 +5,7 @@ the dynamics, the grid and the update inline (the greedy choice, ties broken at 
 :mod:`rlcompare.algorithms.policies`', a loop over one row). Each trains every run of ``w`` (runs, cells, actions)
 over the episodes of ``epsilons`` and keeps what rlcompare's records keep per episode (return and length); it draws
 from the same per-run streams (``rng[run, 0]`` resets, ``rng[run, 1]`` the agent's choices) in the same order, so
-its returns equal rlcompare's (tests/test_benchmark.py checks it). A row's ratio to its reference is what
+its returns equal rlcompare's (tests/engines/test_benchmark.py checks it). A row's ratio to its reference is what
 rlcompare's composition (environments, features and methods chosen by type, records, evaluation hooks) costs or
 saves.
 

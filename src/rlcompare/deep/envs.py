@@ -1,8 +1,8 @@
 """Gymnasium's classic-control environments as pure JAX functions, for the deep engine.
 
-The state is float64, as in Gymnasium, and the network sees it rounded to float32, as Gymnasium returns it.
-The dynamics are written in Gymnasium's order of operations (the numba ports in :mod:`rlcompare.envs` are
-the same equations), so a transition from the same state equals Gymnasium's (``==``; ``tests/test_deep_envs.py``),
+The state is float64, as in Gymnasium, and the network sees it rounded to float32, as Gymnasium returns it. The
+dynamics are written in Gymnasium's order of operations (the numba ports in :mod:`rlcompare.envs` are the same
+equations), so a transition from the same state equals Gymnasium's (``==``; ``tests/parity/test_deep_envs.py``),
 jitted, under ``vmap`` and in a scanned rollout alike. Resets draw from JAX's generator, not NumPy's, so a start
 state equals Gymnasium's only in distribution.
 

@@ -2,7 +2,7 @@
 :mod:`rlcompare.envs.minatar`.
 
 The ports are checked against the reference ``minatar`` package (1.0.15), whole episodes at a time, in
-``tests/test_minatar_games.py``; where gymnax departs from the reference the port here follows the reference
+``tests/parity/test_minatar_games.py``; where gymnax departs from the reference the port here follows the reference
 (``docs/minatar.md`` lists each case). The state carries the last action taken, which a sticky action repeats.
 Observations are booleans, ``(10, 10, channels)``, until the network.
 """

@@ -54,7 +54,7 @@ class MLP(nn.Module):
 def patches_3x3(x: jax.Array) -> jax.Array:
     """``(..., H, W, C) -> (..., H - 2, W - 2, 9 C)``: every 3 x 3 window of an image, its values ordered by channel,
     then row, then column, in ``x``'s dtype: the values of ``lax.conv_general_dilated_patches`` in its order
-    (``tests/test_deep_networks.py``), taken by one gather, several times faster on a CPU than that one-hot
+    (``tests/unit/test_deep_networks.py``), taken by one gather, several times faster on a CPU than that one-hot
     convolution, and faster than stacking nine shifted slices (which XLA:CPU then interleaves): PQN and PPO on
     MinAtar take about a quarter more steps per second, the same bits."""
     height, width, depth = x.shape[-3:]
@@ -68,7 +68,7 @@ def patches_3x3(x: jax.Array) -> jax.Array:
 class Conv3x3(nn.Module):
     """A 3 x 3 convolution, stride 1, no padding, computed as a dense layer over :func:`patches_3x3`: the same
     function as ``nn.Conv(features, (3, 3), padding="VALID")`` (its kernel is this one's, reshaped;
-    ``tests/test_deep_networks.py``), about ten times faster on a CPU, where XLA's convolution is slow for small
+    ``tests/unit/test_deep_networks.py``), about ten times faster on a CPU, where XLA's convolution is slow for small
     images."""
 
     features: int

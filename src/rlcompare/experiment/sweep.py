@@ -1,37 +1,12 @@
 """A sweep: a grid of configurations over many seeds, read from a TOML file and validated before anything runs.
 
-```toml
-[sweep]
-name = "alpha"          # a label for the report and the store's directory name
-root_seed = 0           # the seeds of every configuration derive from it
-seeds = 10              # seeds per configuration
-
-[fixed]                 # every configuration: any ExperimentConfig field but seeds
-episodes = 2000
-
-[grid]                  # every combination of these lists
-env = ["MountainCar-v0", "CartPole-v1"]
-algorithm = ["q_learning", "sarsa"]
-alpha = [0.05, 0.1, 0.2]
-
-[[include]]             # more configurations, one table each, over [fixed] (not crossed with [grid])
-env = "Acrobot-v1"
-algorithm = "sarsa"
-```
-
-With ``engine = "deep"`` in [sweep] the configurations are :class:`~rlcompare.deep.run.DeepConfig`'s: the keys
-are its fields but ``seeds`` and ``vmap_width`` (a trial trains one seed), and the method's hyperparameters as
-``hyperparameters.NAME`` (a dotted key: ``hyperparameters.lam = [0.0, 0.9]`` in [grid]). The deep engine, and
-so JAX, is imported only then.
-
-A trial is one configuration with one seed, the unit the backends run and the store keeps. The seeds are
-``np.random.SeedSequence(root_seed).spawn(seeds)``, each child's first 63 bits: they depend on the root seed
-and the seed's index alone, not on the order in which trials happen to run, and every configuration gets the
-same ones, so configurations are compared on common random numbers (paired seeds, the same start states).
-
-Every mistake in the file is reported at once, each with the key's path and what is allowed
-(:class:`SweepError`); nothing runs until the whole sweep is valid. A sweep names at least one configuration
-(a [grid] list or an [[include]] table), each configuration once.
+The file's tables (``[sweep]``, ``[fixed]``, ``[grid]``, ``[[include]]``) and keys, for the tabular engine and
+for ``engine = "deep"`` (whose JAX is imported only then), are in ``docs/sweeps.md``. A trial is one configuration
+with one seed, the unit the backends run and the store keeps. The seeds are
+``np.random.SeedSequence(root_seed).spawn(seeds)``, each child's first 63 bits: they depend on the root seed and
+the seed's index alone, and every configuration gets the same ones, so configurations are compared on common random
+numbers. Every mistake in the file is reported at once, each with the key's path and what is allowed
+(:class:`SweepError`); nothing runs until the whole sweep is valid.
 """
 
 from __future__ import annotations

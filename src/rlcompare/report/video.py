@@ -1,38 +1,18 @@
 """Videos of the greedy agents at the stages of learning, in the pictures Gymnasium's own renderer draws.
 
-The paper shows "three videos showing how the agents solve the problem in three stages of learning".
-For one run directory (one configuration) and one training seed, :func:`render_stage_videos` loads the
-stored Q-table of every stage (``config.stages``; by default early, middle and final), plays one episode
-of its greedy policy in ``gymnasium.make(env_id, render_mode="rgb_array")`` (``MountainCar-v0`` for the
-paper and the book's variant, whose trajectories are the same) from the start state
-of ``env.reset(seed=episode_seed)``, and writes an H.264 MP4 (and a small looping GIF) per stage. Every
-stage starts from the same start state, so the videos differ only by what the agent has learned.
+The paper shows "three videos showing how the agents solve the problem in three stages of learning". For one run
+directory and one training seed, :func:`render_stage_videos` loads the stored Q-table of every stage
+(``config.stages``), plays one episode of its greedy policy from the start state of
+``env.reset(seed=episode_seed)`` (the same for every stage, so the videos differ only by what was learned), and
+writes an H.264 MP4 and a small looping GIF per stage. The random baseline, whose stages would all show the same
+policy, gets one video of its seeded random policy.
 
-Each frame is played by :mod:`rlcompare.report.play`, captioned by :mod:`rlcompare.report.captions` (the
-algorithm, the schedule, the stage and the return so far, in a strip above Gymnasium's picture, which is left
-untouched) and encoded by :mod:`rlcompare.report.encode`; between them frames travel as packed pixels
-(:mod:`rlcompare.report.frames`).
-
-The random baseline does not learn, so its stages would all show the same policy: it gets one video,
-``random-seed{seed}.mp4``, of the uniform random policy (its action stream is seeded by the training seed,
-so the video is reproducible).
-
-Rendering needs no display (:mod:`rlcompare.report.play` sets that up on the first render). Importing this
-module changes nothing.
-
-Videos render in parallel, one per worker process (:func:`render_videos`; ``workers=1`` renders them in
-this process, one after the other), or in the background while the caller does other work
-(:func:`start_videos`, which the report uses: its own process takes the videos no worker has started once its
-figures are done), and the files are the same byte for byte whatever the number of workers. Workers start with
-``spawn``, so a script that renders in other processes needs the usual ``if __name__ == "__main__":`` guard.
-
-Cost, measured on 2 cores: an episode plays at Gymnasium's 30 steps a second and its MP4 shows every second step
-at 15 frames a second (:data:`~rlcompare.report.encode.MP4_EVERY`), its GIF every third; the steps neither shows
-are stepped but not drawn. The paper's 21 videos (4,282 steps, 2,157 MP4 frames, 1,451 GIF frames) take 6.2 s in
-one process, of which about 1.9 s waits on ffmpeg (12.3 s when every step was drawn and encoded at 30 frames a
-second). So by default one worker renders per two cores (:func:`default_workers`), beside the report's own
-process. Each worker spends about 0.7 s of a core starting (imports, the compiled grid lookup), once for all its
-videos, and loads each run once for all its videos (:func:`render_job`).
+Frames are played by :mod:`rlcompare.report.play`, captioned by :mod:`rlcompare.report.captions` above Gymnasium's
+untouched picture, and encoded by :mod:`rlcompare.report.encode`. Videos render in worker processes
+(:func:`render_videos`; by default one per two cores, :func:`default_workers`) or in the background while the
+report draws its figures (:func:`start_videos`), byte for byte the same whatever the number of workers. Workers
+start with ``spawn``, so a script that renders in other processes needs the ``if __name__ == "__main__":`` guard.
+What it costs: the README, "How long it takes".
 """
 
 from __future__ import annotations

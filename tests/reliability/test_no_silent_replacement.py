@@ -1,0 +1,116 @@
+"""Results made with other settings are never replaced without a word: a study or a run asked into a directory
+that holds finished runs made otherwise is refused in one line naming the differing settings and the choices,
+with nothing written; the same settings resume; ``--force`` replaces."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from helpers import digests, invoke
+
+
+@pytest.mark.slow("runs two rlcompare processes on one directory")
+def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    first = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
+    assert first.exit_code == 0, first.output
+    before = digests(out)
+    refused = invoke("reproduce", "--seeds", "2", "--episodes", "20", "--no-videos", "--out", str(out))
+    assert refused.exit_code == 2
+    lines = refused.output.strip().splitlines()
+    assert len(lines) == 1
+    assert "holds finished runs made with other settings" in lines[0]
+    assert "seeds 0-2 there, 0, 1 asked" in lines[0]
+    assert "--force" in lines[0]
+    assert "another --out" in lines[0]
+    assert "Traceback" not in refused.output
+    assert digests(out) == before
+    again = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
+    assert again.exit_code == 0, again.output  # the same settings resume: every run loaded
+    assert again.output.count("loaded (already complete)") == 9
+    replaced = invoke("reproduce", "--seeds", "2", "--episodes", "20", "--no-videos", "--out", str(out), "--force")
+    assert replaced.exit_code == 0, replaced.output
+    assert digests(out) != before
+
+
+def test_a_run_with_other_settings_is_refused_in_its_directory(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
+    before = digests(out)
+    refused = invoke("run", "--seeds", "2", "--episodes", "30", "--out", str(out))
+    assert refused.exit_code == 2
+    assert "episodes 20 there, 30 asked" in refused.output
+    assert digests(out) == before
+    assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
+
+
+@pytest.mark.slow("runs two rlcompare processes on one directory")
+def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_line(tmp_path: Path) -> None:
+    """A real second process: ``report`` and a second ``reproduce`` on a directory a running ``reproduce`` is
+    writing are refused in one line naming its process; the first finishes untouched."""
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "paper"
+    command = [sys.executable, "-m", "rlcompare.cli", "reproduce", "--seeds", "4", "--episodes", "8000",
+               "--no-videos", "--out", str(out)]
+    env = {**__import__("os").environ, "COLUMNS": "300"}
+    first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("*/config.json")) and time.monotonic() < deadline and first.poll() is None:
+            time.sleep(0.05)  # training has begun: the directory is locked
+        report = subprocess.run([sys.executable, "-m", "rlcompare.cli", "report", str(out)], capture_output=True,
+                                text=True, check=False, timeout=120, env=env)
+        second = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120, env=env)
+        first_out, first_err = first.communicate(timeout=300)
+    finally:
+        first.kill()
+    assert first.returncode == 0, first_err
+    for refused in (report, second):
+        assert refused.returncode == 2, refused.stdout + refused.stderr
+        assert f"another rlcompare process (pid {first.pid}) is writing here" in refused.stderr
+        assert "Traceback" not in refused.stderr
+    assert "Report:" in first_out
+
+
+@pytest.mark.slow("runs two rlcompare processes on one directory")
+def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_writer(tmp_path: Path) -> None:
+    """A real second process: ``report`` of a run directory ``run`` is still writing, and a second ``run`` into it,
+    are refused in one line naming the writer (before, ``report`` failed on the files not yet there); the writer
+    finishes untouched, and its directory then reads as any other."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    from rlcompare.experiment import store
+
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "rlcompare.cli", "run", "--episodes", "10000", "--seeds", "40", "--out", str(out)]
+    env = {**os.environ, "COLUMNS": "300"}
+    first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        lock = out / store.LOCK_FILE
+        while time.monotonic() < deadline and first.poll() is None and not (
+                lock.exists() and lock.read_text().strip() == str(first.pid)):
+            time.sleep(0.05)  # the writer holds the lock
+        others = [subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                  for args in ([sys.executable, "-m", "rlcompare.cli", "report", str(out)], command)]
+        answers = [other.communicate(timeout=120)[1] for other in others]
+        first_out, first_err = first.communicate(timeout=300)
+    finally:
+        first.kill()
+    assert first.returncode == 0, first_err
+    for other, answer in zip(others, answers, strict=True):
+        assert other.returncode == 2, answer
+        assert answer.strip().splitlines() == [
+            f"Error: {out}: another rlcompare process (pid {first.pid}) is writing here; wait for it to finish, or "
+            "use another directory"]
+    assert "Run directory:" in first_out
+    report = invoke("report", str(out))
+    assert report.exit_code == 0, report.output
+    assert "(q_learning-decay, 40 seeds)" in report.output
