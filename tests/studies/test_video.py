@@ -168,8 +168,8 @@ def test_writes_are_atomic_and_sizes_made_even(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow("renders videos")
-def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir: Path) -> None:
-    paths = video.render_stage_videos(run_dir, tmp_path / "all", seed=0, max_steps=40)
+def test_stage_videos_are_one_video_per_stage(tmp_path: Path, run_dir: Path) -> None:
+    paths = video.render_videos(video.plan_stage_videos(run_dir, tmp_path / "all", seed=0, max_steps=40))
     stems = [f"q_learning-decay-seed0-{stage}" for stage in ("early", "middle", "final")]
     assert [p.name for p in paths] == [f"{stem}.{ext}" for stem in stems for ext in ("mp4", "gif")]
     assert sorted(p.name for p in (tmp_path / "all").iterdir()) == sorted(p.name for p in paths)
@@ -177,15 +177,15 @@ def test_render_stage_videos_writes_one_video_per_stage(tmp_path: Path, run_dir:
     assert shown.shape[0] == 21  # truncated at 40 steps: steps 0, 2, ..., 40
     assert meta["fps"] == encode.FPS / encode.MP4_EVERY  # every second step, in real time
 
-    again = video.render_stage_videos(run_dir, tmp_path / "middle", seed=0, stages=["middle"], max_steps=40,
-                                      gif=False)
+    again = video.render_videos(video.plan_stage_videos(run_dir, tmp_path / "middle", seed=0, stages=["middle"],
+                                                        max_steps=40, gif=False))
     assert [p.name for p in again] == [f"{stems[1]}.mp4"]
     assert again[0].read_bytes() == paths[2].read_bytes()  # the same video whatever else is rendered
 
     with pytest.raises(KeyError, match="stage"):
-        video.render_stage_videos(run_dir, tmp_path / "x", seed=0, stages=["late"])
+        video.plan_stage_videos(run_dir, tmp_path / "x", seed=0, stages=["late"])
     with pytest.raises(KeyError, match="seed"):
-        video.render_stage_videos(run_dir, tmp_path / "x", seed=5)
+        video.plan_stage_videos(run_dir, tmp_path / "x", seed=5)
 
 
 @pytest.mark.slow("renders videos")
@@ -234,7 +234,7 @@ def test_workers_write_the_same_files_as_one_process(tmp_path: Path, run_dir: Pa
 def test_random_baseline_gets_one_video(tmp_path: Path) -> None:
     run(ExperimentConfig(algorithm="random", seeds=(2,), episodes=10, eval_every=0, max_steps=30),
         out=tmp_path / "random")
-    paths = video.render_stage_videos(tmp_path / "random", tmp_path / "videos", seed=2)
+    paths = video.render_videos(video.plan_stage_videos(tmp_path / "random", tmp_path / "videos", seed=2))
     assert [p.name for p in paths] == ["random-seed2.mp4", "random-seed2.gif"]
     assert read_mp4(paths[0])[1].shape[0] == 16  # 30 steps: steps 0, 2, ..., 30
 

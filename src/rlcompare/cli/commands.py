@@ -6,8 +6,9 @@ module.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, ParamSpec
 
 import typer
 from rich.text import Text
@@ -40,10 +41,20 @@ if TYPE_CHECKING:
 
 __all__ = ["ALGORITHM_HELP", "app"]
 
+P = ParamSpec("P")
 app = new_app()
 app.add_typer(bench_app(), name="bench", short_help=SUMMARIES["bench"])
 app.add_typer(reproduce_app(), name="reproduce", short_help=SUMMARIES["reproduce"])
 Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
+
+
+def command(name: str) -> Callable[[Callable[P, None]], Callable[P, None]]:
+    """Register a function as the command ``name``: its summary, plain help, errors in one line."""
+
+    def register(function: Callable[P, None]) -> Callable[P, None]:
+        return app.command(name, short_help=SUMMARIES[name], cls=PlainCommand)(one_line_errors(function))
+
+    return register
 
 
 def progress_label(config: ExperimentConfig) -> str:
@@ -53,8 +64,7 @@ def progress_label(config: ExperimentConfig) -> str:
     return f"{config.name} ({config.env} through Gymnasium's API: Python speed)"
 
 
-@app.command(short_help=SUMMARIES["run"], cls=PlainCommand)
-@one_line_errors
+@command("run")
 @config_options
 def run(
     config: ExperimentConfig,
@@ -82,8 +92,7 @@ def run(
     console.print(f"Run directory: {out_dir}")
 
 
-@app.command(short_help=SUMMARIES["sweep"], cls=PlainCommand)
-@one_line_errors
+@command("sweep")
 def sweep(
     sweep_file: Annotated[Path, typer.Argument(
         metavar="SWEEP_FILE", help="A sweep file (TOML); see examples/sweep.toml, or examples/sweep-deep.toml for "
@@ -130,8 +139,7 @@ def sweep(
         _sweep_report(out_dir, tuple(group_by or ()))
 
 
-@app.command(short_help=SUMMARIES["report"], cls=PlainCommand)
-@one_line_errors
+@command("report")
 def report(
     study_dir: Annotated[Path, typer.Argument(
         metavar="STUDY_DIR", help="A study directory written by reproduce, a sweep's store, one run directory "

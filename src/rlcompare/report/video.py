@@ -1,10 +1,10 @@
 """Videos of the greedy agents at the stages of learning, in the pictures Gymnasium's own renderer draws.
 
 The paper shows "three videos showing how the agents solve the problem in three stages of learning". For one run
-directory and one training seed, :func:`render_stage_videos` loads the stored Q-table of every stage
-(``config.stages``), plays one episode of its greedy policy from the start state of
-``env.reset(seed=episode_seed)`` (the same for every stage, so the videos differ only by what was learned), and
-writes an H.264 MP4 and a small looping GIF per stage. The random baseline, whose stages would all show the same
+directory and one training seed, :func:`plan_stage_videos` plans a video per stage (``config.stages``), and
+:func:`render_videos` loads each stage's stored Q-table, plays one episode of its greedy policy from the start state
+of ``env.reset(seed=episode_seed)`` (the same for every stage, so the videos differ only by what was learned), and
+writes an H.264 MP4 and a small looping GIF. The random baseline, whose stages would all show the same
 policy, gets one video of its seeded random policy.
 
 Frames are played by :mod:`rlcompare.report.play`, captioned by :mod:`rlcompare.report.captions` above Gymnasium's
@@ -70,7 +70,7 @@ def record_episode(agent: Agent, *, episode_seed: int, max_steps: int = 1000, ti
 
     Without ``title`` the frames are Gymnasium's own; with it each frame is captioned with the title
     and the return so far (``seed``, the training seed, goes on the caption's second line). For long
-    episodes the frames take memory (about 0.8 MB each); :func:`render_stage_videos` streams instead.
+    episodes the frames take memory (about 0.8 MB each); :func:`render_videos` streams instead.
     """
     played: Iterable[Frame] = play(agent, episode_seed, max_steps, env_id)
     images, returns = [], []
@@ -178,10 +178,14 @@ def plan_stage_videos(
     fps: float = FPS,
     config: ExperimentConfig | None = None,
 ) -> list[VideoJob]:
-    """The videos :func:`render_stage_videos` renders, in its order, without rendering any.
+    """The videos of training seed ``seed`` in ``run_dir``, one per stage of learning, for :func:`render_videos`.
 
-    ``config`` is the run's, where the caller has loaded it already; else it is read from ``run_dir``.
-    Unknown seeds and stages raise :class:`KeyError` here, before anything is rendered.
+    Files are ``{config.name}-seed{seed}-{stage}.mp4`` (and ``.gif`` where ``gif``) in ``out_dir``, in stage order.
+    ``stages`` defaults to the run's ``config.stages``; ``max_steps`` to the run's episode limit. The random
+    baseline gets one video, ``random-seed{seed}.mp4`` (``stages`` is then ignored), since its policy does not change
+    with training. ``config`` is the run's, where the caller has loaded it already; else it is read from
+    ``run_dir``. Unknown seeds and stages raise :class:`KeyError` here, before anything is rendered. Several runs'
+    plans rendered together share one pool of workers.
     """
     run_dir, out_dir = Path(run_dir), Path(out_dir)
     config = load_run(run_dir).config if config is None else config
@@ -320,31 +324,3 @@ def render_videos(jobs: Sequence[VideoJob], *, workers: int | None = None) -> li
     """
     with VideoRenders(jobs, workers) as renders:
         return renders.wait()
-
-
-def render_stage_videos(
-    run_dir: Path,
-    out_dir: Path,
-    *,
-    seed: int,
-    stages: Sequence[str] | None = None,
-    episode_seed: int = DEFAULT_EPISODE_SEED,
-    max_steps: int | None = None,
-    gif: bool = True,
-    fps: float = FPS,
-    workers: int | None = None,
-) -> list[Path]:
-    """One MP4 (and GIF) per stage of learning of training seed ``seed`` in ``run_dir``.
-
-    Files are ``{config.name}-seed{seed}-{stage}.mp4`` / ``.gif`` in ``out_dir``, returned in stage
-    order, each MP4 followed by its GIF. ``stages`` defaults to the run's ``config.stages``; ``max_steps``
-    to the run's episode limit. The random baseline gets one video, ``random-seed{seed}.mp4`` (``stages``
-    is then ignored), since its policy does not change with training.
-
-    The stages render at once on ``workers`` processes (default: :func:`default_workers`; 1: one after
-    the other in this process); the files are the same either way. To render several runs' videos in one pool,
-    pass their :func:`plan_stage_videos` together to :func:`render_videos`.
-    """
-    jobs = plan_stage_videos(run_dir, out_dir, seed=seed, stages=stages, episode_seed=episode_seed,
-                             max_steps=max_steps, gif=gif, fps=fps)
-    return render_videos(jobs, workers=workers)
