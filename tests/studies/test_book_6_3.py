@@ -19,7 +19,8 @@ from rlcompare.experiment.engines import load_if_complete
 from rlcompare.stats.intervals import mean_interval
 from rlcompare.studies import book_6_3
 from rlcompare.studies.registry import STUDIES
-from rlcompare.tabular.config import ExperimentConfig, records_bytes
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.memory import records_bytes
 
 
 @pytest.mark.slow("trains Figure 6.3's grid")

@@ -13,8 +13,7 @@ from hypothesis import strategies as st
 from rlcompare import ConfigError, ExperimentConfig, machine
 from rlcompare.envs.features import make_features
 from rlcompare.formatting import quote
-from rlcompare.tabular import config as config_module
-from rlcompare.tabular.config import records_bytes
+from rlcompare.tabular.memory import check_memory, records_bytes
 from rlcompare.tabular.state import allocate_records
 from rlcompare.tabular.train import epsilon_schedule
 
@@ -181,11 +180,11 @@ def test_records_larger_than_memory_are_refused_with_the_figures(monkeypatch: py
     monkeypatch.setattr(machine, "physical_memory", lambda: 2**30)
     config = ExperimentConfig(seeds=(0, 1, 2), episodes=20_000_000, eval_every=0)  # validation reads no machine
     with pytest.raises(ConfigError) as caught:
-        config_module.check_memory(config)
+        check_memory(config)
     assert caught.value.field_name == "episodes"
     assert caught.value.allowed == ("a run whose records fit in memory: 3 seeds x 20,000,000 episodes need 1.1 GiB; "
                                     "this machine has 1.0 GiB")
-    config_module.check_memory(ExperimentConfig(seeds=(0,), episodes=20_000_000, eval_every=0))
+    check_memory(ExperimentConfig(seeds=(0,), episodes=20_000_000, eval_every=0))
 
 
 def test_a_run_too_large_for_this_machine_still_loads_and_is_refused_only_when_it_starts(
@@ -206,7 +205,7 @@ def test_evaluations_larger_than_this_machines_memory_are_refused() -> None:
     """2**31 - 1 evaluations of 2**31 - 1 episodes: no machine holds their records."""
     memory = machine.physical_memory()
     with pytest.raises(ConfigError) as caught:
-        config_module.check_memory(ExperimentConfig(seeds=(0,), episodes=2**31 - 1, eval_every=1,
+        check_memory(ExperimentConfig(seeds=(0,), episodes=2**31 - 1, eval_every=1,
                                                     eval_episodes=2**31 - 1))
     assert caught.value.field_name == "eval_episodes"
     assert caught.value.allowed.startswith("a run whose records fit in memory: 1 seeds x 2,147,483,647 evaluations "

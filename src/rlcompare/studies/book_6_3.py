@@ -39,7 +39,8 @@ from rlcompare.stats.intervals import Estimate, interval, mean_interval
 from rlcompare.stats.significance import ALPHA
 from rlcompare.stats.verdicts import Claim, judge, margin_text
 from rlcompare.studies.margins import margin
-from rlcompare.tabular.config import ExperimentConfig, records_bytes
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.memory import records_bytes
 from rlcompare.tabular.state import STREAMS
 
 ENV = "CliffWalking-v1"

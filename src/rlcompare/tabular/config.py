@@ -20,7 +20,6 @@ import textwrap
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from rlcompare import machine
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.schedules import SCHEDULES
 from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, Environment, environment
@@ -318,7 +317,7 @@ def _check_stages(c: ExperimentConfig) -> None:
     require(all(0 < f <= 1 for _, f in c.stages), "stages", c.stages, "shares of the episodes in (0, 1]")
 
 
-def _features(c: ExperimentConfig) -> int:
+def feature_count_of(c: ExperimentConfig) -> int:
     """How many features the configuration's layout has (compiled code: imported once a config is checked)."""
     from rlcompare.envs.features import feature_count
 
@@ -342,7 +341,7 @@ def _check_grid(c: ExperimentConfig) -> None:
         require(len(c.bounds) == dims and all(math.isfinite(lo) and math.isfinite(hi) and lo < hi
                                                for lo, hi in c.bounds), "bounds", c.bounds,
                  f"{dims} pairs of finite numbers (low, high) with low < high, one per observation dimension")
-    features = _features(c)
+    features = feature_count_of(c)
     needed = features * env.n_actions * len(c.seeds) * (2 + len(c.stages)) * 8
     require(needed <= MAX_WEIGHT_BYTES, "bins" if c.features == "grid" else "tiles", c.bins if c.features == "grid"
              else c.tiles, f"a layout whose {features:,} features x {env.n_actions} actions x {len(c.seeds)} seeds "
@@ -359,52 +358,6 @@ def _check_tiles(c: ExperimentConfig) -> None:
     except ValueError as error:
         raise ConfigError("tiles", (c.tilings, c.tiles, c.hash_size),
                           f"a layout that fits the bounds ({error})") from None
-
-
-def records_parts(c: ExperimentConfig) -> dict[str, int]:
-    """Bytes of the records a run of ``c`` allocates (:func:`rlcompare.tabular.state.allocate_records`, and the ε
-    schedule), by what they grow with: ``episodes`` (returns float64, lengths int64, terminated bool per seed and
-    episode; ε per episode), ``eval_episodes`` (the same per seed, evaluation round and evaluation episode) and
-    ``features`` (snapshots float64 per seed, stage, feature and action; visits int64 per seed and feature; the
-    snapshots' episodes)."""
-    runs, per_episode = len(c.seeds), 8 + 8 + 1
-    stages = len(c.stage_episodes())
-    features = _features(c)
-    return {
-        "episodes": runs * c.episodes * per_episode + c.episodes * 8,
-        "eval_episodes": runs * c.evaluation_rounds * c.eval_episodes * per_episode,
-        "features": runs * stages * features * c.environment.n_actions * 8 + runs * features * 8 + stages * 8,
-    }
-
-
-def records_bytes(c: ExperimentConfig) -> int:
-    """Bytes of the records a run of ``c`` allocates before its first episode."""
-    return sum(records_parts(c).values())
-
-
-def check_memory(c: ExperimentConfig) -> None:
-    """Records that fit in this machine's memory, refused before anything is allocated. Called where a run
-    starts (:func:`rlcompare.experiment.runner.run`), never when a configuration is made or loaded: validation
-    reads nothing of the machine, so a run made on a bigger machine still loads here."""
-    parts, memory = records_parts(c), machine.physical_memory()
-    needed = sum(parts.values())
-    if needed <= memory:
-        return
-    runs = f"{len(c.seeds):,} seeds"
-    largest = max(parts, key=parts.__getitem__)
-    value: int | tuple[int, ...]  # the field that grows the records most: a count, or the grid's bins
-    if largest == "episodes":
-        name, value, shape = "episodes", c.episodes, f"{runs} x {c.episodes:,} episodes"
-    elif largest == "eval_episodes":
-        name, value = "eval_episodes", c.eval_episodes
-        shape = f"{runs} x {c.evaluation_rounds:,} evaluations x {c.eval_episodes:,} episodes"
-    else:
-        name, value = ("bins", c.grid_bins) if c.features == "grid" else ("tiles", c.tiles)
-        features = _features(c)
-        shape = (f"{runs} x {len(c.stage_episodes())} snapshots x {features:,} features x "
-                 f"{c.environment.n_actions} actions")
-    raise ConfigError(name, value, f"a run whose records fit in memory: {shape} need {machine.gib(needed)}; this "
-                      f"machine has {machine.gib(memory)}")
 
 
 _CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles)

@@ -10,7 +10,7 @@ import numpy as np
 
 from rlcompare.tabular.agent import agent
 from rlcompare.tabular.config import ExperimentConfig as Config
-from rlcompare.tabular.config import check_memory
+from rlcompare.tabular.memory import check_memory
 from rlcompare.tabular.results import Results
 from rlcompare.tabular.state import Records
 from rlcompare.tabular.train import train

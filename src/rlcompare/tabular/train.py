@@ -19,7 +19,8 @@ from rlcompare.envs import gymnasium_env
 from rlcompare.envs.features import make_features
 from rlcompare.envs.registry import make_env
 from rlcompare.tabular import runs as engine
-from rlcompare.tabular.config import ExperimentConfig, check_memory
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.memory import check_memory
 from rlcompare.tabular.results import Results
 from rlcompare.tabular.state import (
     ENV_STREAM,
@@ -49,7 +50,7 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
     """Train every seed of ``config`` in the fused kernels, seeds spread over threads.
 
     ``progress`` is called with the number of episodes (per seed) finished since its last call. Records that
-    would not fit in this machine's memory are refused first (:func:`~rlcompare.tabular.config.check_memory`).
+    would not fit in this machine's memory are refused first (:func:`~rlcompare.tabular.memory.check_memory`).
     """
     check_memory(config)
     compiled.tend()
