@@ -26,7 +26,7 @@ import json, statistics, sys
 try:
     from rlcompare.bench import harness
 except ImportError:  # a commit whose benchmark is one module
-    from rlcompare.bench import tabular as harness
+    from rlcompare.experiment import benchmark as harness
 alg, features, episodes, threads = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 harness.kernel_steps_per_second(alg, threads, features=features, runs=2, episodes=3, repeats=1)
 m = harness.kernel_steps_per_second(alg, threads, features=features, runs=8, episodes=episodes, repeats=3)
