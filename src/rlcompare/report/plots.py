@@ -3,7 +3,7 @@ or the command line saves files."""
 
 from __future__ import annotations
 
-from typing import NamedTuple, overload
+from typing import overload
 
 import matplotlib as mpl
 import numpy as np
@@ -16,20 +16,11 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 from mpl_toolkits.axes_grid1 import make_axes_locatable
 
+from rlcompare.report.map_frame import MapFrame
 from rlcompare.stats.curves import mean_band, moving_average, thinned
 from rlcompare.stats.intervals import Estimate, interval
 
 ACTION_COLORS = ("#3b6fb6", "#bdbdbd", "#d1495b")
-
-
-class MapFrame(NamedTuple):
-    """What a map over two observation dimensions shows: their bounds, their names and the actions' names, all
-    the environment's (``Environment.map_axes`` and ``action_names``)."""
-
-    extent: tuple[float, float, float, float]
-    """``(x low, x high, y low, y high)``: the grid's bounds."""
-    axes: tuple[str, str]
-    actions: tuple[str, ...]
 
 
 def plot_return_curves(

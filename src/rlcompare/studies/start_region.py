@@ -6,7 +6,7 @@ import numpy as np
 
 from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
 from rlcompare.envs.features import grid_bounds
-from rlcompare.report.plots import MapFrame
+from rlcompare.report.map_frame import MapFrame
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 
