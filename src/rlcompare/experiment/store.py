@@ -19,7 +19,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import fnmatch
 import glob
 import json
 import os
@@ -30,6 +29,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from rlcompare.experiment.atomic import FILE_MODE, atomic_file
+from rlcompare.experiment.paths import StoreError as StoreError  # the error of every store function
+from rlcompare.experiment.paths import inside, is_inner_path, matches
 from rlcompare.formatting import cut, quote
 
 MARKER_FILE = ".rlcompare.json"
@@ -40,10 +41,6 @@ MAX_JSON_BYTES = 16 * 2**20
 MAX_NAME_BYTES = 255
 
 
-
-
-class StoreError(OSError):
-    """A directory or file that cannot be written or read as asked; names the path and what is wrong."""
 
 
 @dataclass(frozen=True)
@@ -116,6 +113,11 @@ def _read_marker(marker: Path) -> dict[str, Any]:
     if not (isinstance(data, dict) and data.get("written_by") == "rlcompare" and isinstance(data.get("kind"), str)
             and isinstance(data.get("name"), str) and isinstance(data.get("outputs"), list)):
         raise StoreError(f"{marker}: not a marker rlcompare wrote")
+    for relative in data["outputs"]:
+        if not is_inner_path(relative):
+            raise StoreError(f"{marker}: lists {quote(str(relative), 80)}, not a path inside its directory; "
+                             "rlcompare writes only plain relative paths there, so the list was changed by hand and "
+                             "nothing is removed or replaced")
     return data
 
 
@@ -221,6 +223,8 @@ def enter_outputs(*paths: Path) -> None:
         new = []
         for path in paths:
             relative = path.relative_to(directory).as_posix() if directory is not None else ""
+            if directory is not None:
+                inside(directory, relative)
             if relative and relative in listed["outputs"]:
                 continue
             if path.exists() or path.is_symlink():
@@ -237,9 +241,9 @@ def remove_outputs(directory: Path, pattern: str) -> list[str]:
     directory = Path(directory)
     with _LEDGER_LOCK:
         data = _read_marker(directory / MARKER_FILE)
-        removed = [p for p in data["outputs"] if fnmatch.fnmatchcase(p, pattern)]
-        for relative in removed:
-            (directory / relative).unlink(missing_ok=True)
+        removed = [p for p in data["outputs"] if matches(p, pattern)]
+        for path in [inside(directory, relative) for relative in removed]:  # every path checked before any removal
+            path.unlink(missing_ok=True)
         _write_marker(directory, Owner(data["kind"], data["name"]), [p for p in data["outputs"] if p not in removed])
     return removed
 
@@ -382,7 +386,8 @@ def remove_stale_temporaries(directory: Path) -> None:
     """Delete what interrupted writes left of the files listed in ``directory``'s marker (call with its lock):
     the temporary names rlcompare gives them, and nothing else."""
     directory = Path(directory)
-    for relative in [MARKER_FILE, *_read_marker(directory / MARKER_FILE)["outputs"]]:
-        target = directory / relative
+    listed = [MARKER_FILE, *_read_marker(directory / MARKER_FILE)["outputs"]]
+    targets = [inside(directory, relative) for relative in listed]  # every path checked before any removal
+    for target in targets:
         for stale in target.parent.glob(f".{glob.escape(target.name)}.*.tmp*"):
             stale.unlink(missing_ok=True)

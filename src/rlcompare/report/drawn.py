@@ -18,7 +18,6 @@ ledger that vouches only for files whose bytes are still those it recorded.
 
 from __future__ import annotations
 
-import fnmatch
 import functools
 import glob
 import hashlib
@@ -29,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from rlcompare.experiment import store
+from rlcompare.experiment.paths import matches
 
 LEDGER = ".drawn.json"
 LIBRARIES = ("numpy", "matplotlib", "pillow", "pandas", "scipy", "gymnasium", "pygame", "imageio-ffmpeg", "numba")
@@ -151,7 +151,7 @@ class Drawn:
         """Delete the files matching ``pattern`` that rlcompare listed here and this report neither kept nor drew
         (figures of runs that are gone), and nothing else; their relative paths."""
         stale = [relative for relative in sorted(store.listed_outputs(self.directory))
-                 if fnmatch.fnmatchcase(relative, pattern) and relative not in self.recorded
+                 if matches(relative, pattern) and relative not in self.recorded
                  and relative not in self._unkeyed]
         for relative in stale:
             store.remove_outputs(self.directory, glob.escape(relative))
