@@ -32,6 +32,14 @@ class ConfigError(ValueError):
         super().__init__(f"{cut(str(field_name), 80)}: got {quote(value)}; allowed: {allowed}")
 
 
+class UnknownKey(ConfigError):
+    """A key that names no field (a misspelt hyperparameter): says so, and lists the fields there are."""
+
+    def __init__(self, key: str, allowed: str) -> None:
+        self.field_name, self.value, self.allowed = key, key, allowed
+        ValueError.__init__(self, f"{cut(key, 80)}: unknown key; allowed: {allowed}")
+
+
 def require(ok: bool, name: str, value: Any, allowed: str) -> None:
     """A :class:`ConfigError` naming ``name`` unless ``ok``."""
     if not ok:

@@ -46,7 +46,8 @@ def test_a_listed_path_outside_the_directory_is_refused_and_nothing_removed(copy
     result = invoke("report", str(copy), "--no-videos")
     assert result.exit_code == 2, result.output
     assert "Traceback" not in result.output
-    assert store.MARKER_FILE in result.output and "not a path inside its directory" in result.output
+    assert store.MARKER_FILE in result.output
+    assert "not a path inside its directory" in result.output
     assert victim.read_bytes() == b"a user's figure"
     assert digests(copy) == before
 
@@ -61,7 +62,8 @@ def test_a_symlink_leading_out_is_neither_written_through_nor_removed_through(co
     shutil.rmtree(copy / "random")  # its figure becomes stale: a report would remove it
     result = invoke("report", str(copy), "--no-videos")
     assert result.exit_code == 2, result.output
-    assert "leads out of" in result.output and "Traceback" not in result.output
+    assert "leads out of" in result.output
+    assert "Traceback" not in result.output
     assert digests(outside) == before
 
 

@@ -130,7 +130,7 @@ hyperparameters = 5
         "include[0].hyperparameters: got 5; allowed: a table of the method's hyperparameters",
         "grid.algorithm[1]: got 'q_learning'; allowed: pqn_q_lambda, pqn_sarsa_lambda,",
         "grid.hyperparameters.lam[1]: got 2; allowed: a number in [0, 1]",
-        "grid.hyperparameters.colour[0]: got 1; allowed: the fields of PQNConfig:",
+        "grid.hyperparameters.colour: unknown key; allowed: the fields of PQNConfig:",
     ]
     for start in expected:
         assert sum(p.startswith(start) for p in problems) == 1, (start, problems)

@@ -96,3 +96,25 @@ def test_a_tampered_file_of_a_deep_run_is_refused_naming_it(deep_run, name: str,
     assert result.exit_code == 2
     assert f"{name}: does not belong to this run" in result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize(("settings", "field", "allowed"), [
+    ({"reward_scale": 1e300}, "hyperparameters.reward_scale", "float32"),
+    ({"learning_rate": 1e39}, "hyperparameters.learning_rate", "float32"),
+    ({"n_envs": 2**31}, "hyperparameters.n_envs", "int32"),
+    ({"hidden": [2**40]}, "hyperparameters.hidden", "int32"),
+    ({"total_steps": 99999999999999999999}, "hyperparameters.total_steps", "int32"),
+    ({"total_steps": 2**31 - 1}, "total_steps", "records fit in memory"),
+])
+def test_a_setting_the_engine_cannot_represent_is_refused_before_tracing(settings: dict, field: str, allowed: str
+                                                                         ) -> None:
+    with pytest.raises(ConfigError) as refused:
+        DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", hyperparameters=settings, seeds=tuple(range(10**3)))
+    assert refused.value.field_name == field
+    assert allowed in str(refused.value)
+
+
+def test_an_unknown_hyperparameter_is_an_unknown_key_naming_the_fields() -> None:
+    with pytest.raises(ConfigError, match=r"^hyperparameters.learning_rat: unknown key; allowed: the fields of "
+                                          r"PQNConfig: .*learning_rate"):
+        DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", hyperparameters={"learning_rat": 0.1})

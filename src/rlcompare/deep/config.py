@@ -12,9 +12,16 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from rlcompare import machine
 from rlcompare.deep.envs import Environment, is_batched, jax_env
 from rlcompare.deep.methods import deep_method, hyperparameters
 from rlcompare.validation import COUNT, SEEDS_ALLOWED, check_fields, is_seeds, plain, require
+
+FINISHED_BYTES_PER_STEP = 10
+"""Bytes every method records per environment step: :class:`~rlcompare.deep.rollout.Finished`'s ``done``,
+``returns`` (float32), ``lengths`` (int32) and ``terminated``."""
+RECORD_COPIES = 2
+"""The device's output and its copy on the host, joined over groups of seeds."""
 
 
 @dataclass(frozen=True)
@@ -54,8 +61,20 @@ class DeepConfig:
                 "1 for an Atari game (its emulator plays one seed's games at a time)")
         require(isinstance(self.hyperparameters, dict), "hyperparameters", self.hyperparameters,
                 "a table of field names and values")
+        self._check_records_fit()
         make_train = deep_method(self.algorithm).module.make_train  # builds closures only: cheap
         make_train(self.method_config(), self.environment, self.eval_rounds, self.eval_episodes)  # validates
+
+    def _check_records_fit(self) -> None:
+        """Refuse, before anything is traced or compiled, a ``total_steps`` whose per-step records alone (in Python
+        integers, so no size overflows) exceed this machine's memory: XLA aborts the process on a dimension product
+        past 2**63 instead of raising."""
+        total_steps = self.method_config().total_steps
+        records = RECORD_COPIES * FINISHED_BYTES_PER_STEP * total_steps * len(self.seeds)
+        memory = machine.physical_memory()
+        require(records <= memory, "total_steps", total_steps,
+                f"a training whose records fit in memory: {len(self.seeds)} seeds x {total_steps:,} steps keep at "
+                f"least {machine.gib(records)}; this machine has {machine.gib(memory)}")
 
     def method_config(self) -> Any:
         """The method's own config: preset, fixed settings and overrides, validated."""

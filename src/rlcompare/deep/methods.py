@@ -8,6 +8,7 @@ and an entry in :data:`DEEP_METHODS`; nothing else lists the methods (``docs/ext
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -18,7 +19,7 @@ import jax
 from rlcompare.deep import dqn, munchausen, ppo, pqn
 from rlcompare.deep.envs import Environment
 from rlcompare.deep.rollout import Act, TrainOutput
-from rlcompare.validation import ConfigError, is_flag, is_integer, plain, require
+from rlcompare.validation import ConfigError, UnknownKey, is_flag, is_integer, plain, require
 
 
 class MethodModule(Protocol):
@@ -89,6 +90,12 @@ def presets(name: str) -> tuple[str, ...]:
     return tuple(deep_method(name).module.PRESETS)
 
 
+INT32_MAX = 2**31 - 1
+"""The largest count a setting may give: steps, buffers and indices are JAX int32s."""
+FLOAT32_MAX = 3.4028234663852886e38
+"""The largest magnitude a setting may give: the networks and returns are float32 (``np.finfo(np.float32).max``)."""
+
+
 def hyperparameters(name: str, env: str, preset: str, overrides: dict[str, Any]) -> Any:
     """The method's validated config: the preset for ``env``, the method's fixed settings, then ``overrides``."""
     chosen = deep_method(name)
@@ -101,8 +108,8 @@ def hyperparameters(name: str, env: str, preset: str, overrides: dict[str, Any])
     fields = {f.name for f in dataclasses.fields(base)}
     unknown = sorted(set(overrides) - fields)
     if unknown:
-        raise ConfigError(f"hyperparameters.{unknown[0]}", overrides[unknown[0]],
-                          f"the fields of {type(base).__name__}: {', '.join(sorted(fields - set(chosen.fixed)))}")
+        raise UnknownKey(f"hyperparameters.{unknown[0]}", f"the fields of {type(base).__name__}: "
+                         f"{', '.join(sorted(fields - set(chosen.fixed)))}")
     fixed = sorted(set(overrides) & set(chosen.fixed))
     if fixed:
         raise ConfigError(f"hyperparameters.{fixed[0]}", overrides[fixed[0]],
@@ -114,17 +121,22 @@ def _typed(base: Any, field_name: str, value: Any) -> Any:
     """``value`` as the field's own type (JSON's lists as tuples, whole numbers as floats where a float is
     wanted, NumPy's scalars as Python's); a value of another kind is a :class:`ConfigError` naming the field."""
     current, value = getattr(base, field_name), plain(value)
+    allowed = f"a value like {current!r} ({type(current).__name__})"
     if isinstance(current, bool):
         ok = is_flag(value)
     elif isinstance(current, int):
-        ok = is_integer(value)
+        ok = is_integer(value) and abs(value) <= INT32_MAX
+        allowed = f"an integer of at most {INT32_MAX:,} in size (the engine counts in int32)"
     elif isinstance(current, float):
         ok = is_integer(value) or isinstance(value, float)
+        ok = ok and (not math.isfinite(value) or abs(value) <= FLOAT32_MAX)  # NaN and infinities: the method's
+        allowed = f"a number of at most {FLOAT32_MAX:.3g} in size (the engine computes in float32)"
         value = float(value) if ok else value
     elif isinstance(current, tuple):
-        ok = isinstance(value, list | tuple) and all(is_integer(v) for v in value)
+        ok = isinstance(value, list | tuple) and all(is_integer(v) and abs(v) <= INT32_MAX for v in value)
+        allowed = f"a list of integers of at most {INT32_MAX:,} in size (int32), like {list(current)}"
         value = tuple(plain(v) for v in value) if ok else value
     else:
         ok = isinstance(value, type(current))
-    require(ok, f"hyperparameters.{field_name}", value, f"a value like {current!r} ({type(current).__name__})")
+    require(ok, f"hyperparameters.{field_name}", value, allowed)
     return value

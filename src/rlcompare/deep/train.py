@@ -4,6 +4,7 @@ seeds side by side (:mod:`rlcompare.deep.config`)."""
 from __future__ import annotations
 
 import functools
+import math
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -40,15 +41,49 @@ def compiled_training(config: DeepConfig) -> Callable[[jax.Array], TrainOutput]:
 
 @functools.lru_cache(maxsize=32)
 @float64
-def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: int, eval_episodes: int,
-                     width: int) -> Callable[[jax.Array], TrainOutput]:
-    """The jitted, vmapped training of ``width`` seeds, lowered and compiled for ``width`` keys; kept for the
-    process (``cache_info()`` counts the runs that found it)."""
+def traced_program(algorithm: str, env: str, method_config: Any, eval_rounds: int, eval_episodes: int,
+                   width: int) -> Any:
+    """The jitted, vmapped training of ``width`` seeds, traced for ``width`` keys (shapes known, nothing
+    compiled); kept for the process."""
     environment = jax_env(env)
     train = deep_method(algorithm).module.make_train(method_config, environment, eval_rounds, eval_episodes)
     if is_batched(environment):  # one seed, its emulator's callbacks outside any vmap
-        return jax.jit(lambda keys: jax.tree.map(lambda x: x[None], train(keys[0]))).lower(seed_keys((0,))).compile()
-    return jax.jit(jax.vmap(train)).lower(seed_keys((0,) * width)).compile()
+        return jax.jit(lambda keys: jax.tree.map(lambda x: x[None], train(keys[0]))).trace(seed_keys((0,)))
+    return jax.jit(jax.vmap(train)).trace(seed_keys((0,) * width))
+
+
+@functools.lru_cache(maxsize=32)
+@float64
+def compiled_program(algorithm: str, env: str, method_config: Any, eval_rounds: int, eval_episodes: int,
+                     width: int) -> Callable[[jax.Array], TrainOutput]:
+    """The traced program lowered and compiled; kept for the process (``cache_info()`` counts the runs that found
+    it)."""
+    traced = traced_program(algorithm, env, method_config, eval_rounds, eval_episodes, width)
+    return traced.lower().compile()  # type: ignore[no-any-return]
+
+
+def array_bytes(jaxpr: Any) -> Iterator[int]:
+    """The size in bytes of every array a traced program makes, its loops' and branches' bodies included, in
+    Python integers (no product overflows)."""
+    for equation in jaxpr.eqns:
+        for variable in equation.outvars:
+            shape, dtype = getattr(variable.aval, "shape", ()), getattr(variable.aval, "dtype", None)
+            yield math.prod(shape) * (dtype.itemsize if dtype is not None else 0)
+        for param in equation.params.values():
+            for inner in param if isinstance(param, (tuple, list)) else (param,):
+                if isinstance(inner, (jax.extend.core.Jaxpr, jax.extend.core.ClosedJaxpr)):
+                    yield from array_bytes(getattr(inner, "jaxpr", inner))
+
+
+def check_sizes(config: DeepConfig) -> None:
+    """Refuse, after tracing and before compiling, a training one of whose arrays, or whose records, exceed this
+    machine's memory, naming ``total_steps`` where the records are the larger part, else ``vmap_width``: XLA aborts
+    the process on a size it cannot represent instead of raising."""
+    traced = traced_program(config.algorithm, config.env, config.method_config(), config.eval_rounds,
+                            config.eval_episodes, config.vmap_width)
+    largest = max(array_bytes(traced.jaxpr.jaxpr), default=0)
+    output = sum(math.prod(leaf.shape) * leaf.dtype.itemsize for leaf in jax.tree.leaves(traced.out_info))
+    refuse_past_memory(config, largest, 2 * -(-len(config.seeds) // config.vmap_width) * output)
 
 
 @float64
@@ -72,9 +107,13 @@ def memory_needed(config: DeepConfig, compiled: Any) -> tuple[int, int]:
 
 
 def check_memory(config: DeepConfig, compiled: Any) -> None:
-    """A training that fits in this machine's memory, refused after compiling and before the first step (a
-    :class:`ConfigError` naming ``total_steps`` where the records are the larger part, else ``vmap_width``)."""
-    training, records = memory_needed(config, compiled)
+    """A training that fits in this machine's memory, refused after compiling and before the first step."""
+    refuse_past_memory(config, *memory_needed(config, compiled))
+
+
+def refuse_past_memory(config: DeepConfig, training: int, records: int) -> None:
+    """A :class:`ConfigError` where ``training + records`` bytes exceed this machine's memory, naming
+    ``total_steps`` where the records are the larger part, else ``vmap_width``."""
     memory = machine.physical_memory()
     if training + records <= memory:
         return
@@ -130,6 +169,7 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
     with the number of seeds finished since its last call."""
     use_compilation_cache()
     started = time.perf_counter()
+    check_sizes(config)
     train = compiled_training(config)
     compile_seconds = time.perf_counter() - started
     check_memory(config, train)

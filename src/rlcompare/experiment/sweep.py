@@ -30,7 +30,7 @@ else:  # pragma: no cover - Python 3.10
 
 from rlcompare.experiment.engines import ENGINES
 from rlcompare.formatting import cut, quote
-from rlcompare.validation import ConfigError, Integer
+from rlcompare.validation import ConfigError, Integer, UnknownKey
 
 if TYPE_CHECKING:
     from rlcompare.experiment.engines import EngineFront
@@ -313,7 +313,9 @@ def _configs(sources: Iterable[tuple[str, dict[str, Any], dict[str, str]]], seed
                 break
             except ConfigError as error:
                 where = origin.get(error.field_name, f"{error.field_name} (default)")
-                message = f"{cut(where, 200)}: got {quote(error.value)}; allowed: {error.allowed}"
+                message = (f"{cut(where.split('[')[0], 200)}: unknown key; allowed: {error.allowed}"
+                           if isinstance(error, UnknownKey) else
+                           f"{cut(where, 200)}: got {quote(error.value)}; allowed: {error.allowed}")
                 context = ", ".join(f"{cut(k, 80)} = {quote(values[k])}" for k, path in origin.items()
                                     if k != error.field_name and not path.startswith("fixed.") and k in values)
                 failures.setdefault(message, (where, []))[1].append(context)

@@ -127,7 +127,8 @@ def checked(plan: Plan) -> Plan:
     try:
         plan.configs()
     except ConfigError as error:
-        raise ConfigError("steps" if error.field_name == "total_steps" else error.field_name, error.value,
+        given_as_steps = error.field_name.removeprefix("hyperparameters.") == "total_steps"
+        raise ConfigError("steps" if given_as_steps else error.field_name, error.value,
                           error.allowed) from None
     return plan
 
