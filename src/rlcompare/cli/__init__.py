@@ -23,7 +23,9 @@ def main() -> None:
         summary_app()()
     else:
         from rlcompare.cli.commands import app
+        from rlcompare.experiment.interrupts import raise_on_sigterm
 
+        raise_on_sigterm()
         app()
 
 

@@ -80,6 +80,7 @@ def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
     backend that cannot run, or of a value a run refuses, end it with one clear line and exit code 2; what was
     finished before them stays on disk."""
     from rlcompare.experiment.backends import BackendError
+    from rlcompare.experiment.interrupts import EXIT_INTERRUPTED, say
 
     @functools.wraps(command)
     def wrapped(*args: P.args, **kwargs: P.kwargs) -> R:
@@ -93,6 +94,9 @@ def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
             message = str(error) if isinstance(error, StoreError) or not error.strerror else (
                 f"{error.filename}: {error.strerror}" if error.filename else error.strerror)
             fail(message)
+        except KeyboardInterrupt:
+            say("Interrupted: the finished runs are kept, and the same command resumes from them")
+            raise SystemExit(EXIT_INTERRUPTED) from None
 
     return wrapped
 

@@ -4,12 +4,14 @@ studies' run-or-load over many configurations."""
 from __future__ import annotations
 
 import json
+import signal
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
 from rlcompare.experiment import engines, rundir, store
+from rlcompare.experiment.interrupts import Terminated, abandon, finish_in_flight
 
 
 def run(config: Any, *, out: Path | None = None, study: str = "", progress: Callable[[int], None] | None = None
@@ -95,15 +97,22 @@ def run_or_load(
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
         if not force:
             refuse_replacing(Path(out), configs)
-        if workers <= 1:
-            for name, config in configs.items():
-                yield one(name, config)
-            return
-        with ThreadPoolExecutor(workers) as pool:
-            pending = [pool.submit(one, name, config) for name, config in configs.items()]
+        # trained in threads, even one at a time, so that the main thread answers Ctrl-C while XLA runs
+        with ThreadPoolExecutor(max(workers, 1)) as pool:
+            pending: dict[Future[tuple[str, Any, bool]], str] = {}
             try:
+                for name, config in configs.items():
+                    pending[pool.submit(one, name, config)] = name
                 for future in as_completed(pending):
                     yield future.result()
+            except (KeyboardInterrupt, GeneratorExit) as stop:  # Ctrl-C here, or in the caller between two runs
+                for future in pending:
+                    future.cancel()
+                finish_in_flight({future: name for future, name in pending.items() if future.running()},
+                                 "Ctrl-C" if isinstance(stop, KeyboardInterrupt) else "Stopping")
+                raise
+            except Terminated:
+                abandon(signal.SIGTERM)
             finally:
                 for future in pending:
                     future.cancel()

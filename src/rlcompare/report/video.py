@@ -285,11 +285,27 @@ class VideoRenders:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
 
+    def stop(self) -> None:
+        """End the worker processes now, renders in flight with them (each file is written atomically, so no half
+        video is left under its name), and wait until they are gone: nothing of theirs writes afterwards."""
+        if self._pool is None:
+            return
+        workers = list((getattr(self._pool, "_processes", None) or {}).values())  # the executor lists no public handle
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for process in workers:
+            process.terminate()
+        for process in workers:
+            process.join()
+
     def __enter__(self) -> VideoRenders:
         return self
 
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
+    def __exit__(self, kind: type[BaseException] | None, *rest: object) -> None:
+        """Leaving normally, or on an error of a render: :meth:`close`. On an interrupt or SIGTERM: :meth:`stop`."""
+        if kind is not None and issubclass(kind, KeyboardInterrupt | SystemExit):
+            self.stop()
+        else:
+            self.close()
 
 
 def _rendered_here(job: VideoJob) -> Future[list[Path]]:

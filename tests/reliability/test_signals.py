@@ -1,0 +1,107 @@
+"""Signals a terminal or a scheduler sends, to real processes (issue 39): Ctrl-C once finishes the trainings in
+flight and keeps them, twice abandons them at once (exit 130, never an abort); SIGTERM to ``report`` ends its video
+workers with it, so nothing writes into the directory after its lock is gone."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from helpers import ENV, finished_runs, paper_study
+
+pytestmark = pytest.mark.slow("sends signals to rlcompare processes that train or render")
+
+DEEP = ["reproduce", "deep", "--steps", "300000", "--seeds", "2", "--envs", "CartPole-v1", "--methods",
+        "pqn_q_lambda,dqn", "--workers", "1"]
+
+
+def start(args: list[str], log: Path) -> subprocess.Popen[bytes]:
+    with log.open("wb") as output:
+        return subprocess.Popen([sys.executable, "-m", "rlcompare.cli", *args], stdout=output,
+                                stderr=subprocess.STDOUT, env=ENV)
+
+
+def wait_for(ready: Callable[[], bool], process: subprocess.Popen[bytes], log: Path, timeout: float = 240) -> None:
+    deadline = time.monotonic() + timeout
+    while not ready():
+        assert process.poll() is None, log.read_text()
+        assert time.monotonic() < deadline, log.read_text()
+        time.sleep(0.05)
+
+
+def in_flight(study: Path) -> bool:
+    """Whether a network's training has begun: its run directory, made when its thread starts it, beside the
+    tabular pair's two."""
+    return len(list(study.glob("*/.rlcompare.json"))) > 2
+
+
+def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path) -> None:
+    out, log = tmp_path / "study", tmp_path / "log"
+    process = start([*DEEP, "--out", str(out)], log)
+    wait_for(lambda: in_flight(out), process, log)
+    process.send_signal(signal.SIGINT)
+    wait_for(lambda: "Ctrl-C: finishing the trainings in flight (" in log.read_text(), process, log, timeout=5)
+    assert process.wait(timeout=240) == 130, log.read_text()
+    text = log.read_text()
+    assert "Ctrl-C again abandons them" in text
+    assert "Traceback" not in text
+    assert len(finished_runs(out)) == 3, text  # the one in flight kept, the other never started
+
+
+def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Path) -> None:
+    out, log = tmp_path / "study", tmp_path / "log"
+    process = start([*DEEP, "--out", str(out)], log)
+    wait_for(lambda: in_flight(out), process, log)
+    process.send_signal(signal.SIGINT)
+    wait_for(lambda: "Ctrl-C again abandons them" in log.read_text(), process, log, timeout=5)
+    process.send_signal(signal.SIGINT)
+    assert process.wait(timeout=10) == 130, log.read_text()
+    text = log.read_text()
+    assert "abandoned; the finished runs are kept" in text
+    assert "FATAL" not in text
+    assert "terminate called" not in text
+    kept = finished_runs(out)
+    assert len(kept) == 2
+    resumed = subprocess.run([sys.executable, "-m", "rlcompare.cli", *DEEP, "--out", str(out)],
+                             capture_output=True, text=True, env=ENV, check=False)
+    assert resumed.returncode == 0, resumed.stderr
+    assert len(finished_runs(out)) == 4
+
+
+def test_sigterm_to_report_ends_its_video_workers_before_its_lock_is_released(tmp_path: Path) -> None:
+    study = paper_study(tmp_path / "study", seeds=2, episodes=300)
+    log = tmp_path / "log"
+    process = start(["report", str(study)], log)
+    wait_for(lambda: any((study / "videos").glob(".*.tmp*")), process, log)  # a worker is writing a video
+    workers = children(process.pid)
+    assert workers
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=30) == 143, log.read_text()
+    assert "Traceback" not in log.read_text()
+    deadline = time.monotonic() + 10  # multiprocessing's resource tracker ends once its pipe closes
+    while [pid for pid in workers if alive(pid)] and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [(pid, Path(f"/proc/{pid}/cmdline").read_text()) for pid in workers if alive(pid)]
+    written = {path: path.stat().st_mtime_ns for path in (study / "videos").iterdir()}
+    time.sleep(2)
+    assert {path: path.stat().st_mtime_ns for path in (study / "videos").iterdir()} == written
+
+
+def children(pid: int) -> list[int]:
+    """The processes ``pid`` started (its video workers and multiprocessing's resource tracker)."""
+    found = subprocess.run(["ps", "-o", "pid=", "--ppid", str(pid)], capture_output=True, text=True, check=False)
+    return [int(line) for line in found.stdout.split()]
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
