@@ -310,3 +310,27 @@ def test_a_configuration_with_one_environment_has_no_aggregates_and_no_overall_r
     assert list(found.judged) == [Key("Acrobot-v1", "constant"),  # others are asked of every environment
                                   Key("CartPole-v1", metric="greedy_auc"), Key("CartPole-v1", "constant")]
     assert found.files == {"verdicts": "tables/third_verdicts.csv"}
+
+
+@pytest.mark.slow("reports a copy of a trained deep study")
+def test_a_diverged_training_is_no_verdict_and_the_report_names_it(study, tmp_path):
+    import shutil
+
+    from rlcompare.studies.deep import DEEP
+    from rlcompare.studies.paired import Key
+    from rlcompare.studies.paired_report import DIVERGED, findings
+
+    out = tmp_path / "diverged"
+    for name in ("pqn_q_lambda-CartPole-v1", "pqn_sarsa_lambda-CartPole-v1", "tabular-q_learning-CartPole-v1",
+                 "tabular-sarsa-CartPole-v1"):
+        shutil.copytree(study[0] / name, out / name, ignore=shutil.ignore_patterns(".rlcompare.lock"))
+    meta_file = out / "pqn_sarsa_lambda-CartPole-v1" / "meta.json"
+    meta = json.loads(meta_file.read_text())
+    assert meta["diverged"] == {}  # what a training that stayed finite records
+    meta_file.write_text(json.dumps({**meta, "diverged": {"1": 7}}))
+    found = findings(out, DEEP)
+    labels = {key: judged.label for key, judged in found.judged.items()}
+    assert labels[Key("CartPole-v1", metric="greedy_return")] == DIVERGED
+    assert labels[Key("CartPole-v1", metric="greedy_auc")] == DIVERGED
+    assert labels[Key("CartPole-v1", "table")] != DIVERGED  # the tabular pair trained apart
+    assert any("diverged in 1 of 2 seeds: 1 (from update 7)" in problem for problem in found.problems)

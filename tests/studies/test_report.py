@@ -93,7 +93,7 @@ def test_report_writes_tables_figures_and_page(study_copy: Path) -> None:
     assert "Holm" in page
     assert "fragile" in page
     assert 'class="verdict-' in page
-    assert "Incomplete" not in page
+    assert "Read with care" not in page
     assert BEHAVIOUR_AND_GREEDY in page
 
 
@@ -253,7 +253,7 @@ def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_
     assert (study_copy / "figures" / "stages-sarsa-constant.png").is_file()
     assert not (study_copy / "figures" / "fig3-random.png").exists()
     page = (study_copy / "report.html").read_text()
-    assert "Incomplete" in page
+    assert "Read with care" in page
     assert "sarsa-decay" in page
 
 

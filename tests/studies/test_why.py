@@ -200,7 +200,7 @@ def test_a_missing_or_damaged_cell_is_named_and_the_rest_still_decomposed(study,
     (copy / "sarsa-decay-after_update" / "qtables.npz").write_bytes(b"damaged")
     path = why.report(copy).path
     page = path.read_text()
-    assert "Incomplete" in page
+    assert "Read with care" in page
     assert "expected_sarsa-constant-before_update" in page
     assert "sarsa-decay-after_update" in page
     table = pd.read_csv(copy / "tables" / "decomposition.csv")

@@ -236,5 +236,5 @@ def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
     with console.status("Building the sweep's report"):
         path, problems = build_sweep_report(root, group_by)
     for problem in problems:
-        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
+        console.print(Text("Warning: ", style="yellow") + Text(problem), highlight=False)
     console.print(f"Report: {path}")

@@ -242,7 +242,7 @@ def print_report(report: Report) -> None:
     for line in report.lines:
         console.print(Text(f"  {line}"), highlight=False)
     for problem in report.problems:
-        console.print(Text("Missing: ", style="yellow") + Text(problem), highlight=False)
+        console.print(Text("Warning: ", style="yellow") + Text(problem), highlight=False)
     timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in report.seconds.items())
     console.print(f"Report: {report.path}" + (f"  ({timings})" if timings else ""))
     if report.problems:

@@ -44,6 +44,22 @@ class DeepResults:
         return self.config.seeds
 
     @property
+    def diverged(self) -> dict[int, int]:
+        """Each seed whose training diverged -> the first update after which its parameters were not all finite
+        (``meta.json``'s ``diverged``; none for a run written before it was recorded)."""
+        return {int(seed): int(update) for seed, update in self.meta.get("diverged", {}).items()}
+
+    def divergence(self) -> str:
+        """Where the training diverged, in words for a report (empty where it did not): which seeds, from which
+        update, and what that makes of their returns."""
+        if not self.diverged:
+            return ""
+        seeds = ", ".join(f"{seed} (from update {update:,})" for seed, update in sorted(self.diverged.items()))
+        return (f"{self.config.name}: the training diverged in {len(self.diverged)} of {len(self.seeds)} seeds: "
+                f"{seeds}, its parameters no longer all finite; those seeds' returns are a network of NaNs', not a "
+                "learned policy's")
+
+    @property
     def stages(self) -> list[str]:
         """The stages of learning whose networks this run keeps, in order, ``final`` last."""
         return [*self.snapshots, "final"]
@@ -127,7 +143,8 @@ def merge_seeds(parts: list[DeepResults]) -> DeepResults:
                        pd.concat([part.episodes for part in parts], ignore_index=True),
                        pd.concat([part.evaluations for part in parts], ignore_index=True),
                        _concatenated([part.params for part in parts]),
-                       {**first.meta, "seeds": list(seeds), "timings": timings},
+                       {**first.meta, "seeds": list(seeds), "timings": timings,
+                        "diverged": {str(seed): update for part in parts for seed, update in part.diverged.items()}},
                        {stage: _concatenated([part.snapshots[stage] for part in parts]) for stage in first.snapshots
                         if all(stage in part.snapshots for part in parts)})
 

@@ -71,6 +71,9 @@ class TrainOutput(NamedTuple):
     """(rounds, eval episodes) greedy returns after each round."""
     eval_lengths: jax.Array
     eval_terminated: jax.Array
+    finite: jax.Array
+    """(rounds, updates per round): whether every parameter was finite after each update (a diverged training's
+    are not, and its greedy policy is a network of NaNs)."""
 
 
 Evaluating = tuple[jax.Array, Any, jax.Array, jax.Array, jax.Array, jax.Array]
@@ -120,6 +123,11 @@ def evaluate(env: Environment, act: Act, params: Params, key: jax.Array, episode
     return returns, lengths, terminated
 
 
+def all_finite(params: Params) -> jax.Array:
+    """Whether every parameter is finite: a scalar bool."""
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(leaf)) for leaf in jax.tree.leaves(params)]))
+
+
 def train_in_rounds(update: Callable[[Any, jax.Array], tuple[Any, Finished]], params_of: Callable[[Any], Params],
                     env: Environment, act: Act, rounds: int, updates_per_round: int, eval_episodes: int
                     ) -> Callable[[Any, jax.Array], TrainOutput]:
@@ -128,23 +136,28 @@ def train_in_rounds(update: Callable[[Any, jax.Array], tuple[Any, Finished]], pa
     the parameters kept at each stage of learning."""
     kept_after = jnp.asarray(stage_rounds(rounds))
 
+    def checked_update(runner: Any, key: jax.Array) -> tuple[Any, tuple[Finished, jax.Array]]:
+        runner, finished = update(runner, key)
+        return runner, (finished, all_finite(params_of(runner)))
+
     def one_round(carry: tuple[Any, Params], round_and_key: tuple[jax.Array, jax.Array]
-                  ) -> tuple[tuple[Any, Params], tuple[Finished, jax.Array, jax.Array, jax.Array]]:
+                  ) -> tuple[tuple[Any, Params], tuple[Finished, jax.Array, jax.Array, jax.Array, jax.Array]]:
         runner, snapshots = carry
         index, key = round_and_key
         update_key, eval_key = jax.random.split(key)
-        runner, finished = jax.lax.scan(update, runner, jax.random.split(update_key, updates_per_round))
+        runner, (finished, finite) = jax.lax.scan(checked_update, runner,
+                                                  jax.random.split(update_key, updates_per_round))
         params = params_of(runner)
         returns, lengths, terminated = evaluate(env, act, params, eval_key, eval_episodes)
         keep = kept_after == index
         snapshots = jax.tree.map(
             lambda kept, now: jnp.where(keep.reshape((-1,) + (1,) * now.ndim), now[None], kept), snapshots, params)
-        return (runner, snapshots), (finished, returns, lengths, terminated)
+        return (runner, snapshots), (finished, returns, lengths, terminated, finite)
 
     def train(runner: Any, key: jax.Array) -> TrainOutput:
         empty = jax.tree.map(lambda leaf: jnp.zeros((len(STAGES), *leaf.shape), leaf.dtype), params_of(runner))
-        (runner, snapshots), (finished, returns, lengths, terminated) = jax.lax.scan(
+        (runner, snapshots), (finished, returns, lengths, terminated, finite) = jax.lax.scan(
             one_round, (runner, empty), (jnp.arange(rounds), jax.random.split(key, rounds)))
-        return TrainOutput(params_of(runner), snapshots, finished, returns, lengths, terminated)
+        return TrainOutput(params_of(runner), snapshots, finished, returns, lengths, terminated, finite)
 
     return train

@@ -193,12 +193,20 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
                     "steps_per_second": steps * len(config.seeds) / wall if wall > 0 else None,
                     "device": str(jax.devices()[0])},
         "versions": dict(machine.versions("jax", "flax", "optax")),
+        "diverged": diverged_at(config.seeds, output.finite),
     }
     snapshots = {stage: _named_arrays(jax.tree.map(lambda leaf, i=index: leaf[:, i], output.snapshots))
                  for index, (stage, _) in enumerate(rollout.STAGES)}
     return DeepResults(config, episodes_frame(config.seeds, output),
                        evaluations_frame(config.seeds, output, steps_per_round), _named_arrays(output.params), meta,
                        snapshots)
+
+
+def diverged_at(seeds: tuple[int, ...], finite: np.ndarray) -> dict[str, int]:
+    """Each seed whose parameters became non-finite -> the first update after which they were (counted from 1 over
+    the whole training); ``finite`` is :attr:`TrainOutput.finite` with a leading seed axis."""
+    per_update = np.asarray(finite).reshape(len(seeds), -1)
+    return {str(seed): int(np.argmin(row)) + 1 for seed, row in zip(seeds, per_update, strict=True) if not row.all()}
 
 
 def _named_arrays(tree: Any) -> dict[str, np.ndarray]:

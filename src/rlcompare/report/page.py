@@ -114,7 +114,7 @@ def render_report(title: str, sections: list[Section], problems: list[str]) -> s
     warning = ""
     if problems:
         items = "".join(f"<li>{html.escape(p)}</li>" for p in problems)
-        warning = f'<div class="problems"><strong>Incomplete:</strong><ul>{items}</ul></div>'
+        warning = f'<div class="problems"><strong>Read with care:</strong><ul>{items}</ul></div>'
     parts = [_section_html(s) for s in sections]
     if len(sections) > 2:  # the answer first, then what the page holds
         parts.insert(1, _contents(sections[1:]))

@@ -114,7 +114,14 @@ def judged(study: PairedStudy, runs: Mapping[str, DeepResults], beside: Mapping[
         found[Key(OVERALL)] = compare_paired(on_scores.mean(axis=0), off_scores.mean(axis=0), study.overall_margin)
     family: dict[Hashable, Paired] = {key: paired for key, paired in found.items()}
     judgements = judge_family(family, TARGETS)
-    return {key: judgements[key] for key in found}
+    diverged = {env for env in study.envs if any(r.diverged for r in pair_of(runs, env) or ())}
+    return {key: judgements[key]._replace(label=DIVERGED) if key.engine == "network" and (
+        key.env in diverged or (key.env == OVERALL and diverged)) else judgements[key] for key in found}
+
+
+DIVERGED = "not decided: a training diverged"
+"""The label of a comparison of the networks where a seed's parameters became non-finite: its returns are a network
+of NaNs' (:attr:`~rlcompare.deep.results.DeepResults.diverged`), so no test on them is a verdict."""
 
 
 def verdict_table(study: PairedStudy, compared: Mapping[Key, Judged]) -> pd.DataFrame:
@@ -175,6 +182,7 @@ def findings(out: Path, study: PairedStudy) -> Findings:
     """``out``'s runs loaded, the comparisons judged (:func:`judged`) and rliable's aggregates drawn
     (:func:`draw_across`); the verdicts written into ``out / "tables"`` as ``{study.name}_verdicts``."""
     runs, beside, problems = load_runs(out)
+    problems += [note for results in runs.values() if (note := results.divergence())]
     envs = [env for env in study.envs if any(r.config.env == env for r in runs.values())]
     floors = {env: random_floor(env) for env in envs} if len(envs) > 1 else {}
     spread = across(runs, envs, floors, study.method_order) if len(envs) > 1 else None

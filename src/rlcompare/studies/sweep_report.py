@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pandas as pd
@@ -115,6 +115,7 @@ def deep_configuration_rows(runs: dict[str, DeepResults], metrics_of: dict[str, 
             "seeds": len(results.seeds), "steps": results.meta["timings"]["training_steps"],
             "final greedy, mean": interval(final).format(1), "final greedy, IQM": interval(final, "iqm").format(1),
             "AUC, mean": interval(auc).format(1), "AUC, IQM": interval(auc, "iqm").format(1),
+            "diverged seeds": len(results.diverged),
         })
     return pd.DataFrame(rows)
 
@@ -279,6 +280,9 @@ def _build_sweep_report(root: Path, group_by: tuple[str, ...]) -> tuple[Path, li
     metrics = {config_hash: (deep_metrics if deep else per_seed_metrics)(results)
                for config_hash, results in runs.items()}
     table = (deep_configuration_rows if deep else configuration_rows)(runs, metrics, swept)
+    if deep:
+        problems += [f"configuration {config_hash}, {note}" for config_hash, results in runs.items()
+                     if (note := cast("DeepResults", results).divergence())]
     write_table(table, tables_dir, "configurations")
     grouped: Tables = []
     for key in group_by:
