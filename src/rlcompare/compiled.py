@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -29,7 +30,7 @@ import numba
 if TYPE_CHECKING:
     from numba.core.typing.templates import Signature
 
-__all__ = ["holds_nothing_yet", "njit", "tend"]
+__all__ = ["cache_is_writable", "holds_nothing_yet", "njit", "tend"]
 
 Function = TypeVar("Function", bound=Callable[..., Any])
 Codegen = Callable[[Any, Any, "Signature", tuple[Any, ...]], Any]
@@ -104,6 +105,18 @@ def holds_nothing_yet() -> bool:
     """Whether this version's cache holds no compiled kernel yet: the next run compiles them."""
     cache_dir = numba_settings()["CACHE_DIR"]
     return bool(cache_dir) and not any(Path(cache_dir).rglob("*.nbi"))
+
+
+def cache_is_writable() -> bool:
+    """Whether numba can keep what it compiles: this version's cache directory can be made and written (tried, as
+    permissions alone do not say it for every user or file system)."""
+    try:
+        cache_dir = Path(numba_settings()["CACHE_DIR"])
+        cache_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=cache_dir):
+            return True
+    except OSError:
+        return False
 
 
 def prune_unused(root: Path, keep: Path, days: float = KEEP_UNUSED_DAYS) -> None:

@@ -6,7 +6,9 @@ import contextlib
 import functools
 import inspect
 import os
+import sys
 import textwrap
+import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, ParamSpec, TypeVar
@@ -75,6 +77,17 @@ def fail(message: str) -> NoReturn:
     raise typer.Exit(2)
 
 
+def _standard_output_fails(error: OSError) -> bool:
+    """Whether ``error`` is standard output's (a full disk, a closed pipe): raised where rich writes the console's
+    buffer. If so, standard output is replaced by the null device, so that nothing more is tried there, Python's
+    own flush at exit included."""
+    frames = traceback.extract_tb(error.__traceback__)
+    if not (frames and frames[-1].name == "_write_buffer" and console.file is sys.stdout):
+        return False
+    sys.stdout = console.file = open(os.devnull, "w")  # noqa: SIM115 -- kept open for the rest of the process
+    return True
+
+
 def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
     """A command whose errors of the store or of the operating system (a full disk, a read-only directory), of a
     backend that cannot run, or of a value a run refuses, end it with one clear line and exit code 2; what was
@@ -91,6 +104,9 @@ def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
         except ConfigError as error:  # a value only a run can refuse: records larger than this machine's memory
             raise bad_option(error) from None
         except OSError as error:  # StoreError included
+            if not isinstance(error, StoreError) and error.filename is None and _standard_output_fails(error):
+                fail(f"standard output: cannot write ({error.strerror or error}); what the command wrote to files "
+                     "before it stays, and the same command resumes from it")
             message = str(error) if isinstance(error, StoreError) or not error.strerror else (
                 f"{error.filename}: {error.strerror}" if error.filename else error.strerror)
             fail(message)
@@ -146,9 +162,13 @@ def progress_bars(eta: bool = False) -> Progress:
 
 def announce_compiling() -> None:
     """Say so before a run that will compile the kernels, which takes a while on a fresh machine."""
-    from rlcompare.compiled import holds_nothing_yet
+    from rlcompare.compiled import cache_is_writable, holds_nothing_yet, numba_settings
 
-    if holds_nothing_yet():
+    if not cache_is_writable():
+        console.print(f"Compiling: numba's cache directory {numba_settings()['CACHE_DIR']} is not writable, so each "
+                      "run compiles its training loops again (seconds each); set NUMBA_CACHE_DIR, or XDG_CACHE_HOME, "
+                      "to a writable directory to keep them.")
+    elif holds_nothing_yet():
         console.print("Compiling: the first run of each method on each environment and features compiles its "
                       "training loop, once on this machine (seconds each: each configuration's line below says how "
                       "long); later runs load it.")

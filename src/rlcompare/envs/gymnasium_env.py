@@ -70,6 +70,11 @@ def describe(env_id: str) -> Spaces:
     """The spaces of ``env_id``, or :class:`UnsupportedEnvironment` naming what is wrong."""
     import gymnasium as gym
 
+    if env_id.startswith("ALE/"):
+        game = env_id.removeprefix("ALE/").split("-")[0]
+        raise UnsupportedEnvironment(f"{env_id!r} is an Atari 2600 game, whose screens no table can hold: the "
+                                     f"deep engine plays its games as NAME-Atari ({game}-Atari where docs/atari.md "
+                                     "lists it), with the Atari extra")
     try:
         spec = gym.spec(env_id)
     except gym.error.Error as error:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from rlcompare.experiment import rundir, store
-from rlcompare.validation import ConfigError
+from rlcompare.validation import ConfigError, is_integer
 
 
 class EngineFront(Protocol):
@@ -136,9 +136,16 @@ def load_if_complete(run_dir: Path, config: Any, load: Callable[..., Any] | None
 def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final") -> Any:
     """The greedy agent of ``seed`` (default: the run's first) at ``stage`` of a finished run directory of any
     engine, ready for ``gymnasium.make`` of the run's environment: ``agent.act(observation) -> action``."""
+    owner = store.owner_of(Path(run_dir))
+    if owner is not None and owner != store.RUN:
+        runs = sorted(p.name for p in Path(run_dir).iterdir() if store.owner_of(p) == store.RUN)
+        raise store.StoreError(f"{run_dir}: holds {owner}, not one run; allowed: one of its run directories "
+                               f"({', '.join(runs) or 'none finished'})")
+    if seed is not None and not is_integer(seed):
+        raise ConfigError("seed", seed, "an integer, one of the run's seeds")
     results = load_run(Path(run_dir))
     try:
-        return front(results.config).agent(results, results.seeds[0] if seed is None else seed, stage)
+        return front(results.config).agent(results, results.seeds[0] if seed is None else int(seed), stage)
     except ValueError as error:  # stored arrays that are not the method's (a run of another version)
         raise store.StoreError(f"{Path(run_dir)}: {error}") from None
 

@@ -14,15 +14,16 @@ from rlcompare.experiment import engines, rundir, store
 from rlcompare.experiment.interrupts import Terminated, abandon, finish_in_flight
 
 
-def run(config: Any, *, out: Path | None = None, study: str = "", progress: Callable[[int], None] | None = None
-        ) -> Any:
+def run(config: Any, *, out: Path | None = None, study: str = "", progress: Callable[[int], None] | None = None,
+        force: bool = False) -> Any:
     """Train every seed of ``config`` on its engine (:mod:`rlcompare.experiment.engines`); write the run directory
-    to ``out`` if given (refused before training, locked while it lasts). ``progress`` is called with what was
-    finished since its last call (episodes of each seed, or seeds: the config's ``progress_total`` says)."""
+    to ``out`` if given (refused before training, locked while it lasts; ``force``: beside files rlcompare did not
+    write, never replacing them). ``progress`` is called with what was finished since its last call (episodes of
+    each seed, or seeds: the config's ``progress_total`` says)."""
     train = engines.front(config).train
     if out is None:
         return train(config, study=study, progress=progress)
-    with store.output_directory(Path(out), store.RUN):
+    with store.output_directory(Path(out), store.RUN, force=force):
         results = train(config, study=study, progress=progress)
         rundir.write_results(Path(out), results)
     return results
@@ -69,6 +70,37 @@ def refuse_replacing(out: Path, configs: dict[str, Any]) -> None:
                                "replace them")
 
 
+REPORT_PLACES = ("figures", "tables", "videos", "report.html")
+"""Where a study's report writes: folders whose files' names are known only once the runs are trained (a video's
+seed is chosen from them), and the page."""
+
+
+def refuse_clashes(out: Path, configs: dict[str, Any]) -> None:
+    """A :class:`~rlcompare.experiment.store.StoreError`, before anything is trained, naming files rlcompare did not
+    write where a study writes its own: a run's files (``config.json`` in a run's directory) or anything in the
+    report's places. Beside them (``--force``), a user's files are left alone at every level."""
+    run_files = (*rundir.RUN_FILES, rundir.PARAMS_FILE)
+    clashes = [path for name in configs for file in run_files if _unlisted(path := Path(out) / name / file)]
+    clashes += [path for place in REPORT_PLACES for path in _files(Path(out) / place) if _unlisted(path)]
+    if clashes:
+        shown = ", ".join(str(path.relative_to(out)) for path in clashes[:3])
+        more = f" and {len(clashes) - 3} more" if len(clashes) > 3 else ""
+        raise store.StoreError(f"{out}: holds files rlcompare did not write where it writes its own ({shown}{more});"
+                               " they are left as they are: move them, or choose another --out")
+
+
+def _files(path: Path) -> list[Path]:
+    return [path] if path.is_file() or path.is_symlink() else sorted(p for p in path.rglob("*") if p.is_file())
+
+
+def _unlisted(path: Path) -> bool:
+    """Whether ``path`` is there and not listed by the marker of the directory that holds it."""
+    if not (path.exists() or path.is_symlink()):
+        return False
+    owner = next((d for d in path.parents if (d / store.MARKER_FILE).is_file()), None)
+    return owner is None or path.relative_to(owner).as_posix() not in store.listed_outputs(owner)
+
+
 def run_or_load(
     out: Path, configs: dict[str, Any], *, study: str, progress: Callable[[int], None] | None = None,
     force: bool = False, train: Callable[..., Any] | None = None, load: Callable[..., Any] | None = None,
@@ -92,11 +124,12 @@ def run_or_load(
             if progress is not None:
                 progress(config.progress_total)
             return name, stored, True
-        return name, (train or run)(config, out=run_dir, study=study, progress=progress), False
+        return name, (train or run)(config, out=run_dir, study=study, progress=progress, force=force), False
 
     with store.output_directory(Path(out), store.Owner("study", study), force=force):
         if not force:
             refuse_replacing(Path(out), configs)
+        refuse_clashes(Path(out), configs)
         # trained in threads, even one at a time, so that the main thread answers Ctrl-C while XLA runs
         with ThreadPoolExecutor(max(workers, 1)) as pool:
             pending: dict[Future[tuple[str, Any, bool]], str] = {}

@@ -205,11 +205,12 @@ def _scaled(progress: Callable[[float], None], share: float, episodes: int) -> N
 
 
 def train(config: ExperimentConfig, *, out: Path | None = None, study: str = "",
-          progress: Callable[[float], None] | None = None) -> PhaseRuns:
-    """:func:`summarise` into the run directory ``out`` where given (``run_or_load``'s ``train``)."""
+          progress: Callable[[float], None] | None = None, force: bool = False) -> PhaseRuns:
+    """:func:`summarise` into the run directory ``out`` where given (``run_or_load``'s ``train``; ``force``: beside
+    files rlcompare did not write)."""
     if out is None:
         return summarise(config, study, progress)
-    with store.output_directory(Path(out), store.RUN):
+    with store.output_directory(Path(out), store.RUN, force=force):
         runs = summarise(config, study, progress)
         runs.save(out)
     return runs
