@@ -141,3 +141,28 @@ def test_training_episodes_are_recorded_as_they_end(trained):
     assert done.sum() > 50
     np.testing.assert_array_equal(returns, lengths)  # CartPole pays 1 per step
     assert lengths.max() <= CARTPOLE.max_steps
+
+
+@pytest.mark.parametrize("cut", [[0, 0, 0, 0, 0], [1, 0, 0, 0, 0], [0, 1, 0, 1, 0], [1, 1, 1, 1, 1]])
+def test_watkins_cuts_the_trace_where_the_next_action_was_not_greedy(cut):
+    """Sutton and Barto 12.10: after an exploratory action the return bootstraps from max Q alone, as at a
+    time-limit cut; nothing else changes."""
+    rewards = np.array([1.0, -2.0, 0.5, 3.0, -1.0])
+    values = np.array([10.0, 4.0, -3.0, 2.0, 7.0])
+    terminated = np.array([0, 0, 0, 0, 1], bool)
+    got = lambda_returns(jnp.asarray(rewards)[:, None], jnp.asarray(terminated)[:, None], jnp.zeros((5, 1), bool),
+                         jnp.asarray(values)[:, None], GAMMA, LAM, jnp.asarray(cut, bool)[:, None])
+    expected = returns_by_hand(rewards, terminated, np.asarray(cut, bool), values)
+    np.testing.assert_allclose(np.asarray(got)[:, 0], expected, rtol=1e-12)
+    if cut == [1, 0, 0, 0, 0]:
+        assert float(got[0, 0]) == pytest.approx(1.0 + GAMMA * 10.0)  # by hand: r_0 + γ max Q(s_1) alone
+
+
+def test_peng_and_watkins_agree_where_every_action_taken_was_greedy_and_at_lambda_zero():
+    rewards, values = jnp.array([[1.0], [2.0], [3.0]]), jnp.array([[5.0], [6.0], [7.0]])
+    terminated, truncated = jnp.zeros((3, 1), bool), jnp.zeros((3, 1), bool)
+    greedy = jnp.zeros((3, 1), bool)  # no step cut: every next action greedy
+    np.testing.assert_array_equal(lambda_returns(rewards, terminated, truncated, values, GAMMA, LAM),
+                                  lambda_returns(rewards, terminated, truncated, values, GAMMA, LAM, greedy))
+    np.testing.assert_array_equal(lambda_returns(rewards, terminated, truncated, values, GAMMA, 0.0),
+                                  lambda_returns(rewards, terminated, truncated, values, GAMMA, 0.0, ~greedy))

@@ -270,15 +270,14 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
               ("pqn_sarsa_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8),
               ("pqn_q_lambda", "MinAtar/Asterix-v0"): 3 + rng.normal(0, 0.2, 8)}
     runs = {f"{m}-{e}": _results_with_finals(m, e, f) for (m, e), f in finals.items()}
-    spread = across(runs, list(floors), floors, MINATAR.method_order)
+    spread = across(runs, list(floors), floors, MINATAR.method_order, MINATAR.references)
     assert spread.envs == ["MinAtar/Breakout-v0", "MinAtar/Asterix-v0"]
     for method, values in spread.scores.items():  # the curves on the same scales: their last round is the final
         np.testing.assert_array_equal(spread.curves[method][..., -1], values)
-    compared = judged(MINATAR, runs, {}, spread.scores)
+    compared = judged(MINATAR, runs, {}, floors, spread)
     verdicts = verdict_table(MINATAR, compared)
     assert verdicts["game"].tolist() == ["Asterix", "Breakout", "overall (normalised)"]  # the games' order
-    breakout_scale = finals[("pqn_sarsa_lambda", "MinAtar/Breakout-v0")].mean() - 0.5
-    asterix_scale = max(finals[(m, "MinAtar/Asterix-v0")].mean() for m in ("pqn_sarsa_lambda", "pqn_q_lambda")) - 1
+    breakout_scale, asterix_scale = 10.0 - 0.5, 17.0 - 1.0  # random to the MinAtar paper's DQN at 5 M frames
     by_hand = np.mean([(finals[("pqn_sarsa_lambda", e)] - finals[("pqn_q_lambda", e)]) / scale
                        for e, scale in (("MinAtar/Breakout-v0", breakout_scale),
                                         ("MinAtar/Asterix-v0", asterix_scale))], axis=0).mean()
@@ -288,7 +287,7 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
     # every Breakout seed on one side: 2 / 2^8, the second smallest of the family's six p-values (three directions,
     # three equivalences; Asterix's equivalence within ±1 is the smallest), so Holm multiplies it by 5
     assert p_values[1] == pytest.approx(5 * 2 / 2**8)
-    assert verdicts["verdict"].iloc[0] == f"equivalent (within ±{MARGIN:g})"
+    assert verdicts["verdict"].iloc[0] == f"equivalent (within ±{number(MARGIN * asterix_scale)})"  # ±1.6
     assert verdicts["p equivalent (Holm)"].iloc[0] < 0.05
     assert verdicts["verdict"].iloc[1].startswith("on-policy")
     assert verdicts["verdict"].iloc[2].startswith("on-policy")
@@ -299,6 +298,39 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
     assert games.endswith("; on-policy better).")
     assert overall.startswith(f"Over the games, in scores normalised between the random policy (0) and the best "
                               f"method here (1), SARSA(λ) scores {number(by_hand)} more (95% interval")
+    assert answer(by_game(compared), 8, references={"Breakout": 10.0})[1].startswith(
+        "Over the games, in scores normalised between the random policy (0) and the reference (1)")
+
+
+def test_a_game_neither_method_learnt_has_no_verdict_and_stays_out_of_the_overall_row():
+    from rlcompare.stats.compare import NEITHER_LEARNT
+    from rlcompare.studies.minatar import MARGIN, MINATAR, by_game
+    from rlcompare.studies.paired_report import across, answer, judged, verdict_table
+
+    rng = np.random.default_rng(1)
+    floors = {"MinAtar/Breakout-v0": 0.5, "MinAtar/Asterix-v0": 0.5, "MinAtar/SpaceInvaders-v0": 3.0}
+    finals = {("pqn_sarsa_lambda", "MinAtar/Breakout-v0"): 9 + rng.normal(0, 0.3, 8),
+              ("pqn_q_lambda", "MinAtar/Breakout-v0"): 6 + rng.normal(0, 0.3, 8),
+              ("pqn_sarsa_lambda", "MinAtar/Asterix-v0"): 0.8 + rng.normal(0, 0.1, 8),  # below 0.5 + 1.65
+              ("pqn_q_lambda", "MinAtar/Asterix-v0"): 0.95 + rng.normal(0, 0.1, 8),
+              ("pqn_sarsa_lambda", "MinAtar/SpaceInvaders-v0"): 40 + rng.normal(0, 2, 8),
+              ("pqn_q_lambda", "MinAtar/SpaceInvaders-v0"): 3 + rng.normal(0, 0.3, 8)}  # random's: not learnt
+    runs = {f"{m}-{e}": _results_with_finals(m, e, f) for (m, e), f in finals.items()}
+    spread = across(runs, list(floors), floors, MINATAR.method_order, MINATAR.references)
+    compared = judged(MINATAR, runs, {}, floors, spread)
+    labels = {title: j.label for title, j in by_game(compared).items()}
+    assert labels["Asterix"] == NEITHER_LEARNT
+    assert labels["SpaceInvaders"] == "only on-policy learnt"
+    assert "learnt" not in labels["Breakout"]  # both learnt: the comparison's own label (Holm over seven tests)
+    # the overall row averages the two games learnt, not Asterix
+    scales = {"MinAtar/Breakout-v0": 9.5, "MinAtar/SpaceInvaders-v0": 40.0}
+    by_hand = np.mean([(finals[("pqn_sarsa_lambda", e)] - finals[("pqn_q_lambda", e)]) / scale
+                       for e, scale in scales.items()], axis=0).mean()
+    assert verdict_table(MINATAR, compared)["on - off (mean, 95% CI)"].iloc[-1].startswith(f"{by_hand:.2f} [")
+    assert MINATAR.margin_of("MinAtar/SpaceInvaders-v0", 3.0) == pytest.approx(MARGIN * 40.0)
+    games = answer(by_game(compared), 8, floors={"Asterix": 0.5}, references={"Asterix": 17.0})[0]
+    assert "on Asterix neither has learnt at this budget (SARSA(λ) 0.8" in games
+    assert "against the random policy's 0.5 and the reference's 17): no verdict" in games
 
 
 # --- the same question on tables and on classic control, beside the study's own verdicts ---------------------

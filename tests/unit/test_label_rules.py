@@ -177,3 +177,36 @@ def test_a_margin_the_seeds_cannot_prove_is_named_underpowered(seeds: int, sprea
     assert bool(note) is underpowered_note
     if note:
         assert note.startswith(f"underpowered for its margin: {seeds} seeds prove ±")
+
+
+# --- the learning gate: a comparison only where a method has learnt ----------------------------------------------
+
+@pytest.mark.parametrize(("learnt", "label"), [
+    ((True, True), "on-policy better"),
+    ((True, False), "only on-policy learnt"),
+    ((False, True), "only off-policy learnt"),
+    ((False, False), "neither learnt at this budget"),
+])
+def test_the_learning_gate_stands_before_the_comparison_s_label(learnt, label):
+    from rlcompare.stats.compare import gated_label
+
+    assert gated_label("on-policy better", learnt, ("on-policy", "off-policy")) == label
+
+
+@pytest.mark.parametrize(("finals", "learnt"), [
+    ([3.0] * 8, True),                      # every seed above floor + margin: p = 1/256
+    ([3.0] * 7 + [1.0], True),              # one seed below: still p < 0.05
+    ([3.0] * 4 + [1.0] * 4, False),         # half above, half below
+    ([1.5] * 8, False),                     # at floor + margin exactly: not beyond it
+    ([1.2] * 8, False),                     # above random, within the margin
+    ([3.0] * 4, False),                     # too few seeds: 1/16 is the smallest p
+])
+def test_a_method_has_learnt_when_the_signed_rank_test_puts_it_beyond_the_margin(finals, learnt):
+    from rlcompare.stats.significance import has_learnt
+
+    floor, margin = 1.0, 0.5
+    assert has_learnt(np.asarray(finals), floor, margin) is learnt
+    above = np.asarray(finals) - floor - margin
+    if not np.all(above == 0):
+        p = stats.wilcoxon(above, zero_method="zsplit", alternative="greater").pvalue
+        assert bool(p < 0.05) == learnt

@@ -70,6 +70,11 @@ class DeepMethod:
 DEEP_METHODS = {m.name: m for m in (
     DeepMethod("pqn_q_lambda", "Q(λ), network", pqn, {"target": "max"}, "off-policy", "q_lambda"),
     DeepMethod("pqn_sarsa_lambda", "SARSA(λ), network", pqn, {"target": "sample"}, "on-policy", "sarsa_lambda"),
+    DeepMethod("pqn_watkins_q_lambda", "Watkins's Q(λ), network", pqn, {"target": "watkins"}, "off-policy",
+               "q_lambda"),
+    DeepMethod("pqn_q_learning", "Q-learning (λ = 0), network", pqn, {"target": "max", "lam": 0.0}, "off-policy",
+               "q_learning"),
+    DeepMethod("pqn_sarsa", "SARSA (λ = 0), network", pqn, {"target": "sample", "lam": 0.0}, "on-policy", "sarsa"),
     DeepMethod("pqn_expected_sarsa_lambda", "Expected SARSA(λ), network", pqn, {"target": "expected"}, "on-policy",
                "expected_sarsa"),
     DeepMethod("dqn", "DQN", dqn, {"double": False}, "off-policy", "q_learning"),

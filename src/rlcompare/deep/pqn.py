@@ -10,6 +10,12 @@ value the return bootstraps from at the next state, which is what separates Algo
 | ``max``      | Peng's Q(λ)            | ``max_a Q(s', a)``                             | off-policy |
 | ``sample``   | SARSA(λ)               | ``Q(s', a')``, ``a'`` the action taken next     | on-policy  |
 | ``expected`` | Expected SARSA(λ)      | ``Σ_a π_ε(a|s') Q(s', a)``                      | on-policy  |
+| ``watkins``  | Watkins's Q(λ)         | ``max_a Q(s', a)``; the trace cut where ``a'`` is not greedy | off-policy |
+
+Peng's Q(λ) (``max``, purejaxql's) never cuts its trace: the λ-weighted part of its return follows the actions
+taken, exploratory ones included, so at λ = 0.65 it differs from SARSA(λ) only in the 0.35-weighted bootstrap.
+Watkins's Q(λ) (Sutton and Barto 12.10) bootstraps from ``max_a Q(s', a)`` alone after an exploratory action:
+off-policy learning of Q* in full. At ``lam = 0`` all of ``max``, ``watkins`` are one-step Q-learning.
 
 With ``lam = 0`` the return is the one-step target of the paper's Algorithms 1 and 2. ``next_action`` is the
 tabular engine's option of the same name, at the only place where it changes anything here, the end of a
@@ -51,7 +57,7 @@ from rlcompare.validation import (
     require,
 )
 
-TARGETS = ("max", "sample", "expected")
+TARGETS = ("max", "sample", "expected", "watkins")
 NEXT_ACTIONS = (BEFORE_UPDATE, AFTER_UPDATE)
 OBSERVATION_BOXES = {
     "MountainCar-v0": (tuple(mountain_car.OBSERVATION_LOW.tolist()), tuple(mountain_car.OBSERVATION_HIGH.tolist())),
@@ -214,24 +220,26 @@ def expected_value(q: jax.Array, epsilon: jax.Array) -> jax.Array:
 
 
 def lambda_returns(rewards: jax.Array, terminated: jax.Array, truncated: jax.Array, next_values: jax.Array,
-                   gamma: float, lam: float) -> jax.Array:
+                   gamma: float, lam: float, cut: jax.Array | None = None) -> jax.Array:
     """λ-returns over a time-major rollout, computed backwards (Sutton and Barto 12.1, the recursive form):
 
     ``G_t = r_t + γ (1 - terminated_t) [(1 - λ) v_t + λ G_{t+1}]``, where ``v_t`` is the bootstrap value at the
     state the action led to. An episode's end stops the recursion: termination bootstraps from nothing, a
-    time-limit cut from ``v_t`` alone, and so does the rollout's last step, whose ``G_{t+1}`` is not known.
+    time-limit cut from ``v_t`` alone, and so does the rollout's last step, whose ``G_{t+1}`` is not known, and
+    every step where ``cut`` is true (Watkins's Q(λ): the next action taken was not greedy; Sutton and Barto 12.10).
     """
+    stops = truncated if cut is None else truncated | cut
 
     def backwards(later_return: jax.Array, step: tuple[jax.Array, jax.Array, jax.Array, jax.Array]
                   ) -> tuple[jax.Array, jax.Array]:
-        reward, term, trunc, value = step
+        reward, term, stop, value = step
         continues = (1.0 - lam) * value + lam * later_return
-        bootstrap = jnp.where(trunc, value, continues)
+        bootstrap = jnp.where(stop, value, continues)
         g = reward + gamma * jnp.where(term, 0.0, bootstrap)
         return g, g
 
     last = rewards[-1] + gamma * jnp.where(terminated[-1], 0.0, next_values[-1])
-    _, earlier = jax.lax.scan(backwards, last, (rewards[:-1], terminated[:-1], truncated[:-1], next_values[:-1]),
+    _, earlier = jax.lax.scan(backwards, last, (rewards[:-1], terminated[:-1], stops[:-1], next_values[:-1]),
                               reverse=True)
     return jnp.concatenate([earlier, last[None]])
 
@@ -239,7 +247,7 @@ def lambda_returns(rewards: jax.Array, terminated: jax.Array, truncated: jax.Arr
 def bootstrap_values(target: str, q_next: jax.Array, bootstrap_actions: jax.Array, epsilon: jax.Array
                      ) -> jax.Array:
     """The value at each next state that the return bootstraps from (see the module's table)."""
-    if target == "max":
+    if target in ("max", "watkins"):
         return jnp.max(q_next, axis=-1)
     if target == "expected":
         return expected_value(q_next, epsilon)
@@ -296,10 +304,11 @@ def make_train(config: PQNConfig, env: Environment, rounds: int, eval_episodes: 
         q_next = q_values(params, rollout.last_observations)
         done = rollout.terminated | rollout.truncated
         drawn = epsilon_greedy(key, q_next, epsilon)
-        values = bootstrap_values(config.target, q_next, sarsa_actions(rollout.actions, done, drawn, carried),
-                                  epsilon)
+        next_actions = sarsa_actions(rollout.actions, done, drawn, carried)
+        values = bootstrap_values(config.target, q_next, next_actions, epsilon)
         rewards = config.reward_scale * learning_reward(env, rollout.rewards).astype(jnp.float32)
-        return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, config.gamma, config.lam)
+        cut = next_actions != jnp.argmax(q_next, axis=-1) if config.target == "watkins" else None
+        return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, config.gamma, config.lam, cut)
 
     def loss(params: Any, observations: jax.Array, actions: jax.Array, returns: jax.Array) -> jax.Array:
         q = net.apply(params, observations)

@@ -89,6 +89,20 @@ def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, 
     return NOT_RESOLVED
 
 
+NEITHER_LEARNT = "neither learnt at this budget"
+
+
+def gated_label(label: str, learnt: tuple[bool, bool], names: tuple[str, str]) -> str:
+    """A comparison's label behind the learning gate (:func:`~rlcompare.stats.significance.has_learnt` of each
+    side): where neither side has learnt, :data:`NEITHER_LEARNT`; where one has, that is the answer ("only A
+    learnt"); where both have, ``label``."""
+    if not any(learnt):
+        return NEITHER_LEARNT
+    if not all(learnt):
+        return f"only {names[0] if learnt[0] else names[1]} learnt"
+    return label
+
+
 class Judged(NamedTuple):
     """One comparison of a family, judged."""
 

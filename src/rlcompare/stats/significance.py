@@ -57,6 +57,17 @@ def rank_test(a: np.ndarray, b: np.ndarray, paired: bool = True) -> float:
     return float(stats.mannwhitneyu(a, b, alternative="two-sided").pvalue)
 
 
+def has_learnt(finals: np.ndarray, floor: float, margin: float, level: float = ALPHA) -> bool:
+    """Whether a method has learnt an environment at its budget: its seeds' final scores exceed the random policy's
+    mean ``floor`` by more than ``margin``, by a one-sided Wilcoxon signed-rank test (the studies' own test) at
+    ``level``. A gate before a comparison, not a claim: failing it withholds a verdict and asserts nothing, so it
+    is not Holm-corrected with the claims."""
+    above = per_seed_values(finals) - (floor + margin)
+    if above.size == 0 or np.all(above == 0):
+        return False
+    return float(stats.wilcoxon(above, zero_method="zsplit", alternative="greater").pvalue) < level
+
+
 def verdict(difference: Estimate, p_value: float, claimed_sign: int, level: float = ALPHA) -> Verdict:
     """Whether the seeds support a claimed direction of a difference.
 

@@ -35,7 +35,7 @@ from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
-from rlcompare.stats.compare import Judged
+from rlcompare.stats.compare import NEITHER_LEARNT, Judged
 from rlcompare.studies import same_question
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
@@ -71,11 +71,27 @@ default 8 seeds, a short look that says so in its report (at 5 seeds and 400,000
 above random, and no verdict could be reached: see :func:`smallest_p`); ``paper``: the MinAtar paper's 5 M
 frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
 MARGIN = margin("minatar", "a game (final greedy return)")
-"""Differences of mean return smaller than one reward (one brick, alien, treasure or crossing per episode) count
-as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
+"""Differences of mean return smaller than this share of the game's range from the random policy to the MinAtar
+paper's DQN count as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
+LEARNT = margin("minatar", "learnt (final greedy return above random)")
+"""A method has learnt a game when its final return beats the random policy's by this share of the same range."""
 OVERALL_MARGIN = margin("minatar", "over the games (normalised score)")
-"""Across games, differences of mean normalised score smaller than a twentieth of the gap between the random
-policy and the best method count as no difference."""
+"""Across games, differences of mean normalised score (random 0, the reference 1) smaller than this count as no
+difference."""
+PAIR_DIFFERS_IN = (
+    "What the pair differs in: Q(λ) here is Peng's (purejaxql's), whose return G = r + γ[(1 − λ) max Q(s′) + λ G′] "
+    "never cuts its trace on an exploratory action, so at λ = {lam:g} it differs from SARSA(λ) only in the "
+    "{share:g}-weighted bootstrap (max against the action taken): it is not off-policy learning of Q* in full. "
+    "Watkins's Q(λ) (the trace cut after an exploratory action, Sutton and Barto 12.10) and the pair at λ = 0 (the "
+    "one-step targets alone) stand beside it in every table, to separate the target from the traces.")
+PAIR_LAMBDA = 0.65
+"""λ of the pair's MinAtar preset (purejaxql's)."""
+SCHEDULES = (
+    "Schedules: ε and the learning rate decay over the share of each training their preset gives (PQN: ε over "
+    "its first tenth; DQN: ε over 2%), so a shorter budget decays them sooner; purejaxql and MinAtar's own DQN fix "
+    "them in steps instead (TOTAL_TIMESTEPS_DECAY; 100,000 steps). At the short budget ε reaches its end after "
+    "25,000 steps, not 1 M: the methods are compared under the same rescaled schedules, which docs/minatar.md "
+    "states.")
 EVAL_EPSILON = 0.05
 """DQN's evaluation protocol (Mnih et al. 2015): ε-greedy with ε = 0.05, beside the greedy evaluation (ε = 0)."""
 EPSILON_EPISODES = 8
@@ -104,8 +120,11 @@ ENVS = tuple(minatar.NAMES)
 """Every game under every protocol, game by game."""
 MINATAR = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game": title(key.env)},
                       label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
-                      overall_margin=OVERALL_MARGIN, prefix="across-games-")
-"""MinAtar's games, one margin for every game and one over them, the methods by their short names."""
+                      overall_margin=OVERALL_MARGIN, prefix="across-games-",
+                      references={env: game.reference for env, (game, _) in minatar.NAMES.items()},
+                      learnt_share=LEARNT)
+"""MinAtar's games, each margin a share of the game's random-to-reference range, one margin over them, the methods
+by their short names."""
 
 
 def plan_of(options: MinAtarOptions) -> Plan:
@@ -228,7 +247,10 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = Non
 def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
     found = findings(out, MINATAR)
     runs, aggregates, files = found.runs, found.aggregates, found.files
-    summary = summary_table(runs, {env: random_floor(env) for env in found.envs})
+    floors = {env: random_floor(env) for env in found.envs}
+    summary = summary_table(runs, floors)
+    floors_by_game = {title(env): floor for env, floor in floors.items()}
+    references_by_game = {title(env): minatar.NAMES[env][0].reference for env in found.envs}
     compared = by_game(found.judged)
     elsewhere = same_question.beside(out, same_question_rows(compared), siblings)
     files |= {name: write_table(frame, out / "tables", f"minatar_{name}")
@@ -239,7 +261,13 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
     budget = budget_words(max(steps, default=0))
     protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
     seeds = min((len(r.seeds) for r in runs.values()), default=0)
-    lines = answer(compared, seeds)
+    lines = answer(compared, seeds, floors=floors_by_game, references=references_by_game)
+    not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
+    if not_learnt:
+        lines.append(f"Not learnt at this budget ({budget}, {max(steps, default=0):,} steps): "
+                     f"{', '.join(not_learnt)}. docs/minatar.md expects the 'paper' budget (--budget paper, 5 M "
+                     "steps, where the MinAtar paper's DQN reaches its reference) to learn them; not yet measured "
+                     "here.")
     pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, found.envs).items()})
     answer_figure = [(save_figure(pictured, out / "figures" / "paired-differences.png"),
                       "SARSA(λ) minus Q(λ), seed by seed, per game")] if pictured is not None else []
@@ -249,11 +277,20 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
             f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, final "
             f"greedy return. Protocol: {'; '.join(protocols)}. Training: {', '.join(f'{s:,}' for s in sorted(steps))}"
             f" environment steps per seed, {budget}: read the verdicts as what this budget shows, not what the "
-            f"methods reach. Margins of no difference, declared before the runs: ±{MARGIN:g} per episode in a "
-            f"game, ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
-            f"the games; random 0, the best method here 1). p-values Holm-adjusted over the games and the overall "
-            f"row; with {seeds} seeds the signed-rank test cannot give a p below "
-            f"{number(smallest_p(seeds))}."], [("Verdicts", found.verdicts, files["verdicts"])]),
+            f"methods reach. Each game's scale runs from the random policy's return to {minatar.REFERENCE_SOURCE}: "
+            + ", ".join(f"{title(env)} {number(floors[env])} to {number(minatar.NAMES[env][0].reference)}"
+                        for env in found.envs)
+            + f". A method has learnt a game when its final return beats the random policy's by {LEARNT:g} of "
+            f"that range (one-sided signed-rank test, α = 0.05); where neither has, the verdict is \"{NEITHER_LEARNT}"
+            "\" and the game is left out of the overall row; where one has, that is the answer. Margins of no "
+            f"difference, declared before the runs: {MARGIN:g} of the game's range ("
+            + ", ".join(f"{title(env)} ±{number(MARGIN * (minatar.NAMES[env][0].reference - floors[env]))}"
+                        for env in found.envs)
+            + f"), ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
+            f"the games learnt; random 0, the reference 1). p-values Holm-adjusted over the games and the overall "
+            f"row; with {seeds} seeds the signed-rank test cannot give a p below {number(smallest_p(seeds))}.",
+            PAIR_DIFFERS_IN.format(lam=PAIR_LAMBDA, share=round(1 - PAIR_LAMBDA, 2)),
+            SCHEDULES], [("Verdicts", found.verdicts, files["verdicts"])]),
         Section("The same question on tables and on classic control", [SAME_QUESTION, *elsewhere.paragraphs],
                 [(same_question.CAPTION, elsewhere.table, files["same_question"])]),
         Section("Every game", [
@@ -263,11 +300,11 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
             "episodes of a uniformly random policy under the same protocol."],
             [("Summary", summary, files["summary"])]),
         Section("Across games", [
-            "Scores normalised game by game between the random policy (0) and the best method's mean here (1), "
-            "pooled over the games as rliable does (Agarwal et al. 2021): interval estimates, the probability of "
-            "improvement, performance profiles and sample-efficiency curves, with 95% stratified bootstrap "
-            "intervals. The MinAtar paper's DQN scores are not used as the upper anchor: rlcompare has no citable "
-            "table of them." if aggregates else "Across games: needs two or more games and methods."],
+            "Scores normalised game by game between the random policy (0) and the MinAtar paper's DQN at 5 M frames "
+            "(1), as human-normalised scores are on the Atari 2600, pooled over the games as rliable does (Agarwal "
+            "et al. 2021): interval estimates, the probability of improvement, performance profiles and "
+            "sample-efficiency curves, with 95% stratified bootstrap intervals."
+            if aggregates else "Across games: needs two or more games and methods."],
             [("Interval estimates of normalised final returns", aggregates.intervals, files["aggregates"]),
              ("Probability of improvement", aggregates.improvements, files["improvement"])]
             if aggregates else [], aggregates.figures if aggregates else []),

@@ -31,6 +31,7 @@ from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.stats.compare import Paired
 from rlcompare.stats.metrics import returns_per_seed
+from rlcompare.stats.significance import has_learnt
 from rlcompare.studies.interface import UI, Advance
 from rlcompare.studies.seed_blocks import Backend, trained_on
 from rlcompare.tabular.config import ExperimentConfig
@@ -89,6 +90,25 @@ class PairedStudy:
     others: Callable[[str, Mapping[str, Results]], dict[Key, Paired]] = no_others
     """The comparisons on an environment of another engine's runs beside the networks, after the pair's (the deep
     study's tabular pair)."""
+    references: Mapping[str, float] = field(default_factory=dict)
+    """Per environment, a reference score with a published source (the MinAtar paper's DQN). Where given, the
+    environment's margin is a share of the range from the random policy's return to it, normalised scores run from
+    0 (random) to 1 (the reference), and the pair is compared only where a method has learnt it (:meth:`learnt`)."""
+    learnt_share: float = 0.0
+    """The share of that range a method's final return must beat the random policy's by to have learnt."""
+
+    def margin_of(self, env: str, floor: float | None) -> float:
+        """The environment's margin in its own units: declared, or a share of its random-to-reference range."""
+        if env in self.references and floor is not None:
+            return self.margins[env] * (self.references[env] - floor)
+        return self.margins[env]
+
+    def learnt(self, env: str, finals: np.ndarray, floor: float) -> bool:
+        """Whether ``finals`` (each seed's final greedy return) show the environment learnt at this budget
+        (:func:`~rlcompare.stats.significance.has_learnt`); True where no reference is declared."""
+        if env not in self.references:
+            return True
+        return has_learnt(finals, floor, self.learnt_share * (self.references[env] - floor))
 
 
 @dataclass(frozen=True)

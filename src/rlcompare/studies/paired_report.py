@@ -25,7 +25,7 @@ from rlcompare.report.findings import gap_and_interval
 from rlcompare.report.page import save_figure, write_table
 from rlcompare.report.plots import plot_paired_differences, plot_return_curves
 from rlcompare.stats.aggregates import by_method, score_scales
-from rlcompare.stats.compare import Judged, Paired, compare_paired, judge_family
+from rlcompare.stats.compare import NEITHER_LEARNT, Judged, Paired, compare_paired, gated_label, judge_family
 from rlcompare.studies.paired import (
     OVERALL,
     PAIR,
@@ -61,12 +61,14 @@ class Across:
     xlabel: str
 
 
-def across(runs: Mapping[str, DeepResults], envs: Sequence[str], floors: dict[str, float], methods: Sequence[str]
-           ) -> Across:
+def across(runs: Mapping[str, DeepResults], envs: Sequence[str], floors: dict[str, float], methods: Sequence[str],
+           references: Mapping[str, float] | None = None) -> Across:
     """Each of ``methods``' runs on every one of ``envs`` that two or more methods ran (a method missing one is
-    left out), normalised between ``floors`` (the random policy's mean return) and the best mean final greedy
-    return of the methods kept. The curves are drawn against environment steps where every training evaluated at
-    the same steps, else against the share of each training's own steps (budgets may differ by method)."""
+    left out), normalised between ``floors`` (the random policy's mean return) and each environment's reference
+    score where ``references`` has one (else the best mean final greedy return of the methods kept). The curves are
+    drawn against environment steps where every training evaluated at the same steps, else against the share of
+    each training's own steps (budgets may differ by method)."""
+    references = references or {}
     finals: dict[str, dict[str, np.ndarray]] = {}
     rounds: dict[str, dict[str, np.ndarray]] = {}
     steps: dict[tuple[str, str], np.ndarray] = {}
@@ -81,6 +83,7 @@ def across(runs: Mapping[str, DeepResults], envs: Sequence[str], floors: dict[st
     kept_envs = [env for env, ran in finals.items() if len(ran) > 1]
     finals = {env: {method: finals[env][method] for method in kept} for env in kept_envs}  # 1: the best of these
     scales = score_scales(finals, floors)
+    scales |= {env: (floors[env], references[env] - floors[env]) for env in kept_envs if env in references}
     scores = by_method(finals, scales)
     drawn_curves = {method: values for method, values in by_method(rounds, scales).items() if method in scores}
     drawn = [steps[env, method] for env in kept_envs for method in drawn_curves]
@@ -93,30 +96,45 @@ def across(runs: Mapping[str, DeepResults], envs: Sequence[str], floors: dict[st
 
 
 def judged(study: PairedStudy, runs: Mapping[str, DeepResults], beside: Mapping[str, Results],
-           scores: Mapping[str, np.ndarray]) -> dict[Key, Judged]:
-    """Per environment, :data:`PAIR` on paired seeds (each of the study's metrics), then the study's ``others``
-    (of the runs ``beside`` the networks); over two or more environments, where the study declares a margin for
-    it, the pair overall (each seed's normalised score in ``scores`` averaged over the environments). All one
-    family (:func:`~rlcompare.stats.compare.judge_family`: directions and equivalences Holm-adjusted together)."""
+           floors: Mapping[str, float], spread: Across | None = None) -> dict[Key, Judged]:
+    """Per environment, :data:`PAIR` on paired seeds (each of the study's metrics, the margin in the environment's
+    units: :meth:`PairedStudy.margin_of`), then the study's ``others`` (of the runs ``beside`` the networks); over
+    two or more environments, where the study declares a margin for it, the pair overall (each seed's normalised
+    score in ``spread`` averaged over the environments where a method learnt). All one family
+    (:func:`~rlcompare.stats.compare.judge_family`: directions and equivalences Holm-adjusted together); then each
+    network comparison behind the learning gate (:func:`~rlcompare.stats.compare.gated_label`) and the divergence
+    check."""
     found: dict[Key, Paired] = {}
-    compared = 0
+    learnt: dict[str, tuple[bool, bool]] = {}
     for env in study.envs:
         pair = pair_of(runs, env)
         if pair is not None:
             on, off = (per_seed(results) for results in pair)
-            found |= {Key(env, metric=m): compare_paired(on[m].to_numpy(), off[m].to_numpy(), study.margins[env])
+            margin = study.margin_of(env, floors.get(env))
+            found |= {Key(env, metric=m): compare_paired(on[m].to_numpy(), off[m].to_numpy(), margin)
                       for m in study.metrics}
-            compared += 1
+            if env in study.references:
+                learnt[env] = (study.learnt(env, on["greedy_return"].to_numpy(), floors[env]),
+                               study.learnt(env, off["greedy_return"].to_numpy(), floors[env]))
         found |= study.others(env, beside)
-    on_scores, off_scores = (scores.get(method) for method in PAIR)
-    if (study.overall_margin is not None and compared > 1 and on_scores is not None and off_scores is not None
+    counted = [i for i, env in enumerate(spread.envs if spread else []) if any(learnt.get(env, (True, True)))]
+    on_scores, off_scores = (spread.scores.get(method) if spread else None for method in PAIR)
+    if (study.overall_margin is not None and len(counted) > 1 and on_scores is not None and off_scores is not None
             and on_scores.shape == off_scores.shape):
-        found[Key(OVERALL)] = compare_paired(on_scores.mean(axis=0), off_scores.mean(axis=0), study.overall_margin)
+        found[Key(OVERALL)] = compare_paired(on_scores[counted].mean(axis=0), off_scores[counted].mean(axis=0),
+                                             study.overall_margin)
     family: dict[Hashable, Paired] = {key: paired for key, paired in found.items()}
     judgements = judge_family(family, TARGETS)
     diverged = {env for env in study.envs if any(r.diverged for r in pair_of(runs, env) or ())}
-    return {key: judgements[key]._replace(label=DIVERGED) if key.engine == "network" and (
-        key.env in diverged or (key.env == OVERALL and diverged)) else judgements[key] for key in found}
+
+    def label(key: Key) -> str:
+        if key.engine != "network":
+            return judgements[key].label
+        if key.env in diverged or (key.env == OVERALL and diverged):
+            return DIVERGED
+        return gated_label(judgements[key].label, learnt.get(key.env, (True, True)), TARGETS)
+
+    return {key: judgements[key]._replace(label=label(key)) for key in found}
 
 
 DIVERGED = "not decided: a training diverged"
@@ -138,22 +156,32 @@ def short_label(method: str) -> str:
     return DEEP_METHODS[method].label.removesuffix(", network")
 
 
-def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games") -> list[str]:
-    """The answer in plain words, from :func:`judged` by each row's name: a sentence for the environments, one for
-    the comparison :data:`OVERALL`."""
+def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games",
+           floors: Mapping[str, float] | None = None, references: Mapping[str, float] | None = None) -> list[str]:
+    """The answer in plain words, from :func:`judged` by each row's name: a sentence for the environments (one
+    neither method learnt says so, with the random policy's return and the reference where given), one for the
+    comparison :data:`OVERALL`."""
     on, off = (short_label(method) for method in PAIR)
     each = []
     for name, j in compared.items():
-        if name != OVERALL:
-            gap, interval = gap_and_interval(j.paired.difference)
-            each.append(f"on {name} {gap} ({interval}; {j.label})")
+        if name == OVERALL:
+            continue
+        if j.label == NEITHER_LEARNT:
+            scale = (f", against the random policy's {number(floors[name])} and the reference's "
+                     f"{number(references[name])}" if floors and references and name in references else "")
+            each.append(f"on {name} neither has learnt at this budget ({on} {number(j.paired.a_mean)}, {off} "
+                        f"{number(j.paired.b_mean)}{scale}): no verdict")
+            continue
+        gap, interval = gap_and_interval(j.paired.difference)
+        each.append(f"on {name} {gap} ({interval}; {j.label})")
     sentences = [f"On-policy {on} against off-policy {off}, final greedy return per episode, {seeds} paired seeds: "
                  f"{on} scores {'; '.join(each)}."] if each else []
     if OVERALL in compared:
         paired, label = compared[OVERALL].paired, compared[OVERALL].label
         gap, interval = gap_and_interval(paired.difference)
-        sentences.append(f"Over {over}, in scores normalised between the random policy (0) and the best method "
-                         f"here (1), {on} scores {gap} ({interval}; {label}).")
+        top = "the reference (1)" if references else "the best method here (1)"
+        sentences.append(f"Over {over}, in scores normalised between the random policy (0) and {top}, {on} scores "
+                         f"{gap} ({interval}; {label}).")
     return sentences
 
 
@@ -184,9 +212,9 @@ def findings(out: Path, study: PairedStudy) -> Findings:
     runs, beside, problems = load_runs(out)
     problems += [note for results in runs.values() if (note := results.divergence())]
     envs = [env for env in study.envs if any(r.config.env == env for r in runs.values())]
-    floors = {env: random_floor(env) for env in envs} if len(envs) > 1 else {}
-    spread = across(runs, envs, floors, study.method_order) if len(envs) > 1 else None
-    compared = judged(study, runs, beside, spread.scores if spread else {})
+    floors = {env: random_floor(env) for env in envs} if len(envs) > 1 or study.references else {}
+    spread = across(runs, envs, floors, study.method_order, study.references) if len(envs) > 1 else None
+    compared = judged(study, runs, beside, floors, spread)
     verdicts = verdict_table(study, compared)
     written = write_table(verdicts, out / "tables", f"{study.name}_verdicts")
     aggregates, files = draw_across(study, spread, out / "tables", out / "figures") if spread else (None, {})
