@@ -372,7 +372,6 @@ def _rows_of(table, study):
 
 @pytest.mark.slow("trains and reports MinAtar studies")
 def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other_studies, tmp_path):
-
     from rlcompare.studies import minatar as minatar_study
     from rlcompare.studies.same_question import CAPTION
 
