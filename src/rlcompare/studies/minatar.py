@@ -66,10 +66,10 @@ BUDGETS = {
     "paper": (tuple(minatar.GAMES), 5_000_000),
     "pqn": (tuple(minatar.GAMES), 10_000_000),
 }
-"""Budget -> (default games, environment steps per training). ``short``: under 20 minutes on 2 CPU cores with the
-default 8 seeds, a short look that says so in its report (at 5 seeds and 400,000 steps every game was already far
-above random, and no verdict could be reached: see :func:`smallest_p`); ``paper``: the MinAtar paper's 5 M
-frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
+"""Budget -> (default games, environment steps per training). ``short``: about 37 minutes on 2 CPU cores with the
+default 8 seeds and five methods, a short look that says so in its report (at 5 seeds and 400,000 steps every game
+was already far above random, and no verdict could be reached: see :func:`smallest_p`); ``paper``: the MinAtar
+paper's 5 M frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
 MARGIN = margin("minatar", "a game (final greedy return)")
 """Differences of mean return smaller than this share of the game's range from the random policy to the MinAtar
 paper's DQN count as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
