@@ -94,9 +94,17 @@ def test_sigterm_to_report_ends_its_video_workers_before_its_lock_is_released(tm
 
 
 def children(pid: int) -> list[int]:
-    """The processes ``pid`` started (its video workers and multiprocessing's resource tracker)."""
-    found = subprocess.run(["ps", "-o", "pid=", "--ppid", str(pid)], capture_output=True, text=True, check=False)
-    return [int(line) for line in found.stdout.split()]
+    """The processes ``pid`` started (its video workers and multiprocessing's resource tracker), read from
+    ``/proc``: the fourth field of a process's ``stat``, after its parenthesised name, is its parent."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the process ended meanwhile
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
 
 
 def alive(pid: int) -> bool:
