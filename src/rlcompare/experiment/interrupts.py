@@ -40,8 +40,9 @@ def finish_in_flight(running: dict[Future[Any], str], cause: str = "Ctrl-C") -> 
     name), saying so; a Ctrl-C now ends the process at once (:func:`abandon`)."""
     if not running:
         return
+    again = " again" if cause == "Ctrl-C" else ""
     say(f"{cause}: finishing the trainings in flight ({', '.join(sorted(running.values()))}) to keep them, since a "
-        "compiled training cannot stop halfway; Ctrl-C again abandons them")
+        f"compiled training cannot stop halfway; Ctrl-C{again} abandons them")
     if threading.current_thread() is not threading.main_thread():
         wait(running)
         return
