@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from helpers import ENV, finished_runs, paper_study
+from helpers import ENV, finished_runs, paper_study, start
 
 pytestmark = pytest.mark.slow("sends signals to rlcompare processes that train or render")
 
@@ -21,10 +21,8 @@ DEEP = ["reproduce", "deep", "--steps", "300000", "--seeds", "2", "--envs", "Car
         "pqn_q_lambda,dqn", "--workers", "1"]
 
 
-def start(args: list[str], log: Path) -> subprocess.Popen[bytes]:
-    with log.open("wb") as output:
-        return subprocess.Popen([sys.executable, "-m", "rlcompare.cli", *args], stdout=output,
-                                stderr=subprocess.STDOUT, env=ENV)
+def rlcompare(*args: str) -> list[str]:
+    return [sys.executable, "-m", "rlcompare.cli", *args]
 
 
 def wait_for(ready: Callable[[], bool], process: subprocess.Popen[bytes], log: Path, timeout: float = 240) -> None:
@@ -43,7 +41,7 @@ def in_flight(study: Path) -> bool:
 
 def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path) -> None:
     out, log = tmp_path / "study", tmp_path / "log"
-    process = start([*DEEP, "--out", str(out)], log)
+    process = start(rlcompare(*DEEP, "--out", str(out)), log)
     wait_for(lambda: in_flight(out), process, log)
     process.send_signal(signal.SIGINT)
     wait_for(lambda: "Ctrl-C: finishing the trainings in flight (" in log.read_text(), process, log, timeout=5)
@@ -56,7 +54,7 @@ def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path
 
 def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Path) -> None:
     out, log = tmp_path / "study", tmp_path / "log"
-    process = start([*DEEP, "--out", str(out)], log)
+    process = start(rlcompare(*DEEP, "--out", str(out)), log)
     wait_for(lambda: in_flight(out), process, log)
     process.send_signal(signal.SIGINT)
     wait_for(lambda: "Ctrl-C again abandons them" in log.read_text(), process, log, timeout=5)
@@ -68,7 +66,7 @@ def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Pa
     assert "terminate called" not in text
     kept = finished_runs(out)
     assert len(kept) == 2
-    resumed = subprocess.run([sys.executable, "-m", "rlcompare.cli", *DEEP, "--out", str(out)],
+    resumed = subprocess.run(rlcompare(*DEEP, "--out", str(out)),
                              capture_output=True, text=True, env=ENV, check=False)
     assert resumed.returncode == 0, resumed.stderr
     assert len(finished_runs(out)) == 4
@@ -77,7 +75,7 @@ def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Pa
 def test_sigterm_to_report_ends_its_video_workers_before_its_lock_is_released(tmp_path: Path) -> None:
     study = paper_study(tmp_path / "study", seeds=2, episodes=300)
     log = tmp_path / "log"
-    process = start(["report", str(study)], log)
+    process = start(rlcompare("report", str(study)), log)
     wait_for(lambda: any((study / "videos").glob(".*.tmp*")), process, log)  # a worker is writing a video
     workers = children(process.pid)
     assert workers

@@ -61,15 +61,15 @@ class DeepConfig:
                 "1 for an Atari game (its emulator plays one seed's games at a time)")
         require(isinstance(self.hyperparameters, dict), "hyperparameters", self.hyperparameters,
                 "a table of field names and values")
-        self._check_records_fit()
+        method_config = self.method_config()
+        self._check_records_fit(method_config.total_steps)
         make_train = deep_method(self.algorithm).module.make_train  # builds closures only: cheap
-        make_train(self.method_config(), self.environment, self.eval_rounds, self.eval_episodes)  # validates
+        make_train(method_config, self.environment, self.eval_rounds, self.eval_episodes)  # validates
 
-    def _check_records_fit(self) -> None:
+    def _check_records_fit(self, total_steps: int) -> None:
         """Refuse, before anything is traced or compiled, a ``total_steps`` whose per-step records alone (in Python
         integers, so no size overflows) exceed this machine's memory: XLA aborts the process on a dimension product
         past 2**63 instead of raising."""
-        total_steps = self.method_config().total_steps
         records = RECORD_COPIES * FINISHED_BYTES_PER_STEP * total_steps * len(self.seeds)
         memory = machine.physical_memory()
         require(records <= memory, "total_steps", total_steps,

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import signal
 import socket
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
@@ -28,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from rlcompare.experiment import engines
-from rlcompare.experiment.interrupts import Terminated, abandon, finish_in_flight
+from rlcompare.experiment.interrupts import trainings
 from rlcompare.experiment.runner import run
 from rlcompare.experiment.sweep import Trial, config_dict
 
@@ -74,7 +73,8 @@ class LocalBackend:
         pending = iter(trials)
         with ThreadPoolExecutor(self.workers, thread_name_prefix="trial") as pool:
             running: dict[Future[None], Trial] = {}
-            try:
+            with trainings(lambda: {future: f"{trial.config.name} seed {trial.seed}"
+                                    for future, trial in running.items()}):
                 self._fill(pool, running, pending, on_done)
                 while running:
                     finished, _ = wait(running, return_when=FIRST_COMPLETED)
@@ -82,18 +82,6 @@ class LocalBackend:
                         running.pop(future)
                         future.result()  # a trial that failed stops the sweep with its error
                     self._fill(pool, running, pending, on_done)
-            except KeyboardInterrupt:
-                for future in running:
-                    future.cancel()
-                finish_in_flight({future: f"{trial.config.name} seed {trial.seed}" for future, trial in running.items()
-                                  if future.running()})
-                raise
-            except Terminated:
-                abandon(signal.SIGTERM)
-            except BaseException:
-                for future in running:
-                    future.cancel()
-                raise
 
     def _fill(self, pool: ThreadPoolExecutor, running: dict[Future[None], Trial], pending: Iterator[Trial],
               on_done: OnDone) -> None:

@@ -7,10 +7,12 @@ from it."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
 import threading
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future, wait
 from types import FrameType
 from typing import Any
@@ -33,6 +35,29 @@ def raise_on_sigterm() -> None:
         raise Terminated(EXIT_TERMINATED)
 
     signal.signal(signal.SIGTERM, terminated)
+
+
+@contextlib.contextmanager
+def trainings(in_flight: Callable[[], Mapping[Future[Any], str]]) -> Iterator[None]:
+    """Trainings submitted to a pool in this block (``in_flight()``: each future -> its name). On Ctrl-C here, or
+    a caller that stops between two results (``GeneratorExit``), nothing new starts and those running are
+    finished and kept (:func:`finish_in_flight`); on SIGTERM they are abandoned (:func:`abandon`); on any other
+    error nothing new starts."""
+    try:
+        yield
+    except (KeyboardInterrupt, GeneratorExit) as stop:
+        submitted = in_flight()
+        for future in submitted:
+            future.cancel()
+        finish_in_flight({future: name for future, name in submitted.items() if future.running()},
+                         "Ctrl-C" if isinstance(stop, KeyboardInterrupt) else "Stopping")
+        raise
+    except Terminated:
+        abandon(signal.SIGTERM)
+    except BaseException:
+        for future in in_flight():
+            future.cancel()
+        raise
 
 
 def finish_in_flight(running: dict[Future[Any], str], cause: str = "Ctrl-C") -> None:

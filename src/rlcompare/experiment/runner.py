@@ -4,14 +4,13 @@ studies' run-or-load over many configurations."""
 from __future__ import annotations
 
 import json
-import signal
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
 from rlcompare.experiment import engines, rundir, store
-from rlcompare.experiment.interrupts import Terminated, abandon, finish_in_flight
+from rlcompare.experiment.interrupts import trainings
 
 
 def run(config: Any, *, out: Path | None = None, study: str = "", progress: Callable[[int], None] | None = None,
@@ -80,8 +79,10 @@ def refuse_clashes(out: Path, configs: dict[str, Any]) -> None:
     write where a study writes its own: a run's files (``config.json`` in a run's directory) or anything in the
     report's places. Beside them (``--force``), a user's files are left alone at every level."""
     run_files = (*rundir.RUN_FILES, rundir.PARAMS_FILE)
-    clashes = [path for name in configs for file in run_files if _unlisted(path := Path(out) / name / file)]
-    clashes += [path for place in REPORT_PLACES for path in _files(Path(out) / place) if _unlisted(path)]
+    candidates = [Path(out) / name / file for name in configs for file in run_files]
+    candidates += [path for place in REPORT_PLACES for path in _files(Path(out) / place)]
+    listed: dict[Path, set[str]] = {}  # each marker read once
+    clashes = [path for path in candidates if _unlisted(path, listed)]
     if clashes:
         shown = ", ".join(str(path.relative_to(out)) for path in clashes[:3])
         more = f" and {len(clashes) - 3} more" if len(clashes) > 3 else ""
@@ -93,12 +94,17 @@ def _files(path: Path) -> list[Path]:
     return [path] if path.is_file() or path.is_symlink() else sorted(p for p in path.rglob("*") if p.is_file())
 
 
-def _unlisted(path: Path) -> bool:
-    """Whether ``path`` is there and not listed by the marker of the directory that holds it."""
+def _unlisted(path: Path, listed: dict[Path, set[str]]) -> bool:
+    """Whether ``path`` is there and not listed by the marker of the directory that holds it (``listed``: the
+    markers read so far, by directory)."""
     if not (path.exists() or path.is_symlink()):
         return False
     owner = next((d for d in path.parents if (d / store.MARKER_FILE).is_file()), None)
-    return owner is None or path.relative_to(owner).as_posix() not in store.listed_outputs(owner)
+    if owner is None:
+        return True
+    if owner not in listed:
+        listed[owner] = store.listed_outputs(owner)
+    return path.relative_to(owner).as_posix() not in listed[owner]
 
 
 def run_or_load(
@@ -131,21 +137,9 @@ def run_or_load(
             refuse_replacing(Path(out), configs)
         refuse_clashes(Path(out), configs)
         # trained in threads, even one at a time, so that the main thread answers Ctrl-C while XLA runs
-        with ThreadPoolExecutor(max(workers, 1)) as pool:
-            pending: dict[Future[tuple[str, Any, bool]], str] = {}
-            try:
-                for name, config in configs.items():
-                    pending[pool.submit(one, name, config)] = name
-                for future in as_completed(pending):
-                    yield future.result()
-            except (KeyboardInterrupt, GeneratorExit) as stop:  # Ctrl-C here, or in the caller between two runs
-                for future in pending:
-                    future.cancel()
-                finish_in_flight({future: name for future, name in pending.items() if future.running()},
-                                 "Ctrl-C" if isinstance(stop, KeyboardInterrupt) else "Stopping")
-                raise
-            except Terminated:
-                abandon(signal.SIGTERM)
-            finally:
-                for future in pending:
-                    future.cancel()
+        pending: dict[Future[tuple[str, Any, bool]], str] = {}
+        with ThreadPoolExecutor(max(workers, 1)) as pool, trainings(lambda: pending):
+            for name, config in configs.items():
+                pending[pool.submit(one, name, config)] = name
+            for future in as_completed(pending):
+                yield future.result()
