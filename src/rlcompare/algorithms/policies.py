@@ -4,6 +4,11 @@ The behaviour policy is ε-greedy: with probability ε an action uniformly at ra
 included), otherwise a greedy action, ties broken uniformly at random so that an all-zero row of a fresh
 table does not always pick action 0. Evaluation and loaded agents act with :func:`greedy_action`, which
 takes the first maximum like ``np.argmax``, so an agent acts the same here and inside Gymnasium.
+
+In a game whose legal moves change with the state (chess), an illegal move's value is −∞ in every table (the
+engine writes it there before the first episode, and no update ever reaches it): it is never a maximum, never
+greedy, and the uniform choice runs over the legal moves only (:func:`uniform_legal_action`). Where every action
+is legal, each function draws and returns exactly what it did before masks existed.
 """
 
 from __future__ import annotations
@@ -63,10 +68,33 @@ def uniform_action(n_actions: int, rng_state: np.ndarray) -> int:
 
 
 @njit(inline="always")
+def legal_count(q_row: np.ndarray) -> int:
+    """How many actions are legal: those whose value is not −∞."""
+    count = 0
+    for action in range(q_row.size):
+        if q_row[action] != -np.inf:
+            count += 1
+    return count
+
+
+@njit(inline="always")
+def uniform_legal_action(q_row: np.ndarray, rng_state: np.ndarray) -> int:
+    """A legal action uniformly at random: the ``k``-th legal one for ``k`` drawn below their count (with every
+    action legal, the draw of :func:`uniform_action`)."""
+    pick = next_below(rng_state, legal_count(q_row))
+    for action in range(q_row.size):
+        if q_row[action] != -np.inf:
+            if pick == 0:
+                return action
+            pick -= 1
+    return 0  # unreachable: ``pick < legal_count``
+
+
+@njit(inline="always")
 def epsilon_greedy_action(q_row: np.ndarray, epsilon: float, rng_state: np.ndarray) -> int:
-    """With probability ``epsilon`` a uniform action, otherwise greedy with random tie-breaking."""
+    """With probability ``epsilon`` a uniform legal action, otherwise greedy with random tie-breaking."""
     if next_double(rng_state) < epsilon:
-        return uniform_action(q_row.size, rng_state)
+        return uniform_legal_action(q_row, rng_state)
     return greedy_action_random_ties(q_row, rng_state)
 
 

@@ -120,7 +120,8 @@ def reference_seconds(config: ExperimentConfig) -> tuple[int, float]:
     over threads as rlcompare's are (:func:`~rlcompare.tabular.runs.over_runs`)."""
     kernel, extra = REFERENCES[config.algorithm]
     grid = config_grid(config)
-    state = initial_state(list(config.seeds), grid.n_features, config.environment.n_actions)
+    state = initial_state(list(config.seeds), grid.n_features, config.environment.n_actions,
+                          config.environment.legal_moves)
     runs = len(config.seeds)
     returns, lengths = np.zeros((runs, config.episodes)), np.zeros((runs, config.episodes), np.int64)
     epsilons, extras = epsilon_schedule(config), tuple(getattr(config, name) for name in extra)

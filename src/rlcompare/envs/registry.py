@@ -11,6 +11,7 @@ bounds, step limit, what counts as solved, and what figures and videos say of it
 | ``FrozenLake-v1``    | Gymnasium's transition table      | one per state         |                 | 100   |
 | ``FrozenLake8x8-v1`` | Gymnasium's transition table      | one per state         |                 | 200   |
 | ``Taxi-v4``          | Gymnasium's transition table      | one per state         |                 | 200   |
+| ``KRK``, ``KQK``     | the endgame's rules and solver    | one per state         |                 | 50    |
 | any other            | Gymnasium, through the adapter    | one per state, or grid or tiles over a Box; 10 bins per |
 |                      |                                   | dimension; Gymnasium's registered limit, else 1000     |
 
@@ -34,7 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
-from rlcompare.envs import atari, minatar
+from rlcompare.envs import atari, chess, minatar
 
 if TYPE_CHECKING:
     import numpy as np
@@ -74,8 +75,9 @@ class Environment:
     bins: int | tuple[int, ...]
     """The default grid."""
     success: str
-    """When an episode counts as solved: ``terminated`` (the goal), ``truncated`` (survived to the limit)
-    or ``positive_return``."""
+    """When an episode counts as solved: ``terminated`` (the goal), ``truncated`` (survived to the limit),
+    ``positive_return``, or ``won`` (terminated with a return of at least minus the step limit: a game mated,
+    where losing the piece costs more)."""
     action_names: tuple[str, ...] = ()
     """What each action does, for figures."""
     map_axes: tuple[str, str] | None = None
@@ -102,6 +104,10 @@ class Environment:
     """The shape of an observation where it is not a vector of ``observation_size`` (MinAtar's images)."""
     tabular: bool = True
     """The tabular engine can play it (False for images: the deep engine only)."""
+    legal_moves: np.ndarray | None = None
+    """``(states, actions)`` bool: the legal moves of each state of a game whose legal moves change with the state
+    (chess); every table holds −∞ at an illegal move, which no policy then chooses
+    (:mod:`rlcompare.algorithms.policies`). None: every action is legal everywhere."""
 
     @property
     def observation_size(self) -> int:
@@ -176,6 +182,21 @@ def _minatar(name: str) -> Environment:
                        observation_shape=shape, tabular=False)
 
 
+def _endgame(name: str) -> Environment:
+    """A chess endgame against its defender (:mod:`rlcompare.envs.chess_endgame`); ``name`` carries its options."""
+    import numpy as np
+
+    from rlcompare.envs import chess_endgame, chess_rules
+
+    options = chess.parse(name)
+    tables = chess_endgame.make_endgame(options)
+    return Environment(options.name, tables, chess_rules.n_actions(tables.piece), tables.n_states, np.zeros(1),
+                       np.ones(1), chess.MOVE_LIMIT, 1, "positive_return" if options.rewards == "mate" else "won",
+                       endings=("mate, or the piece lost", "fifty moves without mate"),
+                       bench_episodes=3000 if options.name in ENDGAMES else 0,
+                       legal_moves=chess_endgame.legal_moves(tables))
+
+
 def _atari(name: str) -> Environment:
     """An Atari 2600 game under Machado et al.'s protocol (:mod:`rlcompare.envs.atari`), through ale-py."""
     import numpy as np
@@ -199,6 +220,8 @@ _TABLE_DEFAULTS = {"CliffWalking-v1": (1000, "terminated", 3000), "FrozenLake-v1
                    "FrozenLake8x8-v1": (200, "positive_return", 5000), "Taxi-v4": (200, "terminated", 1000)}
 """Step limit, what counts as solved, and benchmark episodes of each table environment."""
 PORTS = tuple(_PORTED)
+ENDGAMES = tuple(chess.ENDGAMES)
+"""Chess endgames, each stepped by its rules against a defender; options follow the name (``KRK:defender=random``)."""
 TABLE_ENVIRONMENTS = tuple(_TABLE_DEFAULTS)
 """Finite environments stepped from their Gymnasium transition tables; their state is their feature."""
 
@@ -222,6 +245,8 @@ def environment(name: str, adapter: bool = False) -> Environment:
         return _minatar(name)
     if name in atari.NAMES:
         return _atari(name)
+    if chess.is_endgame_name(name):
+        return _endgame(name)
     if name in TABLE_ENVIRONMENTS:
         tabled = table_of(name)
         limit, success, bench_episodes = _TABLE_DEFAULTS[name]

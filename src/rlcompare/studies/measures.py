@@ -40,7 +40,10 @@ def seconds_per_step(results: Results) -> float:
 def solved(rule: str, returns: np.ndarray, lengths: np.ndarray, terminated: np.ndarray, max_steps: int
            ) -> np.ndarray:
     """Which episodes solved the task, by the environment's rule: ``terminated`` (reached the goal),
-    ``truncated`` (survived to the step limit, as on CartPole) or ``positive_return`` (FrozenLake)."""
+    ``truncated`` (survived to the step limit, as on CartPole), ``positive_return`` (FrozenLake) or ``won``
+    (a chess endgame mated: terminated, without the cost of a lost piece)."""
+    if rule == "won":
+        return np.asarray(terminated, dtype=bool) & (returns >= -max_steps)
     if rule == "truncated":
         return ~terminated & (lengths >= max_steps)
     if rule == "positive_return":

@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE, METHODS
 from rlcompare.algorithms.schedules import SCHEDULES
-from rlcompare.envs.registry import PORTS, TABLE_ENVIRONMENTS, Environment, environment
+from rlcompare.envs.registry import ENDGAMES, PORTS, TABLE_ENVIRONMENTS, Environment, environment
 from rlcompare.formatting import cut
 from rlcompare.validation import (
     COUNT,
@@ -37,7 +37,7 @@ from rlcompare.validation import (
     require,
 )
 
-ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS)
+ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS, *ENDGAMES)
 """Environments stepped by compiled code; any other registered Gymnasium environment runs through the adapter."""
 MAX_WEIGHT_BYTES = 4 * 2**30
 """Weights, second estimates and snapshots of all seeds together may take at most this much memory."""
@@ -71,8 +71,10 @@ class ExperimentConfig:
     """``MountainCar-v0`` (Gymnasium's, ported exactly), ``MountainCar-book`` (Sutton and Barto's Example
     10.1: the same dynamics with the position bounded at the goal, 0.5), ``CartPole-v1`` and ``Acrobot-v1``
     (ported exactly), a toy-text environment stepped from Gymnasium's own transition table:
-    ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4, slippery), ``FrozenLake8x8-v1``, ``Taxi-v4``; or
-    any other registered Gymnasium environment with Discrete actions and Discrete or Box observations, stepped
+    ``CliffWalking-v1`` (Example 6.6), ``FrozenLake-v1`` (4x4, slippery), ``FrozenLake8x8-v1``, ``Taxi-v4``; the
+    chess endgames ``KRK`` and ``KQK`` against a defender, with options after the name
+    (``KRK:defender=random,starts=hard,symmetries=off``: ``docs/chess.md``); or any other registered Gymnasium
+    environment with Discrete actions and Discrete or Box observations, stepped
     through Gymnasium's API at Python speed."""
     adapter: bool = False
     """Step the environment through Gymnasium's own API (the adapter, at Python speed) even where a compiled
@@ -177,6 +179,9 @@ class ExperimentConfig:
             raise ConfigError("env", self.env, f"{', '.join(ENVIRONMENTS)}, or a registered Gymnasium "
                               "environment with Discrete actions and Discrete or Box observations "
                               f"({cut(str(error), 200)})") from None
+        if entry.legal_moves is not None and METHODS[self.algorithm].family == "policy gradient":
+            raise ConfigError("algorithm", self.algorithm, "a value method or the random baseline: "
+                              f"{self.env}'s legal moves change with the state, which only they mask")
         if not entry.tabular:
             raise ConfigError("env", self.env, f"an environment the tabular engine plays ({', '.join(ENVIRONMENTS)}, "
                               f"or Gymnasium's); {self.env} has image observations: train it with the deep engine")

@@ -24,7 +24,7 @@ import numpy as np
 
 from rlcompare.algorithms import nstep, traces
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action, count_visit
-from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, largest, uniform_action
+from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, largest, uniform_legal_action
 from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
@@ -119,22 +119,24 @@ def one_step_loop(update: Callable[..., None], values: Values = values_of_w, tar
 def random_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
                    work: Traces, epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
                    visits: np.ndarray) -> tuple[float, int, bool]:
-    """One episode of uniformly random actions; nothing is learned, the visits are counted."""
+    """One episode of uniformly random legal actions; nothing is learned, the visits are counted."""
     w, w2, agent_rng, transitions, visits = borrowed((w, w2, agent_rng, transitions, visits))
-    owner = states_buffer(features, 1)
-    buffer = borrowed(owner)
+    owners = (states_buffer(features, 1), np.empty(w.shape[1]))
+    buffer, q = borrowed(owners)
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
-    action = uniform_action(rule.n_actions, agent_rng)
+    s = features_of(features, observe(env, state), buffer, 0)
+    action = uniform_legal_action(action_values(w, s, q), agent_rng)
     while True:
-        count_visit(visits, features_of(features, observe(env, state), buffer, 0))
+        count_visit(visits, s)
         state, reward, terminated = step(env, state, action, transitions)
         episode_return += reward
         steps += 1
         if terminated or steps >= settings.max_steps:
             break
-        action = uniform_action(rule.n_actions, agent_rng)
-    kept(owner)
+        s = features_of(features, observe(env, state), buffer, 0)
+        action = uniform_legal_action(action_values(w, s, q), agent_rng)
+    kept(owners)
     return episode_return, steps, terminated
 
 
@@ -312,7 +314,7 @@ def softmax_policy(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray
 @njit(inline="always")
 def uniform(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray, scratch: np.ndarray,
             rng: np.ndarray) -> int:
-    return uniform_action(w.shape[1], rng)
+    return uniform_legal_action(action_values(w, s, q), rng)
 
 
 def evaluation_loop(target_action: TargetAction) -> Episode:

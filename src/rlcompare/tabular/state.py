@@ -49,20 +49,24 @@ class Records(NamedTuple):
 class RunState(NamedTuple):
     """What carries over from one chunk of episodes to the next."""
 
-    w: np.ndarray  # (runs, features, actions) float64, initialised to 0 as in the paper
+    w: np.ndarray  # (runs, features, actions) float64, initialised to 0 as in the paper (−∞ at illegal moves)
     w2: np.ndarray  # (runs, features, actions): Double Q-Learning's second estimate; REINFORCE's baseline in [:, :, 0]
     rng: np.ndarray  # (runs, 6, 4) uint64: the streams of each run, indexed by ENV_STREAM ... EVAL_TRANSITION_STREAM
 
 
-def initial_state(seeds: list[int], n_features: int, n_actions: int) -> RunState:
+def initial_state(seeds: list[int], n_features: int, n_actions: int, legal: np.ndarray | None = None) -> RunState:
     """Zero weights and per-run streams. The reset stream of seed ``s`` is ``PCG64(s)``, so its start states are
     those of Gymnasium's ``env.reset(seed=s)`` followed by plain resets; the others are the children of
-    ``SeedSequence(s)``."""
+    ``SeedSequence(s)``. ``legal``: ``(features, actions)`` bool, the legal moves of a game's states; an illegal
+    move's weight is −∞ (:mod:`rlcompare.algorithms.policies`)."""
     rng = np.empty((len(seeds), STREAMS, 4), dtype=np.uint64)
     for run, seed in enumerate(seeds):
         rng[run] = seed_streams(int(seed))
     shape = (len(seeds), n_features, n_actions)
-    return RunState(w=np.zeros(shape), w2=np.zeros(shape), rng=rng)
+    w, w2 = np.zeros(shape), np.zeros(shape)
+    if legal is not None:
+        w[:, ~legal] = w2[:, ~legal] = -np.inf
+    return RunState(w=w, w2=w2, rng=rng)
 
 
 @functools.lru_cache(maxsize=2**17)

@@ -57,7 +57,8 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
     epsilons = epsilon_schedule(config)
     features = make_features(config.environment, config.features, config.grid_bins, config.tilings, config.tiles,
                              config.hash_size, config.bounds)
-    state = initial_state(list(config.seeds), features.n_features, config.environment.n_actions)
+    state = initial_state(list(config.seeds), features.n_features, config.environment.n_actions,
+                          config.environment.legal_moves)
     stage_episodes = np.array(list(config.stage_episodes().values()), dtype=np.int64)
     records = allocate_records(len(config.seeds), config.episodes, config.evaluation_rounds,
                                       config.eval_episodes, stage_episodes, state.w.shape[1:])

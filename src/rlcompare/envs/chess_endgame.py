@@ -1,0 +1,220 @@
+"""Chess endgames as environments: the learner plays White's king and rook (KRK) or queen (KQK) against a defender
+that plays the lone black king, every move checked by the rules of :mod:`rlcompare.envs.chess_rules`.
+
+| item        | what happens                                                                                    |
+|-------------|-------------------------------------------------------------------------------------------------|
+| state       | a White-to-move position, or its class under the board's 8 symmetries (an option)              |
+| action      | White's move: a king step (8) or a slide of the piece (7 per direction); illegal ones masked   |
+| defender    | ``optimal``: a reply that resists longest (the solver's depth to mate), ties drawn from the run's |
+|             | stream; ``random``: a legal reply uniformly; ``mixed-P``: random with probability P, else optimal |
+| start       | a won position drawn uniformly (``won``), or one at least 3/4 of the longest mate away (``hard``) |
+| reward      | -1 per move, the paper's; a move that stalemates or lets the piece be taken costs -(limit + 1)  |
+|             | and ends the episode, so a lost piece is worse than any game kept, even one cut at the limit   |
+| end         | mate (terminated, won); stalemate or the piece taken (terminated, a failure); the move limit,    |
+|             | 50 moves, truncates                                                                               |
+
+Every reply is a table lookup: for each Black-to-move position the legal replies and the optimal ones are bits of a
+byte (:func:`make_endgame`), so a learner's move costs a few nanoseconds beyond its own update.
+``docs/chess.md`` says why each choice was made.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numpy as np
+
+from rlcompare.compiled import njit
+from rlcompare.envs import chess_rules as rules
+from rlcompare.envs.chess import ENDGAMES, HARD_SHARE, REWARDS, Options
+from rlcompare.envs.chess_solver import solve
+from rlcompare.rng import next_below, next_double
+
+
+class Endgame(NamedTuple):
+    """What compiled code steps: an endgame's tables and its defender."""
+
+    piece: int
+    state_of: np.ndarray  # (positions,) int64: the state of each White-to-move position; -1 where illegal
+    position_of: np.ndarray  # (states - 1,) int64: the position each state plays from (its class's first)
+    replies: np.ndarray  # (positions,) uint8: bit k set where Black's king step k is legal (Black to move)
+    best: np.ndarray  # (positions,) uint8: the replies that resist longest (a capture of the piece first)
+    checked: np.ndarray  # (positions,) bool: Black is in check (Black to move)
+    starts: np.ndarray  # (starts,) int64: the positions episodes start from, drawn uniformly
+    random_share: float
+    move: float  # the reward of a move that neither mates nor fails
+    mate: float  # the reward of the mating move
+    failure: float  # the reward of a move that stalemates or loses the piece
+
+    @property
+    def n_states(self) -> int:
+        return int(self.position_of.size) + 1
+
+
+# --- the tables -------------------------------------------------------------------------------------------
+
+
+@functools.cache
+def make_endgame(options: Options) -> Endgame:
+    """The tables of an endgame under ``options`` (read-only; cached)."""
+    piece = ENDGAMES[options.endgame].piece
+    solution = solve(piece)
+    state_of, position_of = states(piece, options.symmetries)
+    replies, best, checked = reply_tables(piece, solution.white)
+    won = np.flatnonzero(solution.white > 0)
+    if options.starts == "hard":
+        won = won[solution.white[won] >= HARD_SHARE * (2 * ENDGAMES[options.endgame].longest_mate - 1)]
+    tables = Endgame(piece, state_of, position_of, replies, best, checked, won.astype(np.int64),
+                     options.random_share, *REWARDS[options.rewards])
+    for array in tables:
+        if isinstance(array, np.ndarray):
+            array.flags.writeable = False
+    return tables
+
+
+def symmetric_images(positions: np.ndarray) -> np.ndarray:
+    """``(8, n)``: each position under the board's 8 symmetries (identity first): the file and rank flips and the
+    reflection in the a1-h8 diagonal, which a board without pawns or castling keeps."""
+    wk, wp, bk = positions // 4096, positions // 64 % 64, positions % 64
+    images = []
+    for flip_file in (False, True):
+        for flip_rank in (False, True):
+            for transpose in (False, True):
+                moved = [_mapped(square, flip_file, flip_rank, transpose) for square in (wk, wp, bk)]
+                images.append(moved[0] * 4096 + moved[1] * 64 + moved[2])
+    return np.stack(images)
+
+
+def _mapped(square: np.ndarray, flip_file: bool, flip_rank: bool, transpose: bool) -> np.ndarray:
+    file, rank = square % 8, square // 8
+    if transpose:
+        file, rank = rank, file
+    return np.asarray((7 - rank if flip_rank else rank) * 8 + (7 - file if flip_file else file))
+
+
+def states(piece: int, symmetries: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``(state_of, position_of)`` over legal White-to-move positions: with ``symmetries``, one state per class of
+    positions the 8 symmetries map onto each other, played from its smallest position; else one per position."""
+    positions = np.arange(rules.N_POSITIONS, dtype=np.int64)
+    legal = legal_positions(piece, white_to_move=True)
+    representative = symmetric_images(positions).min(axis=0) if symmetries else positions
+    position_of = np.unique(representative[legal])
+    state_of = np.full(rules.N_POSITIONS, -1, dtype=np.int64)
+    state_of[legal] = np.searchsorted(position_of, representative[legal])
+    return state_of, position_of
+
+
+@functools.cache
+def legal_positions(piece: int, white_to_move: bool) -> np.ndarray:
+    """``(positions,)`` bool: the legal positions with this side to move."""
+    return _legal_positions(piece, white_to_move)
+
+
+@njit(cache=True)
+def _legal_positions(piece: int, white_to_move: bool) -> np.ndarray:
+    legal = np.zeros(rules.N_POSITIONS, np.bool_)
+    for index in range(rules.N_POSITIONS):
+        legal[index] = rules.is_legal(piece, index, white_to_move)
+    return legal
+
+
+DRAW = 1 << 14
+"""A reply's depth to mate where it draws: longer than any mate."""
+
+
+@njit(cache=True)
+def reply_tables(piece: int, white_dtm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For every Black-to-move position: its legal replies and the longest-resisting ones, as bits ``k`` of the
+    king's step ``k`` (a capture of the piece, a draw, resists longest; then the largest depth to mate), and
+    whether Black is in check."""
+    replies = np.zeros(rules.N_POSITIONS, np.uint8)
+    best = np.zeros(rules.N_POSITIONS, np.uint8)
+    checked = np.zeros(rules.N_POSITIONS, np.bool_)
+    steps = np.empty(8, np.int64)
+    for index in range(rules.N_POSITIONS):
+        if not rules.is_legal(piece, index, False):
+            continue
+        checked[index] = rules.black_in_check(piece, index)
+        count = rules.black_replies(piece, index, steps)
+        wk, wp, bk = rules.decode(index)
+        longest = -2
+        for k in range(8):
+            destination = _king_step(bk, k)
+            legal = False
+            for j in range(count):
+                legal = legal or steps[j] == destination
+            if destination < 0 or not legal:
+                continue
+            replies[index] |= np.uint8(1 << k)
+            depth = DRAW if destination == wp else int(white_dtm[rules.encode(wk, wp, destination)])
+            if depth < 0:
+                depth = DRAW  # White cannot force mate from there
+            if depth > longest:
+                longest, best[index] = depth, np.uint8(1 << k)
+            elif depth == longest:
+                best[index] |= np.uint8(1 << k)
+    return replies, best, checked
+
+
+@njit(inline="always")
+def _king_step(square: int, k: int) -> int:
+    """The square the king reaches by its step ``k`` (:data:`rules.KING_STEPS`), or -1 off the board."""
+    file = square % 8 + rules.KING_STEPS[k][0]
+    rank = square // 8 + rules.KING_STEPS[k][1]
+    if file < 0 or file > 7 or rank < 0 or rank > 7:
+        return -1
+    return rank * 8 + file
+
+
+def legal_moves(tables: Endgame) -> np.ndarray:
+    """``(states, actions)`` bool: White's legal moves in each state (every action in the last, ended one)."""
+    mask = rules.legal_moves_mask(tables.piece)[tables.position_of]
+    return np.vstack([mask, np.ones((1, mask.shape[1]), np.bool_)])
+
+
+# --- stepping (the functions of a dynamics module: rlcompare.tabular.steps) ----------------------------------
+
+
+@njit(inline="always")
+def reset(env: Endgame, rng: np.ndarray) -> int:
+    """The state of a start position drawn uniformly."""
+    return int(env.state_of[env.starts[next_below(rng, env.starts.size)]])
+
+
+@njit(inline="always")
+def _pick(bits: np.uint8, rng: np.ndarray) -> int:
+    """One of the set bits of ``bits``, uniformly: the first without a draw where only one is set."""
+    count = 0
+    for k in range(8):
+        count += int((bits >> k) & 1)
+    pick = 0 if count == 1 else next_below(rng, count)
+    for k in range(8):
+        if (bits >> k) & 1:
+            if pick == 0:
+                return k
+            pick -= 1
+    return -1
+
+
+@njit(inline="always")
+def step(env: Endgame, state: int, action: int, rng: np.ndarray) -> tuple[int, float, bool]:
+    """White's ``action`` and the defender's reply: ``(next state, reward, terminated)``."""
+    after = rules.white_after(env.piece, env.position_of[state], action)
+    over = env.position_of.size
+    if env.replies[after] == 0:  # mate, or stalemate
+        return over, (env.mate if env.checked[after] else env.failure), True
+    bits = env.best[after]
+    if env.random_share > 0.0 and (env.random_share >= 1.0 or next_double(rng) < env.random_share):
+        bits = env.replies[after]
+    wk, wp, bk = rules.decode(after)
+    destination = _king_step(bk, _pick(bits, rng))
+    if destination == wp:
+        return over, env.failure, True
+    return env.state_of[rules.encode(wk, wp, destination)], env.move, False
+
+
+@njit(inline="always")
+def observe(env: Endgame, state: int) -> tuple[int]:
+    """The state's index, as a table environment's."""
+    return (state,)
