@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rlcompare.algorithms.policies import greedy_action
 from rlcompare.compiled import njit
 from rlcompare.envs import chess_rules as rules
 from rlcompare.envs.chess import ENDGAMES, HARD_SHARE, REWARDS, Options
@@ -35,12 +36,11 @@ from rlcompare.rng import next_below, next_double
 class Endgame(NamedTuple):
     """What compiled code steps: an endgame's tables and its defender."""
 
-    piece: int
-    state_of: np.ndarray  # (positions,) int64: the state of each White-to-move position; -1 where illegal
-    position_of: np.ndarray  # (states - 1,) int64: the position each state plays from (its class's first)
-    replies: np.ndarray  # (positions,) uint8: bit k set where Black's king step k is legal (Black to move)
-    best: np.ndarray  # (positions,) uint8: the replies that resist longest (a capture of the piece first)
-    checked: np.ndarray  # (positions,) bool: Black is in check (Black to move)
+    after: np.ndarray  # (states - 1, actions) int32: the Black-to-move position each move leads to; -1 illegal
+    state_of: np.ndarray  # (positions,) int32: the state of each White-to-move position; -1 where illegal
+    replies: np.ndarray  # (positions,) uint32: Black to move, bit k: its king's step k is legal; bit 8 + k: that step
+    # resists longest (a capture of the piece first, then the largest depth to mate); bit 16: Black is in check
+    steps: np.ndarray  # (8,) int64: the change of square of each king step
     starts: np.ndarray  # (starts,) int64: the positions episodes start from, drawn uniformly
     random_share: float
     move: float  # the reward of a move that neither mates nor fails
@@ -49,7 +49,7 @@ class Endgame(NamedTuple):
 
     @property
     def n_states(self) -> int:
-        return int(self.position_of.size) + 1
+        return int(self.after.shape[0]) + 1
 
 
 # --- the tables -------------------------------------------------------------------------------------------
@@ -61,16 +61,22 @@ def make_endgame(options: Options) -> Endgame:
     piece = ENDGAMES[options.endgame].piece
     solution = solve(piece)
     state_of, position_of = states(piece, options.symmetries)
-    replies, best, checked = reply_tables(piece, solution.white)
     won = np.flatnonzero(solution.white > 0)
     if options.starts == "hard":
         won = won[solution.white[won] >= HARD_SHARE * (2 * ENDGAMES[options.endgame].longest_mate - 1)]
-    tables = Endgame(piece, state_of, position_of, replies, best, checked, won.astype(np.int64),
-                     options.random_share, *REWARDS[options.rewards])
+    steps = np.array([df + 8 * dr for df, dr in rules.KING_STEPS], dtype=np.int64)
+    tables = Endgame(moves_table(piece, position_of), state_of.astype(np.int32), reply_table(piece, solution.white),
+                     steps, won.astype(np.int64), options.random_share, *REWARDS[options.rewards])
     for array in tables:
         if isinstance(array, np.ndarray):
             array.flags.writeable = False
     return tables
+
+
+def position_of(tables: Endgame) -> np.ndarray:
+    """``(states - 1,)``: the position each state plays from."""
+    return np.flatnonzero(tables.state_of >= 0)[np.unique(tables.state_of[tables.state_of >= 0],
+                                                          return_index=True)[1]]
 
 
 def symmetric_images(positions: np.ndarray) -> np.ndarray:
@@ -119,42 +125,47 @@ def _legal_positions(piece: int, white_to_move: bool) -> np.ndarray:
     return legal
 
 
+@njit(cache=True)
+def moves_table(piece: int, position_of: np.ndarray) -> np.ndarray:
+    """``(states, actions)`` int32: the position after each of White's moves from each state's; -1 where illegal."""
+    after = np.empty((position_of.size, rules.n_actions(piece)), np.int32)
+    for state in range(position_of.size):
+        for action in range(after.shape[1]):
+            after[state, action] = rules.white_after(piece, position_of[state], action)
+    return after
+
+
 DRAW = 1 << 14
 """A reply's depth to mate where it draws: longer than any mate."""
+BEST, CHECK = 8, 16
+"""Where :attr:`Endgame.replies` keeps the longest-resisting replies and the check."""
 
 
 @njit(cache=True)
-def reply_tables(piece: int, white_dtm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For every Black-to-move position: its legal replies and the longest-resisting ones, as bits ``k`` of the
-    king's step ``k`` (a capture of the piece, a draw, resists longest; then the largest depth to mate), and
-    whether Black is in check."""
-    replies = np.zeros(rules.N_POSITIONS, np.uint8)
-    best = np.zeros(rules.N_POSITIONS, np.uint8)
-    checked = np.zeros(rules.N_POSITIONS, np.bool_)
-    steps = np.empty(8, np.int64)
+def reply_table(piece: int, white_dtm: np.ndarray) -> np.ndarray:
+    """:attr:`Endgame.replies` of every Black-to-move position (0 where illegal)."""
+    table = np.zeros(rules.N_POSITIONS, np.uint32)
+    destinations = np.empty(8, np.int64)
     for index in range(rules.N_POSITIONS):
         if not rules.is_legal(piece, index, False):
             continue
-        checked[index] = rules.black_in_check(piece, index)
-        count = rules.black_replies(piece, index, steps)
+        count = rules.black_replies(piece, index, destinations)
         wk, wp, bk = rules.decode(index)
-        longest = -2
+        legal, best, longest = 0, 0, -2
         for k in range(8):
             destination = _king_step(bk, k)
-            legal = False
-            for j in range(count):
-                legal = legal or steps[j] == destination
-            if destination < 0 or not legal:
+            if destination < 0 or destination not in destinations[:count]:
                 continue
-            replies[index] |= np.uint8(1 << k)
+            legal |= 1 << k
             depth = DRAW if destination == wp else int(white_dtm[rules.encode(wk, wp, destination)])
             if depth < 0:
                 depth = DRAW  # White cannot force mate from there
             if depth > longest:
-                longest, best[index] = depth, np.uint8(1 << k)
+                longest, best = depth, 1 << k
             elif depth == longest:
-                best[index] |= np.uint8(1 << k)
-    return replies, best, checked
+                best |= 1 << k
+        table[index] = legal | best << BEST | int(rules.black_in_check(piece, index)) << CHECK
+    return table
 
 
 @njit(inline="always")
@@ -169,8 +180,7 @@ def _king_step(square: int, k: int) -> int:
 
 def legal_moves(tables: Endgame) -> np.ndarray:
     """``(states, actions)`` bool: White's legal moves in each state (every action in the last, ended one)."""
-    mask = rules.legal_moves_mask(tables.piece)[tables.position_of]
-    return np.vstack([mask, np.ones((1, mask.shape[1]), np.bool_)])
+    return np.vstack([tables.after >= 0, np.ones((1, tables.after.shape[1]), np.bool_)])
 
 
 # --- stepping (the functions of a dynamics module: rlcompare.tabular.steps) ----------------------------------
@@ -179,15 +189,15 @@ def legal_moves(tables: Endgame) -> np.ndarray:
 @njit(inline="always")
 def reset(env: Endgame, rng: np.ndarray) -> int:
     """The state of a start position drawn uniformly."""
-    return int(env.state_of[env.starts[next_below(rng, env.starts.size)]])
+    return int(np.int64(env.state_of[env.starts[next_below(rng, env.starts.size)]]))
 
 
 @njit(inline="always")
-def _pick(bits: np.uint8, rng: np.ndarray) -> int:
-    """One of the set bits of ``bits``, uniformly: the first without a draw where only one is set."""
+def _pick(bits: int, rng: np.ndarray) -> int:
+    """One of the set bits of ``bits`` (8 of them), uniformly: the only one without a draw."""
     count = 0
     for k in range(8):
-        count += int((bits >> k) & 1)
+        count += (bits >> k) & 1
     pick = 0 if count == 1 else next_below(rng, count)
     for k in range(8):
         if (bits >> k) & 1:
@@ -200,21 +210,45 @@ def _pick(bits: np.uint8, rng: np.ndarray) -> int:
 @njit(inline="always")
 def step(env: Endgame, state: int, action: int, rng: np.ndarray) -> tuple[int, float, bool]:
     """White's ``action`` and the defender's reply: ``(next state, reward, terminated)``."""
-    after = rules.white_after(env.piece, env.position_of[state], action)
-    over = env.position_of.size
-    if env.replies[after] == 0:  # mate, or stalemate
-        return over, (env.mate if env.checked[after] else env.failure), True
-    bits = env.best[after]
+    after = int(np.int64(env.after[state, action]))
+    replies = int(np.int64(env.replies[after]))
+    over = env.after.shape[0]
+    if replies & 0xFF == 0:  # mate, or stalemate
+        return over, (env.mate if replies >> CHECK else env.failure), True
+    chosen = replies >> BEST & 0xFF
     if env.random_share > 0.0 and (env.random_share >= 1.0 or next_double(rng) < env.random_share):
-        bits = env.replies[after]
-    wk, wp, bk = rules.decode(after)
-    destination = _king_step(bk, _pick(bits, rng))
-    if destination == wp:
+        chosen = replies & 0xFF
+    destination = (after & 63) + env.steps[_pick(chosen, rng)]
+    if destination == after >> 6 & 63:  # the piece taken
         return over, env.failure, True
-    return env.state_of[rules.encode(wk, wp, destination)], env.move, False
+    return int(np.int64(env.state_of[after - (after & 63) + destination])), env.move, False
 
 
 @njit(inline="always")
 def observe(env: Endgame, state: int) -> tuple[int]:
     """The state's index, as a table environment's."""
     return (state,)
+
+
+# --- evaluation ---------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def greedy_games(env: Endgame, q: np.ndarray, starts: np.ndarray, limit: int, rng: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each start (a White-to-move position) played by the greedy policy of ``q`` (first maximum) against the
+    defender, ties drawn from ``rng``: ``(won, moves, last)``, the last state and action as ``state * actions +
+    action`` (where a lost game lost its piece or stalemated)."""
+    won = np.zeros(starts.size, np.bool_)
+    moves = np.full(starts.size, limit, np.int64)
+    last = np.full(starts.size, -1, np.int64)
+    for game in range(starts.size):
+        state = int(np.int64(env.state_of[starts[game]]))
+        for move in range(1, limit + 1):
+            action = greedy_action(q[state])
+            last[game] = state * q.shape[1] + action
+            state, reward, terminated = step(env, state, action, rng)
+            if terminated:
+                won[game], moves[game] = reward != env.failure, move
+                break
+    return won, moves, last

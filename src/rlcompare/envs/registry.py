@@ -186,11 +186,11 @@ def _endgame(name: str) -> Environment:
     """A chess endgame against its defender (:mod:`rlcompare.envs.chess_endgame`); ``name`` carries its options."""
     import numpy as np
 
-    from rlcompare.envs import chess_endgame, chess_rules
+    from rlcompare.envs import chess_endgame
 
     options = chess.parse(name)
     tables = chess_endgame.make_endgame(options)
-    return Environment(options.name, tables, chess_rules.n_actions(tables.piece), tables.n_states, np.zeros(1),
+    return Environment(options.name, tables, tables.after.shape[1], tables.n_states, np.zeros(1),
                        np.ones(1), chess.MOVE_LIMIT, 1, "positive_return" if options.rewards == "mate" else "won",
                        endings=("mate, or the piece lost", "fifty moves without mate"),
                        bench_episodes=3000 if options.name in ENDGAMES else 0,
