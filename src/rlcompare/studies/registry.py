@@ -126,6 +126,35 @@ class MinAtarOptions(Seeded):
 
 
 @dataclass(frozen=True)
+class ChessEndgameOptions(Seeded):
+    """Q-Learning against SARSA on chess endgames (:mod:`rlcompare.studies.chess_endgames`)."""
+
+    episodes: int | None = option(None, minimum=1)
+    """Training episodes per seed in every setting, in place of each setting's budget (KRK against the optimal
+    defender 300,000; KQK 150,000; against the random defender 50,000)."""
+    endgames: str = "KRK,KQK"
+    """Comma-separated endgames: KRK (king and rook against king), KQK (king and queen)."""
+    defenders: str = "optimal,random"
+    """Comma-separated defenders: optimal (resists longest, by the solver's depth to mate) or random."""
+    algorithms: str = ",".join(PAPER_LEARNERS)
+    """Comma-separated one-step learners; with both Q-Learning and SARSA, the order ablation runs too."""
+    videos: bool = True
+    """Draw boards, value maps, animated games at three stages and PGN of the evaluation games."""
+
+    def check(self) -> None:
+        self.chosen  # noqa: B018 - refuses an unknown endgame, defender or learner on creation
+
+    @property
+    def chosen(self) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+        from rlcompare.algorithms.registry import METHODS
+        from rlcompare.envs.chess import ENDGAMES
+
+        return (listed("endgames", self.endgames, tuple(ENDGAMES)),
+                listed("defenders", self.defenders, ("optimal", "random")),
+                listed("algorithms", self.algorithms, tuple(m for m in METHODS if METHODS[m].one_step)))
+
+
+@dataclass(frozen=True)
 class SensitivityOptions(Options):
     seeds: int = option(20, minimum=1, spellings=("--runs",))
     """Number of seeds; the study's sweep derives them from one root seed, so the same number gives the same
@@ -187,6 +216,8 @@ STUDIES = {study.name: study for study in (
           DeepOptions, "rlcompare.studies.deep", extra="deep"),
     Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
           "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
+    Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
+          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess_endgames"),
     Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, the ε schedule and the time limit? (a sweep; "
           "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
 )}

@@ -1,0 +1,182 @@
+"""On- or off-policy in chess endgames, measured against the exact optimum (the paper's future work, "Chess").
+
+Q-Learning (Algorithm 1) against SARSA (Algorithm 2) play White in KRK and KQK against a defender that resists
+longest or plays at random (:mod:`rlcompare.envs.chess_endgame`), ε decaying from 1 and constant at 0.5 as in the
+paper, on paired seeds. Each seed's final greedy policy plays a fixed set of won starts, and the solver's depth to
+mate says how far each game was from perfect play:
+
+- mate rate: the share of starts it mates from; optimal share: the share it mates in the fewest moves possible;
+- excess moves: moves beyond the optimum, over the games it mates; behaviour return: what it collected while
+  learning; episodes to hold: when the greedy mate rate rose to :data:`HOLD_LEVEL` and stayed there.
+
+Every comparison is one family under Holm's correction, each with a margin declared in
+:mod:`rlcompare.studies.margins`. Why: with decaying ε, the order of choosing A' and updating is swapped in both
+learners, which splits SARSA - Q-Learning into order, target and their interaction as the ``why`` study does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
+from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, parse
+from rlcompare.experiment.runner import run_or_load
+from rlcompare.studies.interface import UI, Report
+from rlcompare.studies.registry import ChessEndgameOptions
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.tabular.results import Results
+
+STUDY = "chess-endgames"
+DEFENDERS = ("optimal", "random")
+LEARNERS = ("q_learning", "sarsa")
+BUDGETS = {("KRK", "optimal"): 300_000, ("KQK", "optimal"): 150_000, ("KRK", "random"): 50_000,
+           ("KQK", "random"): 50_000}
+"""Training episodes per seed: where the better learner mates from most starts (measured: docs/chess.md)."""
+ALPHA, GAMMA, EPSILON = 0.5, 0.9, 0.5
+"""The paper's γ and constant ε; α ten times the paper's (docs/chess.md)."""
+SCHEDULES = ("decay", "constant")
+ORDER_ABLATION = (("q_learning", BEFORE_UPDATE), ("sarsa", AFTER_UPDATE))
+EVAL_STARTS = 200
+EVAL_SEED = 41
+"""The evaluation starts: :data:`EVAL_STARTS` won positions drawn uniformly with this seed, the same for every
+learner and seed; the defender's ties in those games are drawn from a stream of this seed plus the run's."""
+HOLD_LEVEL = 0.9
+"""The greedy mate rate a learner must reach and keep to the end of training (declared before any run)."""
+EVALUATIONS = 20
+"""Greedy evaluation rounds over training, of :data:`ROUND_EPISODES` random won starts each."""
+ROUND_EPISODES = 50
+MEASURES = {"mate_rate": ("mate rate", +1), "optimal_share": ("optimal share", +1),
+            "excess_moves": ("excess moves", -1), "behaviour_return": ("behaviour return", +1),
+            "episodes_to_hold": ("episodes to hold", -1)}
+"""Each measure's name in tables and whether more (+1) or less (-1) is better."""
+SIDES = ("SARSA", "Q-Learning")
+
+
+def env_name(endgame: str, defender: str) -> str:
+    return endgame if defender == "optimal" else f"{endgame}:defender={defender}"
+
+
+def study_configs(options: ChessEndgameOptions) -> dict[str, ExperimentConfig]:
+    """Every configuration, by run directory ``{endgame}-{defender}-{algorithm}-{schedule}[-{order}]``."""
+    endgames, defenders, learners = options.chosen
+    defenders = tuple(d for d in DEFENDERS if d in defenders)
+    configs = {}
+    for endgame in endgames:
+        for defender in defenders:
+            episodes = options.episodes or BUDGETS[endgame, defender]
+            base = ExperimentConfig(env=env_name(endgame, defender), seeds=options.seed_range, episodes=episodes,
+                                    eval_every=max(1, episodes // EVALUATIONS), eval_episodes=ROUND_EPISODES,
+                                    stages=(("final", 1.0),), alpha=ALPHA, gamma=GAMMA, epsilon=EPSILON)
+            prefix = f"{endgame}-{defender}"
+            for algorithm in learners:
+                for schedule in SCHEDULES:
+                    configs[f"{prefix}-{algorithm}-{schedule}"] = replace(base, algorithm=algorithm, schedule=schedule)
+            if set(LEARNERS) <= set(learners):
+                for algorithm, order in ORDER_ABLATION:
+                    configs[f"{prefix}-{algorithm}-decay-{order}"] = replace(base, algorithm=algorithm,
+                                                                             next_action=order)
+    return configs
+
+
+def run(out: Path, options: ChessEndgameOptions, ui: UI, *, study: str = STUDY, force: bool = False
+        ) -> dict[str, Results]:
+    """Each configuration into ``out / name``, or loaded where it is complete there."""
+    configs = study_configs(options)
+    runs = {}
+    with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
+        for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
+                                                 progress=lambda n: advance(study, n)):
+            runs[name] = results
+            ui.done(name, results, reused)
+    ui.table(*summary(measured(runs)))
+    return runs
+
+
+def report(out: Path, ui: UI, *, runs: dict[str, Results] | None = None, videos: bool = True) -> Report:
+    """Tables, figures, games and ``report.html`` (:mod:`rlcompare.studies.chess_report`)."""
+    from rlcompare.studies import chess_report  # matplotlib: once the runs are trained
+
+    with ui.working("Building the report"):
+        return chess_report.report(out, ui, runs=runs, videos=videos)
+
+
+# --- measures -----------------------------------------------------------------------------------------------
+
+
+def evaluation_starts(env: str) -> np.ndarray:
+    """The fixed evaluation set of an endgame: :data:`EVAL_STARTS` won positions, uniformly, seed :data:`EVAL_SEED`."""
+    from rlcompare.envs.chess_endgame import make_endgame
+
+    starts = make_endgame(parse(env)).starts
+    return np.sort(np.random.default_rng(EVAL_SEED).choice(starts, size=min(EVAL_STARTS, starts.size),
+                                                           replace=False))
+
+
+def optimum_moves(env: str, positions: np.ndarray) -> np.ndarray:
+    """White's moves to mate with best play from each White-to-move position (the solver's half-moves, halved)."""
+    from rlcompare.envs.chess_solver import solve
+
+    return np.asarray(solve(ENDGAMES[parse(env).endgame].piece).white[positions].astype(np.int64) + 1) // 2
+
+
+def greedy_play(results: Results, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(won, moves, last)`` of the seed's final greedy policy from every evaluation start
+    (:func:`~rlcompare.envs.chess_endgame.greedy_games`)."""
+    from rlcompare.envs.chess_endgame import greedy_games, make_endgame
+    from rlcompare.rng import stream_state
+
+    env = results.config.env
+    return greedy_games(make_endgame(parse(env)), results.q_table(seed), evaluation_starts(env), MOVE_LIMIT,
+                        stream_state(EVAL_SEED + seed))
+
+
+def episodes_to_hold(rates: np.ndarray, every: int) -> float:
+    """The episodes after which the greedy mate rate of every evaluation round stayed at or above
+    :data:`HOLD_LEVEL`; NaN where the last round is below it."""
+    below = np.flatnonzero(rates < HOLD_LEVEL)
+    if below.size and below[-1] == rates.size - 1:
+        return np.nan
+    return float(((below[-1] + 2) if below.size else 1) * every)
+
+
+def per_seed(results: Results) -> pd.DataFrame:
+    """One row per seed: every measure of :data:`MEASURES` and the failure rate (the piece lost or stalemate)."""
+    from rlcompare.studies.measures import solved
+
+    config, records = results.config, results.records
+    optimum = optimum_moves(config.env, evaluation_starts(config.env))
+    rows = []
+    rounds = solved(config.environment.success, records.eval_returns, records.eval_lengths, records.eval_terminated,
+                    config.step_limit).mean(axis=2)
+    for run, seed in enumerate(results.seeds):
+        won, moves, _ = greedy_play(results, seed)
+        failed = (moves < MOVE_LIMIT) & ~won
+        rows.append({"seed": seed, "mate_rate": won.mean(), "optimal_share": (won & (moves == optimum)).mean(),
+                     "excess_moves": (moves - optimum)[won].mean() if won.any() else np.nan,
+                     "failure_rate": failed.mean(), "behaviour_return": records.returns[run].mean(),
+                     "episodes_to_hold": episodes_to_hold(rounds[run], config.eval_every)})
+    return pd.DataFrame(rows)
+
+
+def measured(runs: Mapping[str, Results]) -> dict[str, pd.DataFrame]:
+    """:func:`per_seed` of every run, by name."""
+    return {name: per_seed(results) for name, results in runs.items()}
+
+
+def _title(measure: str) -> str:
+    return MEASURES[measure][0] if measure in MEASURES else measure.replace("_", " ")
+
+
+def summary(metrics: Mapping[str, pd.DataFrame]) -> tuple[pd.DataFrame, str, str]:
+    """Each configuration's mean of every measure over seeds: the table, its title and its caption."""
+    frame = pd.DataFrame([{"configuration": name, "seeds": len(m),
+                           **{_title(str(c)): m[c].mean() for c in m.columns if c != "seed"}}
+                          for name, m in metrics.items()])
+    return (frame, "Chess endgames: mean over seeds",
+            f"greedy play from {EVAL_STARTS} fixed won starts; episodes to hold: when the greedy mate rate reached "
+            f"{HOLD_LEVEL:g} and stayed")
