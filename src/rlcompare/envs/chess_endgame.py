@@ -25,7 +25,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rlcompare.algorithms.policies import greedy_action
 from rlcompare.compiled import njit
 from rlcompare.envs import chess_rules as rules
 from rlcompare.envs.chess import ENDGAMES, HARD_SHARE, REWARDS, Options
@@ -233,6 +232,16 @@ def observe(env: Endgame, state: int) -> tuple[int]:
 # --- evaluation ---------------------------------------------------------------------------------------------
 
 
+@njit(inline="always")
+def _first_best(row: np.ndarray) -> int:
+    """The first action of highest value, as ``np.argmax`` (a learnt agent's choice)."""
+    best = 0
+    for action in range(1, row.size):
+        if row[action] > row[best]:
+            best = action
+    return best
+
+
 @njit(cache=True)
 def greedy_games(env: Endgame, q: np.ndarray, starts: np.ndarray, limit: int, rng: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -245,7 +254,7 @@ def greedy_games(env: Endgame, q: np.ndarray, starts: np.ndarray, limit: int, rn
     for game in range(starts.size):
         state = int(np.int64(env.state_of[starts[game]]))
         for move in range(1, limit + 1):
-            action = greedy_action(q[state])
+            action = _first_best(q[state])
             last[game] = state * q.shape[1] + action
             state, reward, terminated = step(env, state, action, rng)
             if terminated:

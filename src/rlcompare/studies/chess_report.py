@@ -1,5 +1,6 @@
-"""The chess-endgames study's report: the answer in a sentence from its verdicts, the verdicts (one Holm family,
-declared margins, a learning gate), why (order against target), and pictures a chess player reads: mate-rate
+"""The chess-endgames study's runner (:func:`run`, :mod:`rlcompare.studies.chess_endgames`'s) and its report: the
+answer in a sentence from its verdicts, the verdicts (one Holm family, declared margins, a learning gate), why
+(order against target), and pictures a chess player reads: mate-rate
 curves, the learnt value of each square of the defending king against the exact one, where each learner loses its
 piece, games at three stages of learning as animated boards, and every evaluation game of the first seed as PGN."""
 
@@ -25,6 +26,7 @@ from rlcompare.stats.compare import Paired, compare_paired, gated_label, judge_f
 from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.stats.significance import has_learnt
 from rlcompare.studies import chess_endgames as study
+from rlcompare.studies.chess_endgames import run
 from rlcompare.studies.interface import UI, Report
 from rlcompare.studies.margins import margin
 from rlcompare.tabular.results import Results
@@ -187,11 +189,11 @@ def exact_and_learnt(results: Results, other: Results | None) -> tuple[chess.Boa
     exact = np.full(64, np.nan)
     exact[won] = results.config.gamma ** (study.optimum_moves(env, positions[won]) - 1)
     learnt = []
-    for run in (results, other):
-        if run is None:
+    for learner in (results, other):
+        if learner is None:
             continue
         values = np.full(64, np.nan)
-        finals = np.stack([run.q_table(seed) for seed in run.seeds])  # (seeds, states, actions)
+        finals = np.stack([learner.q_table(seed) for seed in learner.seeds])  # (seeds, states, actions)
         values[won] = finals[:, tables.state_of[positions[won]]].max(axis=2).mean(axis=0)
         learnt.append(values)
     board = chess.Board.empty()
@@ -297,7 +299,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
            ) -> Report:
     """Tables, figures, games and ``report.html`` of the study in ``out``, from ``runs`` or its run directories."""
     out = Path(out)
-    with store.rewriting(out, "study"):
+    with store.rewriting(out, "study"), (ui or UI()).working("Building the report"):
         runs, problems = load(out) if runs is None else (runs, [])
         if not settings(runs):
             raise store.StoreError(f"{out}: no setting has both SARSA and Q-Learning runs; " + "; ".join(problems))
@@ -340,3 +342,6 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
                     figures=figures[1:], videos=pictures),
         ], problems)
         return Report(path, sentences, problems)
+
+
+__all__ = ["report", "run"]

@@ -131,7 +131,7 @@ class ChessEndgameOptions(Seeded):
 
     episodes: int | None = option(None, minimum=1)
     """Training episodes per seed in every setting, in place of each setting's budget (KRK against the optimal
-    defender 300,000; KQK 150,000; against the random defender 50,000)."""
+    defender 150,000; KQK 100,000; against the random defender 30,000)."""
     endgames: str = "KRK,KQK"
     """Comma-separated endgames: KRK (king and rook against king), KQK (king and queen)."""
     defenders: str = "optimal,random"
@@ -217,7 +217,7 @@ STUDIES = {study.name: study for study in (
     Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
           "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
     Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
-          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess_endgames"),
+          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess_report"),
     Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, the ε schedule and the time limit? (a sweep; "
           "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
 )}
