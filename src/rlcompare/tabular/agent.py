@@ -8,16 +8,21 @@ Gymnasium's ``DiscretizeObservation``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rlcompare.envs import mountain_car
+from rlcompare.envs.chess import is_endgame_name
 from rlcompare.envs.discretize import UniformGrid, cell_index
 from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.observations import check_box_observation, check_observation, check_state
 from rlcompare.envs.registry import Environment
 from rlcompare.envs.tiles import TileCoding, active_tiles_nd
 from rlcompare.tabular.results import Results
+
+if TYPE_CHECKING:
+    from rlcompare.envs.chess_play import ChessAgent
 
 
 def observation_shape(env: Environment) -> tuple[int, ...]:
@@ -82,11 +87,16 @@ class RandomAgent:
         return int(self.rng.integers(self.n_actions))
 
 
-def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent:
+def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent | ChessAgent:
     """The agent of ``seed`` at ``stage`` of a tabular run, ready for ``gymnasium.make(config.env)``
-    (``MountainCar-v0`` for the book's variant too, whose trajectories are the same)."""
+    (``MountainCar-v0`` for the book's variant too, whose trajectories are the same); a chess endgame's plays
+    python-chess boards (``agent.move(board)``)."""
     weights = results.q_table(seed, stage)
     c = results.config
+    if is_endgame_name(c.env) and c.algorithm != "random":
+        from rlcompare.envs.chess_play import ChessAgent
+
+        return ChessAgent(weights, c.env, seed, stage)
     env = c.environment
     shape = observation_shape(env)
     if c.algorithm == "random":

@@ -1,0 +1,155 @@
+"""The chess endgames as environments and as a study: every step equals python-chess's game, the defender plays as
+the solver says, no episode ends better by losing the piece, the board's symmetries keep the game, a learnt agent
+plays python-chess boards, and the study answers from a fresh directory, resumes, and refuses bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import chess
+import numpy as np
+import pytest
+from helpers import invoke
+
+from rlcompare.envs import chess_endgame, chess_rules
+from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, REWARDS, parse
+from rlcompare.envs.chess_solver import Tablebase, solve
+from rlcompare.rng import stream_state
+from rlcompare.tabular.config import ExperimentConfig
+from rlcompare.validation import ConfigError
+
+
+@pytest.mark.slow("builds the endgame's tables (a second or two per endgame)")
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
+@pytest.mark.parametrize("defender", ["optimal", "random"])
+def test_every_step_is_python_chess_s_move_and_a_reply_the_defender_may_play(endgame: str, defender: str) -> None:
+    name = f"{endgame}:defender={defender},symmetries=off"
+    tables = chess_endgame.make_endgame(parse(name))
+    piece, positions = ENDGAMES[endgame].piece, chess_endgame.position_of(tables)
+    tablebase, rng = Tablebase(), stream_state(7)
+    for state in np.random.default_rng(3).choice(len(positions), 300, replace=False):
+        board = chess_rules.board_of(piece, int(positions[state]), True)
+        legal = np.flatnonzero(tables.after[state] >= 0)
+        assert {chess_rules.move_of(piece, int(positions[state]), int(a)) for a in legal} == set(board.legal_moves)
+        action = int(legal[len(legal) // 2])
+        board.push(chess_rules.move_of(piece, int(positions[state]), action))
+        replies = list(board.legal_moves)
+        next_state, reward, terminated = chess_endgame.step(tables, int(state), action, rng)
+        if board.is_checkmate():
+            assert (reward, terminated) == (tables.mate, True)
+            continue
+        if board.is_stalemate():
+            assert (reward, terminated) == (tables.failure, True)
+            continue
+        depths = {move: _depth_after(tablebase, board, move) for move in replies}
+        chosen = [move for move in replies if _reached(board, move, piece, positions, next_state, terminated)]
+        assert len(chosen) == 1
+        if defender == "optimal":  # a capture draws (inf); else the longest mate
+            assert depths[chosen[0]] == max(depths.values())
+        assert terminated == (chosen[0].to_square == board.pieces(chess_rules.PIECE_TYPES[piece], chess.WHITE).pop())
+        assert reward == (tables.failure if terminated else tables.move)
+
+
+def _depth_after(tablebase: Tablebase, board: chess.Board, move: chess.Move) -> float:
+    board = board.copy()
+    board.push(move)
+    return float("inf") if board.is_insufficient_material() else tablebase.probe_dtm(board)
+
+
+def _reached(board: chess.Board, move: chess.Move, piece: int, positions: np.ndarray, state: int, ended: bool
+             ) -> bool:
+    after = board.copy()
+    after.push(move)
+    if after.is_insufficient_material():
+        return ended
+    return not ended and chess_rules.index_of(after)[1] == positions[state]
+
+
+@pytest.mark.slow("builds the endgame's tables")
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
+def test_the_solver_s_moves_mate_in_the_optimum_against_the_optimal_defender(endgame: str) -> None:
+    tables = chess_endgame.make_endgame(parse(endgame))
+    piece, solution, positions = ENDGAMES[endgame].piece, solve(ENDGAMES[endgame].piece), None
+    positions = chess_endgame.position_of(tables)
+    rng = stream_state(11)
+    for start in np.random.default_rng(5).choice(tables.starts, 100, replace=False):
+        state, moves = int(tables.state_of[start]), 0
+        optimum = (int(solution.white[start]) + 1) // 2
+        while True:
+            after = tables.after[state]
+            depth = np.where(after >= 0, solution.black[np.maximum(after, 0)], 10**4)
+            state, reward, terminated = chess_endgame.step(tables, state, int(np.argmin(np.where(depth < 0, 10**4,
+                                                                                                 depth))), rng)
+            moves += 1
+            if terminated:
+                break
+        assert (reward, moves) == (tables.mate, optimum), positions[0]
+
+
+def test_the_symmetries_give_every_image_of_a_position_one_state() -> None:
+    tables = chess_endgame.make_endgame(parse("KRK"))
+    legal = np.flatnonzero(tables.state_of >= 0)[::997]
+    images = chess_endgame.symmetric_images(legal)
+    assert (tables.state_of[images] == tables.state_of[legal]).all()
+    assert len(np.unique(tables.state_of[tables.state_of >= 0])) < len(tables.starts) / 7.5  # about an eighth
+
+
+@pytest.mark.parametrize("rewards", list(REWARDS))
+def test_no_episode_ends_better_by_losing_the_piece(rewards: str) -> None:
+    from rlcompare.studies.measures import solved
+    from rlcompare.tabular.train import train
+
+    config = ExperimentConfig(env=f"KRK:defender=random,rewards={rewards}", algorithm="random", episodes=400,
+                              seeds=(0,), eval_every=0, stages=(("final", 1.0),))
+    records = train(config).records
+    returns, won = records.returns[0], solved(config.environment.success, records.returns, records.lengths,
+                                              records.terminated, MOVE_LIMIT)[0]
+    failed = records.terminated[0] & ~won
+    assert failed.sum() > 50 and (~failed).sum() > 5  # the random player loses its rook often, not always
+    assert returns[failed].max() < returns[~failed & won].min(initial=np.inf)
+    assert returns[failed].max() <= returns[~records.terminated[0]].min(initial=np.inf)
+    move, mate, failure = REWARDS[rewards]
+    assert failure < mate and (failure < -MOVE_LIMIT * abs(move) or (move == 0 and failure == 0 < mate))
+
+
+def test_a_bad_endgame_name_is_one_message_naming_the_field() -> None:
+    for name, allowed in (("KBK", "KRK, KQK"), ("KRK:defender=smart", "optimal, random or mixed-P"),
+                          ("KRK:starts=easy", "won or hard"), ("KRK:colour=black", "KEY defender")):
+        with pytest.raises(ConfigError, match=allowed) as caught:
+            ExperimentConfig(env=name)
+        assert "env" in str(caught.value).split(":")[0]
+    with pytest.raises(ConfigError, match="value method"):
+        ExperimentConfig(env="KRK", algorithm="reinforce")
+
+
+@pytest.mark.slow("trains and reports a small study, twice")
+def test_the_study_answers_resumes_and_its_agent_plays_python_chess_boards(tmp_path: Path) -> None:
+    import rlcompare
+
+    out = tmp_path / "chess"
+    args = ["reproduce", "chess-endgames", "--seeds", "3", "--episodes", "400", "--endgames", "KQK",
+            "--defenders", "random", "--no-videos", "--out", str(out)]
+    first = invoke(*args)
+    assert first.exit_code == 0, first.output
+    assert "On-policy or off-policy in chess endgames?" in first.output
+    verdicts = (out / "tables" / "verdicts.csv").read_text()
+    assert verdicts.count("\n") == 1 + 2 * 5  # two schedules x five measures
+    again = invoke(*args)
+    assert again.exit_code == 0 and "trained" not in again.output.split("Report")[0].lower().replace("untrained", "")
+    assert (out / "tables" / "verdicts.csv").read_text() == verdicts
+    agent = rlcompare.load_agent(out / "KQK-random-q_learning-decay", seed=1)
+    board = chess.Board("8/8/8/3k4/8/8/8/KQ6 w - - 0 1")
+    assert agent.move(board) in board.legal_moves
+    with pytest.raises(ValueError, match="not KQK"):
+        agent.move(chess.Board("8/8/8/3k4/8/8/8/KR6 w - - 0 1"))
+    with pytest.raises(ValueError, match="only KRvK and KQvK"):
+        agent.move(chess.Board())
+
+
+def test_bad_study_options_are_refused_before_anything_is_written(tmp_path: Path) -> None:
+    for option, value, allowed in (("--endgames", "KBK", "KRK, KQK"), ("--defenders", "smart", "optimal, random"),
+                                   ("--algorithms", "reinforce", "q_learning")):
+        result = invoke("reproduce", "chess-endgames", option, value, "--out", str(tmp_path / "x"))
+        assert result.exit_code == 2, result.output
+        assert allowed in result.output and "Traceback" not in result.output
+        assert not (tmp_path / "x").exists()
