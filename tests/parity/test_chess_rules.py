@@ -11,7 +11,8 @@ import pytest
 
 from rlcompare.compiled import njit
 from rlcompare.envs import chess_rules as rules
-from rlcompare.envs.chess_rules import N_POSITIONS, QUEEN, ROOK
+from rlcompare.envs.chess import ENDGAMES, QUEEN, ROOK
+from rlcompare.envs.chess_rules import N_POSITIONS
 
 CHUNKS = 4
 """The exhaustive test's share of the positions per endgame, by the white king's rank (pytest-xdist spreads them)."""
@@ -76,13 +77,13 @@ def _destinations(board: chess.Board) -> dict[int, int]:
 
 @pytest.mark.slow("every position of KRK and KQK against python-chess")
 @pytest.mark.parametrize("chunk", range(CHUNKS))
-@pytest.mark.parametrize("endgame", list(rules.ENDGAMES))
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
 def test_every_position_equals_python_chess(endgame, chunk):
     """Each position whose white king stands on this chunk's ranks, with white and with black to move: legal exactly
     where ``board.is_valid()``; white's moves (king and piece) and black's replies equal ``board.legal_moves``;
     black in check, checkmated and stalemated exactly where python-chess says so; every capture of the piece leaves
     insufficient material."""
-    piece = rules.ENDGAMES[endgame]
+    piece = ENDGAMES[endgame].piece
     (legal, king_to, piece_to, black_to, check, strays), white_moves = _tables(piece)
     assert strays[0] == 0
     board = chess.Board.empty()
@@ -137,11 +138,11 @@ def _random_positions(piece: int, count: int, seed: int) -> list[tuple[int, bool
     return positions
 
 
-@pytest.mark.parametrize("endgame", list(rules.ENDGAMES))
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
 def test_random_positions_equal_python_chess(endgame):
     """1,000 random boards per endgame through the conversions: legality, ``set(board.legal_moves)`` against
     ``move_of`` of the legal actions and black's replies, each move's ``action_of`` and successor, game ends."""
-    piece = rules.ENDGAMES[endgame]
+    piece = ENDGAMES[endgame].piece
     mask = rules.legal_moves_mask(piece)
     replies = np.zeros(8, dtype=np.int64)
     for index, white_to_move in _random_positions(piece, 1000, seed=piece):

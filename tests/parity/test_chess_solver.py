@@ -10,7 +10,8 @@ import pytest
 
 from rlcompare.compiled import njit
 from rlcompare.envs import chess_rules as rules
-from rlcompare.envs.chess_rules import N_POSITIONS, QUEEN, ROOK
+from rlcompare.envs.chess import ENDGAMES, QUEEN, ROOK
+from rlcompare.envs.chess_rules import N_POSITIONS
 from rlcompare.envs.chess_solver import Tablebase, solve
 
 LONGEST_MATE = {ROOK: 16, QUEEN: 10}
@@ -49,12 +50,12 @@ def _bellman_violations(piece: int, white: np.ndarray, black: np.ndarray) -> np.
     return np.flatnonzero(wrong)
 
 
-@pytest.mark.parametrize("endgame", list(rules.ENDGAMES))
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
 def test_longest_mates_and_counts(endgame):
     """The longest mate with white to move is 16 moves (31 half-moves) in KRK, 10 (19) in KQK; black to move, one
     half-move more. Every legal white-to-move position is won; white's depths are odd, black's even; the illegal
     positions are -1."""
-    piece = rules.ENDGAMES[endgame]
+    piece = ENDGAMES[endgame].piece
     solution = solve(piece)
     assert solution is solve(piece)  # cached
     assert solution.white.dtype == solution.black.dtype == np.int16
@@ -71,11 +72,11 @@ def test_longest_mates_and_counts(endgame):
     assert np.array_equal(np.unique(solution.black[won_black]), np.arange(0, solution.black.max() + 1, 2))
 
 
-@pytest.mark.parametrize("endgame", list(rules.ENDGAMES))
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
 def test_solution_satisfies_bellman_equations(endgame):
     """Every position's depth is what its moves' depths make it (the equations have one solution, so this proves
     the analysis, given the rules)."""
-    piece = rules.ENDGAMES[endgame]
+    piece = ENDGAMES[endgame].piece
     solution = solve(piece)
     wrong = _bellman_violations(piece, solution.white, solution.black)
     assert wrong.size == 0, f"{wrong.size} positions, the first {wrong[:5]}"
@@ -90,12 +91,12 @@ def _sample(piece: int, white_to_move: bool, count: int, seed: int, most: int = 
 
 
 @pytest.mark.slow("plays 400 optimal lines out in python-chess")
-@pytest.mark.parametrize("endgame", list(rules.ENDGAMES))
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
 def test_optimal_lines_mate_in_the_probed_depth(endgame):
     """From 200 won positions, half with each side to move, the tablebase's best play in python-chess mates in
     exactly the probed number of half-moves: white moves to a position probed ``-(d - 1)``, black picks any reply
     probed longest, and no reply of black's is better than ``d - 1``."""
-    piece = rules.ENDGAMES[endgame]
+    piece = ENDGAMES[endgame].piece
     tablebase = Tablebase()
     starts = [(i, True) for i in _sample(piece, True, 100, seed=1)] + [(i, False) for i in _sample(piece, False, 100,
                                                                                                     seed=2)]
@@ -159,12 +160,12 @@ def _black_mated(board: chess.Board, plies: int) -> bool:
 
 
 @pytest.mark.slow("searches a few hundred positions three half-moves deep in python-chess")
-@pytest.mark.parametrize("endgame", list(rules.ENDGAMES))
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
 def test_agrees_with_brute_force_near_mate(endgame):
     """Minimax over python-chess's moves finds a mate within 1 or 3 half-moves (white to move) or 0 or 2 (black to
     move) exactly where the solution says, on 100 positions near mate and 100 anywhere for each side, and 50
     drawn ones with black to move."""
-    piece = rules.ENDGAMES[endgame]
+    piece = ENDGAMES[endgame].piece
     solution = solve(piece)
     for white_to_move, limits, depths in ((True, (1, 3), solution.white), (False, (0, 2), solution.black)):
         starts = _sample(piece, white_to_move, 100, seed=3, most=limits[-1] + 2) + _sample(piece, white_to_move,

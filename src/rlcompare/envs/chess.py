@@ -10,10 +10,9 @@ from typing import NamedTuple
 from rlcompare.validation import ConfigError
 
 ROOK, QUEEN = 0, 1
-"""The stronger side's piece, as :mod:`rlcompare.envs.chess_rules` numbers them."""
+"""The stronger side's piece, as :mod:`rlcompare.envs.chess_rules` moves it."""
 MOVE_LIMIT = 50
 """Moves of White per episode (the fifty-move rule's count, without captures or pawns in these endgames)."""
-DEFENDERS = ("optimal", "random", "mixed-P")
 STARTS = ("won", "hard")
 REWARDS = {"mate": (0.0, 1.0, 0.0), "moves": (-1.0, -1.0, -float(MOVE_LIMIT + 1))}
 """(a move, the mating move, a move that loses the piece or stalemates): ``moves``, the paper's -1 per move with

@@ -37,6 +37,7 @@ class Endgame(NamedTuple):
 
     after: np.ndarray  # (states - 1, actions) int32: the Black-to-move position each move leads to; -1 illegal
     state_of: np.ndarray  # (positions,) int32: the state of each White-to-move position; -1 where illegal
+    positions: np.ndarray  # (states - 1,) int64: the position each state plays from (its class's smallest)
     replies: np.ndarray  # (positions,) uint32: Black to move, bit k: its king's step k is legal; bit 8 + k: that step
     # resists longest (a capture of the piece first, then the largest depth to mate); bit 16: Black is in check
     steps: np.ndarray  # (8,) int64: the change of square of each king step
@@ -59,23 +60,18 @@ def make_endgame(options: Options) -> Endgame:
     """The tables of an endgame under ``options`` (read-only; cached)."""
     piece = ENDGAMES[options.endgame].piece
     solution = solve(piece)
-    state_of, position_of = states(piece, options.symmetries)
+    state_of, positions = states(piece, options.symmetries)
     won = np.flatnonzero(solution.white > 0)
     if options.starts == "hard":
         won = won[solution.white[won] >= HARD_SHARE * (2 * ENDGAMES[options.endgame].longest_mate - 1)]
     steps = np.array([df + 8 * dr for df, dr in rules.KING_STEPS], dtype=np.int64)
-    tables = Endgame(moves_table(piece, position_of), state_of.astype(np.int32), reply_table(piece, solution.white),
+    tables = Endgame(moves_table(piece, positions), state_of.astype(np.int32), positions,
+                     reply_table(piece, solution.white),
                      steps, won.astype(np.int64), options.random_share, *REWARDS[options.rewards])
     for array in tables:
         if isinstance(array, np.ndarray):
             array.flags.writeable = False
     return tables
-
-
-def position_of(tables: Endgame) -> np.ndarray:
-    """``(states - 1,)``: the position each state plays from."""
-    return np.flatnonzero(tables.state_of >= 0)[np.unique(tables.state_of[tables.state_of >= 0],
-                                                          return_index=True)[1]]
 
 
 def symmetric_images(positions: np.ndarray) -> np.ndarray:
@@ -227,37 +223,3 @@ def step(env: Endgame, state: int, action: int, rng: np.ndarray) -> tuple[int, f
 def observe(env: Endgame, state: int) -> tuple[int]:
     """The state's index, as a table environment's."""
     return (state,)
-
-
-# --- evaluation ---------------------------------------------------------------------------------------------
-
-
-@njit(inline="always")
-def _first_best(row: np.ndarray) -> int:
-    """The first action of highest value, as ``np.argmax`` (a learnt agent's choice)."""
-    best = 0
-    for action in range(1, row.size):
-        if row[action] > row[best]:
-            best = action
-    return best
-
-
-@njit(cache=True)
-def greedy_games(env: Endgame, q: np.ndarray, starts: np.ndarray, limit: int, rng: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each start (a White-to-move position) played by the greedy policy of ``q`` (first maximum) against the
-    defender, ties drawn from ``rng``: ``(won, moves, last)``, the last state and action as ``state * actions +
-    action`` (where a lost game lost its piece or stalemated)."""
-    won = np.zeros(starts.size, np.bool_)
-    moves = np.full(starts.size, limit, np.int64)
-    last = np.full(starts.size, -1, np.int64)
-    for game in range(starts.size):
-        state = int(np.int64(env.state_of[starts[game]]))
-        for move in range(1, limit + 1):
-            action = _first_best(q[state])
-            last[game] = state * q.shape[1] + action
-            state, reward, terminated = step(env, state, action, rng)
-            if terminated:
-                won[game], moves[game] = reward != env.failure, move
-                break
-    return won, moves, last

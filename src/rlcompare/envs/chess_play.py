@@ -15,7 +15,7 @@ import numpy as np
 
 from rlcompare.envs import chess_rules as rules
 from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, parse
-from rlcompare.envs.chess_endgame import BEST, Endgame, make_endgame, position_of, symmetric_images
+from rlcompare.envs.chess_endgame import BEST, Endgame, make_endgame, symmetric_images
 
 
 @functools.cache
@@ -48,18 +48,16 @@ class ChessAgent:
     seed: int = 0
     stage: str = "final"
     tables: Endgame = field(init=False)
-    positions: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self.tables = make_endgame(parse(self.env))
-        self.positions = position_of(self.tables)
 
     def move(self, board: chess.Board) -> chess.Move:
         """White's greedy move in ``board`` (first maximum, as ``np.argmax``); a ``ValueError`` for a board that
         is not a legal position of this endgame with White to move."""
         index = endgame_board(self.env, board)
         state = int(self.tables.state_of[index])
-        played = int(self.positions[state])
+        played = int(self.tables.positions[state])
         symmetry = int(np.flatnonzero(symmetric_images(np.array([index]))[:, 0] == played)[0])
         move = rules.move_of(ENDGAMES[parse(self.env).endgame].piece, played, int(np.argmax(self.q[state])))
         back = np.argsort(square_maps()[symmetry])

@@ -19,10 +19,8 @@ import chess
 import numpy as np
 
 from rlcompare.compiled import njit
+from rlcompare.envs.chess import QUEEN, ROOK
 
-ROOK = 0
-QUEEN = 1
-ENDGAMES = {"KRK": ROOK, "KQK": QUEEN}
 PIECE_TYPES = {ROOK: chess.ROOK, QUEEN: chess.QUEEN}
 """python-chess's piece type of each endgame's white piece."""
 N_SQUARES = 64

@@ -22,14 +22,13 @@ import chess.gaviota
 import numpy as np
 
 from rlcompare.compiled import njit
+from rlcompare.envs.chess import QUEEN, ROOK
 from rlcompare.envs.chess_rules import (
     KING_STEPS,
     MAX_DISTANCE,
     N_KING_STEPS,
     N_POSITIONS,
-    QUEEN,
     QUEEN_DIRECTIONS,
-    ROOK,
     black_in_check,
     black_replies,
     decode,

@@ -16,9 +16,11 @@ learners, which splits SARSA - Q-Learning into order, target and their interacti
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -93,7 +95,7 @@ def run(out: Path, options: ChessEndgameOptions, ui: UI, *, study: str = STUDY, 
                                                  progress=lambda n: advance(study, n)):
             runs[name] = results
             ui.done(name, results, reused)
-    ui.table(*summary(measured(runs)))
+    ui.table(*summary(measured(runs, played(runs))))
     return runs
 
 
@@ -101,13 +103,17 @@ def run(out: Path, options: ChessEndgameOptions, ui: UI, *, study: str = STUDY, 
 # --- measures -----------------------------------------------------------------------------------------------
 
 
+@functools.cache
 def evaluation_starts(env: str) -> np.ndarray:
-    """The fixed evaluation set of an endgame: :data:`EVAL_STARTS` won positions, uniformly, seed :data:`EVAL_SEED`."""
+    """The fixed evaluation set of an endgame: :data:`EVAL_STARTS` won positions, uniformly, seed :data:`EVAL_SEED`
+    (read-only)."""
     from rlcompare.envs.chess_endgame import make_endgame
 
     starts = make_endgame(parse(env)).starts
-    return np.sort(np.random.default_rng(EVAL_SEED).choice(starts, size=min(EVAL_STARTS, starts.size),
-                                                           replace=False))
+    chosen = np.sort(np.random.default_rng(EVAL_SEED).choice(starts, size=min(EVAL_STARTS, starts.size),
+                                                             replace=False))
+    chosen.flags.writeable = False
+    return chosen
 
 
 def optimum_moves(env: str, positions: np.ndarray) -> np.ndarray:
@@ -117,15 +123,35 @@ def optimum_moves(env: str, positions: np.ndarray) -> np.ndarray:
     return np.asarray(solve(ENDGAMES[parse(env).endgame].piece).white[positions].astype(np.int64) + 1) // 2
 
 
-def greedy_play(results: Results, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(won, moves, last)`` of the seed's final greedy policy from every evaluation start
-    (:func:`~rlcompare.envs.chess_endgame.greedy_games`)."""
-    from rlcompare.envs.chess_endgame import greedy_games, make_endgame
-    from rlcompare.rng import stream_state
+class Games(NamedTuple):
+    """A seed's final greedy policy from every evaluation start, game by game."""
 
-    env = results.config.env
-    return greedy_games(make_endgame(parse(env)), results.q_table(seed), evaluation_starts(env), MOVE_LIMIT,
-                        stream_state(EVAL_SEED + seed))
+    won: np.ndarray  # bool: mated
+    moves: np.ndarray  # White's moves played
+    failed: np.ndarray  # bool: the piece lost, or stalemate
+    last: np.ndarray  # the last state and action, as ``state * actions + action``
+
+
+def greedy_play(results: Results, seed: int) -> Games:
+    """The seed's games from every evaluation start (:func:`~rlcompare.tabular.games.greedy_games`), the
+    defender's ties drawn from a stream of :data:`EVAL_SEED` plus the seed."""
+    from rlcompare.envs.chess_endgame import make_endgame
+    from rlcompare.rng import stream_state
+    from rlcompare.studies.measures import solved
+    from rlcompare.tabular.games import greedy_games
+
+    config = results.config
+    tables = make_endgame(parse(config.env))
+    starts = tables.state_of[evaluation_starts(config.env)].astype(np.int64)
+    returns, moves, ended, last = greedy_games(tables, results.q_table(seed), starts, MOVE_LIMIT,
+                                               stream_state(EVAL_SEED + seed))
+    won = solved(config.environment.success, returns, moves, ended, MOVE_LIMIT)
+    return Games(won, moves, ended & ~won, last)
+
+
+def played(runs: Mapping[str, Results]) -> dict[str, list[Games]]:
+    """:func:`greedy_play` of every seed of every run, by name."""
+    return {name: [greedy_play(results, seed) for seed in results.seeds] for name, results in runs.items()}
 
 
 def episodes_to_hold(rates: np.ndarray, every: int) -> float:
@@ -137,28 +163,25 @@ def episodes_to_hold(rates: np.ndarray, every: int) -> float:
     return float(((below[-1] + 2) if below.size else 1) * every)
 
 
-def per_seed(results: Results) -> pd.DataFrame:
+def per_seed(results: Results, games: list[Games]) -> pd.DataFrame:
     """One row per seed: every measure of :data:`MEASURES` and the failure rate (the piece lost or stalemate)."""
     from rlcompare.studies.measures import solved
 
     config, records = results.config, results.records
     optimum = optimum_moves(config.env, evaluation_starts(config.env))
-    rows = []
     rounds = solved(config.environment.success, records.eval_returns, records.eval_lengths, records.eval_terminated,
                     config.step_limit).mean(axis=2)
-    for run, seed in enumerate(results.seeds):
-        won, moves, _ = greedy_play(results, seed)
-        failed = (moves < MOVE_LIMIT) & ~won
-        rows.append({"seed": seed, "mate_rate": won.mean(), "optimal_share": (won & (moves == optimum)).mean(),
-                     "excess_moves": (moves - optimum)[won].mean() if won.any() else np.nan,
-                     "failure_rate": failed.mean(), "behaviour_return": records.returns[run].mean(),
-                     "episodes_to_hold": episodes_to_hold(rounds[run], config.eval_every)})
-    return pd.DataFrame(rows)
+    return pd.DataFrame([
+        {"seed": seed, "mate_rate": g.won.mean(), "optimal_share": (g.won & (g.moves == optimum)).mean(),
+         "excess_moves": (g.moves - optimum)[g.won].mean() if g.won.any() else np.nan,
+         "failure_rate": g.failed.mean(), "behaviour_return": records.returns[run].mean(),
+         "episodes_to_hold": episodes_to_hold(rounds[run], config.eval_every)}
+        for run, (seed, g) in enumerate(zip(results.seeds, games, strict=True))])
 
 
-def measured(runs: Mapping[str, Results]) -> dict[str, pd.DataFrame]:
+def measured(runs: Mapping[str, Results], games: Mapping[str, list[Games]]) -> dict[str, pd.DataFrame]:
     """:func:`per_seed` of every run, by name."""
-    return {name: per_seed(results) for name, results in runs.items()}
+    return {name: per_seed(results, games[name]) for name, results in runs.items()}
 
 
 def _title(measure: str) -> str:
@@ -168,7 +191,7 @@ def _title(measure: str) -> str:
 def summary(metrics: Mapping[str, pd.DataFrame]) -> tuple[pd.DataFrame, str, str]:
     """Each configuration's mean of every measure over seeds: the table, its title and its caption."""
     frame = pd.DataFrame([{"configuration": name, "seeds": len(m),
-                           **{_title(str(c)): m[c].mean() for c in m.columns if c != "seed"}}
+                           **{_title(str(c)): round(float(m[c].mean()), 3) for c in m.columns if c != "seed"}}
                           for name, m in metrics.items()])
     return (frame, "Chess endgames: mean over seeds",
             f"greedy play from {EVAL_STARTS} fixed won starts; episodes to hold: when the greedy mate rate reached "

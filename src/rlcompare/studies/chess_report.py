@@ -7,7 +7,7 @@ piece, games at three stages of learning as animated boards, and every evaluatio
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Hashable, Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.envs import chess_rules
-from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, parse
+from rlcompare.envs.chess import ENDGAMES, parse
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
 from rlcompare.report.page import Section, save_figure, write_report, write_table
@@ -64,29 +64,32 @@ def _margin(measure: str, episodes: int) -> float:
 def verdicts(runs: Mapping[str, Results], metrics: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """SARSA against Q-Learning on every measure of every setting, one Holm family, each behind the learning gate:
     a learner has learnt where its mate rate beats 0 by the mate-rate margin (one-sided signed-rank test)."""
-    found: dict[Key, Paired] = {}
+    keys: list[Key] = []
+    found: dict[Hashable, Paired] = {}
     learnt: dict[tuple[str, str, str], tuple[bool, bool]] = {}
-    for endgame, defender, schedule in settings(runs):
-        names = (f"{endgame}-{defender}-sarsa-{schedule}", f"{endgame}-{defender}-q_learning-{schedule}")
-        episodes = runs[names[0]].config.episodes
-        pair = tuple(metrics[name] for name in names)
-        learnt[endgame, defender, schedule] = tuple(  # type: ignore[assignment]
-            has_learnt(m["mate_rate"].to_numpy(), 0.0, margin(study.STUDY, "mate rate")) for m in pair)
+    for setting in settings(runs):
+        endgame, defender, schedule = setting
+        sarsa, q = (metrics[f"{endgame}-{defender}-{a}-{schedule}"] for a in ("sarsa", "q_learning"))
+        episodes = runs[f"{endgame}-{defender}-sarsa-{schedule}"].config.episodes
+        learnt[setting] = (_learnt(sarsa), _learnt(q))
         for measure in study.MEASURES:
-            a, b = (_values(m, measure, episodes) for m in pair)
-            found[endgame, defender, schedule, measure] = compare_paired(a, b, _margin(measure, episodes),
-                                                                         improvement=False)
-    judged = judge_family(dict(found), study.SIDES)  # type: ignore[arg-type]
+            keys.append((*setting, measure))
+            found[keys[-1]] = compare_paired(_values(sarsa, measure, episodes), _values(q, measure, episodes),
+                                             _margin(measure, episodes), improvement=False)
+    judged = judge_family(found, study.SIDES)
     rows = []
-    for key, j in judged.items():
-        endgame, defender, schedule, measure = key  # type: ignore[misc]
-        sign = study.MEASURES[measure][1]
+    for endgame, defender, schedule, measure in keys:
+        j, sign = judged[endgame, defender, schedule, measure], study.MEASURES[measure][1]
         rows.append({"endgame": endgame, "defender": defender, "exploration": _exploration(schedule),
                      "measure": study.MEASURES[measure][0], "SARSA": sign * j.paired.a_mean,
                      "Q-Learning": sign * j.paired.b_mean,
                      "SARSA - Q-Learning": _oriented(j.paired.difference, sign).format(3),
                      "p (Holm)": j.p, "better": gated_label(j.label, learnt[endgame, defender, schedule], study.SIDES)})
     return pd.DataFrame(rows)
+
+
+def _learnt(metrics: pd.DataFrame) -> bool:
+    return has_learnt(metrics["mate_rate"].to_numpy(), 0.0, margin(study.STUDY, "mate rate"))
 
 
 def _oriented(difference: Estimate, sign: int) -> Estimate:
@@ -141,8 +144,8 @@ def curves_figure(runs: Mapping[str, Results]) -> Figure:
     for i, (endgame, defender) in enumerate(panels):
         ax = figure.add_subplot(1, len(panels), i + 1)
         for name, results in runs.items():
-            if not name.startswith(f"{endgame}-{defender}-") or name.count("-") != 3:
-                continue
+            if not name.startswith(f"{endgame}-{defender}-") or results.config.next_action is not None:
+                continue  # the order ablation's runs
             c, r = results.config, results.records
             rates = solved(c.environment.success, r.eval_returns, r.eval_lengths, r.eval_terminated,
                            c.step_limit).mean(axis=2)
@@ -202,24 +205,22 @@ def exact_and_learnt(results: Results, other: Results | None) -> tuple[chess.Boa
     return board, exact, learnt
 
 
-def failure_figure(runs: Mapping[str, Results], names: tuple[str, ...]) -> Figure | None:
+def failure_figure(runs: Mapping[str, Results], games: Mapping[str, list[study.Games]], names: tuple[str, ...]
+                   ) -> Figure | None:
     """Each learner's most frequent losing position and move (the piece left hanging, or stalemate), over the
     seeds' evaluation games."""
-    from rlcompare.envs.chess_endgame import make_endgame, position_of
+    from rlcompare.envs.chess_endgame import make_endgame
     from rlcompare.report.chess_boards import draw_board
 
     found = []
     for name in names:
         results = runs[name]
         tables = make_endgame(parse(results.config.env))
-        lost: Counter[int] = Counter()
-        for seed in results.seeds:
-            won, moves, last = study.greedy_play(results, seed)
-            lost.update(last[~won & (moves < MOVE_LIMIT)].tolist())
+        lost = Counter(int(pair) for seed_games in games[name] for pair in seed_games.last[seed_games.failed])
         if lost:
             (pair, count), = lost.most_common(1)
             state, action = divmod(pair, tables.after.shape[1])
-            played = int(position_of(tables)[state])
+            played = int(tables.positions[state])
             piece = ENDGAMES[parse(results.config.env).endgame].piece
             found.append((name, chess_rules.board_of(piece, played, True), chess_rules.move_of(piece, played, action),
                           count, sum(lost.values())))
@@ -303,7 +304,8 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
         runs, problems = load(out) if runs is None else (runs, [])
         if not settings(runs):
             raise store.StoreError(f"{out}: no setting has both SARSA and Q-Learning runs; " + "; ".join(problems))
-        metrics = study.measured(runs)
+        games = study.played(runs)
+        metrics = study.measured(runs, games)
         table, why = verdicts(runs, metrics), decomposition(runs, metrics)
         means = study.summary(metrics)
         files = {name: write_table(frame, out / "tables", name) for name, frame in
@@ -311,20 +313,19 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
         sentences = [answer(table)]
         figures = [(save_figure(curves_figure(runs), out / "figures" / "mate-rate.png"),
                     "Greedy mate rate from random won starts over training, mean over seeds")]
-        main = [f"{e}-{d}-{a}-decay" for e, d, _ in settings(runs) for a in ("q_learning", "sarsa")]
-        main = list(dict.fromkeys(main))
+        main = [f"{e}-{d}-{a}-decay" for e, d, s in settings(runs) if s == "decay" for a in ("q_learning", "sarsa")]
         pictures: list[tuple[str, str, str]] = []
-        games: list[str] = []
+        pgn: list[str] = []
         if videos:
             first = main[0]
             figures.append((save_figure(value_figure(runs, first), out / "figures" / "values.png"),
                             f"{first}: the value of each square of the defending king, exact and learnt"))
-            failures = failure_figure(runs, tuple(main))
+            failures = failure_figure(runs, games, tuple(main))
             if failures is not None:
                 figures.append((save_figure(failures, out / "figures" / "losses.png"),
                                 "Where each learner most often loses its piece (or stalemates), over its seeds"))
             pictures = stage_animations(out, runs, tuple(main[:2]))
-            games = [write_games(runs, name, out / "games") for name in main]
+            pgn = [write_games(runs, name, out / "games") for name in main]
         first_run = next(iter(runs.values()))
         path = write_report(out / "report.html", "On- or off-policy in chess endgames, against the exact optimum", [
             Section("Answer", [
@@ -338,7 +339,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
                 "decomposition), with 95% bootstrap intervals."],
                 tables=[("Decomposition", why, files["decomposition"])]),
             Section("Every configuration", tables=[(means[1], means[0], files["means"])]),
-            Section("Pictures and games", [f"PGN of every evaluation game: {', '.join(games)}"] if games else [],
+            Section("Pictures and games", [f"PGN of every evaluation game: {', '.join(pgn)}"] if pgn else [],
                     figures=figures[1:], videos=pictures),
         ], problems)
         return Report(path, sentences, problems)
