@@ -26,10 +26,10 @@ def test_every_step_is_python_chess_s_move_and_a_reply_the_defender_may_play(end
     name = f"{endgame}:defender={defender},symmetries=off"
     tables = chess_endgame.make_endgame(parse(name))
     piece, positions = ENDGAMES[endgame].piece, tables.positions
-    tablebase, rng = Tablebase(), stream_state(7)
+    tablebase, rng, moves = Tablebase(), stream_state(7), chess_endgame.legal_moves(tables)
     for state in np.random.default_rng(3).choice(len(positions), 300, replace=False):
         board = chess_rules.board_of(piece, int(positions[state]), True)
-        legal = np.flatnonzero(tables.after[state] >= 0)
+        legal = np.flatnonzero(moves[state])
         assert {chess_rules.move_of(piece, int(positions[state]), int(a)) for a in legal} == set(board.legal_moves)
         action = int(legal[len(legal) // 2])
         board.push(chess_rules.move_of(piece, int(positions[state]), action))
@@ -75,7 +75,8 @@ def test_the_solver_s_moves_mate_in_the_optimum_against_the_optimal_defender(end
         state, moves = int(tables.state_of[start]), 0
         optimum = (int(solution.white[start]) + 1) // 2
         while True:
-            after = tables.after[state]
+            after = np.array([chess_rules.white_after(tables.piece, int(tables.positions[state]), action)
+                              for action in range(chess_rules.n_actions(tables.piece))])
             depth = np.where(after >= 0, solution.black[np.maximum(after, 0)], 10**4)
             state, reward, terminated = chess_endgame.step(tables, state, int(np.argmin(np.where(depth < 0, 10**4,
                                                                                                  depth))), rng)

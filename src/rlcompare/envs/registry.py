@@ -190,11 +190,10 @@ def _endgame(name: str) -> Environment:
 
     options = chess.parse(name)
     tables = chess_endgame.make_endgame(options)
-    return Environment(options.name, tables, tables.after.shape[1], tables.n_states, np.zeros(1),
+    legal = chess_endgame.legal_moves(tables)
+    return Environment(options.name, tables, legal.shape[1], tables.n_states, np.zeros(1),
                        np.ones(1), chess.MOVE_LIMIT, 1, "positive_return" if options.rewards == "mate" else "won",
-                       endings=("mate, or the piece lost", "fifty moves without mate"),
-                       bench_episodes=3000 if options.name in ENDGAMES else 0,
-                       legal_moves=chess_endgame.legal_moves(tables))
+                       endings=("mate, or the piece lost", "fifty moves without mate"), legal_moves=legal)
 
 
 def _atari(name: str) -> Environment:

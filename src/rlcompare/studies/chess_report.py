@@ -219,7 +219,7 @@ def failure_figure(runs: Mapping[str, Results], games: Mapping[str, list[study.G
         lost = Counter(int(pair) for seed_games in games[name] for pair in seed_games.last[seed_games.failed])
         if lost:
             (pair, count), = lost.most_common(1)
-            state, action = divmod(pair, tables.after.shape[1])
+            state, action = divmod(pair, chess_rules.n_actions(tables.piece))
             played = int(tables.positions[state])
             piece = ENDGAMES[parse(results.config.env).endgame].piece
             found.append((name, chess_rules.board_of(piece, played, True), chess_rules.move_of(piece, played, action),
