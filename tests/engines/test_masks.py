@@ -103,10 +103,12 @@ def test_epsilon_one_never_picks_an_illegal_move(impl, row):
     fn = _impl(impl, epsilon_greedy_action)
     q_row = np.array(row)
     state = stream_state(5)
-    counts = np.bincount([fn(q_row, 1.0, state) for _ in range(N_DRAWS)], minlength=q_row.size)
+    counts = np.bincount([fn(q_row, 1.0, state, True) for _ in range(N_DRAWS)], minlength=q_row.size)
     legal = q_row != NEG_INF
     assert counts[~legal].sum() == 0, counts
     np.testing.assert_allclose(counts[legal] / N_DRAWS, 1 / legal.sum(), atol=0.02)
+    unmasked = np.bincount([fn(q_row, 1.0, state) for _ in range(2000)], minlength=q_row.size)
+    assert unmasked[~legal].sum() > 0  # without the mask flag, the plain draw over every action
 
 
 @pytest.mark.parametrize("impl", IMPLS)
@@ -117,9 +119,9 @@ def test_epsilon_zero_is_the_greedy_legal_move(impl):
     fn = _impl(impl, epsilon_greedy_action)
     state = stream_state(6)
     row = np.array([NEG_INF, -3.0, -1.0, -2.0])
-    assert {fn(row, 0.0, state) for _ in range(500)} == {2}
+    assert {fn(row, 0.0, state, True) for _ in range(500)} == {2}
     tied = np.array([NEG_INF, -1.0, NEG_INF, -1.0, -4.0])
-    counts = np.bincount([fn(tied, 0.0, state) for _ in range(4000)], minlength=tied.size)
+    counts = np.bincount([fn(tied, 0.0, state, True) for _ in range(4000)], minlength=tied.size)
     assert counts[[0, 2, 4]].sum() == 0, counts
     assert counts[1] > 1800, counts
     assert counts[3] > 1800, counts
@@ -148,7 +150,7 @@ def test_epsilon_greedy_draw_order_with_a_mask(impl, row):
             expected = int(maxima[0])
         else:
             expected = int(maxima[int(generator.random() * maxima.size)])
-        assert fn(q_row, 0.3, state) == expected
+        assert fn(q_row, 0.3, state, True) == expected
     assert (int(state[0]) << 64 | int(state[1])) == generator.bit_generator.state["state"]["state"]
 
 
@@ -329,7 +331,8 @@ def _train_masked(algorithm: str):
     state = initial_state(SEEDS, table_env.n_states, table_env.n_actions, LEGAL)
     snapshots = np.array([EPISODES // 2, EPISODES], np.int64)
     records = allocate_records(len(SEEDS), EPISODES, 4, 3, snapshots, state.w.shape[1:])
-    settings = Settings(alpha=0.2, gamma=0.9, max_steps=40, truncation_as_terminal=False, eval_every=EPISODES // 4)
+    settings = Settings(alpha=0.2, gamma=0.9, max_steps=40, truncation_as_terminal=False, eval_every=EPISODES // 4,
+                        legal_moves=True)
     train_runs(_engine_rule(algorithm), settings, table_env, OneHot(table_env.n_states), state,
                linear_decay_epsilon(EPISODES, 1.0, 0.1, 0.5), 0, EPISODES, records)
     return state, records

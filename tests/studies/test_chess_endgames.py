@@ -157,3 +157,17 @@ def test_bad_study_options_are_refused_before_anything_is_written(tmp_path: Path
         assert allowed in result.output
         assert "Traceback" not in result.output
         assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow("compiles the plain kernel and the engine's loop")
+def test_the_benchmark_s_plain_kernel_learns_what_the_engine_learns() -> None:
+    from rlcompare.bench.chess import plain_seconds
+    from rlcompare.bench.harness import bench_config
+    from rlcompare.tabular.train import train
+
+    config = bench_config("q_learning", 3, 400, env="KRK:defender=random")
+    moves, _, returns = plain_seconds(config)
+    engine = train(config).records
+    assert moves == engine.lengths.sum()
+    np.testing.assert_array_equal(returns, engine.returns)
+    assert 0 < returns.mean() < 1  # some games mated (+1), some not

@@ -91,10 +91,11 @@ def uniform_legal_action(q_row: np.ndarray, rng_state: np.ndarray) -> int:
 
 
 @njit(inline="always")
-def epsilon_greedy_action(q_row: np.ndarray, epsilon: float, rng_state: np.ndarray) -> int:
-    """With probability ``epsilon`` a uniform legal action, otherwise greedy with random tie-breaking."""
+def epsilon_greedy_action(q_row: np.ndarray, epsilon: float, rng_state: np.ndarray, masked: bool = False) -> int:
+    """With probability ``epsilon`` a uniform action (a uniform legal one where the environment's legal moves are
+    ``masked``), otherwise greedy with random tie-breaking."""
     if next_double(rng_state) < epsilon:
-        return uniform_legal_action(q_row, rng_state)
+        return uniform_legal_action(q_row, rng_state) if masked else uniform_action(q_row.size, rng_state)
     return greedy_action_random_ties(q_row, rng_state)
 
 

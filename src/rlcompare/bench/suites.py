@@ -4,6 +4,7 @@ study's configurations come from the command line, which may import the studies.
 
 from __future__ import annotations
 
+from rlcompare.bench.chess import CHESS_STAGE
 from rlcompare.bench.kernels import KERNEL_STAGE
 from rlcompare.bench.ports import PORT_STAGE
 from rlcompare.bench.study import study_stage
@@ -20,6 +21,11 @@ def default(study_configs: list[ExperimentConfig]) -> Suite:
 def kernels() -> Suite:
     """Every method's kernel on 1 and all threads against its reference kernel and a plain Gymnasium loop."""
     return Suite("kernels.json", (KERNEL_STAGE,))
+
+
+def chess() -> Suite:
+    """Q-Learning on the chess endgames, rlcompare's kernel beside a plain one."""
+    return Suite("chess.json", (CHESS_STAGE,))
 
 
 def envs() -> Suite:

@@ -67,6 +67,14 @@ def kernels(out: Out = None) -> None:
 
 
 @one_line_errors
+def chess(out: Out = None) -> None:
+    """Q-Learning on the chess endgames (KRK, KQK) on 1 and all threads, beside a plain kernel for them alone."""
+    from rlcompare.bench import suites
+
+    measure(suites.chess(), out)
+
+
+@one_line_errors
 def envs(out: Out = None) -> None:
     """Q-Learning on every ported environment: Gymnasium's loop, the port on 1 and all threads, the adapter."""
     from rlcompare.bench import suites
@@ -132,6 +140,6 @@ def bench_app() -> typer.Typer:
                            "environment, into bench.json; or, with a subcommand's name, that benchmark alone, into "
                            "its own file.", short_help=SUMMARIES["bench"], rich_markup_mode="rich", cls=PlainGroup)
     app.callback(invoke_without_command=True)(everything)
-    for command in (kernels, envs, study, sweeps, deep):
+    for command in (kernels, envs, study, chess, sweeps, deep):
         app.command(cls=PlainCommand)(command)
     return app

@@ -24,7 +24,13 @@ import numpy as np
 
 from rlcompare.algorithms import nstep, traces
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action, count_visit
-from rlcompare.algorithms.policies import epsilon_greedy_action, greedy_action, largest, uniform_legal_action
+from rlcompare.algorithms.policies import (
+    epsilon_greedy_action,
+    greedy_action,
+    largest,
+    uniform_action,
+    uniform_legal_action,
+)
 from rlcompare.algorithms.registry import METHODS, Method
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
@@ -32,7 +38,15 @@ from rlcompare.algorithms.td import Rates, Transition
 from rlcompare.compiled import njit
 from rlcompare.tabular.borrowed import borrowed, kept
 from rlcompare.tabular.state import Settings
-from rlcompare.tabular.steps import COMPILED_ONLY, by_type, features_of, observe, reset, states_buffer, step
+from rlcompare.tabular.steps import (
+    COMPILED_ONLY,
+    by_type,
+    features_of,
+    observe,
+    reset,
+    states_buffer,
+    step,
+)
 
 Episode = Callable[..., tuple[float, int, bool]]
 """An episode loop (compiled): ``(return, steps, terminated)``."""
@@ -86,7 +100,8 @@ def one_step_loop(update: Callable[..., None], values: Values = values_of_w, tar
         now = 0
         state = reset(env, env_rng)
         s = features_of(features, observe(env, state), buffer, now)
-        action = epsilon_greedy_action(values(rule, w, w2, s, q, scratch), epsilon, agent_rng)
+        masked = settings.legal_moves
+        action = epsilon_greedy_action(values(rule, w, w2, s, q, scratch), epsilon, agent_rng, masked)
         episode_return, steps = 0.0, 0
         while True:
             count_visit(visits, s)
@@ -98,13 +113,15 @@ def one_step_loop(update: Callable[..., None], values: Values = values_of_w, tar
             s_next = features_of(features, observe(env, state), buffer, now)
             next_action = 0
             if (rule.draw_before or target_takes_next_action) and not terminal:
-                next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng)
+                next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng,
+                                                    masked)
             update(rule, w, w2, Transition(s, action, reward, s_next, next_action, terminal),
                    Rates(settings.alpha, settings.gamma, epsilon), agent_rng, q_next, scratch)
             if terminated or truncated:
                 break
             if not rule.draw_before:  # after the update, which may have changed q(S', .)
-                next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng)
+                next_action = epsilon_greedy_action(values(rule, w, w2, s_next, q, scratch), epsilon, agent_rng,
+                                                    masked)
             s, action = s_next, next_action
         kept(owners)
         return episode_return, steps, terminated
@@ -126,7 +143,7 @@ def random_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np
     state = reset(env, env_rng)
     episode_return, steps, terminated = 0.0, 0, False
     s = features_of(features, observe(env, state), buffer, 0)
-    action = uniform_legal_action(action_values(w, s, q), agent_rng)
+    action = _uniform(settings.legal_moves, w, s, q, agent_rng)
     while True:
         count_visit(visits, s)
         state, reward, terminated = step(env, state, action, transitions)
@@ -135,9 +152,17 @@ def random_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np
         if terminated or steps >= settings.max_steps:
             break
         s = features_of(features, observe(env, state), buffer, 0)
-        action = uniform_legal_action(action_values(w, s, q), agent_rng)
+        action = _uniform(settings.legal_moves, w, s, q, agent_rng)
     kept(owners)
     return episode_return, steps, terminated
+
+
+@njit(inline="always")
+def _uniform(masked: bool, w: np.ndarray, s: int | np.ndarray, q: np.ndarray, rng: np.ndarray) -> int:
+    """A uniform action; a uniform legal one where the environment has legal-move ``masked`` (read in ``q(s, .)``)."""
+    if masked:
+        return uniform_legal_action(action_values(w, s, q), rng)
+    return uniform_action(w.shape[1], rng)
 
 
 # --- n-step SARSA ---------------------------------------------------------------------------------------
@@ -157,8 +182,9 @@ def n_step_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np
               nstep.powers(gamma, n))
     states, actions, rewards, q, discounts = borrowed(owners)
     state = reset(env, env_rng)
+    masked = settings.legal_moves
     actions[0] = epsilon_greedy_action(action_values(w, features_of(features, observe(env, state), states, 0), q),
-                                       epsilon, agent_rng)
+                                       epsilon, agent_rng, masked)
     horizon = np.iinfo(np.int64).max  # T
     bootstrap_end = False  # whether the return at T is completed by q(S_T, A_T) (a time-limit cut)
     episode_return, t, terminated = 0.0, 0, False
@@ -175,7 +201,7 @@ def n_step_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np
                 horizon = t + 1
                 bootstrap_end = not terminal
             if not terminal:
-                actions[later] = epsilon_greedy_action(action_values(w, s_later, q), epsilon, agent_rng)
+                actions[later] = epsilon_greedy_action(action_values(w, s_later, q), epsilon, agent_rng, masked)
         tau = t - n + 1
         if tau >= 0:
             ret = nstep.n_step_rewards(rewards, tau, n, horizon, discounts)
@@ -211,7 +237,8 @@ def lambda_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np
     n_touched, now = 0, 0
     state = reset(env, env_rng)
     s = features_of(features, observe(env, state), buffer, now)
-    action = epsilon_greedy_action(action_values(w, s, q_next), epsilon, agent_rng)
+    masked = settings.legal_moves
+    action = epsilon_greedy_action(action_values(w, s, q_next), epsilon, agent_rng, masked)
     episode_return, steps = 0.0, 0
     while True:
         count_visit(visits, s)
@@ -226,7 +253,7 @@ def lambda_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np
         next_action, exploratory = 0, False
         if not terminal:
             values = action_values(w, s_next, q_next)
-            next_action = epsilon_greedy_action(values, epsilon, agent_rng)
+            next_action = epsilon_greedy_action(values, epsilon, agent_rng, masked)
             best = largest(values)
             exploratory = values[next_action] < best
             delta += gamma * (best if watkins else values[next_action])

@@ -30,6 +30,9 @@ class Settings(NamedTuple):
     max_steps: int
     truncation_as_terminal: bool
     eval_every: int
+    legal_moves: bool = False
+    """The environment's legal moves change with the state (masked by −∞ in the tables:
+    :mod:`rlcompare.algorithms.policies`)."""
 
 
 class Records(NamedTuple):

@@ -95,7 +95,8 @@ def stepped_env(config: ExperimentConfig, state: RunState) -> Iterator[Any]:
 def kernel_settings(config: ExperimentConfig) -> Settings:
     """The scalars every method reads, as compiled code reads them."""
     return Settings(alpha=float(config.alpha), gamma=float(config.gamma), max_steps=int(config.step_limit),
-                    truncation_as_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every))
+                    truncation_as_terminal=bool(config.truncation_as_terminal), eval_every=int(config.eval_every),
+                    legal_moves=config.environment.legal_moves is not None)
 
 
 def _meta(config: ExperimentConfig, study: str, wall: float, steps: int, eval_steps: int) -> dict[str, Any]:
