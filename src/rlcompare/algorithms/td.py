@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action
-from rlcompare.algorithms.policies import largest, legal_count
+from rlcompare.algorithms.policies import largest
 from rlcompare.compiled import njit
 from rlcompare.rng import next_double
 
@@ -114,14 +114,15 @@ def expected_sarsa_target(reward: float, q_next: np.ndarray, epsilon: float, gam
 def expected_value(picks: np.ndarray, values: np.ndarray, epsilon: float) -> float:
     """``sum_a pi(a) values[a]`` for the policy ε-greedy in ``picks``, its greedy share split among tied maxima;
     over the legal actions only, where some are illegal (value −∞: :mod:`rlcompare.algorithms.policies`)."""
-    best, ties = picks[0], 1
+    best, ties, legal = picks[0], 1, int(picks[0] != -np.inf)
     for action in range(1, picks.size):
         value = picks[action]
+        legal += value != -np.inf
         if value > best:
             best, ties = value, 1
         elif value == best:
             ties += 1
-    explore = epsilon / legal_count(picks)
+    explore = epsilon / legal
     greedy = explore + (1.0 - epsilon) / ties
     expected = 0.0
     for action in range(picks.size):
