@@ -37,12 +37,12 @@ def _view(context: Any, builder: Any, array_type: types.Array, value: Any) -> An
     return view._getvalue()
 
 
-def _members(arrays: types.Type) -> list[types.Array] | None:
-    """The types of the arrays in a tuple of arrays (named or not); None for any other type."""
+def _members(arrays: types.Type) -> list[types.Type] | None:
+    """The types of the members of a tuple (named or not) holding an array; None for any other type."""
     if not isinstance(arrays, types.UniTuple | types.Tuple | types.NamedUniTuple | types.NamedTuple):
         return None
     members = list(arrays)
-    return members if all(isinstance(t, types.Array) for t in members) else None
+    return members if any(isinstance(t, types.Array) for t in members) else None
 
 
 @intrinsic
@@ -51,11 +51,15 @@ def _borrowed(typingctx: Any, arrays: types.Type) -> tuple[Signature, Codegen] |
         return arrays(arrays), lambda context, builder, signature, arguments: _view(
             context, builder, arrays, arguments[0])
     members = _members(arrays)
-    if members is None:
-        return None
+    if members is None:  # nothing counted: the value itself (a port's parameters)
+        if not isinstance(arrays, types.BaseTuple | types.Number | types.Boolean):
+            return None
+        return arrays(arrays), lambda context, builder, signature, arguments: arguments[0]
 
     def codegen(context: Any, builder: Any, signature: Signature, arguments: tuple[Any, ...]) -> Any:
-        views = [_view(context, builder, t, builder.extract_value(arguments[0], k)) for k, t in enumerate(members)]
+        values = [builder.extract_value(arguments[0], k) for k in range(len(members))]
+        views = [_view(context, builder, t, v) if isinstance(t, types.Array) else v
+                 for t, v in zip(members, values, strict=True)]
         return context.make_tuple(builder, arrays, views)
 
     return arrays(arrays), codegen
@@ -69,7 +73,8 @@ def _kept(typingctx: Any, owners: types.Type) -> tuple[Signature, Codegen]:
 class Borrowing(Protocol):
     def __call__(self, arrays: Arrays, /) -> Arrays:
         """The same array (data, shape, strides and type) without its owner, so that no reference to it is
-        counted; a tuple of arrays gives the tuple of their views. Compiled code only."""
+        counted; a tuple (named or not) gives the same tuple with its arrays' views, its other members as they are
+        (an environment's tables; a tuple without arrays is itself). Compiled code only."""
 
 
 class Keeping(Protocol):

@@ -18,6 +18,7 @@ import numpy as np
 
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.compiled import njit
+from rlcompare.tabular.borrowed import borrowed
 from rlcompare.tabular.episodes import Traces, evaluation_episode, train_episode
 from rlcompare.tabular.state import (
     AGENT_STREAM,
@@ -73,6 +74,7 @@ def train_block(
     snapshots, in one call from Python: calling compiled code costs tens of microseconds a call (its arguments'
     types are read), which a study of 50,000 short runs would pay 50,000 times a chunk."""
     eval_episodes = records.eval_returns.shape[2]
+    env = borrowed(env)  # an environment's tables, read on every step, counted nowhere (the caller holds them)
     for run in range(first_run, stop_run):
         w, w2, rng = state.w[run], state.w2[run], state.rng[run]
         training, evaluation = for_instance(env, 2 * run), for_instance(env, 2 * run + 1)
