@@ -88,6 +88,6 @@ def play(agent: ChessAgent, start: chess.Board, rng: np.random.Generator, limit:
             move = agent.move(board) if side == chess.WHITE else defender_move(agent.env, board, rng)
             board.push(move)
             moves.append(move)
-            if board.is_game_over():
-                return moves
+            if board.is_checkmate() or board.is_stalemate() or board.is_insufficient_material():
+                return moves  # the episode's ends: repetitions do not end one
     return moves

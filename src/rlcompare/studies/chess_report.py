@@ -113,9 +113,22 @@ def answer(frame: pd.DataFrame) -> str:
             f"by the greedy mate rate from {study.EVAL_STARTS} fixed won starts: {told}.")
 
 
+def why_in_brief(frame: pd.DataFrame) -> str:
+    """One sentence: on the mate rate, the largest part of SARSA - Q-Learning in each endgame and defender."""
+    rows = frame[frame["measure"] == "mate rate"] if not frame.empty else frame
+    parts = []
+    for _, row in rows.iterrows():
+        largest = max(("order", "target", "interaction"), key=lambda term: abs(row[term].value))
+        parts.append(f"{row['endgame']} against the {row['defender']} defender, the {largest} "
+                     f"({row[largest].value:+.3f} of {row['SARSA - Q-Learning'].value:+.3f})")
+    return f"Why, with ε decaying: the largest part of SARSA - Q-Learning's mate rate is, {'; '.join(parts)}." \
+        if parts else ""
+
+
 def decomposition(runs: Mapping[str, Results], metrics: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """Per endgame and defender (ε decaying), SARSA - Q-Learning split into order, target and interaction, on the
-    mate rate and the behaviour return, each with its 95% bootstrap interval over seeds."""
+    mate rate and the behaviour return, each an :class:`~rlcompare.stats.intervals.Estimate` with its 95% bootstrap
+    interval over seeds."""
     rows = []
     for endgame in ENDGAMES:
         for defender in study.DEFENDERS:
@@ -127,7 +140,7 @@ def decomposition(runs: Mapping[str, Results], metrics: Mapping[str, pd.DataFram
                                           "measure": study.MEASURES[measure][0]}
                 for term, cells in TERMS.items():
                     per_seed = sum(sign * metrics[prefix + name][measure].to_numpy() for sign, name in cells)
-                    row[term] = interval(np.asarray(per_seed)).format(3)
+                    row[term] = interval(np.asarray(per_seed))
                 rows.append(row)
     return pd.DataFrame(rows)
 
@@ -168,8 +181,9 @@ def value_figure(runs: Mapping[str, Results], name: str) -> Figure:
     board, exact, learnt = exact_and_learnt(runs[name], runs.get(name.replace("q_learning", "sarsa")))
     figure = Figure(figsize=(10.5, 3.6))
     titles = ("exact: γ^(moves to mate - 1)", "Q-Learning, learnt", "SARSA, learnt")
+    top = float(np.nanmax(exact))
     for i, (values, title) in enumerate(zip((exact, *learnt), titles, strict=False)):
-        value_map(figure.add_subplot(1, 3, i + 1), values, pieces=board, title=title, vmin=0.0, vmax=1.0,
+        value_map(figure.add_subplot(1, 3, i + 1), values, pieces=board, title=title, vmin=0.0, vmax=top,
                   colorbar="value" if i == 2 else None)
     return figure
 
@@ -308,9 +322,10 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
         metrics = study.measured(runs, games)
         table, why = verdicts(runs, metrics), decomposition(runs, metrics)
         means = study.summary(metrics)
+        why_table = why.map(lambda v: v.format(3) if isinstance(v, Estimate) else v)
         files = {name: write_table(frame, out / "tables", name) for name, frame in
-                 (("verdicts", table), ("decomposition", why), ("means", means[0]))}
-        sentences = [answer(table)]
+                 (("verdicts", table), ("decomposition", why_table), ("means", means[0]))}
+        sentences = [answer(table), why_in_brief(why)]
         figures = [(save_figure(curves_figure(runs), out / "figures" / "mate-rate.png"),
                     "Greedy mate rate from random won starts over training, mean over seeds")]
         main = [f"{e}-{d}-{a}-decay" for e, d, s in settings(runs) if s == "decay" for a in ("q_learning", "sarsa")]
@@ -337,7 +352,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
             Section("Why: the order of choosing and updating against the target", [
                 "ε decaying: SARSA - Q-Learning = order + target + interaction, per seed (the why study's "
                 "decomposition), with 95% bootstrap intervals."],
-                tables=[("Decomposition", why, files["decomposition"])]),
+                tables=[("Decomposition", why_table, files["decomposition"])]),
             Section("Every configuration", tables=[(means[1], means[0], files["means"])]),
             Section("Pictures and games", [f"PGN of every evaluation game: {', '.join(pgn)}"] if pgn else [],
                     figures=figures[1:], videos=pictures),
