@@ -171,3 +171,14 @@ def test_the_benchmark_s_plain_kernel_learns_what_the_engine_learns() -> None:
     assert moves == engine.lengths.sum()
     np.testing.assert_array_equal(returns, engine.returns)
     assert 0 < returns.mean() < 1  # some games mated (+1), some not
+
+
+def test_the_answer_says_when_the_seeds_are_too_few_for_the_family() -> None:
+    import pandas as pd
+
+    from rlcompare.studies.chess_report import answer
+
+    frame = pd.DataFrame({"measure": ["mate rate", "excess moves"] * 10, "better": ["not resolved"] * 20})
+    assert "run more seeds" in answer(frame, 10)  # 2 / 2^10 > 0.05 / 40
+    assert "run more seeds" not in answer(frame, 12)  # 2 / 2^12 < 0.05 / 40
+    assert "not resolved in 10" in answer(frame, 30)

@@ -24,7 +24,7 @@ from rlcompare.experiment.engines import load_run
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.compare import Paired, compare_paired, gated_label, judge_family
 from rlcompare.stats.intervals import Estimate, interval
-from rlcompare.stats.significance import has_learnt
+from rlcompare.stats.significance import ALPHA, has_learnt
 from rlcompare.studies import chess_endgames as study
 from rlcompare.studies.chess_endgames import run
 from rlcompare.studies.interface import UI, Report
@@ -102,15 +102,20 @@ def _exploration(schedule: str) -> str:
     return "ε decaying from 1" if schedule == "decay" else f"ε = {study.EPSILON:g}"
 
 
-def answer(frame: pd.DataFrame) -> str:
-    """The study's answer in one sentence, from the mate-rate verdicts."""
+def answer(frame: pd.DataFrame, seeds: int) -> str:
+    """The study's answer in one sentence, from the mate-rate verdicts; where ``seeds`` are too few for any
+    verdict of the family, it says so."""
     rows = frame[frame["measure"] == "mate rate"]
     if rows.empty:
         return "No setting has both learners trained: no answer yet."
     counts = Counter(rows["better"])
     told = ", ".join(f"{what} in {n}" for what, n in counts.most_common())
+    tests = 2 * len(frame)  # each comparison's direction and equivalence, one Holm family
+    floor = 2 / 2**seeds  # the signed-rank test's smallest two-sided p: every seed on one side
+    short = (f" With {seeds} seeds the signed-rank test's smallest p ({floor:.2g}) cannot pass Holm's strictest "
+             f"level over {tests} tests ({ALPHA / tests:.2g}): run more seeds." if floor > ALPHA / tests else "")
     return (f"On-policy or off-policy in chess endgames? Over {len(rows)} settings (endgame x defender x ε), "
-            f"by the greedy mate rate from {study.EVAL_STARTS} fixed won starts: {told}.")
+            f"by the greedy mate rate from {study.EVAL_STARTS} fixed won starts: {told}.{short}")
 
 
 def why_in_brief(frame: pd.DataFrame) -> str:
@@ -325,7 +330,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None =
         why_table = why.map(lambda v: v.format(3) if isinstance(v, Estimate) else v)
         files = {name: write_table(frame, out / "tables", name) for name, frame in
                  (("verdicts", table), ("decomposition", why_table), ("means", means[0]))}
-        sentences = [answer(table), why_in_brief(why)]
+        sentences = [answer(table, len(next(iter(runs.values())).seeds)), why_in_brief(why)]
         figures = [(save_figure(curves_figure(runs), out / "figures" / "mate-rate.png"),
                     "Greedy mate rate from random won starts over training, mean over seeds")]
         main = [f"{e}-{d}-{a}-decay" for e, d, s in settings(runs) if s == "decay" for a in ("q_learning", "sarsa")]
