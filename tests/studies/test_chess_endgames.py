@@ -182,3 +182,11 @@ def test_the_answer_says_when_the_seeds_are_too_few_for_the_family() -> None:
     assert "run more seeds" in answer(frame, 10)  # 2 / 2^10 > 0.05 / 40
     assert "run more seeds" not in answer(frame, 12)  # 2 / 2^12 < 0.05 / 40
     assert "not resolved in 10" in answer(frame, 30)
+
+
+def test_a_chunk_is_longer_where_a_run_s_table_outgrows_the_cache() -> None:
+    from rlcompare.tabular.train import CHUNK_EPISODES, chunk_episodes
+
+    assert chunk_episodes(20 * 20 * 3 * 8) == CHUNK_EPISODES  # the paper's table
+    assert chunk_episodes(21_960 * 36 * 8) == 7 * CHUNK_EPISODES  # KRK's: 6.3 MB
+    assert chunk_episodes(0) == CHUNK_EPISODES

@@ -34,8 +34,18 @@ from rlcompare.tabular.state import (
 )
 
 CHUNK_EPISODES = 250
-"""Episodes per kernel call; once every run has finished one, the progress bar moves. Results do not depend on
-it."""
+"""Episodes per kernel call where a run's weights fit a core's cache; once every run has finished a chunk, the
+progress bar moves. Results do not depend on it."""
+CACHED_BYTES = 2**20
+"""Weights of one run a core keeps in its cache, about (half of this machine's 2 MiB of L2 per core)."""
+
+
+def chunk_episodes(weights_bytes: int) -> int:
+    """Episodes per chunk for runs whose weights take ``weights_bytes`` each: :data:`CHUNK_EPISODES`, times the
+    weights' size in :data:`CACHED_BYTES`. A thread takes its runs in turn, a chunk each, and a run whose table
+    outgrew the cache reloads it after every turn: Q-Learning on KRK (a 6.3 MB table), 8 seeds on one thread, ran at
+    0.51-0.62 of a plain kernel that trains run after run with chunks of 250 episodes, 0.72-0.87 with 5,000."""
+    return CHUNK_EPISODES * max(1, -(-weights_bytes // CACHED_BYTES))
 
 
 def epsilon_schedule(config: ExperimentConfig) -> np.ndarray:
@@ -68,8 +78,8 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
         started = time.perf_counter()
         engine.train_runs(rule, settings, env, features, state, epsilons, 0, 0, records)  # compile or load it
         compile_seconds = time.perf_counter() - started
-        chunks = [(first, min(first + CHUNK_EPISODES, config.episodes))
-                  for first in range(0, config.episodes, CHUNK_EPISODES)]
+        size = chunk_episodes(state.w[0].nbytes if len(config.seeds) else 0)
+        chunks = [(first, min(first + size, config.episodes)) for first in range(0, config.episodes, size)]
         started = time.perf_counter()
         engine.train_chunks(rule, settings, env, features, state, epsilons, chunks, records, progress)
         wall = time.perf_counter() - started
