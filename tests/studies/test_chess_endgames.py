@@ -116,12 +116,28 @@ def test_no_episode_ends_better_by_losing_the_piece(rewards: str) -> None:
 
 def test_a_bad_endgame_name_is_one_message_naming_the_field() -> None:
     for name, allowed in (("KBK", "KRK, KQK"), ("KRK:defender=smart", "optimal, random or mixed-P"),
-                          ("KRK:starts=easy", "won or hard"), ("KRK:colour=black", "KEY defender")):
+                          ("KRK:starts=easy", "won, hard or a FEN"), ("KRK:colour=black", "KEY defender")):
         with pytest.raises(ConfigError, match=allowed) as caught:
             ExperimentConfig(env=name)
         assert "env" in str(caught.value).split(":")[0]
     with pytest.raises(ConfigError, match="value method"):
         ExperimentConfig(env="KRK", algorithm="reinforce")
+    for fen, reason in (("8/8/8/3k4/8/8/8/KQ6 w - - 0 1", "not KRK"), ("8/8/8/3k4/8/8/8/K2R4 w - - 0 1", "legal KRK"),
+                        ("8/8/8/3k4/8/8/8/KR6 b - - 0 1", "White to move"), ("8/8/x w - - 0 1", "FEN")):
+        with pytest.raises(ConfigError, match=reason):
+            ExperimentConfig(env=f"KRK:starts={fen}")
+
+
+def test_a_fen_start_is_where_every_episode_starts(tmp_path: Path) -> None:
+    fen = "8/8/8/3k4/8/8/8/KR6 w - - 0 1"
+    config = ExperimentConfig(env=f"KRK:starts={fen}", episodes=5, seeds=(0,), eval_every=0)
+    tables = config.environment.dynamics
+    assert tables.starts.tolist() == [chess_rules.index_of(chess.Board(fen))[1]]
+    result = invoke("run", "--env", "KRK:starts=8/8/8/3k4/8/8/8/KQ6 w - - 0 1", "--out", str(tmp_path / "x"))
+    assert result.exit_code == 2, result.output
+    assert "env" in result.output
+    assert "not KRK" in result.output
+    assert not (tmp_path / "x").exists()
 
 
 @pytest.mark.slow("trains and reports a small study, twice")

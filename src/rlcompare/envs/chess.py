@@ -42,6 +42,7 @@ class Options(NamedTuple):
     endgame: str
     defender: str = "optimal"
     starts: str = "won"
+    """``won``, ``hard`` or a FEN (:mod:`rlcompare.envs.chess_endgame`)."""
     symmetries: bool = True
     rewards: str = "mate"
 
@@ -80,8 +81,8 @@ def parse(name: str) -> Options:
         raise ConfigError("env", name, "defender optimal, random or mixed-P with P in [0, 1] (the share of random "
                           "replies)")
     starts = given.get("starts", "won")
-    if starts not in STARTS:
-        raise ConfigError("env", name, f"starts {' or '.join(STARTS)}")
+    if starts not in STARTS and "/" not in starts:
+        raise ConfigError("env", name, f"starts {', '.join(STARTS)} or a FEN")
     symmetries = given.get("symmetries", "on")
     if symmetries not in ("on", "off"):
         raise ConfigError("env", name, "symmetries on or off")

@@ -7,9 +7,10 @@ that plays the lone black king, every move checked by the rules of :mod:`rlcompa
 | action      | White's move: a king step (8) or a slide of the piece (7 per direction); illegal ones masked   |
 | defender    | ``optimal``: a reply that resists longest (the solver's depth to mate), ties drawn from the run's |
 |             | stream; ``random``: a legal reply uniformly; ``mixed-P``: random with probability P, else optimal |
-| start       | a won position drawn uniformly (``won``), or one at least 3/4 of the longest mate away (``hard``) |
-| reward      | -1 per move, the paper's; a move that stalemates or lets the piece be taken costs -(limit + 1)  |
-|             | and ends the episode, so a lost piece is worse than any game kept, even one cut at the limit   |
+| start       | a won position drawn uniformly (``won``), one at least 3/4 of the longest mate away (``hard``), |
+|             | or the position of a FEN (``starts=8/8/8/3k4/8/8/8/KR6 w - - 0 1``)                             |
+| reward      | ``mate``: +1 at mate, nothing otherwise; ``moves``: the paper's -1 per move, a move that        |
+|             | stalemates or lets the piece be taken costing -(limit + 1); no lost piece beats a game kept    |
 | end         | mate (terminated, won); stalemate or the piece taken (terminated, a failure); the move limit,    |
 |             | 50 moves, truncates                                                                               |
 
@@ -25,13 +26,15 @@ from __future__ import annotations
 import functools
 from typing import NamedTuple
 
+import chess
 import numpy as np
 
 from rlcompare.compiled import njit
 from rlcompare.envs import chess_rules as rules
-from rlcompare.envs.chess import ENDGAMES, HARD_SHARE, REWARDS, Options
+from rlcompare.envs.chess import ENDGAMES, HARD_SHARE, REWARDS, STARTS, Options
 from rlcompare.envs.chess_solver import solve
 from rlcompare.rng import next_below, next_double
+from rlcompare.validation import ConfigError
 
 
 class Endgame(NamedTuple):
@@ -66,6 +69,8 @@ def make_endgame(options: Options) -> Endgame:
     won = np.flatnonzero(solution.white > 0)
     if options.starts == "hard":
         won = won[solution.white[won] >= HARD_SHARE * (2 * ENDGAMES[options.endgame].longest_mate - 1)]
+    elif options.starts not in STARTS:
+        won = np.array([fen_start(options)])
     steps = np.array([df + 8 * dr for df, dr in rules.KING_STEPS], dtype=np.int64)
     tables = Endgame(piece, state_of.astype(np.int32), positions, reply_table(piece, solution.white),
                      steps, won.astype(np.int64), options.random_share, *REWARDS[options.rewards])
@@ -73,6 +78,28 @@ def make_endgame(options: Options) -> Endgame:
         if isinstance(array, np.ndarray):
             array.flags.writeable = False
     return tables
+
+
+def board_position(endgame: str, board: chess.Board, *, white_to_move: bool = True) -> int:
+    """The position index of ``board`` in ``endgame``; a ``ValueError`` naming what is wrong where the board is not a
+    legal position of that endgame with that side to move."""
+    facts = ENDGAMES[endgame]
+    piece, index, white = rules.index_of(board)
+    if piece != facts.piece:
+        raise ValueError(f"the board is not {facts.name} ({facts.title}): {board.fen()}")
+    if white != white_to_move or not rules.is_legal(piece, index, white):
+        side = "White" if white_to_move else "Black"
+        raise ValueError(f"the board is not a legal {facts.name} position with {side} to move: {board.fen()}")
+    return index
+
+
+def fen_start(options: Options) -> int:
+    """The position ``starts=FEN`` names; a :class:`ConfigError` naming what is wrong with it."""
+    try:
+        return board_position(options.endgame, chess.Board(options.starts))
+    except ValueError as error:
+        raise ConfigError("env", options.name, f"starts won, hard, or the FEN of a legal {options.endgame} position "
+                          f"with White to move ({error})") from None
 
 
 def symmetric_images(positions: np.ndarray) -> np.ndarray:

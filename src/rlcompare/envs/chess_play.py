@@ -15,7 +15,7 @@ import numpy as np
 
 from rlcompare.envs import chess_rules as rules
 from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, parse
-from rlcompare.envs.chess_endgame import BEST, Endgame, make_endgame, symmetric_images
+from rlcompare.envs.chess_endgame import BEST, Endgame, board_position, make_endgame, symmetric_images
 
 
 @functools.cache
@@ -23,20 +23,6 @@ def square_maps() -> np.ndarray:
     """``(8, 64)``: where each symmetry of :func:`symmetric_images` takes each square (identity first)."""
     squares = np.arange(64, dtype=np.int64)
     return np.asarray(symmetric_images(squares) % 64)  # a position of king a1, piece a1 and this square
-
-
-def endgame_board(name: str, board: chess.Board, *, white_to_move: bool = True) -> int:
-    """The position index of ``board`` in the endgame ``name``; a ``ValueError`` naming what is wrong where the
-    board is not a legal position of that endgame with that side to move."""
-    options = parse(name)
-    facts = ENDGAMES[options.endgame]
-    piece, index, white = rules.index_of(board)
-    if piece != facts.piece:
-        raise ValueError(f"the board is not {facts.name} ({facts.title}): {board.fen()}")
-    if white != white_to_move or not rules.is_legal(piece, index, white):
-        side = "White" if white_to_move else "Black"
-        raise ValueError(f"the board is not a legal {facts.name} position with {side} to move: {board.fen()}")
-    return index
 
 
 @dataclass
@@ -55,7 +41,7 @@ class ChessAgent:
     def move(self, board: chess.Board) -> chess.Move:
         """White's greedy move in ``board`` (first maximum, as ``np.argmax``); a ``ValueError`` for a board that
         is not a legal position of this endgame with White to move."""
-        index = endgame_board(self.env, board)
+        index = board_position(parse(self.env).endgame, board)
         state = int(self.tables.state_of[index])
         played = int(self.tables.positions[state])
         symmetry = int(np.flatnonzero(symmetric_images(np.array([index]))[:, 0] == played)[0])
@@ -68,7 +54,7 @@ def defender_move(env: str, board: chess.Board, rng: np.random.Generator) -> che
     """Black's reply on ``board`` as the endgame's defender plays it: one of the longest-resisting replies, a random
     legal one, or either by its share, each uniformly among its kind."""
     tables = make_endgame(parse(env))
-    index = endgame_board(env, board, white_to_move=False)
+    index = board_position(parse(env).endgame, board, white_to_move=False)
     replies = int(tables.replies[index])
     chosen = replies >> BEST & 0xFF
     if tables.random_share > 0 and (tables.random_share >= 1 or rng.random() < tables.random_share):
