@@ -23,6 +23,7 @@ SUMMARIES = {
               "training; or show a single run's results.",
     "bench": "Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop.",
     "reproduce": "Reproduce a study (the paper's by default): train what its directory lacks, then build its report.",
+    "uci": "Serve a network trained at chess as a UCI engine on standard input and output, for any chess program.",
 }
 """Each command's line in ``rlcompare --help``, in its order."""
 APP_SETTINGS: dict[str, Any] = {"no_args_is_help": True, "pretty_exceptions_enable": False,

@@ -171,6 +171,34 @@ def report(
         raise typer.BadParameter(f"{study_dir} {what}; allowed: {allowed}", param_hint="'STUDY_DIR'")
 
 
+@command("uci")
+def uci(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", help="A run directory of a network trained at chess "
+                                                                   "(rlcompare reproduce chess --game chess).")],
+    seed: Annotated[int | None, typer.Option(help="Which seed's network (default: the run's first).")] = None,
+    stage: Annotated[str, typer.Option(help="Which stage of learning: early, middle or final.")] = "final",
+) -> None:
+    """Serve a network trained at chess as a UCI engine on standard input and output: cutechess-cli, a GUI or
+    python-chess's engine client runs it as 'rlcompare uci RUN_DIR'. Malformed input is answered with an 'info
+    string' line, never a crash."""
+    import sys
+
+    from rlcompare.envs.chess_uci import serve
+    from rlcompare.experiment.engines import load_agent
+
+    if not run_dir.is_dir():
+        raise typer.BadParameter(f"{run_dir} is not a directory; allowed: a run directory of a network trained at "
+                                 "chess", param_hint="'RUN_DIR'")
+    try:
+        player = load_agent(run_dir, seed, stage)
+    except KeyError as error:  # a stage the run lacks
+        raise typer.BadParameter(f"{run_dir}: {error.args[0]}", param_hint="'--stage'") from None
+    if not hasattr(player, "move"):
+        raise typer.BadParameter(f"{run_dir} holds a run of {player.config.env}; allowed: a run of a network trained "
+                                 "at chess", param_hint="'RUN_DIR'")
+    serve(player, sys.stdin, sys.stdout)
+
+
 def _run_report(run_dir: Path) -> None:
     """One run directory: its results over seeds, checked on load; and the study it is a configuration of."""
     from rlcompare.experiment.engines import load_run

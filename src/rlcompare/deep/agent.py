@@ -1,13 +1,18 @@
-"""A trained deep agent that acts inside Gymnasium's own environment, loaded from a run directory."""
+"""A trained deep agent that acts inside Gymnasium's own environment, loaded from a run directory; a network trained
+at chess plays on python-chess boards instead."""
 
 from __future__ import annotations
 
 from typing import Any
 
+import chess
 import jax
 import numpy as np
 
 from rlcompare.deep import float64
+from rlcompare.deep.chess_board import move_of, state_of
+from rlcompare.deep.chess_games import ChessGameEnv
+from rlcompare.deep.envs import is_game
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.train import params_template
@@ -33,8 +38,42 @@ class DeepAgent:
         return int(self._act(self.params, checked[None])[0])
 
 
-def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent:
-    """The greedy agent of ``seed``'s network at ``stage`` (``results.stages``)."""
+class BoardAgent:
+    """A network's greedy move on python-chess boards (:class:`rlcompare.envs.chess_ladder.ChessPlayer`), chosen on
+    pgx's copy of the board (:func:`rlcompare.deep.chess_board.state_of`), which keeps the history pgx's planes
+    show. Chess only: python-chess has no Gardner's minichess."""
+
+    def __init__(self, name: str, game: ChessGameEnv, act: Any, params: Any) -> None:
+        self.name = name
+        self.params = params
+        self._choose = jax.jit(lambda params, state: act(params, game.observe(state)[None],
+                                                         game.legal(state)[None])[0])
+
+    @classmethod
+    def of(cls, results: DeepResults, seed: int, stage: str = "final") -> BoardAgent:
+        config = results.config
+        game = config.environment
+        if not isinstance(game, ChessGameEnv) or game.game.board_size != 8:
+            raise ValueError(f"a run of {config.env}: only a network trained at chess plays on python-chess boards")
+        act = deep_method(config.algorithm).module.act(config.method_config(), game)
+        return cls(f"rlcompare {config.name} seed {seed} {stage}", game, act,
+                   results.seed_params(seed, params_template(config), stage))
+
+    @float64
+    def move(self, board: chess.Board) -> chess.Move:
+        """The network's move for the side to move on ``board``."""
+        state = state_of(board)
+        return move_of(state, int(self._choose(self.params, state)))
+
+    def close(self) -> None:
+        """Holds nothing."""
+
+
+def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent | BoardAgent:
+    """The greedy agent of ``seed``'s network at ``stage`` (``results.stages``): on python-chess boards for a
+    network trained at chess."""
+    if is_game(results.config.environment):
+        return BoardAgent.of(results, seed, stage)
     return DeepAgent(results, seed, stage)
 
 

@@ -34,7 +34,7 @@ import gymnasium as gym
 import jax
 import jax.numpy as jnp
 
-from rlcompare.envs import acrobot, atari, cartpole, minatar, mountain_car
+from rlcompare.envs import acrobot, atari, cartpole, chess_games, minatar, mountain_car
 from rlcompare.envs.registry import PORTS, environment
 from rlcompare.validation import ConfigError
 
@@ -111,6 +111,26 @@ class BatchedEnv(Described, Protocol):
                              ) -> Step: ...
 
 
+class GameEnv(VmappedEnv, Protocol):
+    """A two-player game, its sides alternating (:mod:`rlcompare.deep.chess_games`): each step is the mover's, its
+    reward the mover's, and the observation is the position from the side to move."""
+
+    @property
+    def players(self) -> int: ...
+
+    def legal(self, state: Any) -> jax.Array:
+        """``(n_actions,)`` bool: the moves the side to move may play."""
+        ...
+
+    def colour(self, state: Any) -> jax.Array:
+        """The side to move: 0 the first player (White), 1 the second."""
+        ...
+
+    def captures(self, state: Any) -> jax.Array:
+        """``(n_actions,)`` float32: the value of what each move takes."""
+        ...
+
+
 Environment = VmappedEnv | BatchedEnv
 """An environment of the deep engine."""
 
@@ -165,6 +185,17 @@ def step_autoreset(env: VmappedEnv, state: Any, action: jax.Array, key: jax.Arra
 def is_batched(env: object) -> TypeIs[BatchedEnv]:
     """Stepped all at once outside JAX (an emulator: :class:`rlcompare.deep.atari.AtariEnv`), not vmapped."""
     return bool(getattr(env, "batched", False))
+
+
+def is_game(env: object) -> TypeIs[GameEnv]:
+    """A two-player game whose sides alternate (:class:`GameEnv`): chosen moves are masked to the legal ones and
+    the opponent's value is negated in every bootstrap."""
+    return getattr(env, "players", 1) == 2
+
+
+def legal_all(env: Environment, states: Any) -> jax.Array | None:
+    """``(envs, n_actions)`` bool: the legal moves in each game's position; None where every action is legal."""
+    return jax.vmap(env.legal)(states) if is_game(env) else None
 
 
 def reset_all(env: Environment, keys: jax.Array, role: str = "training") -> Any:
@@ -357,7 +388,8 @@ ACROBOT = _port("Acrobot-v1", _acrobot_start, _acrobot_dynamics, _acrobot_observ
 
 def jax_env_names() -> tuple[str, ...]:
     """The environments the deep engine steps: those whose registry entry names a JAX port."""
-    return tuple(name for name in (*PORTS, *minatar.NAMES, *atari.NAMES) if environment(name).jax_port)
+    names = (*PORTS, *minatar.NAMES, *atari.NAMES, *chess_games.GAMES)
+    return tuple(name for name in names if environment(name).jax_port)
 
 
 def jax_env(name: str) -> Environment:

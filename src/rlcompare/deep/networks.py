@@ -35,10 +35,14 @@ class MLP(nn.Module):
     """Scale of the last layer's orthogonal initialisation (PPO's 0.01 for the policy); 1.0 keeps flax's default."""
     box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     """``(low, high)`` of the observation: inputs are mapped linearly onto [-1, 1] first (None: as they are)."""
+    board: bool = False
+    """Observations are a board's planes ``(..., rows, columns, planes)``, read as one vector."""
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         x = x.astype(jnp.float32)
+        if self.board:
+            x = x.reshape(*x.shape[:-3], -1)
         if self.box is not None:
             low, high = (jnp.asarray(bound, jnp.float32) for bound in self.box)
             x = 2.0 * (x - low) / (high - low) - 1.0

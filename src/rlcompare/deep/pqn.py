@@ -17,6 +17,12 @@ taken, exploratory ones included, so at λ = 0.65 it differs from SARSA(λ) only
 Watkins's Q(λ) (Sutton and Barto 12.10) bootstraps from ``max_a Q(s', a)`` alone after an exploratory action:
 off-policy learning of Q* in full. At ``lam = 0`` all of ``max``, ``watkins`` are one-step Q-learning.
 
+In a two-player game whose sides alternate (chess, :mod:`rlcompare.deep.chess_games`) one network plays both sides
+(self-play): every choice, ε-greedy, max and expectation, is over the legal moves alone, and the value at ``s'`` is
+the opponent's, so the return negates it (negamax): ``G_t = r_t - γ [(1 - λ) v(s') + λ G_{t+1}]``, the λ-return
+above with a discount of ``-γ``. Q(λ) then bootstraps from the opponent's best legal reply, SARSA(λ) from the reply
+played, Expected SARSA(λ) from the ε-greedy expectation over the replies.
+
 With ``lam = 0`` the return is the one-step target of the paper's Algorithms 1 and 2. ``next_action`` is the
 tabular engine's option of the same name, at the only place where it changes anything here, the end of a
 rollout: the action the return bootstraps from there (SARSA's) is drawn before the update and taken at the start
@@ -39,10 +45,18 @@ from flax.training.train_state import TrainState
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.deep.atari import NatureCNN, is_frames
-from rlcompare.deep.envs import Environment, learning_reward, observe_all, reset_all, step_autoreset_all
+from rlcompare.deep.envs import (
+    Environment,
+    is_game,
+    learning_reward,
+    legal_all,
+    observe_all,
+    reset_all,
+    step_autoreset_all,
+)
 from rlcompare.deep.networks import MLP, ConvNet, Network, is_image
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
-from rlcompare.envs import acrobot, atari, minatar, mountain_car
+from rlcompare.envs import acrobot, atari, chess_games, minatar, mountain_car
 from rlcompare.validation import (
     COUNT,
     POSITIVE,
@@ -140,12 +154,15 @@ _MINATAR = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2,
 _ATARI = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=32,
                    learning_rate=2.5e-4, anneal_lr=False, lam=0.65, epsilon_end=0.001, decay_fraction=0.1,
                    reward_scale=1.0, hidden=(512,))
+_CHESS = PQNConfig(total_steps=2_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=8, learning_rate=5e-4,
+                   lam=0.65, decay_fraction=0.2, reward_scale=1.0, hidden=(256, 256))
 PRESETS = {"default": {
     "CartPole-v1": _SMALL,
     "Acrobot-v1": _SMALL,
     "MountainCar-v0": dataclasses.replace(_SMALL, total_steps=1_000_000, scale_observations=True),
     **dict.fromkeys(minatar.NAMES, _MINATAR),
     **dict.fromkeys(atari.NAMES, _ATARI),
+    **dict.fromkeys(chess_games.GAMES, _CHESS),
 }}
 """Preset name -> environment -> config. ``default``: the shape the speed target is set on (16 environments x 128
 steps, 4 epochs x 4 minibatches, 2 x 64 LayerNorm MLP), with purejaxql's CartPole settings otherwise
@@ -171,16 +188,21 @@ class Rollout(NamedTuple):
     truncated: jax.Array
     last_observations: jax.Array
     """The observation each action led to (before a reset): the next state the return bootstraps from."""
+    next_legal: jax.Array | None
+    """In a game, the moves legal after each action (the next state's, where the game went on); else None."""
 
 
-Collecting = tuple[Any, jax.Array, jax.Array, Episodes]
-"""A rollout in progress: the environments' states, their observations, the actions next taken, the episodes."""
+Collecting = tuple[Any, jax.Array, jax.Array | None, jax.Array, Episodes]
+"""A rollout in progress: the environments' states, their observations and legal moves, the actions next taken, the
+episodes."""
 
 
 class Runner(NamedTuple):
     train_state: TrainState
     env_state: Any
     observation: jax.Array
+    legal: jax.Array | None
+    """In a game, the moves legal in each environment's position; else None."""
     next_action: jax.Array
     """The action each environment takes first in the next rollout (``before_update``; redrawn ``after_update``)."""
     episodes: Episodes
@@ -188,7 +210,10 @@ class Runner(NamedTuple):
 
 
 def network(config: PQNConfig, env: Environment) -> MLP | ConvNet | NatureCNN:
-    """A LayerNorm MLP, or for images MinAtar's or Mnih et al.'s convolutional network, with LayerNorm."""
+    """A LayerNorm MLP, or for images MinAtar's or Mnih et al.'s convolutional network, with LayerNorm; for a board
+    game, a LayerNorm MLP over the board's planes."""
+    if is_game(env):
+        return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True, board=True)
     if is_frames(env.observation_shape):
         return NatureCNN(env.n_actions, hidden=config.hidden, layer_norm=True)
     if is_image(env.observation_shape):
@@ -197,26 +222,48 @@ def network(config: PQNConfig, env: Environment) -> MLP | ConvNet | NatureCNN:
     return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True, box=box)
 
 
-def act(config: PQNConfig, env: Environment) -> Callable[[Any, jax.Array], jax.Array]:
-    """The greedy policy: ``(params, observations) -> argmax_a Q``."""
+def act(config: PQNConfig, env: Environment) -> Callable[..., jax.Array]:
+    """The greedy policy: ``(params, observations) -> argmax_a Q``; in a game ``(params, observations, legal)``, the
+    best legal move."""
     net: Network = network(config, env)
-    return lambda params, observations: jnp.argmax(net.apply(params, observations), axis=-1)
+    return lambda params, observations, legal=None: greedy(net.apply(params, observations), legal)
 
 
-def epsilon_greedy(key: jax.Array, q: jax.Array, epsilon: jax.Array) -> jax.Array:
-    """ε-greedy actions for a batch of action values ``(envs, actions)``; ties go to the first greedy action."""
+def masked(q: jax.Array, legal: jax.Array | None) -> jax.Array:
+    """The action values with every illegal move at -inf (as they are where every action is legal)."""
+    return q if legal is None else jnp.where(legal, q, -jnp.inf)
+
+
+def greedy(q: jax.Array, legal: jax.Array | None = None) -> jax.Array:
+    """The first of the best (legal) actions."""
+    return jnp.argmax(masked(q, legal), axis=-1)
+
+
+def uniform_legal(key: jax.Array, legal: jax.Array) -> jax.Array:
+    """One legal action of each row of ``legal``, uniformly: the largest of a uniform draw over the legal ones."""
+    return jnp.argmax(jnp.where(legal, jax.random.uniform(key, legal.shape), -1.0), axis=-1)
+
+
+def epsilon_greedy(key: jax.Array, q: jax.Array, epsilon: jax.Array, legal: jax.Array | None = None) -> jax.Array:
+    """ε-greedy actions for a batch of action values ``(envs, actions)``; ties go to the first greedy action; with
+    ``legal``, both the exploring and the greedy choice are among the legal actions."""
     explore_key, action_key = jax.random.split(key)
     explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
-    random_actions = jax.random.randint(action_key, q.shape[:-1], 0, q.shape[-1])
-    return jnp.where(explore, random_actions, jnp.argmax(q, axis=-1))
+    random_actions = (jax.random.randint(action_key, q.shape[:-1], 0, q.shape[-1]) if legal is None
+                      else uniform_legal(action_key, legal))
+    return jnp.where(explore, random_actions, greedy(q, legal))
 
 
-def expected_value(q: jax.Array, epsilon: jax.Array) -> jax.Array:
-    """``Σ_a π(a|s) Q(s, a)`` under ε-greedy with the greedy action first among ties (Sutton and Barto 6.6)."""
+def expected_value(q: jax.Array, epsilon: jax.Array, legal: jax.Array | None = None) -> jax.Array:
+    """``Σ_a π(a|s) Q(s, a)`` under ε-greedy with the greedy action first among ties (Sutton and Barto 6.6); with
+    ``legal``, over the legal actions alone."""
     n_actions = q.shape[-1]
-    greedy = jax.nn.one_hot(jnp.argmax(q, axis=-1), n_actions, dtype=q.dtype)
-    probabilities = epsilon / n_actions + (1.0 - epsilon) * greedy
-    return jnp.sum(probabilities * q, axis=-1)
+    one_hot = jax.nn.one_hot(greedy(q, legal), n_actions, dtype=q.dtype)
+    if legal is None:
+        return jnp.sum((epsilon / n_actions + (1.0 - epsilon) * one_hot) * q, axis=-1)
+    n_legal = jnp.sum(legal, axis=-1, keepdims=True)
+    probabilities = jnp.where(legal, epsilon / n_legal, 0.0) + (1.0 - epsilon) * one_hot
+    return jnp.sum(jnp.where(legal, probabilities * q, 0.0), axis=-1)
 
 
 def lambda_returns(rewards: jax.Array, terminated: jax.Array, truncated: jax.Array, next_values: jax.Array,
@@ -244,13 +291,14 @@ def lambda_returns(rewards: jax.Array, terminated: jax.Array, truncated: jax.Arr
     return jnp.concatenate([earlier, last[None]])
 
 
-def bootstrap_values(target: str, q_next: jax.Array, bootstrap_actions: jax.Array, epsilon: jax.Array
-                     ) -> jax.Array:
-    """The value at each next state that the return bootstraps from (see the module's table)."""
+def bootstrap_values(target: str, q_next: jax.Array, bootstrap_actions: jax.Array, epsilon: jax.Array,
+                     legal: jax.Array | None = None) -> jax.Array:
+    """The value at each next state that the return bootstraps from (see the module's table), over the ``legal``
+    actions where given."""
     if target in ("max", "watkins"):
-        return jnp.max(q_next, axis=-1)
+        return jnp.max(masked(q_next, legal), axis=-1)
     if target == "expected":
-        return expected_value(q_next, epsilon)
+        return expected_value(q_next, epsilon, legal)
     return jnp.take_along_axis(q_next, bootstrap_actions[..., None], axis=-1)[..., 0]
 
 
@@ -277,25 +325,27 @@ def make_train(config: PQNConfig, env: Environment, rounds: int, eval_episodes: 
                      else config.learning_rate)
     optimiser = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.radam(learning_rate))
     q_values = jax.vmap(net.apply, in_axes=(None, 0))  # over time: (steps, envs, obs) -> (steps, envs, actions)
+    discount = -config.gamma if is_game(env) else config.gamma  # negamax: the next state's value is the opponent's
 
     def collect(runner: Runner, key: jax.Array, epsilon: jax.Array) -> tuple[Runner, Rollout, Finished]:
         params = runner.train_state.params
 
         def one_step(carry: Collecting, step_key: jax.Array
-                     ) -> tuple[Collecting, tuple[tuple[jax.Array, ...], Finished]]:
-            env_state, observation, action, episodes = carry
+                     ) -> tuple[Collecting, tuple[Rollout, Finished]]:
+            env_state, observation, _, action, episodes = carry
             draw_key, reset_key = jax.random.split(step_key)
             step = step_autoreset_all(env, env_state, action, jax.random.split(reset_key, config.n_envs))
             episodes, finished = track(episodes, step.reward, step.terminated, step.truncated)
-            next_action = epsilon_greedy(draw_key, net.apply(params, step.observation), epsilon)
-            transition = (observation, action, step.reward, step.terminated, step.truncated, step.last_observation)
-            return (step.state, step.observation, next_action, episodes), (transition, finished)
+            legal = legal_all(env, step.state)  # a game's last_observation differs only where it ended
+            next_action = epsilon_greedy(draw_key, net.apply(params, step.observation), epsilon, legal)
+            transition = Rollout(observation, action, step.reward, step.terminated, step.truncated,
+                                 step.last_observation, legal)
+            return (step.state, step.observation, legal, next_action, episodes), (transition, finished)
 
-        start = (runner.env_state, runner.observation, runner.next_action, runner.episodes)
-        (env_state, observation, next_action, episodes), (transitions, finished) = jax.lax.scan(
+        start = (runner.env_state, runner.observation, runner.legal, runner.next_action, runner.episodes)
+        (env_state, observation, legal, next_action, episodes), (rollout, finished) = jax.lax.scan(
             one_step, start, jax.random.split(key, config.n_steps))
-        rollout = Rollout(*transitions)
-        runner = runner._replace(env_state=env_state, observation=observation, next_action=next_action,
+        runner = runner._replace(env_state=env_state, observation=observation, legal=legal, next_action=next_action,
                                  episodes=episodes)
         return runner, rollout, finished
 
@@ -303,12 +353,12 @@ def make_train(config: PQNConfig, env: Environment, rounds: int, eval_episodes: 
                 ) -> jax.Array:
         q_next = q_values(params, rollout.last_observations)
         done = rollout.terminated | rollout.truncated
-        drawn = epsilon_greedy(key, q_next, epsilon)
+        drawn = epsilon_greedy(key, q_next, epsilon, rollout.next_legal)
         next_actions = sarsa_actions(rollout.actions, done, drawn, carried)
-        values = bootstrap_values(config.target, q_next, next_actions, epsilon)
+        values = bootstrap_values(config.target, q_next, next_actions, epsilon, rollout.next_legal)
         rewards = config.reward_scale * learning_reward(env, rollout.rewards).astype(jnp.float32)
-        cut = next_actions != jnp.argmax(q_next, axis=-1) if config.target == "watkins" else None
-        return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, config.gamma, config.lam, cut)
+        cut = next_actions != greedy(q_next, rollout.next_legal) if config.target == "watkins" else None
+        return lambda_returns(rewards, rollout.terminated, rollout.truncated, values, discount, config.lam, cut)
 
     def loss(params: Any, observations: jax.Array, actions: jax.Array, returns: jax.Array) -> jax.Array:
         q = net.apply(params, observations)
@@ -340,7 +390,7 @@ def make_train(config: PQNConfig, env: Environment, rounds: int, eval_episodes: 
         next_action = runner.next_action
         if config.next_action == AFTER_UPDATE:
             q = net.apply(train_state.params, runner.observation)
-            next_action = epsilon_greedy(redraw_key, q, epsilon_at(runner.update + 1))
+            next_action = epsilon_greedy(redraw_key, q, epsilon_at(runner.update + 1), runner.legal)
         return runner._replace(train_state=train_state, next_action=next_action, update=runner.update + 1), finished
 
     def start(key: jax.Array) -> Runner:
@@ -349,8 +399,9 @@ def make_train(config: PQNConfig, env: Environment, rounds: int, eval_episodes: 
         train_state = TrainState.create(apply_fn=net.apply, params=params, tx=optimiser)
         env_state = reset_all(env, jax.random.split(reset_key, config.n_envs))
         observation = observe_all(env, env_state)
-        first_action = epsilon_greedy(action_key, net.apply(params, observation), epsilon_at(0))
-        return Runner(train_state, env_state, observation, first_action, Episodes.start(config.n_envs),
+        legal = legal_all(env, env_state)
+        first_action = epsilon_greedy(action_key, net.apply(params, observation), epsilon_at(0), legal)
+        return Runner(train_state, env_state, observation, legal, first_action, Episodes.start(config.n_envs),
                       jnp.zeros((), jnp.int32))
 
     run_rounds = train_in_rounds(update, lambda runner: runner.train_state.params, env, act(config, env), rounds,

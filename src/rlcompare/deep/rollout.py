@@ -9,11 +9,11 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import Environment, observe_all, reset_all, step_all
+from rlcompare.deep.envs import Environment, GameEnv, is_game, observe_all, reset_all, step_all
 
 Params = Any
-Act = Callable[[Params, jax.Array], jax.Array]
-"""``(params, observations) -> greedy actions``."""
+Act = Callable[..., jax.Array]
+"""``(params, observations) -> greedy actions``; in a two-player game ``(params, observations, legal)``."""
 
 
 class Episodes(NamedTuple):
@@ -95,6 +95,8 @@ def evaluate(env: Environment, act: Act, params: Params, key: jax.Array, episode
     ``(returns, lengths, terminated)``, each ``(episodes,)``. The environments' own draws come from ``key``
     folded with 1 and the step. With ``epsilon``, each action is uniformly random with that chance (DQN's
     evaluation takes 0.05; 1 is the uniformly random policy)."""
+    if is_game(env):  # the greedy policy against the uniformly random player
+        return play(env, policy_mover(act, params, epsilon), random_mover, key, episodes)
     states = reset_all(env, jax.random.split(key, episodes), role="evaluation")
     step_key = jax.random.fold_in(key, 1)
     limit = evaluation_limit(env)
@@ -121,6 +123,67 @@ def evaluate(env: Environment, act: Act, params: Params, key: jax.Array, episode
              jnp.zeros(episodes, jnp.int32), jnp.zeros(episodes, bool))
     _, _, _, returns, lengths, terminated = jax.lax.while_loop(going, one_step, start)
     return returns, lengths, terminated
+
+
+Mover = Callable[[GameEnv, Any, jax.Array], jax.Array]
+"""``(game, states, key) -> moves``: a fixed player of a two-player game, for a batch of positions."""
+
+
+def random_mover(game: GameEnv, states: Any, key: jax.Array) -> jax.Array:
+    """The uniformly random player: any legal move, each as likely."""
+    legal = jax.vmap(game.legal)(states)
+    return jnp.argmax(jnp.where(legal, jax.random.uniform(key, legal.shape), -1.0), axis=-1)
+
+
+def material_mover(game: GameEnv, states: Any, key: jax.Array) -> jax.Array:
+    """The one-ply material player: a move that takes the most valuable piece it can, else any legal move, drawn
+    uniformly among the equals."""
+    legal = jax.vmap(game.legal)(states)
+    gain = jnp.where(legal, jax.vmap(game.captures)(states), -1.0)
+    best = gain == jnp.max(gain, axis=-1, keepdims=True)
+    return jnp.argmax(jnp.where(best, jax.random.uniform(key, legal.shape), -1.0), axis=-1)
+
+
+def policy_mover(act: Act, params: Params, epsilon: float = 0.0) -> Mover:
+    """The greedy policy of ``params`` as a player: its best legal move, or with chance ``epsilon`` any legal move."""
+    def move(game: GameEnv, states: Any, key: jax.Array) -> jax.Array:
+        chosen = act(params, observe_all(game, states), jax.vmap(game.legal)(states))
+        if epsilon == 0.0:
+            return chosen
+        explore_key, random_key = jax.random.split(key)
+        explore = jax.random.uniform(explore_key, chosen.shape) < epsilon
+        return jnp.where(explore, random_mover(game, states, random_key), chosen)
+
+    return move
+
+
+def play(game: GameEnv, player: Mover, opponent: Mover, key: jax.Array, games: int
+         ) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Games of ``player`` against ``opponent`` side by side, ``player`` taking the first side (White) in the even
+    games and the second in the odd ones: ``(results, plies, decided)``, each ``(games,)``, a result being
+    ``player``'s +1 (won), 0 (drawn) or -1 (lost). The game's own end stops each; the loop ends when all have."""
+    states = jax.vmap(game.reset)(jax.random.split(key, games))
+    unused = jax.random.split(key, games)  # the game's step draws nothing
+    player_side = jnp.arange(games) % 2
+
+    def going(carry: Evaluating) -> jax.Array:
+        return jnp.any(carry[2])
+
+    def one_ply(carry: Evaluating) -> Evaluating:
+        t, state, running, results, plies, decided = carry
+        player_moves = jax.vmap(game.colour)(state) == player_side
+        player_key, opponent_key = jax.random.split(jax.random.fold_in(key, t))
+        move = jnp.where(player_moves, player(game, state, player_key), opponent(game, state, opponent_key))
+        state, reward, term, _ = step_all(game, state, move, unused)
+        result = jnp.where(player_moves, reward, -reward)
+        results = results + jnp.where(running, result, 0.0).astype(jnp.float32)
+        return (t + 1, state, running & ~term, results, plies + running.astype(jnp.int32),
+                decided | (running & term & (reward != 0)))
+
+    start = (jnp.zeros((), jnp.int32), states, jnp.ones(games, bool), jnp.zeros(games, jnp.float32),
+             jnp.zeros(games, jnp.int32), jnp.zeros(games, bool))
+    _, _, _, results, plies, decided = jax.lax.while_loop(going, one_ply, start)
+    return results, plies, decided
 
 
 def all_finite(params: Params) -> jax.Array:

@@ -35,7 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
-from rlcompare.envs import atari, chess, minatar
+from rlcompare.envs import atari, chess, chess_games, minatar
 
 if TYPE_CHECKING:
     import numpy as np
@@ -208,6 +208,18 @@ def _atari(name: str) -> Environment:
                        observation_shape=shape, tabular=False)
 
 
+def _chess_game(name: str) -> Environment:
+    """A whole game of chess, played against itself (:mod:`rlcompare.envs.chess_games`), through pgx."""
+    import numpy as np
+
+    game = chess_games.GAMES[name]
+    shape = game.observation_shape
+    size = int(np.prod(shape))
+    return Environment(name, None, game.n_actions, 0, np.zeros(size), np.ones(size), game.max_plies, 1, "won",
+                       endings=("mate, or a draw by the rules", f"{game.max_plies} plies"),
+                       jax_port="rlcompare.deep.chess_games:chess_game_env", observation_shape=shape, tabular=False)
+
+
 _PORTED = {
     "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", bench_episodes=300,
                                             jax_port="rlcompare.deep.envs:MOUNTAIN_CAR"),
@@ -244,6 +256,8 @@ def environment(name: str, adapter: bool = False) -> Environment:
         return _minatar(name)
     if name in atari.NAMES:
         return _atari(name)
+    if name in chess_games.GAMES:
+        return _chess_game(name)
     if chess.is_endgame_name(name):
         return _endgame(name)
     if name in TABLE_ENVIRONMENTS:

@@ -153,9 +153,9 @@ def _shade(ax: Axes, shade: np.ndarray, cmap: str | Colormap, vmin: float | None
 
 def draw_board(ax: Axes, board: chess.BaseBoard, *, shade: np.ndarray | None = None,
                cmap: str | Colormap = "viridis", vmin: float | None = None, vmax: float | None = None,
-               highlight: chess.Move | None = None, title: str = "", coordinates: bool = True) -> Axes:
+               highlight: chess.Move | None = None, title: str = "", coordinates: bool = True, size: int = 8) -> Axes:
     """``board`` from White's side: squares (a1 dark), pieces, and with ``coordinates`` files a-h below and ranks
-    1-8 left of it.
+    1-8 left of it; with ``size`` 5, Gardner's board, the corner a1-e5 alone.
 
     ``shade`` (64,) colours each square by its value through ``cmap`` from ``vmin`` to ``vmax`` (NaN: unshaded);
     its image is :func:`shade_image` of ``ax``, for a colour bar. ``highlight`` marks a move's from- and to-square
@@ -175,11 +175,11 @@ def draw_board(ax: Axes, board: chess.BaseBoard, *, shade: np.ndarray | None = N
             ax.add_patch(Circle(_centre(king), 0.45, facecolor=CHECK, edgecolor="none", zorder=2.5, gid="check"))
     for square, piece in board.piece_map().items():
         _draw_piece(ax, square, piece)
-    ax.set_xlim(0, 8)
-    ax.set_ylim(0, 8)
+    ax.set_xlim(0, size)
+    ax.set_ylim(0, size)
     ax.set_aspect("equal")
-    ax.set_xticks(np.arange(8) + 0.5, list("abcdefgh") if coordinates else [])
-    ax.set_yticks(np.arange(8) + 0.5, list("12345678") if coordinates else [])
+    ax.set_xticks(np.arange(size) + 0.5, list("abcdefgh"[:size]) if coordinates else [])
+    ax.set_yticks(np.arange(size) + 0.5, list("12345678"[:size]) if coordinates else [])
     ax.tick_params(length=0)
     for spine in ax.spines.values():
         spine.set_visible(False)

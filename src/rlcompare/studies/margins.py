@@ -57,6 +57,12 @@ MARGINS = {m.study + ": " + m.bounds: m for m in (
            "the return is 1 at mate and 0 otherwise, so 0.05 is one more mate in twenty games while learning"),
     Margin("chess-endgames", "episodes to hold", 0.1, "share of the training's episodes",
            "as the paper's similar time frame: a tenth of the budget"),
+    Margin("chess", "a game (result against the random player)", 0.1, "share of the random-to-perfect range",
+           "a tenth of the way from the random player's result against itself (0) to winning every game (+1): five "
+           "points in a hundred games of score, about 35 Elo near an even score"),
+    Margin("chess", "learnt (result above the random player's)", 0.1, "share of the random-to-perfect range",
+           "a network has learnt the game when it beats the random player by a tenth of that range (a score of "
+           "0.55; one-sided signed-rank test, α = 0.05)"),
     Margin("book 6.3", "Expected SARSA at least as good as SARSA", 1.0, "return per episode",
            "one step of Cliff Walking's -1 per step: less than a step per episode is no difference"),
     Margin("book 6.3", "an asymptote collapses", 5.0, "return per episode",

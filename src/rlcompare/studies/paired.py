@@ -238,7 +238,7 @@ def random_returns(env_name: str, episodes: int = RANDOM_EPISODES, seed: int = 0
 
     env = jax_env(env_name)
 
-    def no_op(params: None, observations: jax.Array) -> jax.Array:
+    def no_op(params: None, observations: jax.Array, legal: jax.Array | None = None) -> jax.Array:
         return jnp.zeros(observations.shape[0], jnp.int32)
 
     @float64

@@ -155,6 +155,41 @@ class ChessEndgameOptions(Seeded):
 
 
 @dataclass(frozen=True)
+class ChessOptions(Seeded):
+    """Q(λ) against SARSA(λ) in self-play on a whole game of chess (:mod:`rlcompare.studies.chess_game`)."""
+
+    seeds: int = option(6, minimum=1, spellings=("--runs",))
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
+    at α = 0.05)."""
+    game: str = "gardner_chess"
+    """gardner_chess (Gardner's 5 x 5 minichess, the CPU's game) or chess."""
+    budget: str = "cpu"
+    """cpu (1 M steps per training: about 25 minutes on 2 CPU cores with the default seeds) or gpu (20 M steps;
+    docs/chess-game.md says what it takes)."""
+    steps: int | None = option(None, minimum=1)
+    """Environment steps (plies) of every training, in place of the budget's."""
+    methods: str = "pqn_sarsa_lambda,pqn_q_lambda"
+    """Comma-separated PQN methods (docs/deep.md): by default the paper's pair, SARSA(λ) and Q(λ)."""
+    pairs: int = option(32, minimum=1)
+    """Pairs of games (colours swapped) of each pairing of the ladder in pgx; against Stockfish a sixteenth."""
+    stockfish: bool = True
+    """On chess, rate against Stockfish (Debian's package) at Skill Level 0 and at UCI_Elo 1350."""
+    workers: int | None = option(None, minimum=1)
+    """Trainings at once. Default: one per core, at most 2."""
+    videos: bool = True
+    """Draw each method's network at three stages of learning, with its game's record."""
+    address: str | None = None
+    """Train on the Ray cluster at this address ('auto', or HOST:PORT) instead of on this machine."""
+
+    def check(self) -> None:
+        from rlcompare.envs.chess_games import GAMES
+
+        for name, allowed in (("game", tuple(GAMES)), ("budget", ("cpu", "gpu"))):
+            if getattr(self, name) not in allowed:
+                raise ConfigError(name, getattr(self, name), f"one of {', '.join(allowed)}")
+
+
+@dataclass(frozen=True)
 class SensitivityOptions(Options):
     seeds: int = option(20, minimum=1, spellings=("--runs",))
     """Number of seeds; the study's sweep derives them from one root seed, so the same number gives the same
@@ -218,6 +253,9 @@ STUDIES = {study.name: study for study in (
           "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
     Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
           "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess_report"),
+    Study("chess", "the question on a whole game in self-play: Q(λ) vs SARSA(λ) on Gardner's minichess or chess, "
+          "rated on a ladder up to Stockfish (the 'deep' extra)", ChessOptions, "rlcompare.studies.chess_game",
+          extra="deep"),
     Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, the ε schedule and the time limit? (a sweep; "
           "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
 )}
