@@ -76,8 +76,7 @@ def _index(square: chess.Square, white: bool) -> int:
 
 def _position(state: State) -> tuple[np.ndarray, bool]:
     """pgx's board (the mover's view) and whether White is to move."""
-    board, color = jax.device_get((state._x.board, state._x.color))
-    return np.asarray(board), int(color) == 0
+    return np.asarray(state._x.board), int(state._x.color) == 0
 
 
 def _move(board: np.ndarray, white: bool, action: int) -> chess.Move:
@@ -169,7 +168,7 @@ def _jitted_rooted() -> Callable[[Any, jax.Array], State]:
         state = State(_x=x, _player_order=order, current_player=order[x.color], terminated=terminated,
                       rewards=game.rewards(x)[order],
                       legal_action_mask=jnp.where(terminated, True, x.legal_action_mask))
-        return state.replace(observation=env().observe(state, state.current_player))
+        return state.replace(observation=env().observe(state))
 
     function: Callable[[Any, jax.Array], State] = jax.jit(rooted)
     return function

@@ -14,7 +14,6 @@ differ.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,9 +27,12 @@ from pgx._src.games import chess as pgx_chess
 from rlcompare.envs.chess_games import GAMES, HISTORY_PLANES, PIECE_VALUES, BoardGame
 
 
-@functools.cache
+with jax.enable_x64(False):  # made here, outside any trace: pgx makes its games' constant arrays when they load
+    PGX_GAMES = {pgx_id: pgx.make(pgx_id) for pgx_id in ("chess", "gardner_chess")}
+
+
 def pgx_game(pgx_id: str) -> pgx.Env:
-    return pgx.make(pgx_id)
+    return PGX_GAMES[pgx_id]
 
 
 DESTINATIONS = {
@@ -90,12 +92,15 @@ class ChessGameEnv:
 
     def captures(self, state: Any) -> jax.Array:
         """``(n_actions,)`` float32: the value of the opponent's piece on each move's destination square
-        (:data:`rlcompare.envs.chess_games.PIECE_VALUES`; 0 for a move that takes nothing, en passant included)."""
+        (:data:`rlcompare.envs.chess_games.PIECE_VALUES`; a pawn for en passant; 0 for a move that takes nothing)."""
         board = state._x.board if self.game.pgx_id == "chess" else state._board
         values = jnp.asarray((0.0, *PIECE_VALUES), jnp.float32)  # by pgx's piece code, 0 for an empty square
         to = jnp.asarray(DESTINATIONS[self.game.pgx_id])
-        taken = -board[jnp.maximum(to, 0)]
-        return jnp.where((to >= 0) & (taken > 0), values[jnp.clip(taken, 0, 6)], 0.0)
+        taken = jnp.clip(-board[jnp.maximum(to, 0)], 0, 6)  # the opponent's pieces are negative
+        if self.game.pgx_id == "chess":  # a pawn moving onto the en-passant square takes a pawn
+            pawn_from = board[jnp.arange(self.n_actions) // 73] == 1
+            taken = jnp.where(pawn_from & (to == state._x.en_passant) & (to >= 0), 1, taken)
+        return jnp.where(to >= 0, values[taken], 0.0)
 
 
 def chess_game_env(name: str) -> ChessGameEnv:

@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from rlcompare import machine
-from rlcompare.deep.envs import Environment, is_batched, jax_env
-from rlcompare.deep.methods import deep_method, hyperparameters
+from rlcompare.deep import pqn
+from rlcompare.deep.envs import Environment, is_batched, is_game, jax_env
+from rlcompare.deep.methods import DEEP_METHODS, deep_method, hyperparameters
 from rlcompare.validation import COUNT, SEEDS_ALLOWED, check_fields, is_seeds, plain, require
 
 FINISHED_BYTES_PER_STEP = 10
@@ -59,6 +60,10 @@ class DeepConfig:
         check_fields(self, {"eval_rounds": COUNT, "eval_episodes": COUNT, "vmap_width": COUNT})
         require(not is_batched(self.environment) or self.vmap_width == 1, "vmap_width", self.vmap_width,
                 "1 for an Atari game (its emulator plays one seed's games at a time)")
+        require(not is_game(self.environment) or deep_method(self.algorithm).module is pqn, "algorithm",
+                self.algorithm, "a PQN method for a two-player game (" + ", ".join(
+                    name for name, method in DEEP_METHODS.items() if method.module is pqn) + "): self-play with "
+                "legal-move masks is PQN's alone here")
         require(isinstance(self.hyperparameters, dict), "hyperparameters", self.hyperparameters,
                 "a table of field names and values")
         method_config = self.method_config()

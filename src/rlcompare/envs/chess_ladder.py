@@ -19,8 +19,8 @@ import chess.engine
 import chess.pgn
 import numpy as np
 
-PIECE_VALUES = {chess.PAWN: 1, chess.KNIGHT: 3, chess.BISHOP: 3, chess.ROOK: 5, chess.QUEEN: 9}
-"""What :class:`MaterialPlayer` counts a captured piece as."""
+from rlcompare.envs.chess_games import PIECE_VALUES
+
 STOCKFISH_DIRS: tuple[str, ...] = ("/usr/games",)
 """Where :func:`find_stockfish` looks after ``PATH`` (Debian installs Stockfish in /usr/games, off users' PATH)."""
 
@@ -48,9 +48,9 @@ def sorted_moves(board: chess.Board) -> list[chess.Move]:
 def captured_value(board: chess.Board, move: chess.Move) -> int:
     """What ``move`` takes, by :data:`PIECE_VALUES` (en passant takes a pawn); 0 for a quiet move."""
     if board.is_en_passant(move):
-        return PIECE_VALUES[chess.PAWN]
+        return int(PIECE_VALUES[chess.PAWN - 1])
     piece = board.piece_at(move.to_square) if board.is_capture(move) else None
-    return PIECE_VALUES.get(piece.piece_type, 0) if piece else 0
+    return int(PIECE_VALUES[piece.piece_type - 1]) if piece else 0
 
 
 class RandomPlayer:

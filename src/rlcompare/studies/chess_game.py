@@ -39,7 +39,7 @@ from rlcompare.studies.paired_report import curves_drawn, findings, short_label
 from rlcompare.studies.registry import ChessOptions
 
 STUDY = "chess"
-BUDGETS = {"cpu": 1_000_000, "gpu": 20_000_000}
+BUDGETS = {"cpu": 500_000, "gpu": 10_000_000}
 """Budget -> environment steps per training (``docs/chess-game.md`` gives the time each took)."""
 MARGIN = margin("chess", "a game (result against the random player)")
 LEARNT = margin("chess", "learnt (result above the random player's)")

@@ -164,8 +164,8 @@ class ChessOptions(Seeded):
     game: str = "gardner_chess"
     """gardner_chess (Gardner's 5 x 5 minichess, the CPU's game) or chess."""
     budget: str = "cpu"
-    """cpu (1 M steps per training: about 25 minutes on 2 CPU cores with the default seeds) or gpu (20 M steps;
-    docs/chess-game.md says what it takes)."""
+    """cpu (500,000 plies per training: about 25 minutes on 2 CPU cores with the default seeds) or gpu (10 M plies;
+    docs/chess-game.md says what each takes)."""
     steps: int | None = option(None, minimum=1)
     """Environment steps (plies) of every training, in place of the budget's."""
     methods: str = "pqn_sarsa_lambda,pqn_q_lambda"

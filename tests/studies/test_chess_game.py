@@ -1,0 +1,90 @@
+"""The chess study through the CLI at a tiny size: its runs, the ladder's games kept beside them, the report with its
+ratings, boards and records, resuming, and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+pytest.importorskip("jax")
+pytest.importorskip("pgx")
+
+from helpers import invoke  # noqa: E402
+
+from rlcompare.studies.chess_game import LADDER, load_ladder  # noqa: E402
+from rlcompare.studies.paired import load_runs  # noqa: E402
+
+TINY = ["reproduce", "chess", "--seeds", "2", "--steps", "40960", "--pairs", "2"]
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("chess") / "study"
+    result = invoke(*TINY, "--out", str(out), columns=None)
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+@pytest.mark.slow("trains, rates and reports a chess study")
+def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
+    out, output = study
+    assert {"pqn_q_lambda-gardner_chess", "pqn_sarsa_lambda-gardner_chess", LADDER} <= {
+        p.name for p in out.iterdir() if p.is_dir()}
+    games = pd.read_parquet(out / LADDER / "games.parquet")
+    # random v material, then each of 2 methods x 2 seeds against random, material, and the other method (once)
+    pairings = 1 + 2 * 2 * 2 + 2
+    assert len(games) == pairings * 2 * 2
+    assert set(games["score"]) <= {0.0, 0.5, 1.0}
+    swapped = games.iloc[0:2]
+    assert (swapped["white"].tolist(), swapped["black"].tolist()) == (["random", "material"], ["material", "random"])
+    ladder = pd.read_csv(out / "tables" / "chess_ladder_gardner_chess.csv")
+    assert set(ladder["player"]) == {"random", "material", "Q(λ)", "SARSA(λ)"}
+    assert ladder.loc[ladder["player"] == "random", "rating (Elo)"].item() == "0 [0, 0]"  # the anchor
+    assert "The ladder, strongest first" in " ".join(output.split())
+    page = (out / "report.html").read_text()
+    assert "ladder-gardner_chess.png" in page
+    records = sorted(p.name for p in (out / "games").iterdir())
+    assert len(records) == 2 * 3  # each method's first seed at three stages
+    first = (out / "games" / records[0]).read_text().splitlines()
+    assert first[first.index("") + 1] == "rnbqk/ppppp/5/PPPPP/RNBQK w - - 0 1"  # Gardner's start, then each position
+
+
+@pytest.mark.slow("trains, rates and reports a chess study")
+def test_a_finished_study_is_loaded_and_its_ladder_kept(study):
+    out, _ = study
+    before = (out / LADDER / "games.parquet").stat().st_mtime_ns
+    result = invoke(*TINY, "--out", str(out), columns=None)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("loaded") == 2
+    assert (out / LADDER / "games.parquet").stat().st_mtime_ns == before
+
+
+@pytest.mark.slow("trains, rates and reports a chess study")
+def test_a_ladder_of_other_runs_is_refused_naming_it(study, tmp_path):
+    out, _ = study
+    runs, _, _ = load_runs(out)
+    marker = out / LADDER / "ladder.json"
+    saved = marker.read_text()
+    try:
+        data = json.loads(saved)
+        data["runs"] = {name: "2020-01-01T00:00:00+00:00" for name in data["runs"]}
+        marker.write_text(json.dumps(data))
+        with pytest.raises(OSError, match="ladder.json: the ladder was played from other runs"):
+            load_ladder(out, runs)
+    finally:
+        marker.write_text(saved)
+
+
+@pytest.mark.parametrize(("arguments", "named"), [
+    (["--game", "shogi"], "--game"),
+    (["--budget", "tpu"], "--budget"),
+    (["--methods", "dqn"], "--methods"),
+])
+def test_bad_options_are_one_line_naming_the_option(arguments, named, tmp_path):
+    result = invoke("reproduce", "chess", *arguments, "--out", str(tmp_path / "out"), columns=None)
+    assert result.exit_code == 2
+    assert named in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
