@@ -51,6 +51,9 @@ PERFT = {
 }
 """Perft counts per depth, as published (chessprogramming.org, "Perft Results"): castling, en passant (with the
 pin along the rank in position 3), promotions and underpromotions, checks and pins."""
+STEPS = "replays moves through pgx's jitted step, compiled in seconds once per process"
+ROOT = "builds a root from a FEN in pgx (a jitted program compiled in seconds once per process) and steps from it"
+GARDNER = "plays Gardner's minichess through its jitted step, compiled in seconds once per process"
 
 
 def _host_state(board: np.ndarray, white: bool) -> State:
@@ -278,7 +281,9 @@ def test_random_games_end_as_python_chess():
     assert sum(ends.values()) == N_GAMES
     assert set(departures) <= {"fifty-move claim a ply early", "threefold claim a ply early", "pgx's ply cap",
                                "en passant in pgx's hash", "the start's first occurrence"}, departures
-    assert {"CHECKMATE", "STALEMATE", "INSUFFICIENT_MATERIAL", "FIFTY_MOVES", "pgx's ply cap"} <= set(ends), ends
+    assert {"CHECKMATE", "STALEMATE", "INSUFFICIENT_MATERIAL", "FIFTY_MOVES", "THREEFOLD_REPETITION",
+            "pgx's ply cap"} <= set(ends), ends
+    assert {"fifty-move claim a ply early", "threefold claim a ply early", "pgx's ply cap"} <= set(departures)
     assert departures["pgx's ply cap"] == ends["pgx's ply cap"]
 
 
@@ -329,7 +334,7 @@ def test_every_action_round_trips():
                     assert move.promotion == cb.UNDERPROMOTIONS[plane // 3]
                 else:
                     assert (move.promotion == chess.QUEEN) == (pawn and start % 8 == 6)
-    state = cb.state_of(chess.Board())
+    state = _host_state(np.asarray(pgx_rules.INIT_BOARD), True)
     assert cb.move_of(state, 89) == chess.Move.from_uci("a2a3")
     assert cb.move_of(state, 90) == chess.Move.from_uci("a2a4")
     with pytest.raises(ValueError, match="no pgx action"):
@@ -340,6 +345,7 @@ def test_every_action_round_trips():
         cb.move_of(state, cb.N_ACTIONS)
 
 
+@pytest.mark.slow(ROOT)
 def test_castling_and_promotions_convert():
     """White castles short and Black long (the king's two-square move), a pawn underpromotes and one queens by
     capturing: each move is its action's, and the position pgx reaches is python-chess's."""
@@ -378,9 +384,15 @@ def test_a_fen_root_is_from_fens_state_with_an_empty_history(fen):
     assert cb.fen_of(ours) == fen
 
 
-def test_state_of_refuses_what_pgx_cannot_play():
+def test_state_of_refuses_other_games():
     with pytest.raises(ValueError, match="standard chess only"):
         cb.state_of(chess.Board(chess960=True))
+    with pytest.raises(ValueError, match="white_player"):
+        cb.state_of(chess.Board(), white_player=2)
+
+
+@pytest.mark.slow(STEPS)
+def test_state_of_refuses_moves_pgx_cannot_play():
     board = chess.Board()
     board.push(chess.Move.from_uci("e2e5"))  # python-chess's push takes any move
     with pytest.raises(ValueError, match="illegal"):
@@ -389,12 +401,11 @@ def test_state_of_refuses_what_pgx_cannot_play():
     board.push(chess.Move.from_uci("e1f2"))
     with pytest.raises(ValueError, match="has ended"):
         cb.state_of(board)
-    with pytest.raises(ValueError, match="white_player"):
-        cb.state_of(chess.Board(), white_player=2)
 
 
 # --- Game ends on built positions ---
 
+@pytest.mark.slow(STEPS)
 @pytest.mark.parametrize("white_player", [0, 1])
 @pytest.mark.parametrize(("moves", "winner"), [("f2f3 e7e5 g2g4 d8h4", chess.BLACK),
                                                 ("e2e4 e7e5 f1c4 b8c6 d1h5 g8f6 h5f7", chess.WHITE)])
@@ -411,6 +422,7 @@ def test_checkmate_rewards_the_mover_and_punishes_the_mated(moves, winner, white
     assert state.rewards.tolist() == [1.0 if player == winner_player else -1.0 for player in (0, 1)]
 
 
+@pytest.mark.slow(STEPS)
 def test_stalemate_is_a_draw():
     """Loyd's ten-move stalemate: ended, no legal move, no check, 0 each."""
     board = _played("e2e3 a7a5 d1h5 a8a6 h5a5 h7h5 h2h4 a6h6 a5c7 f7f6 c7d7 e8f7 d7b7 d8d3 b7b8 d3h7 b8c8 f7g6 c8e6")
@@ -433,6 +445,7 @@ def _after_a_capture(white: str, black: str) -> chess.Board:
     return board
 
 
+@pytest.mark.slow(ROOT)
 @pytest.mark.parametrize(("white", "black", "insufficient"), [
     ("", "", True),  # K v K
     ("c1=B", "", True),  # KB v K
@@ -458,6 +471,7 @@ def test_insufficient_material_is_python_chess_s(white, black, insufficient):
     assert state.rewards.tolist() == [0.0, 0.0]
 
 
+@pytest.mark.slow(ROOT)
 def test_fifty_move_rule_ends_at_the_hundredth_half_move_and_python_chess_claims_a_ply_earlier():
     """At 99 half-moves without a capture or a pawn move pgx plays on, where ``outcome(claim_draw=True)`` already
     claims (the mover may announce a move that makes 100); at 100 both end it. A mate on the 100th half-move is a
@@ -483,6 +497,7 @@ def test_fifty_move_rule_ends_at_the_hundredth_half_move_and_python_chess_claims
 KNIGHTS_OUT_AND_BACK = "g1f3 g8f6 f3g1 f6g8"
 
 
+@pytest.mark.slow(STEPS)
 def test_threefold_repetition_ends_at_the_third_occurrence_and_python_chess_claims_a_ply_earlier():
     """After 1. e3 e6, the knights out and back twice: the position's third occurrence (ply 10) ends the game in
     both; at ply 9 python-chess already claims (the move about to repeat it), pgx plays on."""
@@ -498,6 +513,7 @@ def test_threefold_repetition_ends_at_the_third_occurrence_and_python_chess_clai
     assert state.rewards.tolist() == [0.0, 0.0]
 
 
+@pytest.mark.slow(STEPS)
 def test_the_start_s_first_occurrence_is_not_counted():
     """pgx's first hash, of the start, is a constant (``INIT_ZOBRIST_HASH``) computed with JAX's former random
     bits: since JAX 0.5 (``jax_threefry_partitionable`` on) the start hashes otherwise, so its first occurrence
@@ -514,6 +530,7 @@ def test_the_start_s_first_occurrence_is_not_counted():
     assert bool(cb.state_of(board).terminated)
 
 
+@pytest.mark.slow(ROOT)
 def test_en_passant_square_counts_in_pgx_repetitions_even_without_a_legal_capture():
     """After 1. e4 pgx's hash holds e3 although no black pawn can take there; python-chess counts the position
     as the same one without it (as FIDE does). With the knights out and back twice, python-chess's third
@@ -533,6 +550,7 @@ def test_en_passant_square_counts_in_pgx_repetitions_even_without_a_legal_captur
     assert not bool(cb.state_of(legal_capture).terminated)
 
 
+@pytest.mark.slow(STEPS)
 def test_pgx_ends_a_game_at_its_512th_ply():
     """pgx terminates (not truncates) a game at its 512th ply, as a draw; python-chess plays on."""
     board = _played("e2e4 e7e5")
@@ -547,6 +565,7 @@ def test_pgx_ends_a_game_at_its_512th_ply():
     assert cb.legal_moves(state) == {m.uci() for m in board.legal_moves}
 
 
+@pytest.mark.slow(ROOT)
 def test_pgx_keeps_at_most_200_moves_before_its_check_filter():
     """A position with 218 legal moves: pgx lists 200 of them (its pseudo-legal moves are cut at 200), all
     legal."""
@@ -557,6 +576,7 @@ def test_pgx_keeps_at_most_200_moves_before_its_check_filter():
     assert moves <= {move.uci() for move in board.legal_moves}
 
 
+@pytest.mark.slow(STEPS)
 def test_pgx_fen_names_every_en_passant_square():
     """pgx's FEN (and hash) names the square a pawn passed over whatever can take there; python-chess's FEN only
     where a capture is legal (``en_passant="fen"`` gives pgx's)."""
@@ -678,6 +698,7 @@ def test_gardner_random_games_equal_python_chess_on_a_corner():
     assert {"checkmate", "stalemate", "insufficient material", "threefold repetition"} <= set(ends), ends
 
 
+@pytest.mark.slow(GARDNER)
 def test_gardner_start_and_pawns():
     """Seven moves at the start (five pawn steps, two knight moves); no two-square pawn step even where both
     squares ahead are empty."""
@@ -690,6 +711,7 @@ def test_gardner_start_and_pawns():
     assert "a2a4" in {move.uci() for move in board.legal_moves}  # python-chess's board would step twice
 
 
+@pytest.mark.slow(GARDNER)
 def test_gardner_has_no_castling():
     """With b1, c1 and d1 empty and unattacked, king on e1 and rook on a1, python-chess with the right to castle
     would play e1c1; Gardner's king has only its one-square steps."""
@@ -701,6 +723,7 @@ def test_gardner_has_no_castling():
     assert all(chess.square_distance(chess.E1, chess.parse_square(uci[2:4])) == 1 for uci in king)
 
 
+@pytest.mark.slow(GARDNER)
 @pytest.mark.parametrize(("promotion", "piece"), [("q", 5), ("r", 4), ("b", 3), ("n", 2)])
 def test_gardner_promotes_on_the_fifth_rank(promotion, piece):
     """A pawn on the fourth rank promotes stepping onto the fifth: to a queen by the plain move, to a rook,
@@ -714,6 +737,7 @@ def test_gardner_promotes_on_the_fifth_rank(promotion, piece):
     assert int(state._board[5 * 1 + 0]) == -piece  # b5 seen from Black's side (b1): White's new piece
 
 
+@pytest.mark.slow(GARDNER)
 @pytest.mark.parametrize("key", [0, 1])
 def test_gardner_checkmate_rewards(key):
     """Black's king walks into a pawn's mate: Black's player -1, White's +1, whichever player White is."""
@@ -725,6 +749,7 @@ def test_gardner_checkmate_rewards(key):
     assert state.rewards.tolist() == [-1.0 if p == black else 1.0 for p in (0, 1)]
 
 
+@pytest.mark.slow(GARDNER)
 @pytest.mark.parametrize(("moves", "kind"), [
     ("c2c3 b5c3 a2a3 d4d3 e2e3 d5d4 a3b4 c3b5 b4a5n d4c3 b2c3 c5a3 d1a4 b5c3 b1c3 a3c5 a4b5", "stalemate"),
     ("c2c3 b5a3 d1b3 c4b3 c3b4 e4e3 b4a5q e3d2 e1d2 d5c4 b2a3 c4d3 d2d3 b3a2 a5b4 a2b1r b4a4 c5a3 a4b4 b1b4 a1a2 "
@@ -745,6 +770,7 @@ def test_gardner_draws(moves, kind):
     assert not bool(state.terminated)
 
 
+@pytest.mark.slow(GARDNER)
 @pytest.mark.parametrize(("field", "value"), [("_halfmove_count", 99), ("_step_count", 255)])
 def test_gardner_fifty_moves_and_ply_cap(field, value):
     """A quiet move at 99 half-moves without capture or pawn move ends the game (the fifty-move rule), and so does

@@ -11,10 +11,10 @@ import pytest
 pytest.importorskip("jax")
 pytest.importorskip("pgx")
 
-from helpers import invoke  # noqa: E402
+from helpers import invoke
 
-from rlcompare.studies.chess_game import LADDER, load_ladder  # noqa: E402
-from rlcompare.studies.paired import load_runs  # noqa: E402
+from rlcompare.studies.chess_game import LADDER, load_ladder
+from rlcompare.studies.paired import load_runs
 
 TINY = ["reproduce", "chess", "--seeds", "2", "--steps", "40960", "--pairs", "2"]
 
@@ -71,7 +71,7 @@ def test_a_ladder_of_other_runs_is_refused_naming_it(study, tmp_path):
         data = json.loads(saved)
         data["runs"] = {name: "2020-01-01T00:00:00+00:00" for name in data["runs"]}
         marker.write_text(json.dumps(data))
-        with pytest.raises(OSError, match="ladder.json: the ladder was played from other runs"):
+        with pytest.raises(OSError, match=r"ladder\.json: the ladder was played from other runs"):
             load_ladder(out, runs)
     finally:
         marker.write_text(saved)

@@ -162,6 +162,6 @@ def test_only_pqn_plays_a_two_player_game() -> None:
     from rlcompare.deep.config import DeepConfig
     from rlcompare.validation import ConfigError
 
-    with pytest.raises(ConfigError, match="algorithm: got 'ppo'.*a PQN method for a two-player game"):
+    with pytest.raises(ConfigError, match=r"algorithm: got 'ppo'.*a PQN method for a two-player game"):
         DeepConfig(algorithm="ppo", env="gardner_chess", seeds=(0,))
     assert DeepConfig(algorithm="pqn_sarsa_lambda", env="gardner_chess", seeds=(0,)).environment.players == 2

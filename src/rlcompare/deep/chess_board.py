@@ -30,6 +30,8 @@ from pgx._src.games import chess as rules
 from pgx.chess import State
 from pgx.experimental.chess import to_fen
 
+from rlcompare.deep.chess_games import pgx_game
+
 N_ACTIONS = 64 * 73
 """pgx's chess actions: 73 planes for each of the 64 squares a move can leave."""
 UNDERPROMOTIONS = (chess.ROOK, chess.BISHOP, chess.KNIGHT)
@@ -39,10 +41,9 @@ LAST_RANK_BUT_ONE = 6
 """The rank (from the mover's side, 0-7) a pawn promotes from."""
 
 
-@functools.cache
 def env() -> pgx.Env:
-    """pgx's chess, one per process."""
-    return pgx.make("chess")
+    """pgx's chess, one per process (:data:`rlcompare.deep.chess_games.PGX_GAMES`)."""
+    return pgx_game("chess")
 
 
 @functools.cache
@@ -58,8 +59,10 @@ def _jitted_step() -> Callable[[State, jax.Array], State]:
 
 
 def step(state: State, action: int) -> State:
-    """pgx's ``env.step``, jitted once per process (the action as int32, so that it never compiles again)."""
-    return _jitted_step()(state, jnp.int32(action))
+    """pgx's ``env.step``, jitted once per process (the action as int32, so that it never compiles again), traced
+    in JAX's 32-bit mode, which pgx is written for, whatever the caller's."""
+    with jax.enable_x64(False):
+        return _jitted_step()(state, jnp.int32(action))
 
 
 def _square(index: int, white: bool) -> chess.Square:
@@ -209,7 +212,8 @@ def state_of(board: chess.Board, white_player: int = 0) -> State:
         raise ValueError(f"pgx plays standard chess only, not {type(board).uci_variant} (chess960={board.chess960})")
     if white_player not in (0, 1):
         raise ValueError(f"white_player is 0 or 1, not {white_player}")
-    state = _root_state(board.root(), jnp.int32([white_player, 1 - white_player]))
+    with jax.enable_x64(False):
+        state = _root_state(board.root(), jnp.int32([white_player, 1 - white_player]))
     for ply, move in enumerate(board.move_stack):
         terminated, mask = jax.device_get((state.terminated, state._x.legal_action_mask))
         if terminated:

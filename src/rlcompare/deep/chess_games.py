@@ -26,7 +26,6 @@ from pgx._src.games import chess as pgx_chess
 
 from rlcompare.envs.chess_games import GAMES, HISTORY_PLANES, PIECE_VALUES, BoardGame
 
-
 with jax.enable_x64(False):  # made here, outside any trace: pgx makes its games' constant arrays when they load
     PGX_GAMES = {pgx_id: pgx.make(pgx_id) for pgx_id in ("chess", "gardner_chess")}
 

@@ -173,10 +173,11 @@ x 32 steps, 2 epochs x 32 minibatches, RAdam at 5e-4 decayed linearly, λ 0.65, 
 rewards unscaled, 10 M steps) with MinAtar's network, LayerNorm after the convolution and the dense layer of 128.
 Atari: purejaxql's ``pqn_atari.yaml`` (128 environments x 32 steps, 2 epochs x 32 minibatches, RAdam at 2.5e-4 not
 decayed, λ 0.65, ε 1 -> 0.001 over the first tenth, 10 M steps) with Mnih et al.'s network, LayerNorm after each
-layer; it learns from the score's sign, as there. Chess and Gardner's minichess (self-play, ``docs/chess-game.md``): 128 environments x 32 plies,
-4 epochs x 8 minibatches, RAdam at 1e-3 decayed linearly, λ 0.95, ε 1 -> 0.05 over the first fifth, a 2 x 256
-LayerNorm MLP over the board's planes, 500,000 plies: the settings that took Gardner's game from a score of 0.57
-against the random player (MinAtar's λ 0.65, 2 epochs at 5e-4, 1 M plies) to 0.80 at half the plies (2 seeds)."""
+layer; it learns from the score's sign, as there. Chess and Gardner's minichess (self-play, ``docs/chess-game.md``):
+128 environments x 32 plies, 4 epochs x 8 minibatches, RAdam at 1e-3 decayed linearly, λ 0.95, ε 1 -> 0.05 over
+the first fifth, a 2 x 256 LayerNorm MLP over the board's planes, 500,000 plies: the settings that took Gardner's
+game from a score of 0.57 against the random player (MinAtar's λ 0.65, 2 epochs at 5e-4, 1 M plies) to 0.80 at half
+the plies (2 seeds)."""
 Config = PQNConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
 
