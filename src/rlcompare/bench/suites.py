@@ -28,6 +28,13 @@ def chess() -> Suite:
     return Suite("chess.json", (CHESS_STAGE,))
 
 
+def selfplay() -> Suite:
+    """Self-play on Gardner's minichess beside pgx's game alone (the ``deep`` extra)."""
+    from rlcompare.bench.selfplay import SELFPLAY_STAGE
+
+    return Suite("selfplay.json", (SELFPLAY_STAGE,))
+
+
 def envs() -> Suite:
     """Every ported environment: Gymnasium's loop, the port, the adapter."""
     return Suite("envs.json", (PORT_STAGE,))

@@ -75,6 +75,14 @@ def chess(out: Out = None) -> None:
 
 
 @one_line_errors
+def selfplay(out: Out = None) -> None:
+    """Self-play on Gardner's minichess: the chess study's training beside pgx's game alone (the 'deep' extra)."""
+    from rlcompare.bench import suites
+
+    measure(suites.selfplay(), out)
+
+
+@one_line_errors
 def envs(out: Out = None) -> None:
     """Q-Learning on every ported environment: Gymnasium's loop, the port on 1 and all threads, the adapter."""
     from rlcompare.bench import suites
@@ -140,6 +148,6 @@ def bench_app() -> typer.Typer:
                            "environment, into bench.json; or, with a subcommand's name, that benchmark alone, into "
                            "its own file.", short_help=SUMMARIES["bench"], rich_markup_mode="rich", cls=PlainGroup)
     app.callback(invoke_without_command=True)(everything)
-    for command in (kernels, envs, study, chess, sweeps, deep):
+    for command in (kernels, envs, study, chess, selfplay, sweeps, deep):
         app.command(cls=PlainCommand)(command)
     return app

@@ -10,7 +10,7 @@ import jax
 import numpy as np
 
 from rlcompare.deep import float64
-from rlcompare.deep.chess_board import move_of, state_of
+from rlcompare.deep.chess_board import action_of, move_of, state_of, step
 from rlcompare.deep.chess_games import ChessGameEnv
 from rlcompare.deep.envs import is_game
 from rlcompare.deep.methods import deep_method
@@ -46,6 +46,8 @@ class BoardAgent:
     def __init__(self, name: str, game: ChessGameEnv, act: Any, params: Any) -> None:
         self.name = name
         self.params = params
+        self._seen: tuple[str, list[chess.Move], Any] | None = None
+        """The root, the moves and pgx's state of the last board it moved on."""
         self._choose = jax.jit(lambda params, state: act(params, game.observe(state)[None],
                                                          game.legal(state)[None])[0])
 
@@ -62,8 +64,21 @@ class BoardAgent:
     @float64
     def move(self, board: chess.Board) -> chess.Move:
         """The network's move for the side to move on ``board``."""
-        state = state_of(board)
+        state = self._state_of(board)
         return move_of(state, int(self._choose(self.params, state)))
+
+    def _state_of(self, board: chess.Board) -> Any:
+        """pgx's state of ``board``: the last one this agent saw, stepped on by the moves since, where ``board``
+        continues that game; else replayed from its root (:func:`~rlcompare.deep.chess_board.state_of`)."""
+        seen, moves = self._seen, board.move_stack
+        if seen is None or seen[0] != board.root().fen() or moves[:len(seen[1])] != seen[1]:
+            state = state_of(board)
+        else:
+            state = seen[2]
+            for move in moves[len(seen[1]):]:
+                state = step(state, action_of(state, move))
+        self._seen = (board.root().fen(), list(moves), state)
+        return state
 
     def close(self) -> None:
         """Holds nothing."""

@@ -1,0 +1,115 @@
+"""``rlcompare uci RUN_DIR``: a network trained at chess served as a UCI engine, played by python-chess's own engine
+client through whole games against Stockfish; ``load_agent`` of such a run plays on python-chess boards; bad input is
+one line."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+
+import chess
+import chess.engine
+import pytest
+
+pytest.importorskip("jax")
+pytest.importorskip("pgx")
+
+from helpers import invoke  # noqa: E402
+
+from rlcompare import load_agent  # noqa: E402
+from rlcompare.envs.chess_ladder import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish  # noqa: E402
+
+
+def stockfish_or_skip() -> str:
+    try:
+        return find_stockfish()
+    except MissingEngine as error:
+        pytest.skip(str(error))
+
+
+@pytest.fixture(scope="module")
+def chess_run(tmp_path_factory):
+    """A network trained at chess for one short rollout (its play is nearly random; the protocol is what is
+    tested)."""
+    from rlcompare.deep.config import DeepConfig
+    from rlcompare.experiment.runner import run as deep_run
+
+    out = tmp_path_factory.mktemp("uci") / "run"
+    deep_run(DeepConfig(algorithm="pqn_q_lambda", env="chess", seeds=(0,), vmap_width=1, eval_rounds=1,
+                        eval_episodes=2, hyperparameters={"total_steps": 256, "n_envs": 16, "n_steps": 16,
+                                                          "n_epochs": 1, "n_minibatches": 1}), out=out)
+    return out
+
+
+@pytest.mark.slow("trains a network at chess and plays whole games through python-chess's UCI client")
+def test_python_chess_plays_a_whole_game_against_stockfish_through_rlcompare_uci(chess_run):
+    stockfish_or_skip()
+    command = [sys.executable, "-m", "rlcompare.cli", "uci", str(chess_run)]
+    engine = chess.engine.SimpleEngine.popen_uci(command, timeout=120)
+    opponent = StockfishPlayer(SKILL_0)
+    try:
+        assert engine.id["name"].startswith("rlcompare pqn_q_lambda-chess")
+        board = chess.Board()
+        while board.outcome(claim_draw=True) is None and board.ply() < 200:
+            if board.turn == chess.WHITE:
+                move = engine.play(board, chess.engine.Limit(time=1.0)).move
+                assert move in board.legal_moves
+            else:
+                move = opponent.move(board)
+            board.push(move)
+        assert board.ply() >= 2
+        assert board.outcome(claim_draw=True) is not None or board.ply() == 200
+    finally:
+        engine.quit()
+        opponent.close()
+
+
+@pytest.mark.slow("trains a network at chess")
+def test_load_agent_of_a_chess_run_moves_on_python_chess_boards(chess_run):
+    agent = load_agent(chess_run)
+    board = chess.Board("r1bqkbnr/pppp1ppp/2n5/4p3/4P3/5N2/PPPP1PPP/RNBQKB1R w KQkq - 2 3")
+    for _ in range(2):  # White's move, then Black's, each from the side to move
+        move = agent.move(board)
+        assert move in board.legal_moves
+        board.push(move)
+
+
+@pytest.mark.slow("trains a network at chess")
+def test_uci_refuses_a_run_that_is_not_chess_in_one_line(tmp_path, chess_run):
+    result = invoke("uci", str(tmp_path / "missing"), columns=300)
+    assert result.exit_code == 2
+    assert "is not a directory" in result.output
+    assert "Traceback" not in result.output
+    shutil.copytree(chess_run, tmp_path / "copy")
+    result = invoke("uci", str(tmp_path / "copy"), "--stage", "late", columns=300)
+    assert result.exit_code == 2
+    assert "late" in result.output
+    assert "Traceback" not in result.output
+
+
+@pytest.mark.slow("trains a network at chess and plays it against Stockfish")
+def test_the_ladder_plays_stockfish_in_pairs_and_rates_from_its_anchor(chess_run):
+    """Each network against both rungs in colour-swapped pairs, the rungs tied to the rest by the random and material
+    players' games and each other's; the ratings anchored at UCI_Elo 1350 where some player scored against it."""
+    import pandas as pd
+
+    from rlcompare.experiment.engines import load_run
+    from rlcompare.studies.chess_game import anchor_of, ladder_table
+    from rlcompare.studies.chess_ladder import Learner, stockfish_games
+
+    stockfish_or_skip()
+    results = load_run(chess_run)
+    games, records = stockfish_games(results.config.environment, [Learner("Q(λ)", results)], pairs=1)
+    assert len(games) == len(records) == 2 * (1 + 2 + 2)
+    assert games.iloc[0:2][["white", "black"]].values.tolist() == [
+        ["stockfish-skill0-depth1", "stockfish-elo1350"], ["stockfish-elo1350", "stockfish-skill0-depth1"]]
+    network = games[(games["white"] == "Q(λ)") | (games["black"] == "Q(λ)")]
+    assert len(network) == 4
+    assert set(network["white_seed"].where(network["white"] == "Q(λ)", network["black_seed"])) == {0}
+    assert all(record.game.headers["Result"] in ("1-0", "0-1", "1/2-1/2") for record in records)
+    anchor = anchor_of(games)
+    scored = pd.concat([games[games["black"] == "stockfish-elo1350"]["score"],
+                        1 - games[games["white"] == "stockfish-elo1350"]["score"]]).sum()
+    assert anchor == (("stockfish-elo1350", 1350.0) if scored > 0 else ("random", 0.0))
+    table = ladder_table(games, anchor)
+    assert table["player"].iloc[0].startswith("stockfish")  # strongest first
