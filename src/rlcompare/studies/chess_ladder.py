@@ -25,7 +25,7 @@ from rlcompare.deep.agent import BoardAgent
 from rlcompare.deep.chess_games import ChessGameEnv
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
-from rlcompare.deep.rollout import Mover, material_mover, play, policy_mover, random_mover
+from rlcompare.deep.rollout import material_mover, play, policy_mover, random_mover
 from rlcompare.deep.train import params_template
 from rlcompare.envs.chess_ladder import ELO_1350, SKILL_0, GameRecord, StockfishPlayer, StockfishRung, play_pairs
 from rlcompare.stats.ratings import Game
@@ -84,31 +84,37 @@ def paired_rows(player: str, opponent: str, results: np.ndarray, plies: np.ndarr
 @float64
 def pgx_games(game: ChessGameEnv, learners: list[Learner], pairs: int) -> pd.DataFrame:
     """Every network against the random and the material player, the networks of one seed against each other, and
-    the random against the material player: ``pairs`` pairs of games each, played in pgx."""
-    fixed: dict[str, Mover] = {RANDOM: random_mover, MATERIAL: material_mover}
+    the random against the material player: ``pairs`` pairs of games each, played in pgx. Each kind of game is
+    compiled once, its networks' parameters given as arguments."""
+    games = 2 * pairs
+    keys = (jax.random.key(LADDER_KEY + index) for index in range(10**6))
+    rows = paired_rows(RANDOM, MATERIAL, *played(jax.jit(
+        lambda key: play(game, random_mover, material_mover, key, games))(next(keys))))
     nets = {learner.name: networks(learner) for learner in learners}
-    rows: list[dict[str, Any]] = []
-    counter = iter(range(10**6))
-
-    def run(player: Mover, opponent: Mover) -> tuple[np.ndarray, np.ndarray]:
-        key = jax.random.key(LADDER_KEY + next(counter))
-        results, plies, _ = jax.jit(lambda k: play(game, player, opponent, k, 2 * pairs))(key)
-        return np.asarray(results), np.asarray(plies)
-
-    rows += paired_rows(RANDOM, MATERIAL, *run(random_mover, material_mover))
     for index, learner in enumerate(learners):
         act, params = nets[learner.name]
-        for seed_index, seed in enumerate(learner.seeds):
-            mover = policy_mover(act, seed_params(params, seed_index))
-            for name, opponent in fixed.items():
-                rows += paired_rows(learner.name, name, *run(mover, opponent), player_seed=seed)
-            for other in learners[index + 1:]:
+        for name, opponent in ((RANDOM, random_mover), (MATERIAL, material_mover)):
+            against = jax.jit(lambda p, key, opponent=opponent, act=act: play(
+                game, policy_mover(act, p), opponent, key, games))
+            for seed_index, seed in enumerate(learner.seeds):
+                rows += paired_rows(learner.name, name, *played(against(seed_params(params, seed_index), next(keys))),
+                                    player_seed=seed)
+        for other in learners[index + 1:]:
+            other_act, other_params = nets[other.name]
+            duel = jax.jit(lambda p, q, key, act=act, other_act=other_act: play(
+                game, policy_mover(act, p), policy_mover(other_act, q), key, games))
+            for seed_index, seed in enumerate(learner.seeds):
                 if seed in other.seeds:
-                    other_act, other_params = nets[other.name]
-                    other_mover = policy_mover(other_act, seed_params(other_params, other.seeds.index(seed)))
-                    rows += paired_rows(learner.name, other.name, *run(mover, other_mover), player_seed=seed,
+                    result = duel(seed_params(params, seed_index),
+                                  seed_params(other_params, other.seeds.index(seed)), next(keys))
+                    rows += paired_rows(learner.name, other.name, *played(result), player_seed=seed,
                                         opponent_seed=seed)
     return frame(rows)
+
+
+def played(result: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[np.ndarray, np.ndarray]:
+    """``(results, plies)`` of :func:`rlcompare.deep.rollout.play`'s games, on the host."""
+    return np.asarray(result[0]), np.asarray(result[1])
 
 
 @contextlib.contextmanager
