@@ -17,9 +17,10 @@ import jax
 import jax.numpy as jnp
 
 from rlcompare.deep.envs import DeepEnv, EnvState, jax_env, jax_env_names, step_autoreset
-from rlcompare.envs import acrobot, atari, cartpole, minatar, mountain_car
+from rlcompare.envs import acrobot, atari, cartpole, chess_games, minatar, mountain_car
 
-NAMES = [name for name in jax_env_names() if name not in minatar.NAMES and name not in atari.NAMES]
+NAMES = [name for name in jax_env_names()
+         if name not in minatar.NAMES and name not in atari.NAMES and name not in chess_games.GAMES]
 """Gymnasium's classic control, ported (MinAtar's games are checked against their reference in
 tests/parity/test_minatar_games.py, Atari's against ALE's own loop in tests/parity/test_atari.py)."""
 TRANSITIONS = 3000

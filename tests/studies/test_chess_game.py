@@ -32,7 +32,7 @@ def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
     out, output = study
     assert {"pqn_q_lambda-gardner_chess", "pqn_sarsa_lambda-gardner_chess", LADDER} <= {
         p.name for p in out.iterdir() if p.is_dir()}
-    games = pd.read_parquet(out / LADDER / "games.parquet")
+    games = pd.read_parquet(out / LADDER / "gardner_chess" / "games.parquet")
     # random v material, then each of 2 methods x 2 seeds against random, material, and the other method (once)
     pairings = 1 + 2 * 2 * 2 + 2
     assert len(games) == pairings * 2 * 2
@@ -54,25 +54,25 @@ def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
 @pytest.mark.slow("trains, rates and reports a chess study")
 def test_a_finished_study_is_loaded_and_its_ladder_kept(study):
     out, _ = study
-    before = (out / LADDER / "games.parquet").stat().st_mtime_ns
+    before = (out / LADDER / "gardner_chess" / "games.parquet").stat().st_mtime_ns
     result = invoke(*TINY, "--out", str(out), columns=None)
     assert result.exit_code == 0, result.output
     assert result.output.count("loaded") == 2
-    assert (out / LADDER / "games.parquet").stat().st_mtime_ns == before
+    assert (out / LADDER / "gardner_chess" / "games.parquet").stat().st_mtime_ns == before
 
 
 @pytest.mark.slow("trains, rates and reports a chess study")
 def test_a_ladder_of_other_runs_is_refused_naming_it(study, tmp_path):
     out, _ = study
     runs, _, _ = load_runs(out)
-    marker = out / LADDER / "ladder.json"
+    marker = out / LADDER / "gardner_chess" / "ladder.json"
     saved = marker.read_text()
     try:
         data = json.loads(saved)
         data["runs"] = {name: "2020-01-01T00:00:00+00:00" for name in data["runs"]}
         marker.write_text(json.dumps(data))
         with pytest.raises(OSError, match=r"ladder\.json: the ladder was played from other runs"):
-            load_ladder(out, runs)
+            load_ladder(out, "gardner_chess", runs)
     finally:
         marker.write_text(saved)
 
@@ -88,3 +88,25 @@ def test_bad_options_are_one_line_naming_the_option(arguments, named, tmp_path):
     assert named in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow("trains, rates and reports a chess study")
+def test_uci_refuses_a_network_of_gardners_game_in_one_line(study):
+    out, _ = study
+    result = invoke("uci", str(out / "pqn_q_lambda-gardner_chess"), columns=300)
+    assert result.exit_code != 0
+    said = " ".join(result.output.split())
+    assert "only a network trained at chess plays on python-chess boards" in said
+    assert "Traceback" not in result.output
+
+
+def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monkeypatch):
+    from rlcompare.envs import chess_ladder
+
+    monkeypatch.setattr(chess_ladder, "STOCKFISH_DIRS", ())
+    monkeypatch.setenv("PATH", str(tmp_path))
+    result = invoke("reproduce", "chess", "--game", "chess", "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code != 0
+    assert "apt-get install stockfish" in " ".join(result.output.split())
+    assert "Traceback" not in result.output
+    assert not any((tmp_path / "out").glob("pqn_*"))  # refused before anything trained

@@ -14,10 +14,10 @@ import pytest
 pytest.importorskip("jax")
 pytest.importorskip("pgx")
 
-from helpers import invoke  # noqa: E402
+from helpers import invoke
 
-from rlcompare import load_agent  # noqa: E402
-from rlcompare.envs.chess_ladder import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish  # noqa: E402
+from rlcompare import load_agent
+from rlcompare.envs.chess_ladder import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
 
 
 def stockfish_or_skip() -> str:
@@ -94,8 +94,9 @@ def test_the_ladder_plays_stockfish_in_pairs_and_rates_from_its_anchor(chess_run
     import pandas as pd
 
     from rlcompare.experiment.engines import load_run
+    from rlcompare.stats.ratings import bootstrap_ratings
     from rlcompare.studies.chess_game import anchor_of, ladder_table
-    from rlcompare.studies.chess_ladder import Learner, stockfish_games
+    from rlcompare.studies.chess_ladder import Learner, games_of, stockfish_games
 
     stockfish_or_skip()
     results = load_run(chess_run)
@@ -111,5 +112,5 @@ def test_the_ladder_plays_stockfish_in_pairs_and_rates_from_its_anchor(chess_run
     scored = pd.concat([games[games["black"] == "stockfish-elo1350"]["score"],
                         1 - games[games["white"] == "stockfish-elo1350"]["score"]]).sum()
     assert anchor == (("stockfish-elo1350", 1350.0) if scored > 0 else ("random", 0.0))
-    table = ladder_table(games, anchor)
+    table = ladder_table(games, bootstrap_ratings(games_of(games), *anchor, seed=0))
     assert table["player"].iloc[0].startswith("stockfish")  # strongest first

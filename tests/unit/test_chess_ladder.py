@@ -16,9 +16,9 @@ import pytest
 from scipy.stats import chisquare
 
 from rlcompare.envs import chess_ladder
+from rlcompare.envs.chess_games import PIECE_VALUES
 from rlcompare.envs.chess_ladder import (
     ELO_1350,
-    PIECE_VALUES,
     SKILL_0,
     GameRecord,
     MaterialPlayer,
@@ -58,7 +58,7 @@ def moves_drawn(player, board: chess.Board, draws: int) -> collections.Counter[s
 
 def material(board: chess.Board, colour: chess.Color) -> int:
     """``colour``'s material minus the other side's."""
-    return sum(PIECE_VALUES.get(piece.piece_type, 0) * (1 if piece.color == colour else -1)
+    return sum(PIECE_VALUES[piece.piece_type - 1] * (1 if piece.color == colour else -1)
                for piece in board.piece_map().values())
 
 
@@ -138,7 +138,7 @@ def test_the_material_player_beats_the_random_player_clearly():
     assert all(record.points("material") >= 0.5 for record in records)
     ahead = [material(record.game.end().board(), chess.WHITE if record.white == "material" else chess.BLACK)
              for record in records]
-    assert min(ahead) >= PIECE_VALUES[chess.QUEEN], ahead
+    assert min(ahead) >= PIECE_VALUES[chess.QUEEN - 1], ahead
 
 
 def test_a_game_ends_at_mate():

@@ -4,8 +4,10 @@ measured in turn in one run. Imported only when measured: it needs the ``deep`` 
 
 from __future__ import annotations
 
+import functools
 import statistics
 import time
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -61,10 +63,12 @@ def training(seeds: int) -> tuple[int, float]:
 
 def measure_selfplay(say: Say, repeats: int = 3) -> Measured:
     """The game alone and the training on 1 and 2 seeds, in turn ``repeats`` times; medians."""
-    runs: dict[str, list[float]] = {"game alone": [], "training, 1 seed": [], "training, 2 seeds": []}
+    measures: dict[str, Callable[[], tuple[int, float]]] = {
+        "game alone": game_alone, "training, 1 seed": functools.partial(training, 1),
+        "training, 2 seeds": functools.partial(training, 2)}
+    runs: dict[str, list[float]] = {name: [] for name in measures}
     for _ in range(repeats):
-        for name, measure in (("game alone", game_alone), ("training, 1 seed", lambda: training(1)),
-                              ("training, 2 seeds", lambda: training(2))):
+        for name, measure in measures.items():
             plies, seconds = measure()
             runs[name].append(plies / seconds)
     rates = {name: statistics.median(values) for name, values in runs.items()}

@@ -3,20 +3,22 @@ at chess plays on python-chess boards instead."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import chess
 import jax
 import numpy as np
 
 from rlcompare.deep import float64
-from rlcompare.deep.chess_board import action_of, move_of, state_of, step
-from rlcompare.deep.chess_games import ChessGameEnv
 from rlcompare.deep.envs import is_game
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.train import params_template
 from rlcompare.envs.observations import check_box_observation
+
+if TYPE_CHECKING:  # pgx and python-chess are imported where a chess network plays, not by every deep run
+    import chess
+
+    from rlcompare.deep.chess_games import ChessGameEnv
 
 
 class DeepAgent:
@@ -53,6 +55,8 @@ class BoardAgent:
 
     @classmethod
     def of(cls, results: DeepResults, seed: int, stage: str = "final") -> BoardAgent:
+        from rlcompare.deep.chess_games import ChessGameEnv
+
         config = results.config
         game = config.environment
         if not isinstance(game, ChessGameEnv) or game.game.board_size != 8:
@@ -64,12 +68,16 @@ class BoardAgent:
     @float64
     def move(self, board: chess.Board) -> chess.Move:
         """The network's move for the side to move on ``board``."""
+        from rlcompare.deep.chess_board import move_of
+
         state = self._state_of(board)
         return move_of(state, int(self._choose(self.params, state)))
 
     def _state_of(self, board: chess.Board) -> Any:
         """pgx's state of ``board``: the last one this agent saw, stepped on by the moves since, where ``board``
         continues that game; else replayed from its root (:func:`~rlcompare.deep.chess_board.state_of`)."""
+        from rlcompare.deep.chess_board import action_of, state_of, step
+
         seen, moves = self._seen, board.move_stack
         if seen is None or seen[0] != board.root().fen() or moves[:len(seen[1])] != seen[1]:
             state = state_of(board)

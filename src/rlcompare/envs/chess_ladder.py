@@ -36,8 +36,9 @@ class ChessPlayer(Protocol):
     def close(self) -> None: ...
 
 
-class MissingEngine(Exception):
-    """A chess engine the caller asked for is not installed; the message says how to install it."""
+class MissingEngine(FileNotFoundError):
+    """A chess engine the caller asked for is not installed; the message says how to install it (a missing file:
+    the command line reports it in one line, as any other)."""
 
 
 def sorted_moves(board: chess.Board) -> list[chess.Move]:

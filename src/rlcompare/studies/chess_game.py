@@ -28,7 +28,7 @@ from rlcompare.envs.chess_ladder import ELO_1350
 from rlcompare.experiment import store
 from rlcompare.experiment.backends import make_backend
 from rlcompare.report.page import Section, save_figure, write_report, write_table
-from rlcompare.stats.compare import NEITHER_LEARNT
+from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.ratings import bootstrap_ratings, player_records
 from rlcompare.studies import chess_ladder
 from rlcompare.studies.chess_ladder import MATERIAL, RANDOM, Learner, games_of
@@ -47,7 +47,7 @@ WON_EVERY_GAME = 1.0
 """The reference a result is measured against: +1, winning every game against the random player."""
 DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
 LADDER = "ladder"
-"""The directory, inside the study's, of the ladder's games and what they were played from."""
+"""The directory, inside the study's, of each game's ladder: its games and what they were played from."""
 
 
 def game_title(env: str) -> str:
@@ -100,10 +100,11 @@ def played_from(runs: dict[str, DeepResults]) -> dict[str, str]:
 
 
 def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
-    """The ladder's games, written once for these runs (kept where ``ladder.json`` says they were played from the
-    same runs)."""
-    deep = {name: r for name, r in runs.items() if isinstance(r, DeepResults)}
-    marker = out / LADDER / "ladder.json"
+    """The game's ladder, written once for its runs (kept where ``ladder.json`` says it was played from the same
+    runs)."""
+    deep = {name: r for name, r in runs.items() if isinstance(r, DeepResults) and r.config.env == options.game}
+    where = out / LADDER / options.game
+    marker = where / "ladder.json"
     if marker.exists() and store.read_json(marker).get("runs") == played_from(deep):
         return
     game = chess_game_env(options.game)
@@ -113,23 +114,24 @@ def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
         engine_games, records = chess_ladder.stockfish_games(game, learners, max(1, options.pairs // 16))
         games = pd.concat([games, engine_games], ignore_index=True)
         pgn = "\n\n".join(str(record.game) for record in records) + "\n"
-        store.write_bytes_atomic(out / LADDER / "stockfish.pgn", pgn.encode())
-    store.write_atomic(out / LADDER / "games.parquet", lambda handle: games.to_parquet(handle, index=False))
+        store.write_bytes_atomic(where / "stockfish.pgn", pgn.encode())
+    store.write_atomic(where / "games.parquet", lambda handle: games.to_parquet(handle, index=False))
     store.write_json_atomic(marker, {"runs": played_from(deep), "pairs": options.pairs, "game": options.game})
 
 
-def load_ladder(out: Path, runs: dict[str, DeepResults]) -> pd.DataFrame:
-    """The ladder's games, refused (naming the file) where they were played from other runs than these."""
-    marker = out / LADDER / "ladder.json"
+def load_ladder(out: Path, env: str, runs: dict[str, DeepResults]) -> pd.DataFrame:
+    """The game's ladder, refused (naming the file) where it was played from other runs than these."""
+    where = out / LADDER / env
+    marker = where / "ladder.json"
     if not marker.exists():
         raise store.StoreError(f"{marker}: no ladder was played for these runs; run 'rlcompare reproduce chess' "
                                "with the same options to play it")
     if store.read_json(marker).get("runs") != played_from(runs):
         raise store.StoreError(f"{marker}: the ladder was played from other runs than those in {out}")
-    games = pd.read_parquet(out / LADDER / "games.parquet")
+    games = pd.read_parquet(where / "games.parquet")
     missing = set(chess_ladder.COLUMNS) - set(games.columns)
     if missing:
-        raise store.StoreError(f"{out / LADDER / 'games.parquet'}: not a ladder's games (no {sorted(missing)})")
+        raise store.StoreError(f"{where / 'games.parquet'}: not a ladder's games (no {sorted(missing)})")
     return games
 
 
@@ -145,11 +147,10 @@ def anchor_of(games: pd.DataFrame) -> tuple[str, float]:
     return (rung.name, float(rung.options["UCI_Elo"])) if scored > 0 else (RANDOM, 0.0)
 
 
-def ladder_table(games: pd.DataFrame, anchor: tuple[str, float]) -> pd.DataFrame:
-    """Per player: games, wins, draws, losses and score over all its games; against the random player; its rating
-    with a 95% bootstrap interval."""
+def ladder_table(games: pd.DataFrame, ratings: dict[str, Estimate]) -> pd.DataFrame:
+    """Per player: its rating, and its games, wins, draws, losses and score over all its games and against the
+    random player, strongest first."""
     played = games_of(games)
-    ratings = bootstrap_ratings(played, anchor[0], anchor[1], seed=0)
     overall = player_records(played)
     against_random = player_records(g for g in played if RANDOM in (g.white, g.black))
     rows = []
@@ -163,9 +164,8 @@ def ladder_table(games: pd.DataFrame, anchor: tuple[str, float]) -> pd.DataFrame
     return pd.DataFrame(rows)
 
 
-def ladder_figure(games: pd.DataFrame, anchor: tuple[str, float]) -> Figure:
+def ladder_figure(ratings: dict[str, Estimate], anchor: tuple[str, float]) -> Figure:
     """Each player's rating with its 95% interval, strongest at the top."""
-    ratings = bootstrap_ratings(games_of(games), anchor[0], anchor[1], seed=0)
     ordered = sorted(ratings.items(), key=lambda item: item[1].value)
     figure = Figure(figsize=(7, 0.5 * len(ordered) + 1.2))
     ax = figure.subplots()
@@ -189,7 +189,7 @@ def answer_lines(table: pd.DataFrame, judged_label: str, difference: str, seeds:
             f"The ladder, strongest first (Elo, 95% intervals): {order}."]
 
 
-def best_score(table: pd.DataFrame) -> str:
+def learners_against_random(table: pd.DataFrame) -> str:
     learners = table[~table["player"].isin([RANDOM, MATERIAL]) & ~table["player"].str.startswith("stockfish")]
     return "; ".join(f"{player} {score}" for player, score in zip(learners["player"],
                                                                   learners["score against random"], strict=True))
@@ -213,17 +213,17 @@ def _build_report(out: Path, videos: bool) -> Report:
             continue
         judged = found.judged[key]
         env_runs = {name: r for name, r in found.runs.items() if r.config.env == env}
-        games = load_ladder(out, env_runs)
+        games = load_ladder(out, env, env_runs)
         anchor = anchor_of(games)
-        table = ladder_table(games, anchor)
+        ratings = bootstrap_ratings(games_of(games), *anchor, seed=0)
+        table = ladder_table(games, ratings)
         table_file = write_table(table, out / "tables", f"chess_ladder_{env}")
-        figure = save_figure(ladder_figure(games, anchor), out / "figures" / f"ladder-{env}.png")
+        figure = save_figure(ladder_figure(ratings, anchor), out / "figures" / f"ladder-{env}.png")
         curves = curves_drawn(found.runs, env, "steps", out / "figures" / f"curves-{env}.png", "environment steps")
         seeds = min(len(r.seeds) for r in env_runs.values())
-        label = judged.label if judged.label != NEITHER_LEARNT else NEITHER_LEARNT
-        lines += answer_lines(table, label, judged.paired.difference.format(2), seeds, game)
+        lines += answer_lines(table, judged.label, judged.paired.difference.format(2), seeds, game)
         lines.append(f"Score against the random player over the ladder's games (95% Wilson intervals): "
-                     f"{best_score(table)}.")
+                     f"{learners_against_random(table)}.")
         steps = {r.config.method_config().total_steps for r in env_runs.values()}
         sections.append(Section(f"{game}: the ladder", [
             f"Every network (each seed's, pooled by method) played {games['white_seed'].ge(0).sum():,} of the "
