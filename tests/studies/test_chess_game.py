@@ -110,3 +110,17 @@ def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monk
     assert "apt-get install stockfish" in " ".join(result.output.split())
     assert "Traceback" not in result.output
     assert not any((tmp_path / "out").glob("pqn_*"))  # refused before anything trained
+
+
+def test_the_ratings_are_anchored_at_stockfish_only_where_the_ladder_reaches_it_by_points():
+    from rlcompare.studies.chess_game import anchor_of
+
+    def games(*rows):
+        return pd.DataFrame(rows, columns=["white", "black", "score"])
+
+    engines_only = games(("stockfish-skill0-depth1", "stockfish-elo1350", 1.0), ("random", "stockfish-skill0-depth1",
+                                                                               0.0))
+    assert anchor_of(engines_only) == ("random", 0.0)  # Stockfish's points against Stockfish reach no one else
+    drawn = pd.concat([engines_only, games(("stockfish-skill0-depth1", "material", 0.5))], ignore_index=True)
+    assert anchor_of(drawn) == ("stockfish-elo1350", 1350.0)
+    assert anchor_of(games(("Q(λ)", "random", 1.0))) == ("random", 0.0)

@@ -109,8 +109,9 @@ def test_the_ladder_plays_stockfish_in_pairs_and_rates_from_its_anchor(chess_run
     assert set(network["white_seed"].where(network["white"] == "Q(λ)", network["black_seed"])) == {0}
     assert all(record.game.headers["Result"] in ("1-0", "0-1", "1/2-1/2") for record in records)
     anchor = anchor_of(games)
-    scored = pd.concat([games[games["black"] == "stockfish-elo1350"]["score"],
-                        1 - games[games["white"] == "stockfish-elo1350"]["score"]]).sum()
-    assert anchor == (("stockfish-elo1350", 1350.0) if scored > 0 else ("random", 0.0))
+    engine_white, engine_black = (games[side].str.startswith("stockfish") for side in ("white", "black"))
+    others = pd.concat([games[engine_white & ~engine_black]["score"].rsub(1),
+                        games[engine_black & ~engine_white]["score"]]).sum()
+    assert anchor == (("stockfish-elo1350", 1350.0) if others > 0 else ("random", 0.0))
     table = ladder_table(games, bootstrap_ratings(games_of(games), *anchor, seed=0))
     assert table["player"].iloc[0].startswith("stockfish")  # strongest first

@@ -46,6 +46,8 @@ LEARNT = margin("chess", "learnt (result above the random player's)")
 WON_EVERY_GAME = 1.0
 """The reference a result is measured against: +1, winning every game against the random player."""
 DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
+STOCKFISH = "stockfish"
+"""What the Stockfish rungs' names begin with."""
 LADDER = "ladder"
 """The directory, inside the study's, of each game's ladder: its games and what they were played from."""
 
@@ -138,13 +140,12 @@ def load_ladder(out: Path, env: str, runs: dict[str, DeepResults]) -> pd.DataFra
 # --- the report -------------------------------------------------------------------------------------------------
 
 def anchor_of(games: pd.DataFrame) -> tuple[str, float]:
-    """Stockfish's ``UCI_Elo`` 1350 where some other player scored against it (a rung within reach), else the
-    random player at 0."""
-    rung = ELO_1350
-    against = games[(games["white"] == rung.name) | (games["black"] == rung.name)]
-    scored = ((against["white"] != rung.name) * against["score"]
-              + (against["black"] != rung.name) * (1 - against["score"])).sum()
-    return (rung.name, float(rung.options["UCI_Elo"])) if scored > 0 else (RANDOM, 0.0)
+    """Stockfish's ``UCI_Elo`` 1350 where some player other than Stockfish scored against a Stockfish rung (the
+    ladder reaches it by points, not only by the prior's virtual draws), else the random player at 0."""
+    engine = games["white"].str.startswith(STOCKFISH) != games["black"].str.startswith(STOCKFISH)
+    others_points = np.where(games["white"].str.startswith(STOCKFISH), 1 - games["score"], games["score"])
+    reached = float(others_points[engine.to_numpy()].sum()) > 0
+    return (ELO_1350.name, float(ELO_1350.options["UCI_Elo"])) if reached else (RANDOM, 0.0)
 
 
 def ladder_table(games: pd.DataFrame, ratings: dict[str, Estimate]) -> pd.DataFrame:
@@ -190,7 +191,7 @@ def answer_lines(table: pd.DataFrame, judged_label: str, difference: str, seeds:
 
 
 def learners_against_random(table: pd.DataFrame) -> str:
-    learners = table[~table["player"].isin([RANDOM, MATERIAL]) & ~table["player"].str.startswith("stockfish")]
+    learners = table[~table["player"].isin([RANDOM, MATERIAL]) & ~table["player"].str.startswith(STOCKFISH)]
     return "; ".join(f"{player} {score}" for player, score in zip(learners["player"],
                                                                   learners["score against random"], strict=True))
 
