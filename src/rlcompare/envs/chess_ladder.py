@@ -65,35 +65,31 @@ class RandomPlayer:
     def name(self) -> str:
         return self._name
 
+    def candidates(self, board: chess.Board) -> list[chess.Move]:
+        """The moves it draws from: every legal one."""
+        return sorted_moves(board)
+
     def move(self, board: chess.Board) -> chess.Move:
-        moves = sorted_moves(board)
+        moves = self.candidates(board)
         return moves[int(self.rng.integers(len(moves)))]
 
     def close(self) -> None:
         """Holds nothing."""
 
 
-class MaterialPlayer:
+class MaterialPlayer(RandomPlayer):
     """One ply deep: takes the most valuable piece it can; ties, and positions with nothing to take, uniformly at
     random among the candidates."""
 
     def __init__(self, seed: int, name: str = "material") -> None:
-        self._name = name
-        self.rng = np.random.default_rng(seed)
+        super().__init__(seed, name)
 
-    @property
-    def name(self) -> str:
-        return self._name
-
-    def move(self, board: chess.Board) -> chess.Move:
+    def candidates(self, board: chess.Board) -> list[chess.Move]:
+        """The legal moves that take the most."""
         moves = sorted_moves(board)
         values = [captured_value(board, move) for move in moves]
         top = max(values)
-        best = [move for move, value in zip(moves, values, strict=True) if value == top]
-        return best[int(self.rng.integers(len(best)))]
-
-    def close(self) -> None:
-        """Holds nothing."""
+        return [move for move, value in zip(moves, values, strict=True) if value == top]
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.ratings import bootstrap_ratings, player_records
 from rlcompare.studies import chess_ladder
 from rlcompare.studies.chess_ladder import MATERIAL, RANDOM, Learner, games_of
+from rlcompare.studies.chess_stages import stage_games
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
 from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, train
@@ -227,8 +228,8 @@ def _build_report(out: Path, videos: bool) -> Report:
                      f"{learners_against_random(table)}.")
         steps = {r.config.method_config().total_steps for r in env_runs.values()}
         sections.append(Section(f"{game}: the ladder", [
-            f"Every network (each seed's, pooled by method) played {games['white_seed'].ge(0).sum():,} of the "
-            f"{len(games):,} games as White; each pairing in pairs of games, colours swapped. Ratings: a "
+            f"{len(games):,} games, each pairing in pairs of games with colours swapped; a method's networks (every "
+            f"seed's) are one player. Ratings: a "
             f"Bradley-Terry fit on the Elo scale over every game (a draw half a win), one virtual draw between every "
             f"pair that met, anchored at {anchor[0]} = {anchor[1]:g}; 95% intervals from 1,000 bootstrap resamples "
             f"of the games within each pairing. Training: {', '.join(f'{s:,}' for s in sorted(steps))} steps per "
@@ -243,8 +244,6 @@ def _build_report(out: Path, videos: bool) -> Report:
 def stage_section(out: Path, runs: dict[str, DeepResults], env: str) -> Section:
     """Each method's first seed at three stages of learning: one game each as White against the random player, its
     last position drawn and its record written (PGN for chess, pgx's FEN of every position for Gardner's)."""
-    from rlcompare.studies.chess_stages import stage_games
-
     figures, paragraphs = stage_games(out, runs, env)
     return Section(f"{game_title(env)}: the networks at three stages of learning", paragraphs, figures=figures)
 
