@@ -100,6 +100,7 @@ def test_uci_refuses_a_network_of_gardners_game_in_one_line(study):
     assert "Traceback" not in result.output
 
 
+@pytest.mark.slow("imports the deep engine in the command")
 def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monkeypatch):
     from rlcompare.envs import chess_ladder
 

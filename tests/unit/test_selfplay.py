@@ -45,6 +45,7 @@ def test_sarsa_bootstraps_from_the_reply_played_even_where_the_mask_would_forbid
     assert float(bootstrap_values("sample", Q, jnp.array([2]), jnp.float32(0.1), LEGAL)[0]) == 1.0
 
 
+@pytest.mark.slow("4,000 draws vmapped, compiled")
 def test_epsilon_greedy_never_draws_an_illegal_move() -> None:
     keys = jax.random.split(jax.random.key(0), 4000)
     drawn = np.asarray(jax.vmap(lambda k: epsilon_greedy(k, Q, jnp.float32(1.0), LEGAL)[0])(keys))
@@ -55,6 +56,7 @@ def test_epsilon_greedy_never_draws_an_illegal_move() -> None:
     assert (greedy_only == 3).all()
 
 
+@pytest.mark.slow("4,000 draws vmapped, compiled")
 def test_a_uniform_legal_draw_is_uniform_over_many_actions() -> None:
     legal = jnp.zeros((1, 50), bool).at[0, jnp.array([4, 17, 33, 49])].set(True)
     keys = jax.random.split(jax.random.key(1), 4000)
@@ -86,6 +88,7 @@ def test_the_games_are_registered_as_two_player_games() -> None:
     assert jax_env("chess").observation_shape == (8, 8, 21)
 
 
+@pytest.mark.slow("compiles pgx's chess step")
 @float64
 def test_the_mover_is_rewarded_for_mate_and_every_move_is_from_its_side() -> None:
     """Fool's mate in pgx's chess: +1 to the side that mates, the observation always from the side to move."""
@@ -158,6 +161,7 @@ def test_the_material_player_counts_captures_as_python_chess_does() -> None:
     assert en_passant_seen >= 1
 
 
+@pytest.mark.slow("builds a PQN program on Gardner's game")
 def test_only_pqn_plays_a_two_player_game() -> None:
     from rlcompare.deep.config import DeepConfig
     from rlcompare.validation import ConfigError
