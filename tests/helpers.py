@@ -60,9 +60,20 @@ ENV = {**os.environ, "COLUMNS": "300"}
 
 
 def start(command: list[str], log: Path, env: dict[str, str] = ENV) -> subprocess.Popen[bytes]:
-    """``command`` in a process group of its own (killed whole), its output to ``log``."""
+    """``command`` in a process group of its own (killed whole), its output to ``log``, with SIGINT and SIGTERM as a
+    terminal's process has them (:func:`default_signals`)."""
     with log.open("wb") as output:
-        return subprocess.Popen(command, stdout=output, stderr=output, start_new_session=True, env=env)
+        return subprocess.Popen(command, stdout=output, stderr=output, start_new_session=True, env=env,
+                                preexec_fn=default_signals)
+
+
+def default_signals() -> None:
+    """In a child before it runs its command: SIGINT and SIGTERM at their default actions and not blocked. A child
+    inherits an ignored or blocked signal from the process that starts it, and a test worker that has run the rest
+    of the suite may hold them so: the signal tests then saw their Ctrl-C go unheard."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
 
 
 def kill_when(process: subprocess.Popen[bytes], ready: Callable[[], bool], log: Path, timeout: float = 240) -> None:
