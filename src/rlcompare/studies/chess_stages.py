@@ -35,9 +35,7 @@ def stage_game(game: ChessGameEnv, act: Any, params: Any, key: jax.Array) -> tup
     choose = jax.jit(lambda state: act(params, game.observe(state)[None], game.legal(state)[None])[0])
     reply = jax.jit(lambda state, k: random_mover(game, jax.tree.map(lambda x: x[None], state), k)[0])
     step = jax.jit(game.step)
-    state = game.reset(key)
-    white = int(game.colour(state)) == 0
-    assert white, "a game starts with White to move"
+    state = game.reset(key)  # White to move: the network's
     states, actions, result = [state], [], 0.0
     for ply in range(game.game.max_plies):
         action = int(choose(state) if ply % 2 == 0 else reply(state, jax.random.fold_in(key, ply)))
