@@ -34,7 +34,6 @@ from rlcompare.envs.registry import table_of
 from rlcompare.envs.table import TableEnv
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
-from rlcompare.experiment.runner import run_or_load
 from rlcompare.report import plots
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.report.page import Section, save_figure, write_report
@@ -42,7 +41,7 @@ from rlcompare.stats.curves import mean_band
 from rlcompare.stats.intervals import interval
 from rlcompare.studies import book_6_3
 from rlcompare.studies.contrast import contrast_table, sibling_studies
-from rlcompare.studies.interface import UI, Report, Seeded
+from rlcompare.studies.interface import UI, Report, Seeded, run_each
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 
@@ -73,15 +72,8 @@ class BookStudy:
         """Each configuration into ``out / name``, or loaded when already complete there."""
         extra = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)
                  if f.name not in ("seeds", "first_seed")}
-        configs = self.configs(options.seed_range, **extra)
-        runs = {}
-        with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
-            for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
-                                                     progress=lambda n: advance(study, n), train=self.train,
-                                                     load=self.load):
-                runs[name] = results
-                ui.done(name, results, reused)
-        return runs
+        return run_each(out, self.configs(options.seed_range, **extra), ui, study=study, force=force,
+                        train=self.train, load=self.load)
 
     def report(self, out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True
                ) -> Report:

@@ -29,8 +29,7 @@ import pandas as pd
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, parse
-from rlcompare.experiment.runner import run_or_load
-from rlcompare.studies.interface import UI
+from rlcompare.studies.interface import UI, run_each
 from rlcompare.studies.registry import ChessEndgameOptions
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -90,13 +89,7 @@ def study_configs(options: ChessEndgameOptions) -> dict[str, ExperimentConfig]:
 def run(out: Path, options: ChessEndgameOptions, ui: UI, *, study: str = STUDY, force: bool = False
         ) -> dict[str, Results]:
     """Each configuration into ``out / name``, or loaded where it is complete there."""
-    configs = study_configs(options)
-    runs = {}
-    with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
-        for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
-                                                 progress=lambda n: advance(study, n)):
-            runs[name] = results
-            ui.done(name, results, reused)
+    runs = run_each(out, study_configs(options), ui, study=study, force=force)
     ui.table(*summary(measured(runs, played(runs))))
     return runs
 

@@ -11,8 +11,8 @@ Stockfish rung.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
+from contextlib import closing
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,7 +27,7 @@ from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import material_mover, play, policy_mover, random_mover
 from rlcompare.deep.train import params_template
-from rlcompare.envs.chess_ladder import ELO_1350, SKILL_0, GameRecord, StockfishPlayer, StockfishRung, play_pairs
+from rlcompare.envs.chess_ladder import ELO_1350, SKILL_0, GameRecord, StockfishPlayer, play_pairs
 from rlcompare.stats.ratings import Game
 
 RANDOM, MATERIAL = "random", "material"
@@ -117,15 +117,6 @@ def played(result: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[np.ndarray, 
     return np.asarray(result[0]), np.asarray(result[1])
 
 
-@contextlib.contextmanager
-def stockfish(rung: StockfishRung) -> Iterator[StockfishPlayer]:
-    player = StockfishPlayer(rung)
-    try:
-        yield player
-    finally:
-        player.close()
-
-
 def record_rows(records: list[GameRecord], seeds: Mapping[str, int]) -> list[dict[str, Any]]:
     """Rows of python-chess games; ``seeds`` gives the seed of a network player by its name in the games."""
     return [{"white": r.white.split(" #")[0], "black": r.black.split(" #")[0],
@@ -141,7 +132,7 @@ def stockfish_games(game: ChessGameEnv, learners: list[Learner], pairs: int
 
     records: list[GameRecord] = []
     seeds: dict[str, int] = {}
-    with stockfish(SKILL_0) as weak, stockfish(ELO_1350) as strong:
+    with closing(StockfishPlayer(SKILL_0)) as weak, closing(StockfishPlayer(ELO_1350)) as strong:
         records += play_pairs(weak, strong, pairs)
         for fixed in (RandomPlayer(0), MaterialPlayer(0)):
             records += play_pairs(fixed, weak, pairs)

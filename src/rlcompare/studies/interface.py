@@ -110,6 +110,22 @@ class UI:
         yield
 
 
+def run_each(out: Path, configs: dict[str, Any], ui: UI, *, study: str, force: bool = False,
+             **options: Any) -> dict[str, Any]:
+    """Each configuration into ``out / name``, or loaded where it is complete there
+    (:func:`~rlcompare.experiment.runner.run_or_load`, given ``options``), under one count of their episodes,
+    telling ``ui`` of each as it finishes."""
+    from rlcompare.experiment.runner import run_or_load
+
+    runs = {}
+    with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
+        for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
+                                                 progress=lambda n: advance(study, n), **options):
+            runs[name] = results
+            ui.done(name, results, reused)
+    return runs
+
+
 def run_trials(sweep: Any, backend: str, workers: int | None, address: str | None, where: str, ui: UI,
                run: Callable[[Any, Callable[[Any], None]], tuple[int, int]]) -> tuple[int, int]:
     """Connect ``backend`` before anything is written (a :class:`~rlcompare.experiment.backends.BackendError`

@@ -34,13 +34,12 @@ from matplotlib.figure import Figure
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
-from rlcompare.experiment.runner import run_or_load
 from rlcompare.formatting import NO_DATA, number
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.stats.metrics import returns_per_seed
-from rlcompare.studies.interface import UI, Report
+from rlcompare.studies.interface import UI, Report, run_each
 from rlcompare.studies.registry import WhyOptions
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -84,14 +83,7 @@ def why_configs(seeds: tuple[int, ...], episodes: int = WhyOptions.episodes) -> 
 def run(out: Path, options: WhyOptions, ui: UI, *, study: str = STUDY, force: bool = False
         ) -> dict[str, Results]:
     """Each cell into ``out / name``, or loaded when already complete there."""
-    configs = why_configs(options.seed_range, options.episodes)
-    runs = {}
-    with ui.tasks({study: sum(c.episodes for c in configs.values())}) as advance:
-        for name, results, reused in run_or_load(Path(out), configs, study=study, force=force,
-                                                 progress=lambda n: advance(study, n)):
-            runs[name] = results
-            ui.done(name, results, reused)
-    return runs
+    return run_each(out, why_configs(options.seed_range, options.episodes), ui, study=study, force=force)
 
 
 def windows(episodes: int) -> dict[str, tuple[int, int]]:
