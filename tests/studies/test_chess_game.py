@@ -43,6 +43,7 @@ def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
     assert set(ladder["player"]) == {"random", "material", "Q(λ)", "SARSA(λ)"}
     assert ladder.loc[ladder["player"] == "random", "rating (Elo)"].item() == "0 [0, 0]"  # the anchor
     assert "The ladder, strongest first" in " ".join(output.split())
+    assert "With 2 seeds the learning gate cannot pass" in " ".join(output.split())
     page = (out / "report.html").read_text()
     assert "ladder-gardner_chess.png" in page
     records = sorted(p.name for p in (out / "games").iterdir())
