@@ -13,6 +13,7 @@ from rlcompare.deep.envs import is_game
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.train import params_template
+from rlcompare.envs import atari
 from rlcompare.envs.observations import check_box_observation
 
 if TYPE_CHECKING:  # pgx and python-chess are imported where a chess network plays, not by every deep run
@@ -22,7 +23,8 @@ if TYPE_CHECKING:  # pgx and python-chess are imported where a chess network pla
 
 
 class DeepAgent:
-    """The greedy policy of one seed's network at one stage of learning: ``act(observation) -> action``."""
+    """The greedy policy of one seed's network at one stage of learning: ``act(observation) -> action``, for an
+    observation of Gymnasium's own environment (an Atari game's: :func:`rlcompare.envs.atari.gymnasium_env`)."""
 
     def __init__(self, results: DeepResults, seed: int, stage: str = "final") -> None:
         config = results.config
@@ -36,6 +38,8 @@ class DeepAgent:
         """The greedy action for one observation as Gymnasium's ``env.step`` returns it."""
         if isinstance(observation, np.ndarray) and observation.dtype == np.bool_:  # MinAtar's images
             observation = observation.astype(np.float32)
+        if self.config.env in atari.NAMES:  # Gymnasium's stack of frames first, the engine's last
+            observation = np.moveaxis(np.asarray(observation), 0, -1)
         checked = check_box_observation(observation, self._shape, self.config.env).astype(np.float32)
         return int(self._act(self.params, checked[None])[0])
 

@@ -6,13 +6,15 @@ The emulator's state lives outside JAX, so this environment is batched, not vmap
 all its parallel games at once (:func:`rlcompare.deep.envs.reset_all`, :func:`~rlcompare.deep.envs.step_all`),
 and a training holds one emulator per role (training, evaluation). The state JAX carries is the current
 observation. One seed trains at a time (``vmap_width`` 1): under ``vmap`` the callbacks of several seeds would
-share one emulator. A game's draws (sticky actions) come from the emulator's generator, seeded at each reset
-from the training's key, so a seed's training is the same each time it runs.
+share one emulator; and one program plays the process's emulators at a time (:func:`rlcompare.deep.envs.playing`).
+A game's draws (sticky actions) come from the emulator's generator, seeded at each reset from the training's key,
+so a seed's training is the same each time it runs.
 """
 
 from __future__ import annotations
 
 import atexit
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -65,6 +67,10 @@ class AtariEnv:
     @property
     def max_steps(self) -> int:
         return self.protocol.max_steps
+
+    @property
+    def eval_epsilon(self) -> float:
+        return self.protocol.eval_epsilon
 
     @staticmethod
     def learning_reward(reward: jax.Array) -> jax.Array:
@@ -152,6 +158,55 @@ def atari_env(name: str) -> AtariEnv:
     return AtariEnv(name, atari.NAMES[name])
 
 
+NHWC = ("NHWC", "HWIO", "NHWC")
+
+
+def _convolved(x: jax.Array, kernel: jax.Array, stride: int) -> jax.Array:
+    return jax.lax.conv_general_dilated(x, kernel, (stride, stride), "VALID", dimension_numbers=NHWC)
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(2,))
+def convolved(x: jax.Array, kernel: jax.Array, stride: int) -> jax.Array:
+    """A valid convolution whose kernel's gradient is a product of the input's patches and the output's gradient.
+    XLA:CPU's own kernel gradient (a convolution over the batch) runs 15 to 40 times slower inside a loop than
+    outside one, and a training's gradients are all inside loops (``docs/atari.md``, "Cost, measured"); the
+    product is as fast in a loop as out of it. The value and the input's gradient are XLA's own."""
+    return _convolved(x, kernel, stride)
+
+
+def _forward(x: jax.Array, kernel: jax.Array, stride: int) -> tuple[jax.Array, tuple[jax.Array, jax.Array]]:
+    return _convolved(x, kernel, stride), (x, kernel)
+
+
+def _backward(stride: int, saved: tuple[jax.Array, jax.Array], gradient: jax.Array) -> tuple[jax.Array, jax.Array]:
+    x, kernel = saved
+    _, input_gradient = jax.vjp(lambda x: _convolved(x, kernel, stride), x)
+    rows, columns = gradient.shape[1:3]
+    patches = jnp.stack([jnp.stack([x[:, i:i + stride * (rows - 1) + 1:stride, j:j + stride * (columns - 1) + 1:stride]
+                                    for j in range(kernel.shape[1])], axis=3) for i in range(kernel.shape[0])], axis=3)
+    return input_gradient(gradient)[0], jnp.einsum("nhwijc,nhwf->ijcf", patches, gradient)
+
+
+convolved.defvjp(_forward, _backward)
+
+
+class Conv(nn.Module):
+    """``flax.linen.Conv`` with ``VALID`` padding (the same parameters, initialised alike, the same values), its
+    kernel's gradient taken by :func:`convolved`."""
+
+    features: int
+    size: int
+    stride: int
+    kernel_init: nn.initializers.Initializer = nn.initializers.lecun_normal()
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        kernel = self.param("kernel", self.kernel_init, (self.size, self.size, x.shape[-1], self.features),
+                            jnp.float32)
+        bias = self.param("bias", nn.initializers.zeros_init(), (self.features,), jnp.float32)
+        return convolved(x, kernel, self.stride) + bias
+
+
 class NatureTorso(nn.Module):
     """The body of Mnih et al. (2015)'s network: 32 8 x 8 filters at stride 4, 64 4 x 4 at stride 2, 64 3 x 3 at
     stride 1, dense layers of ``hidden`` (512), each followed by ReLU (after LayerNorm where ``layer_norm``: PQN).
@@ -166,8 +221,7 @@ class NatureTorso(nn.Module):
         leading = x.shape[:-3]
         x = x.reshape(-1, *x.shape[-3:]).astype(jnp.float32) / 255.0
         for features, size, stride in ((32, 8, 4), (64, 4, 2), (64, 3, 1)):
-            x = self.normalised(nn.Conv(features, (size, size), (stride, stride), padding="VALID",
-                                        kernel_init=self.kernel_init, param_dtype=jnp.float32, dtype=jnp.float32)(x))
+            x = self.normalised(Conv(features, size, stride, self.kernel_init)(x))
         x = x.reshape(*leading, -1)
         for width in self.hidden:
             x = self.normalised(nn.Dense(width, kernel_init=self.kernel_init, param_dtype=jnp.float32,

@@ -24,9 +24,11 @@ of every environment, these ports, MinAtar's games (:mod:`rlcompare.deep.minatar
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
@@ -185,6 +187,27 @@ def step_autoreset(env: VmappedEnv, state: Any, action: jax.Array, key: jax.Arra
 def is_batched(env: object) -> TypeIs[BatchedEnv]:
     """Stepped all at once outside JAX (an emulator: :class:`rlcompare.deep.atari.AtariEnv`), not vmapped."""
     return bool(getattr(env, "batched", False))
+
+
+_EMULATORS_IN_USE = threading.RLock()
+
+
+@contextlib.contextmanager
+def playing(env: object) -> Iterator[None]:
+    """Held while a program that steps ``env`` runs: a batched environment's emulators are the process's (one per
+    game, role and width), so programs that play them take turns. Two trainings on two threads would otherwise
+    step and reset each other's games (and crash ale-py). Vmapped environments run side by side freely."""
+    if not is_batched(env):
+        yield
+        return
+    with _EMULATORS_IN_USE:
+        yield
+
+
+def evaluation_epsilon(env: object) -> float:
+    """The chance of a random action in the evaluations during training: 0 (greedy), or the environment's
+    protocol's (Atari's 0.05, Mnih et al. 2015)."""
+    return float(getattr(env, "eval_epsilon", 0.0))
 
 
 def is_game(env: object) -> TypeIs[GameEnv]:

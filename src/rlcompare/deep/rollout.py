@@ -9,7 +9,15 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import Environment, GameEnv, is_game, observe_all, reset_all, step_all
+from rlcompare.deep.envs import (
+    Environment,
+    GameEnv,
+    evaluation_epsilon,
+    is_game,
+    observe_all,
+    reset_all,
+    step_all,
+)
 
 Params = Any
 Act = Callable[..., jax.Array]
@@ -211,7 +219,7 @@ def train_in_rounds(update: Callable[[Any, jax.Array], tuple[Any, Finished]], pa
         runner, (finished, finite) = jax.lax.scan(checked_update, runner,
                                                   jax.random.split(update_key, updates_per_round))
         params = params_of(runner)
-        returns, lengths, terminated = evaluate(env, act, params, eval_key, eval_episodes)
+        returns, lengths, terminated = evaluate(env, act, params, eval_key, eval_episodes, evaluation_epsilon(env))
         keep = kept_after == index
         snapshots = jax.tree.map(
             lambda kept, now: jnp.where(keep.reshape((-1,) + (1,) * now.ndim), now[None], kept), snapshots, params)

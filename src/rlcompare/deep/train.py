@@ -18,7 +18,7 @@ import pandas as pd
 from rlcompare import machine
 from rlcompare.deep import float64, rollout, use_compilation_cache
 from rlcompare.deep.config import DeepConfig
-from rlcompare.deep.envs import is_batched, jax_env
+from rlcompare.deep.envs import is_batched, jax_env, playing
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import TrainOutput
@@ -173,15 +173,16 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
     train = compiled_training(config)
     compile_seconds = time.perf_counter() - started
     check_memory(config, train)
-    started = time.perf_counter()
-    outputs = []
-    for group, padded in groups(config.seeds, config.vmap_width):
-        output = jax.device_get(jax.block_until_ready(train(seed_keys(padded))))
-        kept = len(group)
-        outputs.append(jax.tree.map(lambda x, kept=kept: x[:kept], output))
-        if progress is not None:
-            progress(len(group))
-    wall = time.perf_counter() - started
+    with playing(config.environment):  # an emulator's trainings take turns
+        started = time.perf_counter()
+        outputs = []
+        for group, padded in groups(config.seeds, config.vmap_width):
+            output = jax.device_get(jax.block_until_ready(train(seed_keys(padded))))
+            kept = len(group)
+            outputs.append(jax.tree.map(lambda x, kept=kept: x[:kept], output))
+            if progress is not None:
+                progress(len(group))
+        wall = time.perf_counter() - started
     output = jax.tree.map(lambda *parts: np.concatenate(parts), *outputs)
     done = output.finished.done  # (seeds, rounds, updates per round, steps per update, environments)
     steps_per_round = int(np.prod(done.shape[2:]))

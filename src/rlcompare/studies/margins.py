@@ -46,6 +46,17 @@ MARGINS = {m.study + ": " + m.bounds: m for m in (
            "two policies that have learnt nothing yet"),
     Margin("minatar", "over the games (normalised score)", 0.05, "normalised score",
            "5% of the distance from a random policy (0) to the MinAtar paper's DQN at 5 M frames (1), game by game"),
+    Margin("atari", "a game (final return)", 0.1, "share of the random-to-human range",
+           "a tenth of the way from the published random score to the published human score (human-normalised 0.1), "
+           "in the game's own points (Breakout 2.9, Pong 3.5): the unit every Atari paper reads, and a tenth of it "
+           "is a gap that separates published agents"),
+    Margin("atari", "learnt (final return above random)", 0.05, "share of the random-to-human range",
+           "a method has learnt a game when its final return beats the published random score by a twentieth of the "
+           "random-to-human range (one-sided signed-rank test, α = 0.05): Atari's budgets are short beside the "
+           "games' scale, and a twentieth still rules out a policy no better than chance"),
+    Margin("atari", "over the games (human-normalised score)", 0.05, "human-normalised score",
+           "5% of the distance from the random score (0) to the human score (1), game by game, as MinAtar's overall "
+           "margin"),
     Margin("chess-endgames", "mate rate", 0.05, "share of the evaluation starts",
            "ten of the 200 evaluation starts: below it two policies mate from the same positions but a handful"),
     Margin("chess-endgames", "optimal share", 0.05, "share of the evaluation starts",

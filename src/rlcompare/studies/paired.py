@@ -96,6 +96,13 @@ class PairedStudy:
     0 (random) to 1 (the reference), and the pair is compared only where a method has learnt it (:meth:`learnt`)."""
     learnt_share: float = 0.0
     """The share of that range a method's final return must beat the random policy's by to have learnt."""
+    floors: Mapping[str, float] = field(default_factory=dict)
+    """Per environment, a published random policy's score (Atari's table), the floor of its normalised scores in
+    place of the random policy played in the port (:func:`random_floor`)."""
+
+    def floor_of(self, env: str) -> float:
+        """The random policy's score on ``env``: published, or played in the port."""
+        return self.floors[env] if env in self.floors else random_floor(env)
 
     def margin_of(self, env: str, floor: float | None) -> float:
         """The environment's margin in its own units: declared, or a share of its random-to-reference range."""

@@ -36,7 +36,6 @@ from rlcompare.studies.paired import (
     load_runs,
     pair_of,
     per_seed,
-    random_floor,
     run_of,
     seconds_per_step,
 )
@@ -157,10 +156,11 @@ def short_label(method: str) -> str:
 
 
 def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games",
-           floors: Mapping[str, float] | None = None, references: Mapping[str, float] | None = None) -> list[str]:
+           floors: Mapping[str, float] | None = None, references: Mapping[str, float] | None = None,
+           measure: str = "final greedy return") -> list[str]:
     """The answer in plain words, from :func:`judged` by each row's name: a sentence for the environments (one
     neither method learnt says so, with the random policy's return and the reference where given), one for the
-    comparison :data:`OVERALL`."""
+    comparison :data:`OVERALL`; ``measure`` names what is compared."""
     on, off = (short_label(method) for method in PAIR)
     each = []
     for name, j in compared.items():
@@ -174,7 +174,7 @@ def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games",
             continue
         gap, interval = gap_and_interval(j.paired.difference)
         each.append(f"on {name} {gap} ({interval}; {j.label})")
-    sentences = [f"On-policy {on} against off-policy {off}, final greedy return per episode, {seeds} paired seeds: "
+    sentences = [f"On-policy {on} against off-policy {off}, {measure} per episode, {seeds} paired seeds: "
                  f"{on} scores {'; '.join(each)}."] if each else []
     if OVERALL in compared:
         paired, label = compared[OVERALL].paired, compared[OVERALL].label
@@ -212,7 +212,7 @@ def findings(out: Path, study: PairedStudy) -> Findings:
     runs, beside, problems = load_runs(out)
     problems += [note for results in runs.values() if (note := results.divergence())]
     envs = [env for env in study.envs if any(r.config.env == env for r in runs.values())]
-    floors = {env: random_floor(env) for env in envs} if len(envs) > 1 or study.references else {}
+    floors = {env: study.floor_of(env) for env in envs} if len(envs) > 1 or study.references else {}
     spread = across(runs, envs, floors, study.method_order, study.references) if len(envs) > 1 else None
     compared = judged(study, runs, beside, floors, spread)
     verdicts = verdict_table(study, compared)

@@ -125,6 +125,43 @@ class MinAtarOptions(Seeded):
             listed("games", self.games, tuple(GAMES))
 
 
+ATARI_BUDGETS = ("smoke", "100k", "10m", "200m")
+
+
+@dataclass(frozen=True)
+class AtariOptions(Seeded):
+    """Q(λ) against SARSA(λ) on the Atari 2600 (:mod:`rlcompare.studies.atari`)."""
+
+    seeds: int = option(2, minimum=1, spellings=("--runs",))
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
+    at α = 0.05: the smoke budget checks the pipeline, not the question)."""
+    budget: str = "smoke"
+    """smoke (Breakout, 16,384 steps: the whole pipeline in about 15 minutes on 2 CPU cores), 100k (Atari 100k's 26
+    games, 100,000 steps), 10m (Atari-5, 10 M steps = 40 M frames) or 200m (Atari-5, purejaxql's 200 M frames);
+    docs/atari.md says what each takes."""
+    games: str | None = None
+    """A set of games (atari5, atari100k, breakout-pong, atari57, breakout) or comma-separated titles as Gymnasium
+    spells them (Breakout, Pong, Qbert, ...). Default: the budget's."""
+    steps: int | None = option(None, minimum=1)
+    """Agent steps (4 frames each) of every training, in place of the budget's."""
+    methods: str = "pqn_sarsa_lambda,pqn_q_lambda"
+    """Comma-separated deep methods (docs/deep.md), each with its Atari preset: by default the paper's pair,
+    SARSA(λ) and Peng's Q(λ); 'all' for every one."""
+    videos: bool = True
+    """Render each method's agent at three stages of learning, playing Gymnasium's ALE/<Game>-v5."""
+    address: str | None = None
+    """Train on the Ray cluster at this address ('auto', or HOST:PORT), each training a task, instead of on this
+    machine."""
+
+    def check(self) -> None:
+        from rlcompare.envs.atari_scores import chosen_games
+
+        if self.budget not in ATARI_BUDGETS:
+            raise ConfigError("budget", self.budget, f"one of {', '.join(ATARI_BUDGETS)}")
+        if self.games is not None:
+            chosen_games(self.games)
+
+
 @dataclass(frozen=True)
 class ChessEndgameOptions(Seeded):
     """Q-Learning against SARSA on chess endgames (:mod:`rlcompare.studies.chess_endgames`)."""
@@ -251,6 +288,8 @@ STUDIES = {study.name: study for study in (
           DeepOptions, "rlcompare.studies.deep", extra="deep"),
     Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
           "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
+    Study("atari", "the question on the Atari 2600 through Gymnasium's ALE: Q(λ) vs SARSA(λ), human-normalised "
+          "scores (the 'atari' extra)", AtariOptions, "rlcompare.studies.atari", extra="atari"),
     Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
           "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess_report"),
     Study("chess", "the question on a whole game in self-play: Q(λ) vs SARSA(λ) on Gardner's minichess or chess, "
