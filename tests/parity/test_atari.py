@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pandas as pd
 import pytest
 
 jax = pytest.importorskip("jax")
@@ -18,7 +19,7 @@ import jax.numpy as jnp  # noqa: E402
 from rlcompare.deep import dqn, dqn_config, ppo, ppo_config, pqn  # noqa: E402
 from rlcompare.deep.atari import AtariEnv, NatureCNN, atari_env, reset_seed  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
-from rlcompare.deep.envs import jax_env, jax_env_names, learning_reward  # noqa: E402
+from rlcompare.deep.envs import evaluation_epsilon, jax_env, jax_env_names, learning_reward  # noqa: E402
 from rlcompare.envs import atari  # noqa: E402
 from rlcompare.envs.registry import environment  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402
@@ -152,3 +153,92 @@ def test_several_seeds_side_by_side_are_refused_naming_the_field() -> None:
     with pytest.raises(ConfigError, match="env") as unknown:
         DeepConfig(algorithm="pqn_q_lambda", env="Tetris-Atari", vmap_width=1)
     assert "Breakout-Atari" in str(unknown.value)
+
+
+def _tiny_config(algorithm: str, seed: int) -> DeepConfig:
+    return DeepConfig(algorithm=algorithm, env="Breakout-Atari", seeds=(seed,), vmap_width=1, eval_rounds=2,
+                      eval_episodes=2, hyperparameters={"total_steps": 128, "n_envs": 4, "n_steps": 16,
+                                                        "n_minibatches": 2, "hidden": (32,)})
+
+
+def test_two_trainings_on_two_threads_equal_each_trained_alone() -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    from rlcompare.deep.train import train
+
+    configs = [_tiny_config("pqn_q_lambda", 0), _tiny_config("pqn_sarsa_lambda", 0)]
+    alone = [train(config) for config in configs]
+    with ThreadPoolExecutor(2) as pool:
+        together = list(pool.map(train, configs))
+    for a, b in zip(alone, together, strict=True):
+        pd.testing.assert_frame_equal(a.episodes, b.episodes)
+        pd.testing.assert_frame_equal(a.evaluations, b.evaluations)
+        for name in a.params:
+            np.testing.assert_array_equal(a.params[name], b.params[name])
+    # the two methods learnt differently, so a training that played the other's games would show
+    assert any(not np.array_equal(alone[0].params[n], alone[1].params[n]) for n in alone[0].params)
+
+
+def test_evaluations_play_at_the_protocols_epsilon_and_end_by_the_game() -> None:
+    assert evaluation_epsilon(BREAKOUT) == 0.05
+    assert evaluation_epsilon(jax_env("CartPole-v1")) == 0.0
+    from rlcompare.deep.train import train
+
+    evaluations = train(_tiny_config("pqn_q_lambda", 1)).evaluations
+    # an untrained greedy network that never presses FIRE would play every episode to the 27,000-step cut
+    assert evaluations["terminated"].all()
+    assert (evaluations["length"] < atari.PROTOCOL.max_steps).all()
+
+
+def test_gymnasiums_own_game_shows_the_frames_the_engine_sees() -> None:
+    """Gymnasium's ALE/Breakout-v5 through its AtariPreprocessing and FrameStackObservation, set as training is,
+    gives the engine's observations for the same actions (sticky actions off: their draws come from each
+    library's own generator)."""
+    no_sticky = dataclasses.replace(atari.PROTOCOL, sticky_action_prob=0.0)
+    env = AtariEnv("Breakout-Atari", "breakout", no_sticky)
+    actions = np.random.default_rng(5).integers(0, 18, size=(STEPS, 1)).astype(np.int32)
+
+    def play(key: jax.Array, actions: jax.Array) -> tuple:
+        start = env.reset_batch(jax.random.split(key, 1))
+
+        def one_step(state: jax.Array, action: jax.Array) -> tuple:
+            step = env.step_autoreset_batch(state, action, None)
+            return step.state, (step.last_observation, step.terminated | step.truncated)
+
+        return start, jax.lax.scan(one_step, start, actions)[1]
+
+    start, (lasts, ended) = jax.device_get(jax.jit(play)(jax.random.key(0), jnp.asarray(actions)))
+    gym_env = atari.gymnasium_env("Breakout-Atari", no_sticky)
+    try:
+        observation, _ = gym_env.reset(seed=0)
+        np.testing.assert_array_equal(np.moveaxis(observation, 0, -1), start[0])
+        for t, action in enumerate(actions[:, 0]):
+            observation, _, terminated, truncated, _ = gym_env.step(int(action))
+            np.testing.assert_array_equal(np.moveaxis(observation, 0, -1), lasts[t, 0])
+            assert bool(terminated or truncated) == bool(ended[t, 0])
+            if terminated or truncated:
+                break
+    finally:
+        gym_env.close()
+    assert t > 100  # the comparison saw the ball served and lost
+
+
+def test_the_convolution_is_flaxs_with_the_kernels_gradient_taken_apart() -> None:
+    import flax.linen as nn
+
+    from rlcompare.deep.atari import Conv
+
+    x = jnp.asarray(np.random.default_rng(0).random((3, 20, 20, 32)), jnp.float32)
+    ours, flaxs = Conv(64, 4, 2), nn.Conv(64, (4, 4), (2, 2), padding="VALID")
+    params, reference = ours.init(jax.random.key(1), x), flaxs.init(jax.random.key(1), x)
+    for a, b in zip(jax.tree.leaves(params), jax.tree.leaves(reference), strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(ours.apply(params, x), flaxs.apply(reference, x))
+
+    def gradient(net: nn.Module, p: dict) -> tuple:
+        return jax.grad(lambda p, x: (jnp.sin(net.apply(p, x)) ** 2).sum(), argnums=(0, 1))(p, x)
+
+    (ours_p, ours_x), (flax_p, flax_x) = gradient(ours, params), gradient(flaxs, reference)
+    np.testing.assert_allclose(ours_p["params"]["kernel"], flax_p["params"]["kernel"], rtol=1e-4, atol=1e-5)
+    np.testing.assert_array_equal(ours_p["params"]["bias"], flax_p["params"]["bias"])
+    np.testing.assert_array_equal(ours_x, flax_x)

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.playback import stage_titles
 from rlcompare.deep.results import DeepResults
 from rlcompare.envs import atari, atari_scores
 from rlcompare.experiment import store
@@ -29,10 +30,11 @@ from rlcompare.report.page import Section, save_figure, write_report, write_tabl
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
 from rlcompare.stats.compare import NEITHER_LEARNT
-from rlcompare.studies.atari_play import STAGE_STEPS, play_stages, upscaled
+from rlcompare.studies import atari_play
+from rlcompare.studies.atari_play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, eval_curves, final_returns, train
+from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, final_returns, train
 from rlcompare.studies.paired_report import (
     answer,
     curves_drawn,
@@ -61,7 +63,7 @@ class Budget:
 
 
 BUDGETS = {
-    "smoke": Budget("breakout", 16_384, 4, 8,
+    "smoke": Budget("breakout", 32_768, 4, 8,
                     "about 15 minutes on 2 CPU cores at the default 2 seeds (measured: docs/atari.md)"),
     "100k": Budget("atari100k", 100_000, 10, 8,
                    "about 2.5 hours a game on 2 CPU cores at 2 seeds, from the smoke's measured pace; not run whole"),
@@ -183,25 +185,16 @@ def video_cells(run_dirs: dict[str, Path], runs: dict[str, DeepResults], videos:
     cells, rows = [], []
     for name, results in runs.items():
         seed = results.seeds[0]
-        played = play_stages(run_dirs[name], results, seed)
+        played = play_stages(run_dirs[name], results, seed, atari_play.STAGE_STEPS)
         label = f"{title(results.config.env)}, {DEEP_METHODS[results.config.algorithm].label}, seed {seed}"
-        titles = [f"{stage}: after {steps:,} steps" for stage, steps in zip(results.stages, stage_steps(results),
-                                                                            strict=True)]
-        mp4, gif = render_stages(played, titles, upscaled, videos / f"{name}.mp4", videos / f"{name}.gif")
+        mp4, gif = render_stages(played, stage_titles(results), upscaled, videos / f"{name}.mp4",
+                                 videos / f"{name}.gif")
         cells.append((f"videos/{mp4.name}", f"videos/{gif.name}", f"{label}: {', '.join(results.stages)}"))
         rows += [{"game": title(results.config.env), "method": DEEP_METHODS[results.config.algorithm].label,
                   "seed": seed, "stage": stage, "return": float(played.returns[i, played.lengths[i]]),
                   "steps": int(played.lengths[i]), "game over": bool(played.ended[i])}
                  for i, stage in enumerate(results.stages)]
     return cells, pd.DataFrame(rows)
-
-
-def stage_steps(results: DeepResults) -> list[int]:
-    """The environment steps behind each stage's network."""
-    from rlcompare.deep.rollout import stage_rounds
-
-    steps, _ = eval_curves(results)
-    return [int(steps[r]) for r in stage_rounds(len(steps))]
 
 
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True,
@@ -275,7 +268,7 @@ def _build_report(out: Path, videos: bool) -> Report:
             "Each training's first seed, loaded by rlcompare.load_agent at a tenth, half and the end of its training, "
             "playing Gymnasium's own ALE/<Game>-v5 under the same protocol (AtariPreprocessing and "
             f"FrameStackObservation as in training) from the same start, {EPSILON:g}-greedy with the same draws, for "
-            f"at most {STAGE_STEPS:,} steps, in the game's own pixels." if videos else
+            f"at most {atari_play.STAGE_STEPS:,} steps, in the game's own pixels." if videos else
             "Videos were not rendered (--no-videos)."],
             [("What each stage scored in Gymnasium", played, files["gymnasium"])] if played is not None else [],
             videos=cells),

@@ -225,8 +225,9 @@ def final_returns(results: DeepResults) -> np.ndarray:
 def per_seed(results: DeepResults) -> pd.DataFrame:
     """One row per seed: :func:`~rlcompare.stats.metrics.returns_per_seed` (behaviour, final greedy return, area
     under the greedy curve)."""
-    training = results.episodes.groupby("seed", sort=False)["return"]
-    return returns_per_seed(results.seeds, [training.get_group(seed).to_numpy() for seed in results.seeds],
+    training = {seed: returns.to_numpy() for seed, returns in results.episodes.groupby("seed")["return"]}
+    no_episode = np.full(1, np.nan)  # a seed that finished no training episode (Atari's first steps)
+    return returns_per_seed(results.seeds, [training.get(seed, no_episode) for seed in results.seeds],
                             eval_curves(results)[1])
 
 

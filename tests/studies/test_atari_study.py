@@ -1,0 +1,131 @@
+"""The Atari study through the CLI at a tiny size (a small network in Breakout's PQN preset): its run directories,
+human-normalised tables and report, its agents loaded by load_agent playing Gymnasium's ALE/Breakout-v5, resuming,
+and bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("ale_py")
+pytest.importorskip("cv2")  # Gymnasium's AtariPreprocessing
+
+from helpers import invoke  # noqa: E402
+
+from rlcompare import load_agent  # noqa: E402
+from rlcompare.deep import pqn  # noqa: E402
+from rlcompare.deep.agent import DeepAgent  # noqa: E402
+from rlcompare.envs import atari, atari_scores  # noqa: E402
+from rlcompare.experiment.engines import load_run  # noqa: E402
+from rlcompare.studies import atari_play  # noqa: E402
+from rlcompare.studies.paired import final_returns  # noqa: E402
+
+pytestmark = pytest.mark.slow("trains and reports an Atari study")
+TINY = ["reproduce", "atari", "--seeds", "2", "--steps", "256"]
+SMALL = dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], n_envs=4, n_steps=16, n_minibatches=2,
+                            hidden=(32,))
+"""Breakout's preset with a small network and batch, for the whole module: its runs are loaded with it too."""
+RUNS = ["pqn_q_lambda-Breakout", "pqn_sarsa_lambda-Breakout"]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def small_preset():
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setitem(pqn.PRESETS["default"], "Breakout-Atari", SMALL)
+        patch.setattr(atari_play, "STAGE_STEPS", 40)
+        yield
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("atari") / "study"
+    result = invoke(*TINY, "--out", str(out), columns=300)
+    assert result.exit_code == 0, result.output
+    return out, " ".join(result.output.split())
+
+
+def test_the_study_writes_its_runs_and_a_human_normalised_report(study):
+    out, output = study
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["figures", *RUNS, "tables", "videos"]
+    summary = pd.read_csv(out / "tables" / "atari_summary.csv")
+    assert summary["game"].tolist() == ["Breakout"] * 2
+    breakout = atari_scores.GAMES["Breakout"]
+    assert (summary["random"] == breakout.random).all()
+    assert (summary["human"] == breakout.human).all()
+    for name, row in zip(RUNS, summary.sort_values("method", ascending=False).itertuples(), strict=True):
+        finals = final_returns(load_run(out / name))
+        normalised = (finals - 1.7) / (30.5 - 1.7)  # Mnih et al.'s Breakout: random 1.7, human 30.5
+        assert row._6.startswith(f"{normalised.mean():.3f} [")  # "human-normalised, mean"
+    verdicts = pd.read_csv(out / "tables" / "atari_verdicts.csv")
+    assert verdicts["game"].tolist() == ["Breakout"]
+    assert "final return at ε = 0.05 per episode" in output
+    page = (out / "report.html").read_text()
+    assert page.index(">The answer</h2>") < page.index("paired-differences.png")
+    assert "Needs a method run on all five Atari-5 games" in page
+    assert sorted(p.name for p in (out / "videos").iterdir()) == sorted(
+        f"{run}.{kind}" for run in RUNS for kind in ("gif", "mp4"))
+
+
+def test_the_agents_loaded_by_load_agent_play_gymnasiums_game(study):
+    out, _ = study
+    played = pd.read_csv(out / "tables" / "atari_gymnasium.csv")
+    assert len(played) == 6
+    assert set(played["stage"]) == {"early", "middle", "final"}
+    assert (played["steps"] <= 40).all()
+    assert (played["steps"] > 0).all()
+    agent = load_agent(out / "pqn_q_lambda-Breakout", seed=1)
+    assert isinstance(agent, DeepAgent)
+    env = atari.gymnasium_env("Breakout-Atari")
+    try:
+        observation, _ = env.reset(seed=3)
+        for _ in range(30):
+            observation, *_ = env.step(int(np.random.default_rng(0).integers(18)))
+        action = agent.act(observation)
+        # the network's greedy action on the stack as the engine lays it out (frames last)
+        q = agent._act(agent.params, np.moveaxis(observation, 0, -1)[None].astype(np.float32))
+        assert action == int(q[0])
+        assert 0 <= action < 18
+    finally:
+        env.close()
+    again = atari_play.play_stages(out / "pqn_q_lambda-Breakout", load_run(out / "pqn_q_lambda-Breakout"), 0, 40)
+    np.testing.assert_array_equal(again.returns[:, -1], played[(played["method"].str.startswith("Q"))
+                                                               & (played["seed"] == 0)]["return"].to_numpy())
+
+
+def test_a_finished_study_is_loaded_not_trained_again(study):
+    out, _ = study
+    before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+    result = invoke(*TINY, "--out", str(out), "--no-videos", columns=300)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("loaded") == 2
+    assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+
+
+@pytest.mark.parametrize(("arguments", "named"), [
+    (["--games", "Breakout,Tetris"], "--games"),
+    (["--games", "atari6"], "--games"),
+    (["--budget", "1m"], "--budget"),
+    (["--methods", "pqn_q_lambda,a2c"], "--methods"),
+])
+def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
+    result = invoke(*TINY, *arguments, "--out", str(tmp_path / "x"), columns=300)
+    assert result.exit_code == 2
+    assert named in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_missing_rom_is_one_message_naming_the_game(tmp_path, monkeypatch):
+    from ale_py import roms
+
+    monkeypatch.setattr(roms, "get_rom_path", lambda rom: None if rom == "pong" else "here")
+    result = invoke(*TINY, "--games", "breakout-pong", "--out", str(tmp_path / "x"), columns=300)
+    assert result.exit_code == 2
+    assert "'Pong'" in result.output
+    assert "ROM" in result.output
+    assert "--games" in result.output
+    assert not (tmp_path / "x").exists()
