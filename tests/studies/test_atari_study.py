@@ -21,11 +21,12 @@ from rlcompare.deep import pqn  # noqa: E402
 from rlcompare.deep.agent import DeepAgent  # noqa: E402
 from rlcompare.envs import atari, atari_scores  # noqa: E402
 from rlcompare.experiment.engines import load_run  # noqa: E402
+from rlcompare.studies import atari as atari_study  # noqa: E402
 from rlcompare.studies import atari_play  # noqa: E402
 from rlcompare.studies.paired import final_returns  # noqa: E402
 
 pytestmark = pytest.mark.slow("trains and reports an Atari study")
-TINY = ["reproduce", "atari", "--seeds", "2", "--steps", "256"]
+TINY = ["reproduce", "atari", "--seeds", "2"]
 SMALL = dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], n_envs=4, n_steps=16, n_minibatches=2,
                             hidden=(32,))
 """Breakout's preset with a small network and batch, for the whole module: its runs are loaded with it too."""
@@ -37,6 +38,7 @@ def small_preset():
     with pytest.MonkeyPatch.context() as patch:
         patch.setitem(pqn.PRESETS["default"], "Breakout-Atari", SMALL)
         patch.setattr(atari_play, "STAGE_STEPS", 40)
+        patch.setitem(atari_study.BUDGETS, "smoke", atari_study.Budget("breakout", 256, 2, 4, "seconds"))
         yield
 
 
@@ -56,10 +58,11 @@ def test_the_study_writes_its_runs_and_a_human_normalised_report(study):
     breakout = atari_scores.GAMES["Breakout"]
     assert (summary["random"] == breakout.random).all()
     assert (summary["human"] == breakout.human).all()
-    for name, row in zip(RUNS, summary.sort_values("method", ascending=False).itertuples(), strict=True):
+    shown = summary.set_index("method")["human-normalised, mean"]
+    for name, method in zip(RUNS, ("Q(λ), network", "SARSA(λ), network"), strict=True):
         finals = final_returns(load_run(out / name))
         normalised = (finals - 1.7) / (30.5 - 1.7)  # Mnih et al.'s Breakout: random 1.7, human 30.5
-        assert row._6.startswith(f"{normalised.mean():.3f} [")  # "human-normalised, mean"
+        assert shown[method].startswith(f"{normalised.mean():.3f} [")
     verdicts = pd.read_csv(out / "tables" / "atari_verdicts.csv")
     assert verdicts["game"].tolist() == ["Breakout"]
     assert "final return at ε = 0.05 per episode" in output
@@ -128,4 +131,13 @@ def test_a_missing_rom_is_one_message_naming_the_game(tmp_path, monkeypatch):
     assert "'Pong'" in result.output
     assert "ROM" in result.output
     assert "--games" in result.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_an_atari_game_given_to_the_tabular_engine_is_one_message(tmp_path):
+    result = invoke("run", "--env", "Breakout-Atari", "--algorithm", "q_learning", "--seeds", "1", "--episodes", "2",
+                    "--out", str(tmp_path / "x"), columns=300)
+    assert result.exit_code == 2
+    assert "deep engine" in result.output
+    assert "Traceback" not in result.output
     assert not (tmp_path / "x").exists()

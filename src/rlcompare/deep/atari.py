@@ -204,7 +204,8 @@ class Conv(nn.Module):
         kernel = self.param("kernel", self.kernel_init, (self.size, self.size, x.shape[-1], self.features),
                             jnp.float32)
         bias = self.param("bias", nn.initializers.zeros_init(), (self.features,), jnp.float32)
-        return convolved(x, kernel, self.stride) + bias
+        # computed in float32 whatever the initialiser returned, as flax's ``dtype=float32`` promotes
+        return convolved(x.astype(jnp.float32), kernel.astype(jnp.float32), self.stride) + bias.astype(jnp.float32)
 
 
 class NatureTorso(nn.Module):

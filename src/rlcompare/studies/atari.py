@@ -219,7 +219,8 @@ def _build_report(out: Path, videos: bool) -> Report:
     games = [title(env) for env in found.envs]
     floors = {t: atari_scores.GAMES[t].random for t in games}
     humans = {t: atari_scores.GAMES[t].human for t in games}
-    lines = answer(compared, seeds, floors=floors, references=humans, measure=f"final return at ε = {EPSILON:g}")
+    lines = answer(compared, seeds, floors=floors, references=humans, measure=f"final return at ε = {EPSILON:g}",
+                   reference="the human")
     not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
     if not_learnt:
         lines.append(f"Not learnt at this budget ({steps:,} steps a training): {', '.join(not_learnt)}; the "

@@ -157,17 +157,17 @@ def short_label(method: str) -> str:
 
 def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games",
            floors: Mapping[str, float] | None = None, references: Mapping[str, float] | None = None,
-           measure: str = "final greedy return") -> list[str]:
+           measure: str = "final greedy return", reference: str = "the reference") -> list[str]:
     """The answer in plain words, from :func:`judged` by each row's name: a sentence for the environments (one
     neither method learnt says so, with the random policy's return and the reference where given), one for the
-    comparison :data:`OVERALL`; ``measure`` names what is compared."""
+    comparison :data:`OVERALL`; ``measure`` names what is compared, ``reference`` the top of the scale."""
     on, off = (short_label(method) for method in PAIR)
     each = []
     for name, j in compared.items():
         if name == OVERALL:
             continue
         if j.label == NEITHER_LEARNT:
-            scale = (f", against the random policy's {number(floors[name])} and the reference's "
+            scale = (f", against the random policy's {number(floors[name])} and {reference}'s "
                      f"{number(references[name])}" if floors and references and name in references else "")
             each.append(f"on {name} neither has learnt at this budget ({on} {number(j.paired.a_mean)}, {off} "
                         f"{number(j.paired.b_mean)}{scale}): no verdict")
@@ -179,7 +179,7 @@ def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games",
     if OVERALL in compared:
         paired, label = compared[OVERALL].paired, compared[OVERALL].label
         gap, interval = gap_and_interval(paired.difference)
-        top = "the reference (1)" if references else "the best method here (1)"
+        top = f"{reference} (1)" if references else "the best method here (1)"
         sentences.append(f"Over {over}, in scores normalised between the random policy (0) and {top}, {on} scores "
                          f"{gap} ({interval}; {label}).")
     return sentences
