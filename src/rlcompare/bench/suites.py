@@ -35,6 +35,19 @@ def selfplay() -> Suite:
     return Suite("selfplay.json", (SELFPLAY_STAGE,))
 
 
+def atari() -> Suite:
+    """The Atari 2600 pipeline on Breakout: the emulator alone and through the engine's callback, then the learner's
+    cost per agent step beside Stable-Baselines3. Without the ``atari`` extra, an ``ImportError`` that says how to
+    install it."""
+    try:
+        import ale_py  # noqa: F401
+    except ImportError as error:
+        raise ImportError(f"the Atari benchmark needs the atari extra: pip install -e '.[atari]' ({error})") from None
+    from rlcompare.bench.atari import atari_stages
+
+    return Suite("atari.json", atari_stages())
+
+
 def envs() -> Suite:
     """Every ported environment: Gymnasium's loop, the port, the adapter."""
     return Suite("envs.json", (PORT_STAGE,))

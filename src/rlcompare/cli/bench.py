@@ -83,6 +83,19 @@ def selfplay(out: Out = None) -> None:
 
 
 @one_line_errors
+def atari(out: Out = None) -> None:
+    """Agent steps/s on Breakout: ALE's emulator alone and through the engine's callback, then each Atari preset's
+    learner beside Stable-Baselines3 (the 'atari' extra; 'bench' for SB3; a few minutes)."""
+    from rlcompare.bench import suites
+
+    try:
+        suite = suites.atari()
+    except ImportError as error:  # the atari extra, or the deep engine's DeepUnavailable, says how to install it
+        fail(str(error))
+    measure(suite, out)
+
+
+@one_line_errors
 def envs(out: Out = None) -> None:
     """Q-Learning on every ported environment: Gymnasium's loop, the port on 1 and all threads, the adapter."""
     from rlcompare.bench import suites
@@ -148,6 +161,6 @@ def bench_app() -> typer.Typer:
                            "environment, into bench.json; or, with a subcommand's name, that benchmark alone, into "
                            "its own file.", short_help=SUMMARIES["bench"], rich_markup_mode="rich", cls=PlainGroup)
     app.callback(invoke_without_command=True)(everything)
-    for command in (kernels, envs, study, chess, selfplay, sweeps, deep):
+    for command in (kernels, envs, study, chess, selfplay, atari, sweeps, deep):
         app.command(cls=PlainCommand)(command)
     return app
