@@ -248,7 +248,7 @@ def dqn_cost(env: AtariEnv, gradients: int = 8, passes: int = 64) -> LearnerCost
     config = dqn_config.ATARI
     net: Network = dqn.network(config, env)
     params = net.init(jax.random.key(0), jnp.zeros((1, *env.observation_shape), jnp.float32))
-    cost = LearnerCost("DQN, Atari preset (CleanRL dqn_atari_jax's costs)", config.n_envs, 1.0 / config.n_envs,
+    cost = LearnerCost("DQN preset (CleanRL dqn_atari_jax's costs)", config.n_envs, 1.0 / config.n_envs,
                        config.batch_size, steps_per_gradient(config))
     b = config.batch_size
     batches = Transitions(uint8_frames((gradients, b, 84, 84, 4), 1), jnp.zeros((gradients, b), jnp.int32),
@@ -274,7 +274,7 @@ def ppo_cost(env: AtariEnv, gradients: int = 4, passes: int = 32) -> LearnerCost
     module: Network = ppo_network(config, env)
     variables = random_like(jax.eval_shape(lambda key: ppo.init_params(config, env, key).network,
                                            jax.random.key(0)), jax.random.key(0))
-    cost = LearnerCost("PPO, Atari preset (CleanRL ppo_atari_envpool_xla_jax's costs)", config.n_envs,
+    cost = LearnerCost("PPO preset (CleanRL ppo_atari_envpool_xla_jax's)", config.n_envs,
                        1.0 / config.n_envs, config.batch_size, steps_per_gradient(config))
     b = config.batch_size
     noise = jax.random.normal(jax.random.key(1), (5, gradients, b), jnp.float32)
@@ -303,7 +303,7 @@ def pqn_cost(env: AtariEnv, gradients: int = 4, passes: int = 4) -> LearnerCost:
     config = pqn_preset()
     net: Network = pqn.network(config, env)
     params = net.init(jax.random.key(0), jnp.zeros((1, *env.observation_shape), jnp.float32))
-    cost = LearnerCost("Q(λ), PQN preset, by its parts", config.n_envs, 2.0 / config.n_envs,
+    cost = LearnerCost("Q(λ) PQN preset, by its parts", config.n_envs, 2.0 / config.n_envs,
                        config.n_envs * config.n_steps // config.n_minibatches, steps_per_gradient(config))
     b = cost.gradient_batch
     batches = (uint8_frames((gradients, b, 84, 84, 4), 1), jnp.zeros((gradients, b), jnp.int32),
@@ -413,8 +413,8 @@ def measure_sb3(dqn_steps: int = SB3_DQN_STEPS, ppo_steps: int = SB3_PPO_STEPS,
     dqn_settings = dataclasses.replace(dqn_config.ATARI, learning_starts=learning_starts)
     rates = []
     for label, config, model, steps in (
-            ("SB3 DQN, CnnPolicy, zoo's Atari settings", dqn_settings, sb3_dqn(dqn_settings), dqn_steps),
-            ("SB3 PPO, CnnPolicy, zoo's Atari settings", ppo_config.ATARI, sb3_ppo(ppo_config.ATARI), ppo_steps)):
+            ("SB3 DQN, CnnPolicy, the zoo's settings", dqn_settings, sb3_dqn(dqn_settings), dqn_steps),
+            ("SB3 PPO, CnnPolicy, the zoo's settings", ppo_config.ATARI, sb3_ppo(ppo_config.ATARI), ppo_steps)):
         timing = sb3_steps_per_second(DeepRow(label, None, config, "", env=GAME), steps, model)
         rates.append(SB3Rate(label, steps_per_gradient(config), timing.steps_per_second, timing.torch_threads))
     return rates
@@ -434,7 +434,7 @@ def learner_table(costs: list[LearnerCost], training: TrainingRate, emulator: di
     config = pqn_preset()
     at_pqn = emulator.get(config.n_envs)
     rows: list[tuple[str, ...]] = [
-        (f"Q(λ), PQN preset, training as the engine runs it ({PQN_UPDATES} updates)", "", "",
+        (f"Q(λ) PQN preset, its training ({PQN_UPDATES} updates)", "", "",
          f"{steps_per_gradient(config):g}",
          number(learner_alone(training.steps_per_second, at_pqn.callback)) if at_pqn else "",
          number(at_pqn.alone) if at_pqn else "", number(training.steps_per_second))]
@@ -449,9 +449,10 @@ def learner_table(costs: list[LearnerCost], training: TrainingRate, emulator: di
     notes: tuple[str, ...] = (
         "learner steps/s: 1 / (forward ms x forward passes a step + gradient ms / steps per gradient), each part "
         "timed inside a compiled jax.lax.scan as a training runs it (XLA:CPU's convolution gradients are slower in "
-        "loops; the engine's Conv avoids it), under float64 as the engine runs; forward passes a step: DQN 1 of 1, "
-        "PPO 1 of 8 per 8 steps, PQN 2 of 128 per 128 steps (acting, and the λ-returns' next observations). For the "
-        "PQN training: 1 / (1 / its whole rate - 1 / the callback's at 128 games).",
+        "loops; the engine's Conv avoids it), under float64 as the engine runs. Forward passes: DQN one of 1 "
+        "observation a step, PPO one of 8 every 8 steps, PQN two of 128 every 128 steps (acting, and the λ-returns' "
+        "next observations); PQN's parts leave out the rest of its update (shuffling the minibatches, the "
+        "λ-returns). For the PQN training: 1 / (1 / its whole rate - 1 / the callback's at 128 games).",
         f"whole steps/s: the PQN preset's training measured (make_train jitted without vmap, compiled apart in "
         f"{training.compile_seconds:.0f} s, {PQN_UPDATES} x 128 x 32 steps, its greedy evaluation cut to one step), "
         "Stable-Baselines3's measured; ~: estimated, the learner and the emulator through the callback at the "

@@ -217,16 +217,16 @@ def sb3_seconds_to_score(row: DeepRow, seed: int) -> float:
 
     model = sb3_model(row, SCORE_ENV, seed)
     every = row.config.total_steps // SCORE_ROUNDS
-    evaluation_env = Monitor(gym.make(SCORE_ENV))
+    evaluation_env: Any = Monitor(gym.make(SCORE_ENV))
 
-    class StopAtScore(BaseCallback):  # type: ignore[misc]  # SB3 is untyped here
+    class StopAtScore(BaseCallback):  # type: ignore[misc, unused-ignore]  # SB3 is untyped unless installed
         reached: bool = False
 
         def _on_step(self) -> bool:
             if self.num_timesteps % every >= getattr(self.training_env, "num_envs", 1):
                 return True
             mean, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=10, deterministic=True)
-            self.reached = mean >= SCORE
+            self.reached = float(mean) >= SCORE  # type: ignore[arg-type, unused-ignore]
             return not self.reached
 
     callback = StopAtScore()

@@ -66,7 +66,7 @@ def minatar_features() -> type:
     import torch
     from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
-    class MinAtarFeatures(BaseFeaturesExtractor):  # type: ignore[misc]  # torch and SB3 are untyped here
+    class MinAtarFeatures(BaseFeaturesExtractor):  # type: ignore[misc, unused-ignore]  # untyped unless installed
         def __init__(self, observation_space: Any, features: int = 128, channels: int = 16) -> None:
             height, width, depth = observation_space.shape
             super().__init__(observation_space, features)

@@ -54,9 +54,10 @@ class Suite:
     stages: tuple[Stage, ...]
 
 
-BENCH_FILES = ("bench.json", "kernels.json", "study.json", "envs.json", "sweeps.json", "deep.json")
+BENCH_FILES = ("bench.json", "kernels.json", "study.json", "envs.json", "chess.json", "selfplay.json", "atari.json",
+               "sweeps.json", "deep.json")
 """What ``rlcompare bench`` writes: the kernels, the study and the ports (``bench`` alone); then each subcommand's
-own (``bench kernels``, ``study``, ``envs``, ``sweeps``, ``deep``)."""
+own (``bench kernels``, ``study``, ``envs``, ``chess``, ``selfplay``, ``atari``, ``sweeps``, ``deep``)."""
 
 
 def bench_document(tables: list[BenchTable], **sections: object) -> dict[str, object]:

@@ -1,6 +1,6 @@
-"""``rlcompare bench``: one subcommand per benchmark of :mod:`rlcompare.bench.suites` (kernels, envs, study, sweeps,
-deep), each printing its tables as they are measured and writing them to its own JSON file in OUT; ``bench`` alone
-measures the kernels, the paper's study and the ports into bench.json."""
+"""``rlcompare bench``: one subcommand per benchmark of :mod:`rlcompare.bench.suites` (kernels, envs, study, chess,
+selfplay, atari, sweeps, deep), each printing its tables as they are measured and writing them to its own JSON file
+in OUT; ``bench`` alone measures the kernels, the paper's study and the ports into bench.json."""
 
 from __future__ import annotations
 
@@ -84,8 +84,7 @@ def selfplay(out: Out = None) -> None:
 
 @one_line_errors
 def atari(out: Out = None) -> None:
-    """Agent steps/s on Breakout: ALE's emulator alone and through the engine's callback, then each Atari preset's
-    learner beside Stable-Baselines3 (the 'atari' extra; 'bench' for SB3; a few minutes)."""
+    """Atari's Breakout: the emulator alone and through the callback, each learner, SB3 (the 'atari' extra)."""
     from rlcompare.bench import suites
 
     try:
