@@ -29,7 +29,8 @@ class Played:
     """One episode per stage, played in lockstep."""
 
     observations: np.ndarray
-    """(stages, max_steps + 1, 10, 10, channels) bool; an ended episode keeps its last observation."""
+    """(stages, max_steps + 1, ...): MinAtar's (10, 10, channels) bool images, or an Atari game's screens
+    (:mod:`rlcompare.studies.atari_play`); an ended episode keeps its last."""
     returns: np.ndarray
     """(stages, max_steps + 1) return so far."""
     lengths: np.ndarray

@@ -24,7 +24,6 @@ from rlcompare.deep.playback import stage_titles
 from rlcompare.deep.results import DeepResults
 from rlcompare.envs import atari, atari_scores
 from rlcompare.experiment import store
-from rlcompare.experiment.backends import make_backend
 from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.stage_video import render_stages
@@ -34,7 +33,7 @@ from rlcompare.studies import atari_play
 from rlcompare.studies.atari_play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, final_returns, train
+from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, train
 from rlcompare.studies.paired_report import (
     answer,
     curves_drawn,
@@ -122,10 +121,7 @@ def run(out: Path, options: AtariOptions, ui: UI, *, study: str = STUDY, force: 
     """Every training of the plan, one after another on this machine (its emulators are the process's), or as
     tasks of the Ray cluster at ``options.address`` (each a process of its own)."""
     plan = plan_of(options)
-    backend = None
-    if options.address is not None:
-        backend = make_backend("ray", address=options.address)
-        backend.connect()  # a cluster that cannot be reached is reported before anything is written
+    backend = cluster(options.address)
     where = f"on Ray at {options.address}" if backend else "on this machine, one after another"
     ui.say(f"Atari 2600, {atari.PROTOCOL.summary}: {len(plan.configs())} trainings x {len(plan.seeds)} seeds x "
            f"{plan.steps:,} steps (budget '{options.budget}': {BUDGETS[options.budget].takes}) {where}.")

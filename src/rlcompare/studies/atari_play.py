@@ -5,12 +5,12 @@ with the same draws, each frame the game's own screen, for the stage videos (:mo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rlcompare.deep.playback import Played
 from rlcompare.deep.results import DeepResults
 from rlcompare.envs import atari
 from rlcompare.experiment.engines import load_agent
@@ -21,18 +21,6 @@ EPISODE_SEED = 10_000
 """Every stage's episode starts from ``env.reset(seed=EPISODE_SEED)``, its ε draws from the same generator."""
 SCALE = 2
 """Each screen pixel drawn as ``SCALE x SCALE``."""
-
-
-@dataclass(frozen=True)
-class Played:
-    """One episode per stage, each padded with its last screen (:class:`rlcompare.report.stage_video.Episodes`)."""
-
-    observations: np.ndarray
-    """(stages, steps + 1, 210, 160, 3) uint8: the game's screens."""
-    returns: np.ndarray
-    """(stages, steps + 1) the score so far."""
-    lengths: np.ndarray
-    ended: np.ndarray
 
 
 def episode(agent: Any, env: Any, max_steps: int, epsilon: float, seed: int) -> tuple[list[np.ndarray], list[float],
@@ -56,7 +44,7 @@ def episode(agent: Any, env: Any, max_steps: int, epsilon: float, seed: int) -> 
 def play_stages(run_dir: Path, results: DeepResults, seed: int, max_steps: int = STAGE_STEPS,
                 epsilon: float = atari.PROTOCOL.eval_epsilon) -> Played:
     """Every stage of ``seed``'s network in ``run_dir``, loaded by ``load_agent``, playing one episode of
-    Gymnasium's game."""
+    Gymnasium's game: its screens ``(stages, steps + 1, 210, 160, 3)``, each episode padded with its last."""
     env = atari.gymnasium_env(results.config.env, render_mode="rgb_array")
     try:
         episodes = [episode(load_agent(run_dir, seed, stage), env, max_steps, epsilon, EPISODE_SEED)

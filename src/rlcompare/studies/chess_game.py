@@ -26,7 +26,6 @@ from rlcompare.deep.results import DeepResults
 from rlcompare.envs.chess_games import GAMES
 from rlcompare.envs.chess_ladder import ELO_1350
 from rlcompare.experiment import store
-from rlcompare.experiment.backends import make_backend
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.ratings import bootstrap_ratings, player_records
@@ -36,7 +35,7 @@ from rlcompare.studies.chess_ladder import MATERIAL, RANDOM, Learner, games_of
 from rlcompare.studies.chess_stages import stage_games
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, train
+from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, cluster, train
 from rlcompare.studies.paired_report import curves_drawn, findings, short_label
 from rlcompare.studies.registry import ChessOptions
 
@@ -84,10 +83,8 @@ def run(out: Path, options: ChessOptions, ui: UI, *, study: str = STUDY, force: 
 
         find_stockfish()  # a missing engine is one line, before anything is trained
     plan = plan_of(options)
-    backend, where = None, "on this machine"
-    if options.address is not None:
-        backend, where = make_backend("ray", address=options.address), f"on Ray at {options.address}"
-        backend.connect()  # a cluster that cannot be reached is reported before anything is written
+    backend = cluster(options.address)
+    where = f"on Ray at {options.address}" if backend else "on this machine"
     ui.say(f"{game_title(options.game)}: {len(plan.configs())} trainings x {len(plan.seeds)} seeds x "
            f"{plan.steps:,} steps of self-play {where}.")
     runs = train(out, study, plan, ui, force=force, backend=backend)

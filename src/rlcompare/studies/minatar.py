@@ -30,7 +30,6 @@ from rlcompare.deep.rollout import evaluate
 from rlcompare.deep.train import params_template
 from rlcompare.envs import minatar
 from rlcompare.experiment import store
-from rlcompare.experiment.backends import make_backend
 from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.stage_video import render_stages
@@ -46,6 +45,7 @@ from rlcompare.studies.paired import (
     PairedStudy,
     Plan,
     checked,
+    cluster,
     final_returns,
     random_floor,
     train,
@@ -142,10 +142,7 @@ def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force
     """Every training of the plan on this machine, or on the Ray cluster at ``options.address`` (each training's
     blocks of seeds a task: :mod:`rlcompare.studies.seed_blocks`)."""
     plan = plan_of(options)
-    backend = None
-    if options.address is not None:
-        backend = make_backend("ray", address=options.address)
-        backend.connect()  # a cluster that cannot be reached is reported before anything is written
+    backend = cluster(options.address)
     where = f"on Ray at {options.address}" if backend else "on this machine"
     ui.say(f"MinAtar, {minatar.PROTOCOLS[options.protocol].summary}: {len(plan.configs())} trainings x "
            f"{len(plan.seeds)} seeds x {plan.steps:,} steps (budget '{options.budget}') {where}; each compiles its "

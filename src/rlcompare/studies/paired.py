@@ -27,6 +27,7 @@ from rlcompare.deep.envs import jax_env
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import evaluate
 from rlcompare.experiment import store
+from rlcompare.experiment.backends import make_backend
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.stats.compare import Paired
@@ -175,6 +176,16 @@ def reproduce(out: Path, study: str, plan: Plan, *, progress: Advance | None = N
                                workers=plan.workers)
     else:
         yield from trained_on(backend, Path(out), study, plan.configs(), progress=advance("deep"), force=force)
+
+
+def cluster(address: str | None) -> Backend | None:
+    """The Ray cluster at ``address``, joined now so that one that cannot be reached is reported before anything is
+    written; None (this machine) without an address."""
+    if address is None:
+        return None
+    backend = make_backend("ray", address=address)
+    backend.connect()
+    return backend
 
 
 def train(out: Path, study: str, plan: Plan, ui: UI, *, force: bool = False, backend: Backend | None = None
