@@ -141,3 +141,25 @@ def test_an_atari_game_given_to_the_tabular_engine_is_one_message(tmp_path):
     assert "deep engine" in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "x").exists()
+
+
+def test_the_atari5_table_estimates_each_seeds_median_from_its_five_games():
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(2)
+    finals = {t: g.random + rng.uniform(-0.2, 1.5, size=3) * (g.human - g.random) for t, g in atari_scores.GAMES.items()
+              if t in atari_scores.ATARI_5}
+
+    def run(method: str, game: str):
+        evaluations = pd.DataFrame({"seed": np.repeat([0, 1, 2], 2), "round": [0, 1] * 3,
+                                    "after_step": [10, 20] * 3, "return": np.ravel([[0.0, f] for f in finals[game]])})
+        return SimpleNamespace(config=SimpleNamespace(algorithm=method, env=f"{game}-Atari"), seeds=(0, 1, 2),
+                               evaluations=evaluations)
+
+    runs = {f"{m}-{g}": run(m, g) for m in ("pqn_q_lambda", "pqn_sarsa_lambda") for g in atari_scores.ATARI_5}
+    del runs["pqn_sarsa_lambda-Qbert"]  # SARSA(λ) missed a game: no estimate for it
+    table = atari_study.atari5_table(runs)
+    by_hand = atari_scores.atari5_median({t: atari_scores.human_normalised(t, f) for t, f in finals.items()})
+    assert table["method"].tolist() == ["Q(λ), network"]
+    assert table.iloc[0, 1].startswith(f"{by_hand.mean():.3f} [")
+    assert atari_study.atari5_table({k: v for k, v in runs.items() if "Qbert" not in k}) is None

@@ -51,8 +51,8 @@ STUDY = "atari"
 @dataclass(frozen=True)
 class Budget:
     """A named budget (:data:`rlcompare.studies.registry.ATARI_BUDGETS`): its games (a set of
-    :data:`rlcompare.envs.atari_scores.SETS`), agent steps per training,
-    evaluations, and how long it takes, measured or not."""
+    :data:`rlcompare.envs.atari_scores.SETS`), agent steps per training, evaluations, and how long it takes, measured
+    or not (``docs/atari.md``)."""
 
     games: str
     steps: int
@@ -65,7 +65,8 @@ BUDGETS = {
     "smoke": Budget("breakout", 32_768, 4, 8,
                     "about 15 minutes on 2 CPU cores at the default 2 seeds (measured: docs/atari.md)"),
     "100k": Budget("atari100k", 100_000, 10, 8,
-                   "about 2.5 hours a game on 2 CPU cores at 2 seeds, from the smoke's measured pace; not run whole"),
+                   "about 35 minutes a game on 2 CPU cores at 2 seeds (15 hours for the 26), from the smoke's "
+                   "measured pace; not run whole"),
     "10m": Budget("atari5", 10_000_000, 20, 8, "a GPU's work (40 M frames a training): not yet measured"),
     "200m": Budget("atari5", 50_000_000, 20, 8,
                    "purejaxql's 200 M frames a training: a GPU's work, not yet measured"),
@@ -193,8 +194,7 @@ def video_cells(run_dirs: dict[str, Path], runs: dict[str, DeepResults], videos:
     return cells, pd.DataFrame(rows)
 
 
-def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True,
-           beside: dict[str, Path | str] | None = None) -> Report:
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
     """Tables, verdicts, figures, videos and ``report.html`` of an Atari study directory, from its run
     directories."""
     with store.rewriting(Path(out), "study"):
