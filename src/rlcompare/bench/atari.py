@@ -422,7 +422,8 @@ def measure_sb3(dqn_steps: int = SB3_DQN_STEPS, ppo_steps: int = SB3_PPO_STEPS,
 
 # --- the learner's table ---
 
-def number(value: float) -> str:
+def whole(value: float) -> str:
+    """``value`` rounded, thousands separated; an empty cell where it was not measured (NaN)."""
     return "" if math.isnan(value) else f"{value:,.0f}"
 
 
@@ -436,15 +437,15 @@ def learner_table(costs: list[LearnerCost], training: TrainingRate, emulator: di
     rows: list[tuple[str, ...]] = [
         (f"Q(λ) PQN preset, its training ({PQN_UPDATES} updates)", "", "",
          f"{steps_per_gradient(config):g}",
-         number(learner_alone(training.steps_per_second, at_pqn.callback)) if at_pqn else "",
-         number(at_pqn.alone) if at_pqn else "", number(training.steps_per_second))]
+         whole(learner_alone(training.steps_per_second, at_pqn.callback)) if at_pqn else "",
+         whole(at_pqn.alone) if at_pqn else "", whole(training.steps_per_second))]
     for cost in costs:
         rates = emulator.get(cost.forward_batch)  # a forward pass acts in every game
         rows.append((cost.label, f"{cost.forward_seconds * 1e3:.1f} ({cost.forward_batch})",
                      f"{cost.gradient_seconds * 1e3:.0f} ({cost.gradient_batch})", f"{cost.steps_per_gradient:g}",
-                     number(cost.steps_per_second), number(rates.alone) if rates else "",
+                     whole(cost.steps_per_second), whole(rates.alone) if rates else "",
                      f"~{together(cost.steps_per_second, rates.callback):,.0f}" if rates else ""))
-    rows += [(rate.label, "", "", f"{rate.steps_per_gradient:g}", "", "", number(rate.steps_per_second))
+    rows += [(rate.label, "", "", f"{rate.steps_per_gradient:g}", "", "", whole(rate.steps_per_second))
              for rate in sb3 or []]
     notes: tuple[str, ...] = (
         "learner steps/s: 1 / (forward ms x forward passes a step + gradient ms / steps per gradient), each part "
