@@ -63,11 +63,12 @@ class Budget:
 
 BUDGETS = {
     "smoke": Budget("breakout", 32_768, 4, 8,
-                    "about 15 minutes on 2 CPU cores at the default 2 seeds (measured: docs/atari.md)"),
+                    "about 10 minutes on 2 CPU cores at the default 2 seeds (measured: docs/atari.md)"),
     "100k": Budget("atari100k", 100_000, 10, 8,
-                   "about 35 minutes a game on 2 CPU cores at 2 seeds (15 hours for the 26), from the smoke's "
+                   "about 30 minutes a game on 2 CPU cores at 2 seeds (13 hours for the 26), from the smoke's "
                    "measured pace; not run whole"),
-    "10m": Budget("atari5", 10_000_000, 20, 8, "a GPU's work (40 M frames a training): not yet measured"),
+    "10m": Budget("atari5", 10_000_000, 20, 8, "about 12 hours a seed of a method and game on 2 CPU cores, from the "
+                  "smoke's measured pace: a GPU's work, not yet measured on one"),
     "200m": Budget("atari5", 50_000_000, 20, 8,
                    "purejaxql's 200 M frames a training: a GPU's work, not yet measured"),
 }

@@ -136,7 +136,7 @@ class AtariOptions(Seeded):
     """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
     at α = 0.05: the smoke budget checks the pipeline, not the question)."""
     budget: str = "smoke"
-    """smoke (Breakout, 32,768 steps: the whole pipeline in about 15 minutes on 2 CPU cores), 100k (Atari 100k's 26
+    """smoke (Breakout, 32,768 steps: the whole pipeline in about 10 minutes on 2 CPU cores), 100k (Atari 100k's 26
     games, 100,000 steps), 10m (Atari-5, 10 M steps = 40 M frames) or 200m (Atari-5, purejaxql's 200 M frames);
     docs/atari.md says what each takes."""
     games: str | None = None
