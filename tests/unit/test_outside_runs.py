@@ -1,0 +1,144 @@
+"""Runs other libraries made, read into the tidy table: Stable-Baselines3's Monitor files (hand-written in its
+format, and written by Stable-Baselines3 itself where it is installed), RL Zoo's evaluations.npz, tidy CSV and
+Parquet; the grouping rule; and every malformed file refused with one message naming it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rlcompare.experiment.outside import (
+    TIDY,
+    OutsideRunError,
+    grouping,
+    read_monitor,
+    read_runs,
+    read_tidy,
+    read_zoo_evaluations,
+)
+
+RULE = "{method}/{env}/seed_{seed}/*"
+
+
+def write_monitor(path: Path, returns: list[float], lengths: list[int]) -> Path:
+    """A file as Stable-Baselines3's ``Monitor`` writes it: a JSON header line, then ``r,l,t`` per episode."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = "".join(f"{r},{n},{0.01 * i:.6f}\n" for i, (r, n) in enumerate(zip(returns, lengths, strict=True)))
+    path.write_text("#" + json.dumps({"t_start": 1.7e9, "env_id": "CartPole-v1"}) + "\nr,l,t\n" + rows)
+    return path
+
+
+def test_a_monitor_file_gives_each_return_at_the_steps_up_to_its_episodes_end(tmp_path):
+    frame = read_monitor(write_monitor(tmp_path / "0.monitor.csv", [10.0, 22.0, 9.5], [10, 22, 14]))
+    assert frame["step"].tolist() == [10, 32, 46]
+    assert frame["value"].tolist() == [10.0, 22.0, 9.5]
+
+
+@pytest.mark.slow("imports Stable-Baselines3 and torch (the bench extra)")
+def test_stable_baselines3s_own_monitor_file_reads_as_its_episodes(tmp_path):
+    gym = pytest.importorskip("gymnasium")
+    monitor = pytest.importorskip("stable_baselines3.common.monitor")
+    env = monitor.Monitor(gym.make("CartPole-v1"), str(tmp_path / "0"))
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    for _ in range(400):
+        *_, terminated, truncated, _ = env.step(int(rng.integers(2)))
+        if terminated or truncated:
+            env.reset()
+    returns, lengths = env.get_episode_rewards(), env.get_episode_lengths()
+    env.close()
+    frame = read_monitor(tmp_path / "0.monitor.csv")
+    assert len(returns) > 5
+    np.testing.assert_allclose(frame["value"], returns)
+    np.testing.assert_array_equal(frame["step"], np.cumsum(lengths))
+
+
+def test_rl_zoos_evaluations_give_each_evaluations_mean(tmp_path):
+    path = tmp_path / "evaluations.npz"
+    np.savez(path, timesteps=np.array([1000, 2000]), results=np.array([[1.0, 3.0], [5.0, 9.0]]),
+             ep_lengths=np.array([[10, 30], [50, 90]]))
+    frame = read_zoo_evaluations(path)
+    assert frame["step"].tolist() == [1000, 2000]
+    assert frame["value"].tolist() == [2.0, 7.0]
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_a_tidy_table_is_read_as_it_is(tmp_path, suffix):
+    table = pd.DataFrame({"method": ["ppo", "dqn"], "env": ["CartPole-v1"] * 2, "seed": [0, 0], "step": [5, 5],
+                          "value": [1.5, 2.5], "extra": ["kept out", "kept out"]})
+    path = tmp_path / f"runs{suffix}"
+    table.to_csv(path, index=False) if suffix == ".csv" else table.to_parquet(path)
+    frame = read_tidy(path)
+    assert list(frame.columns) == list(TIDY)
+    assert frame["value"].tolist() == [1.5, 2.5]
+
+
+def test_the_grouping_rule_names_each_files_method_environment_and_seed(tmp_path):
+    rule = grouping(RULE)
+    path = tmp_path / "ppo" / "CartPole-v1" / "seed_3" / "0.monitor.csv"
+    assert rule.of(path, tmp_path) == {"method": "ppo", "env": "CartPole-v1", "seed": "3"}
+    with pytest.raises(OutsideRunError, match="does not match the grouping rule") as refused:
+        rule.of(tmp_path / "ppo" / "seed_3" / "0.monitor.csv", tmp_path)
+    assert "ppo/seed_3/0.monitor.csv" in str(refused.value)
+
+
+@pytest.mark.parametrize("rule", ["{method}/{seed}/*", "{method}/{env}/{seed}/{run}", "{method}/{env}/{seed}/{seed}"])
+def test_a_rule_that_does_not_name_each_field_once_is_refused(rule):
+    with pytest.raises(ValueError, match=r"group: .*allowed"):
+        grouping(rule)
+
+
+def test_runs_of_two_methods_read_into_one_table(tmp_path):
+    for method, scale in (("ppo", 1.0), ("dqn", 2.0)):
+        for seed in range(3):
+            write_monitor(tmp_path / method / "CartPole-v1" / f"seed_{seed}" / "0.monitor.csv",
+                          [scale * seed, scale * (seed + 1)], [10, 20])
+    frame = read_runs(tmp_path.rglob("*.monitor.csv"), tmp_path, grouping(RULE))
+    assert list(frame.columns) == list(TIDY)
+    assert len(frame) == 12
+    assert frame.groupby("method")["seed"].nunique().to_dict() == {"dqn": 3, "ppo": 3}
+    dqn = frame[(frame["method"] == "dqn") & (frame["seed"] == "2")]
+    assert dqn["value"].tolist() == [4.0, 6.0]
+    assert dqn["step"].tolist() == [10, 30]
+
+
+@pytest.mark.parametrize(("name", "content", "said"), [
+    ("0.monitor.csv", "", "expected a first line"),
+    ("0.monitor.csv", "r,l,t\n1,2,3\n", "expected a first line"),
+    ("0.monitor.csv", "#{}\nreward,length,time\n1,2,3\n", "expected r,l,t"),
+    ("0.monitor.csv", "#{}\nr,l,t\n", "no episode"),
+    ("0.monitor.csv", "#{}\nr,l,t\nten,2,3\n", "not a number"),
+    ("0.monitor.csv", "#not json\nr,l,t\n1,2,3\n", "JSON"),
+    ("evaluations.npz", "not an archive", "expected the arrays timesteps and results"),
+    ("runs.csv", "method,env,seed,step\nppo,c,0,1\n", "no column value"),
+    ("runs.csv", "", "expected the columns"),
+    ("notes.txt", "hello", "not a run rlcompare reads"),
+])
+def test_a_file_that_is_not_what_its_name_says_is_one_message_naming_it(tmp_path, name, content, said):
+    path = tmp_path / "ppo" / "CartPole-v1" / "seed_0" / name
+    path.parent.mkdir(parents=True)
+    path.write_text(content)
+    with pytest.raises(OutsideRunError, match=said) as refused:
+        read_runs([path], tmp_path, grouping(RULE))
+    assert str(refused.value).startswith(str(path))
+    assert "\n" not in str(refused.value)
+
+
+def test_two_files_of_one_run_are_refused(tmp_path):
+    first = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "0.monitor.csv", [1.0], [5])
+    second = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "1.monitor.csv", [1.0], [5])
+    with pytest.raises(OutsideRunError, match="again") as refused:
+        read_runs([first, second], tmp_path, grouping(RULE))
+    assert str(first) in str(refused.value)
+
+
+def test_an_evaluations_archive_without_its_arrays_is_refused(tmp_path):
+    path = tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "evaluations.npz"
+    path.parent.mkdir(parents=True)
+    np.savez(path, steps=np.arange(3))
+    with pytest.raises(OutsideRunError, match="timesteps and results"):
+        read_runs([path], tmp_path, grouping(RULE))
