@@ -18,6 +18,7 @@ from rlcompare.formatting import number
 from rlcompare.stats.intervals import (
     NO_ESTIMATE,
     Estimate,
+    independent_difference,
     paired_difference,
     per_seed_values,
     probability_of_improvement,
@@ -35,12 +36,13 @@ from rlcompare.stats.significance import (
     rank_test,
     tost,
     verdict,
+    welch_tost,
 )
 
 
 class Paired(NamedTuple):
     """A against B on paired seeds (seed ``s`` of each on the same start states): the comparison every study
-    makes."""
+    makes; or, from :func:`compare_independent`, on seeds that share nothing."""
 
     a_mean: float
     b_mean: float
@@ -69,6 +71,20 @@ def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *,
                   probability_of_improvement(a, b) if improvement else NO_ESTIMATE, int(a.size),
                   None if margin is None else tost(a - b, -margin, margin),
                   float(np.std(a - b, ddof=1)) if a.size > 1 and finite else np.nan)
+
+
+def compare_independent(a: np.ndarray, b: np.ndarray, margin: float | None = None) -> Paired:
+    """A against B on seeds that share no randomness (runs other libraries made): means, the difference of means
+    with its two-sample interval, the Mann-Whitney p-value, the probability of improvement and, where ``margin``
+    is given, Welch's test of equivalence. ``seeds`` and ``spread`` are those of a paired test on as many pairs as
+    the smaller side with the two sides' variances summed, so the detectable difference it gives is on the safe side
+    of the two-sample test's."""
+    a, b = per_seed_values(a), per_seed_values(b)
+    finite = bool(np.isfinite(a).all() and np.isfinite(b).all())
+    spread = float(np.sqrt(a.var(ddof=1) + b.var(ddof=1))) if min(a.size, b.size) > 1 and finite else np.nan
+    return Paired(float(np.mean(a)), float(np.mean(b)), independent_difference(a, b),
+                  rank_test(a, b, paired=False) if finite else np.nan, probability_of_improvement(a, b),
+                  int(min(a.size, b.size)), None if margin is None else welch_tost(a, b, -margin, margin), spread)
 
 
 def comparison_label(difference: Estimate, p_adjusted: float, names: tuple[str, str],

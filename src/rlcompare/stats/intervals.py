@@ -155,6 +155,28 @@ def paired_difference(
     return interval(a - b, "mean", confidence=confidence, n_resamples=n_resamples, seed=seed)
 
 
+def independent_difference(
+    a: np.ndarray, b: np.ndarray, confidence: float = 0.95, n_resamples: int = 10_000, seed: int = 0
+) -> Estimate:
+    """Mean of ``a`` minus mean of ``b`` for seeds that share no randomness (two libraries' runs), with a BCa
+    bootstrap interval that resamples each side apart (Efron and Tibshirani 1993, ch. 8.3, two samples).
+    Fewer than two seeds on either side gives NaN bounds; a non-finite value gives a NaN estimate."""
+    a, b = per_seed_values(a), per_seed_values(b)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return NO_ESTIMATE
+    value = float(a.mean() - b.mean())
+    if a.size < 2 or b.size < 2:
+        return Estimate(value, np.nan, np.nan)
+    if np.all(a == a[0]) and np.all(b == b[0]):
+        return Estimate(value, value, value)
+
+    def difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+        return np.asarray(np.mean(x, axis=axis) - np.mean(y, axis=axis))
+
+    low, high = _bootstrap((a, b), difference, "BCa", confidence, n_resamples, seed)
+    return Estimate(value, low, high)
+
+
 PAIRS_COUNTED = 4096
 """Up to this many pairs of values (``n·m``) :func:`improvement_share` counts the pairs directly; above, it ranks."""
 

@@ -117,7 +117,7 @@ class Equivalence(NamedTuple):
         return self.p_equivalent if self.inside or np.isnan(self.estimate.value) else self.p_beyond
 
 
-def _one_sided(distance: float, se: float, df: int) -> float:
+def _one_sided(distance: float, se: float, df: float) -> float:
     """p-value of H0: distance <= 0 against distance > 0, for a mean ``distance`` from a bound (Student t)."""
     if se == 0:
         return 0.0 if distance > 0 else 1.0
@@ -141,6 +141,34 @@ def tost(values: np.ndarray, lower: float, upper: float, confidence: float = 0.9
     if n < 2:
         return Equivalence(Estimate(mean, np.nan, np.nan), lower, upper, np.nan, np.nan)
     se, df = float(values.std(ddof=1) / np.sqrt(n)), n - 1
+    half = float(stats.t.ppf(0.5 + confidence / 2, df)) * se
+    p_lower, p_upper = _one_sided(mean - lower, se, df), _one_sided(upper - mean, se, df)
+    if mean > upper:
+        p_beyond = 2 * _one_sided(mean - upper, se, df)
+    elif mean < lower:
+        p_beyond = 2 * _one_sided(lower - mean, se, df)
+    else:
+        p_beyond = 1.0
+    return Equivalence(Estimate(mean, mean - half, mean + half), lower, upper, max(p_lower, p_upper),
+                       min(1.0, p_beyond))
+
+
+def welch_tost(a: np.ndarray, b: np.ndarray, lower: float, upper: float, confidence: float = 0.95) -> Equivalence:
+    """Whether ``mean(a) - mean(b)`` lies within ``[lower, upper]`` for two independent samples: :func:`tost`'s two
+    one-sided tests with Welch's standard error and Satterthwaite's degrees of freedom (Welch 1947), as
+    ``scipy.stats.ttest_ind(a, b + bound, equal_var=False)`` gives each. Fewer than two values on a side give NaN
+    p-values; a non-finite value a NaN estimate."""
+    if not lower < upper:
+        raise ValueError(f"the margin needs lower < upper, got [{lower}, {upper}]")
+    a, b = per_seed_values(a), per_seed_values(b)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return Equivalence(NO_ESTIMATE, lower, upper, np.nan, np.nan)
+    mean = float(a.mean() - b.mean())
+    if a.size < 2 or b.size < 2:
+        return Equivalence(Estimate(mean, np.nan, np.nan), lower, upper, np.nan, np.nan)
+    va, vb = a.var(ddof=1) / a.size, b.var(ddof=1) / b.size
+    se = float(np.sqrt(va + vb))
+    df = float((va + vb) ** 2 / (va**2 / (a.size - 1) + vb**2 / (b.size - 1))) if se > 0 else float(a.size + b.size - 2)
     half = float(stats.t.ppf(0.5 + confidence / 2, df)) * se
     p_lower, p_upper = _one_sided(mean - lower, se, df), _one_sided(upper - mean, se, df)
     if mean > upper:
