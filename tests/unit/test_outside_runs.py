@@ -98,7 +98,7 @@ def test_runs_of_two_methods_read_into_one_table(tmp_path):
             write_monitor(tmp_path / method / "CartPole-v1" / f"seed_{seed}" / "0.monitor.csv",
                           [scale * seed, scale * (seed + 1)], [10, 20])
     frame = read_runs(tmp_path.rglob("*.monitor.csv"), tmp_path, grouping(RULE))
-    assert list(frame.columns) == list(TIDY)
+    assert list(frame.columns) == [*TIDY, "source"]
     assert len(frame) == 12
     assert frame.groupby("method")["seed"].nunique().to_dict() == {"dqn": 3, "ppo": 3}
     dqn = frame[(frame["method"] == "dqn") & (frame["seed"] == "2")]

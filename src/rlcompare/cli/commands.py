@@ -22,6 +22,7 @@ from rlcompare.cli.console import (
     check_out,
     console,
     done_line,
+    fail,
     one_line_errors,
     out_path,
     plural,
@@ -169,6 +170,47 @@ def report(
     else:
         what = f"holds {owner}" if owner is not None else "was not written by rlcompare (it holds no .rlcompare.json)"
         raise typer.BadParameter(f"{study_dir} {what}; allowed: {allowed}", param_hint="'STUDY_DIR'")
+
+
+@command("compare")
+def compare(
+    paths: Annotated[list[Path], typer.Argument(
+        metavar="PATH...", help="Directories to search for Stable-Baselines3 Monitor files (*.monitor.csv) and RL Zoo "
+                                "evaluations (evaluations.npz), or those files, or tidy tables (.csv, .parquet) of "
+                                "method, env, seed, step, value.")],
+    group: Annotated[str, typer.Option(help="How a file's path, below the directory given (or the common one of "
+                                            "several), names its method, environment and seed: {method}, {env} and "
+                                            "{seed} once each, * for any name.")] = "{method}/{env}/{seed}/*",
+    paired: Annotated[bool, typer.Option(help="The seeds share randomness across methods (seed s of each on the "
+                                              "same starts): compare them pair by pair. Default: independent.")
+                      ] = False,
+    margin: Annotated[float | None, typer.Option(help="The difference that counts as none, in the values' units, "
+                                                      "declared before reading the report; without it no "
+                                                      "comparison is called equivalent.", min=0.0)] = None,
+    out: Annotated[str | None, typer.Option(help="Directory to write the report into (new, empty, or one compare "
+                                                 "wrote). Default: runs/compare.", show_default=False)] = None,
+    force: Force = False,
+) -> None:
+    """Verdicts and a report for runs other libraries made: what each file was taken as is printed first."""
+    from rlcompare.experiment.outside import OutsideRunError, grouping, read_runs, run_files
+    from rlcompare.studies import compare_runs
+
+    out_dir = out_path(out, Path("runs/compare"))
+    check_out(out_dir, compare_runs.COMPARISON, force)
+    try:
+        rule = grouping(group)
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="'--group'") from None
+    if margin is not None and margin <= 0:
+        raise typer.BadParameter(f"{margin:g}; allowed: a positive number", param_hint="'--margin'")
+    try:
+        root, files = run_files(paths)
+        frame = read_runs(files, root, rule)
+        print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
+        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin)
+    except OutsideRunError as error:
+        fail(str(error))
+    print_report(shown)
 
 
 @command("uci")

@@ -16,6 +16,7 @@ Which method, environment and seed a file holds comes from a grouping rule over 
 from __future__ import annotations
 
 import json
+import os
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -134,16 +135,35 @@ READERS = {".monitor.csv": read_monitor, "evaluations.npz": read_zoo_evaluations
 """A run's file by how its name ends, and its reader."""
 
 
+def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
+    """The files ``paths`` name: each file itself, each directory's run files (:data:`READERS`) below it; and the
+    root their grouping rule reads paths from (the directory given, or the deepest one common to all)."""
+    files: list[Path] = []
+    given = [Path(p) for p in paths]
+    for path in given:
+        if path.is_dir():
+            files += sorted(f for f in path.rglob("*") if f.is_file() and any(f.name.endswith(e) for e in READERS))
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise OutsideRunError(f"{path}: no such file or directory; expected run files or directories of them")
+    if not files:
+        raise OutsideRunError(f"{', '.join(map(str, given))}: no run found; expected *.monitor.csv, evaluations.npz "
+                              "or a tidy table")
+    bases = [p if p.is_dir() else p.parent for p in given]
+    return Path(os.path.commonpath([str(b.resolve()) for b in bases])), [f.resolve() for f in files]
+
+
 def read_runs(paths: Iterable[Path], root: Path, rule: Grouping) -> pd.DataFrame:
-    """Every file of ``paths`` as tidy rows: a tidy table as it is, a run's file (:data:`READERS`) labelled by
-    ``rule``; another file is an :class:`OutsideRunError` naming it. Two files of the same method, environment
-    and seed are one too."""
+    """Every file of ``paths`` as tidy rows (:data:`TIDY`, and the ``source`` file of each): a tidy table as it is,
+    a run's file (:data:`READERS`) labelled by ``rule``; another file is an :class:`OutsideRunError` naming it. Two
+    files of the same method, environment and seed are one too."""
     frames: list[pd.DataFrame] = []
     seen: dict[tuple[str, ...], Path] = {}
     for path in sorted(Path(p) for p in paths):
         reader = next((read for ending, read in READERS.items() if path.name.endswith(ending)), None)
         if reader is None and path.suffix in (".csv", ".parquet"):
-            frames.append(read_tidy(path))
+            frames.append(read_tidy(path).assign(source=str(path)))
             continue
         if reader is None:
             raise OutsideRunError(f"{path}: not a run rlcompare reads; expected *.monitor.csv, evaluations.npz, or a "
@@ -154,7 +174,7 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping) -> pd.DataFrame
             raise OutsideRunError(f"{path}: method {key[0]}, environment {key[1]}, seed {key[2]} again (also "
                                   f"{seen[key]}); expected one file a run")
         seen[key] = path
-        frames.append(reader(path).assign(**labels))
+        frames.append(reader(path).assign(**labels, source=str(path)))
     if not frames:
         raise OutsideRunError(f"{root}: no run found; expected *.monitor.csv, evaluations.npz or a tidy table")
-    return pd.concat(frames, ignore_index=True)[list(TIDY)]
+    return pd.concat(frames, ignore_index=True)[[*TIDY, "source"]]

@@ -1,0 +1,217 @@
+"""``rlcompare compare``: rlcompare's verdicts and report for runs other libraries made (read by
+:mod:`rlcompare.experiment.outside` into one tidy table).
+
+Each run's values (episode returns, or evaluations) are put on a common grid of environment steps per environment,
+from the step where every run has begun to the step where the shortest has ended, by linear interpolation; two
+numbers a run are compared: the mean over the last tenth of that range (the final window) and the mean over all of
+it (the normalised area under the curve). Seeds of two libraries' runs share no randomness, so methods are compared
+as independent samples (:func:`~rlcompare.stats.compare.compare_independent`) unless the user says the seeds are
+paired; every comparison of a report is one Holm family. A margin of no difference is the user's, declared on the
+command line before the report is read; without one, no claim of equivalence is made.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable
+from dataclasses import dataclass
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.experiment import store
+from rlcompare.experiment.outside import OutsideRunError
+from rlcompare.report.findings import gap_and_interval
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.report.plots import plot_return_curves
+from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
+from rlcompare.studies.interface import Report
+
+GRID_POINTS = 200
+"""Points of each environment's common grid of steps."""
+FINAL_WINDOW = 0.1
+"""The final window: the last tenth of the common steps."""
+SHORTEST_SHARE = 0.9
+"""A run that ends before this share of its environment's longest run is refused: not one budget."""
+METRICS = {"final": "mean over the final tenth of the steps", "auc": "mean over all the steps (area under the curve)"}
+COMPARISON = store.Owner("comparison")
+"""What ``rlcompare compare`` writes its directory as."""
+
+
+@dataclass(frozen=True)
+class Curves:
+    """One environment's runs on its common grid: ``values[method]`` is ``(seeds, GRID_POINTS)``, the seeds by
+    their labels in ``seeds[method]``."""
+
+    env: str
+    steps: np.ndarray
+    values: dict[str, np.ndarray]
+    seeds: dict[str, tuple[str, ...]]
+
+
+def runs_of(frame: pd.DataFrame) -> dict[tuple[str, str, str], pd.DataFrame]:
+    """Each run's rows, sorted by step, by ``(env, method, seed)``."""
+    return {(str(env), str(method), str(seed)): rows.sort_values("step", kind="stable")
+            for (env, method, seed), rows in frame.groupby(["env", "method", "seed"], sort=True)}
+
+
+def checked(frame: pd.DataFrame) -> None:
+    """Refuse, naming the file, a run that ends well before its environment's longest (another budget) and a seed
+    one method of an environment has and another lacks."""
+    runs = runs_of(frame)
+    for env, rows in frame.groupby("env", sort=True):
+        ends = {key: run["step"].iloc[-1] for key, run in runs.items() if key[0] == env}
+        longest = max(ends.values())
+        for key, end in ends.items():
+            if end < SHORTEST_SHARE * longest:
+                source = runs[key]["source"].iloc[0]
+                raise OutsideRunError(f"{source}: {key[1]} seed {key[2]} on {env} ends at step {end:,}; expected runs "
+                                      f"of one budget (the longest ends at {longest:,})")
+        seeds = {str(method): set(group.astype(str)) for method, group in rows.groupby("method")["seed"]}
+        every = set().union(*seeds.values())
+        for method, have in seeds.items():
+            if have != every:
+                missing = sorted(every - have)
+                raise OutsideRunError(f"{sorted(set(rows.loc[rows['method'] == method, 'source']))[0]}: {method} on "
+                                      f"{env} lacks seed {', '.join(missing)}; expected every method to have the "
+                                      f"same seeds ({', '.join(sorted(every))})")
+
+
+def curves(frame: pd.DataFrame) -> list[Curves]:
+    """Every environment's runs interpolated onto its common grid of steps."""
+    found = []
+    for env, rows in frame.groupby("env", sort=True):
+        runs = {key: run for key, run in runs_of(rows).items()}
+        start = max(run["step"].iloc[0] for run in runs.values())
+        end = min(run["step"].iloc[-1] for run in runs.values())
+        grid = np.linspace(start, end, GRID_POINTS)
+        values: dict[str, list[np.ndarray]] = {}
+        seeds: dict[str, list[str]] = {}
+        for (_, method, seed), run in runs.items():
+            values.setdefault(method, []).append(np.interp(grid, run["step"].to_numpy(np.float64),
+                                                           run["value"].to_numpy(np.float64)))
+            seeds.setdefault(method, []).append(str(seed))
+        found.append(Curves(str(env), grid, {m: np.stack(v) for m, v in values.items()},
+                            {m: tuple(s) for m, s in seeds.items()}))
+    return found
+
+
+def per_seed(curve: Curves) -> dict[str, dict[str, np.ndarray]]:
+    """Per method, each seed's final-window mean and area (:data:`METRICS`)."""
+    last = curve.steps >= curve.steps[-1] - FINAL_WINDOW * (curve.steps[-1] - curve.steps[0])
+    return {method: {"final": values[:, last].mean(axis=1), "auc": values.mean(axis=1)}
+            for method, values in curve.values.items()}
+
+
+@dataclass(frozen=True)
+class Comparison:
+    env: str
+    metric: str
+    a: str
+    b: str
+
+
+def compared(found: list[Curves], paired: bool, margin: float | None) -> dict[Comparison, Paired]:
+    """Each pair of methods on each environment, on each metric; seeds matched by label where ``paired``."""
+    result = {}
+    for curve in found:
+        numbers = per_seed(curve)
+        for a, b in combinations(sorted(curve.values), 2):
+            order_b = [curve.seeds[b].index(seed) for seed in curve.seeds[a]]
+            for metric in METRICS:
+                x, y = numbers[a][metric], numbers[b][metric][order_b]
+                result[Comparison(curve.env, metric, a, b)] = (compare_paired(x, y, margin) if paired
+                                                               else compare_independent(x, y, margin))
+    return result
+
+
+def judged(found: dict[Comparison, Paired]) -> dict[Comparison, tuple[Judged, str]]:
+    """The comparisons as one Holm family, each with its label in the methods' own names."""
+    family: dict[Hashable, Paired] = {key: paired for key, paired in found.items()}
+    judgements = judge_family(family, ("A", "B"))
+    return {key: (judgements[key], {"A better": f"{key.a} better", "B better": f"{key.b} better"}.get(
+        judgements[key].label, judgements[key].label)) for key in found}
+
+
+def verdicts(found: dict[Comparison, tuple[Judged, str]]) -> pd.DataFrame:
+    """A row per comparison."""
+    return pd.DataFrame([{
+        "environment": key.env, "metric": key.metric, "A": key.a, "B": key.b, "A mean": j.paired.a_mean,
+        "B mean": j.paired.b_mean, "A - B (95% CI)": j.paired.difference.format(3),
+        "P(A > B)": j.paired.improvement.format(2), "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence,
+        "seeds": j.paired.seeds, "verdict": label,
+    } for key, (j, label) in found.items()])
+
+
+def answer(found: dict[Comparison, tuple[Judged, str]], paired: bool) -> list[str]:
+    """The answer in words: each environment's final-window comparisons, and how they were tested."""
+    test = ("paired seeds (Wilcoxon signed-rank)" if paired
+            else "seeds as independent samples (Mann-Whitney; the runs share no randomness)")
+    lines = []
+    for key, (j, label) in found.items():
+        if key.metric == "final":
+            gap, interval = gap_and_interval(j.paired.difference)
+            lines.append(f"On {key.env}, {key.a} against {key.b} over the final tenth of the steps: {key.a} scores "
+                         f"{gap} ({interval}; {label}).")
+    seeds = min((j.paired.seeds for j, _ in found.values()), default=0)
+    floor = smallest_p(seeds, seeds, paired)
+    return [*lines, f"Tested as {test}; p-values Holm-adjusted over every row of the verdict table. With {seeds} "
+                    f"seeds a side the test cannot give a p below {floor:.3g}."]
+
+
+def smallest_p(n: int, m: int, paired: bool) -> float:
+    """The smallest two-sided p-value of the rank test on ``n`` and ``m`` seeds, every value of one side above the
+    other's: Wilcoxon's ``2 / 2**n`` on ``n`` pairs, Mann-Whitney's ``2 / C(n + m, n)``."""
+    return 2.0 / 2.0**n if paired else 2.0 / math.comb(n + m, n)
+
+
+def curves_figure(curve: Curves) -> Figure:
+    figure = Figure(figsize=(7, 4.2))
+    ax = figure.subplots()
+    plot_return_curves(ax, curve.steps, curve.values, window=1, ylabel="value")
+    ax.set_xlabel("environment steps")
+    ax.set_title(curve.env)
+    return figure
+
+
+def pairing_table(frame: pd.DataFrame) -> pd.DataFrame:
+    """What was read: each source file and the method, environment and seed it was taken as."""
+    return (frame.groupby(["source", "method", "env", "seed"], sort=True)
+            .agg(points=("step", "size"), first_step=("step", "min"), last_step=("step", "max")).reset_index())
+
+
+def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None) -> Report:
+    """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out``."""
+    checked(frame)
+    found = curves(frame)
+    comparisons = compared(found, paired, margin)
+    with store.output_directory(out, COMPARISON):
+        labelled = judged(comparisons)
+        table = verdicts(labelled)
+        files = {"verdicts": write_table(table, out / "tables", "verdicts"),
+                 "pairing": write_table(pairing_table(frame), out / "tables", "pairing")}
+        lines = answer(labelled, paired)
+        figures = [(save_figure(curves_figure(c), out / "figures" / f"curves-{i}.png"),
+                    f"{c.env}: each method's mean over seeds on the common grid, 95% band")
+                   for i, c in enumerate(found)]
+        grids = "; ".join(f"{c.env}: steps {c.steps[0]:,.0f} to {c.steps[-1]:,.0f}" for c in found)
+        sections = [
+            Section("The answer", lines),
+            Section("What was compared", [
+                f"Each run's values on a common grid of {GRID_POINTS} environment steps per environment, from the step "
+                f"where every run has begun to where the shortest ends ({grids}), by linear interpolation. Metrics: "
+                + "; ".join(f"{name}, the {words}" for name, words in METRICS.items())
+                + ". " + ("Seeds paired by their labels (--paired): the user says they share randomness." if paired
+                          else "Seeds compared as independent samples: runs of different libraries share no "
+                               "randomness (--paired where they do).")
+                + (f" Margin of no difference, declared on the command line: ±{margin:g}." if margin is not None
+                   else " No margin was declared, so no comparison can be called equivalent.")],
+                [("What each file was taken as", pairing_table(frame), files["pairing"])]),
+            Section("Verdicts", tables=[("Every comparison, one Holm family", table, files["verdicts"])]),
+            Section("Curves", figures=figures),
+        ]
+        page = write_report(out / "report.html", "Runs compared", sections, [])
+    return Report(page, lines, [])

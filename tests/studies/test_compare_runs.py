@@ -1,0 +1,140 @@
+"""``rlcompare compare`` on runs other libraries made: Monitor files in Stable-Baselines3's format, the same numbers
+as a tidy table giving the same verdicts, the common grid and its metrics by hand, independent and paired seeds,
+a declared margin, and bad input as one line naming the file, exit 2, nothing written."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from helpers import invoke
+from scipy import stats
+
+from rlcompare.experiment.outside import grouping, read_runs
+from rlcompare.studies import compare_runs
+
+SEEDS = 5
+LEVELS = {"ppo": 200.0, "dqn": 120.0}
+
+
+def write_runs(root: Path, levels: dict[str, float] = LEVELS, seeds: int = SEEDS, episodes: int = 120) -> Path:
+    """Monitor files as Stable-Baselines3 writes them, ``{method}/CartPole-v1/{seed}/0.monitor.csv``: returns
+    that climb to each method's level, episodes of about 100 steps."""
+    rng = np.random.default_rng(4)
+    for method, level in levels.items():
+        for seed in range(seeds):
+            lengths = 100 + rng.integers(-5, 6, size=episodes)
+            returns = level * np.cumsum(lengths) / lengths.sum() + rng.normal(0.0, 10.0, size=episodes)
+            path = root / method / "CartPole-v1" / str(seed) / "0.monitor.csv"
+            path.parent.mkdir(parents=True)
+            episodes_rows = enumerate(zip(returns, lengths, strict=True))
+            rows = "".join(f"{r:.6f},{n},{0.01 * i:.2f}\n" for i, (r, n) in episodes_rows)
+            path.write_text("#" + json.dumps({"t_start": 0.0, "env_id": "CartPole-v1"}) + "\nr,l,t\n" + rows)
+    return root
+
+
+@pytest.fixture
+def runs(tmp_path):
+    return write_runs(tmp_path / "runs")
+
+
+def test_the_final_window_and_the_area_are_the_grids_by_hand(runs):
+    frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
+    (curve,) = compare_runs.curves(frame)
+    ends = frame.groupby(["method", "seed"])["step"].agg(["min", "max"])
+    assert curve.steps[0] == ends["min"].max()
+    assert curve.steps[-1] == ends["max"].min()
+    one = frame[(frame["method"] == "dqn") & (frame["seed"] == "3")]
+    by_hand = np.interp(curve.steps, one["step"], one["value"])
+    np.testing.assert_array_equal(curve.values["dqn"][curve.seeds["dqn"].index("3")], by_hand)
+    numbers = compare_runs.per_seed(curve)["dqn"]
+    last = curve.steps >= curve.steps[-1] - 0.1 * (curve.steps[-1] - curve.steps[0])
+    assert numbers["final"][curve.seeds["dqn"].index("3")] == pytest.approx(by_hand[last].mean())
+    assert numbers["auc"][curve.seeds["dqn"].index("3")] == pytest.approx(by_hand.mean())
+
+
+@pytest.mark.slow("bootstraps every comparison and draws the report")
+def test_compare_turns_monitor_files_into_a_report_with_independent_seeds(runs, tmp_path):
+    result = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 0, result.output
+    assert result.output.index("What each file was taken as") < result.output.index("On CartPole-v1")
+    table = pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")
+    assert table["metric"].tolist() == ["final", "auc"]
+    assert (table["verdict"] == "ppo better").all()
+    frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
+    finals = compare_runs.per_seed(compare_runs.curves(frame)[0])
+    p = stats.mannwhitneyu(finals["dqn"]["final"], finals["ppo"]["final"], alternative="two-sided").pvalue
+    assert table["p (Holm)"].iloc[0] == pytest.approx(2 * p)  # Holm over the two rows, both at the smallest p
+    assert 2 * p == pytest.approx(2 * 2 / math.comb(2 * SEEDS, SEEDS))
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert page.index(">The answer</h2>") < page.index(">Verdicts</h2>")
+    assert "independent samples" in page
+    assert "No margin was declared" in page
+
+
+def test_the_same_numbers_as_a_tidy_table_give_the_same_verdicts(runs, tmp_path):
+    frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
+    tidy = tmp_path / "tidy.csv"
+    frame.drop(columns="source").to_csv(tidy, index=False)
+    from_monitors = invoke("compare", str(runs), "--out", str(tmp_path / "a"), columns=300)
+    from_table = invoke("compare", str(tidy), "--out", str(tmp_path / "b"), columns=300)
+    assert from_monitors.exit_code == from_table.exit_code == 0, from_table.output
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "a" / "tables" / "verdicts.csv"),
+                                  pd.read_csv(tmp_path / "b" / "tables" / "verdicts.csv"))
+
+
+def test_paired_seeds_and_a_declared_margin_are_what_the_report_says(tmp_path):
+    runs = write_runs(tmp_path / "runs", {"sarsa": 150.0, "q": 151.0})
+    result = invoke("compare", str(runs), "--paired", "--margin", "40", "--out", str(tmp_path / "out"),
+                    columns=300)
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")
+    assert table["verdict"].tolist() == ["equivalent (within ±40)"] * 2
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert "Seeds paired by their labels" in page
+    assert "±40" in page
+
+
+def test_a_seed_missing_from_one_method_is_one_line_naming_it(runs, tmp_path):
+    for path in (runs / "dqn" / "CartPole-v1" / "4").iterdir():
+        path.unlink()
+    (runs / "dqn" / "CartPole-v1" / "4").rmdir()
+    result = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 2
+    assert "lacks seed 4" in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_run_of_another_budget_is_one_line_naming_its_file(runs, tmp_path):
+    short = runs / "ppo" / "CartPole-v1" / "2" / "0.monitor.csv"
+    short.write_text("\n".join(short.read_text().splitlines()[:60]) + "\n")
+    result = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 2
+    assert str(short) in result.output
+    assert "expected runs of one budget" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("arguments", "said"), [
+    (["--group", "{method}/{seed}/*"], "--group"),
+    (["--group", "{method}/{env}/x{seed}/*"], "does not match the grouping rule"),
+    (["--margin", "0"], "--margin"),
+])
+def test_bad_options_are_one_line(runs, tmp_path, arguments, said):
+    result = invoke("compare", str(runs), *arguments, "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 2
+    assert said in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_empty_directory_is_one_line(tmp_path):
+    (tmp_path / "empty").mkdir()
+    result = invoke("compare", str(tmp_path / "empty"), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 2
+    assert "no run found" in result.output
