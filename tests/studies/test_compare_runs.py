@@ -138,3 +138,30 @@ def test_an_empty_directory_is_one_line(tmp_path):
     result = invoke("compare", str(tmp_path / "empty"), "--out", str(tmp_path / "out"), columns=300)
     assert result.exit_code == 2
     assert "no run found" in result.output
+
+
+@pytest.mark.slow("writes 10 TensorBoard files and draws the report")
+def test_tensorboard_files_in_cleanrls_layout_become_a_report(tmp_path):
+    pytest.importorskip("tensorboard")
+    from tensorboard.summary import Writer
+
+    rng = np.random.default_rng(1)
+    for method, level in LEVELS.items():
+        for seed in range(SEEDS):
+            writer = Writer(str(tmp_path / "runs" / f"CartPole-v1__{method}__{seed}__1700000000"))
+            for step in range(0, 20_000, 250):
+                writer.add_scalar("charts/episodic_return", level * step / 20_000 + rng.normal(0, 5), step=step)
+            writer.add_scalar("losses/td_loss", 1.0, step=0)
+            writer.close()
+    result = invoke("compare", str(tmp_path / "runs"), "--group", "{env}__{method}__{seed}__*/*", "--out",
+                    str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 0, result.output
+    pairing = pd.read_csv(tmp_path / "out" / "tables" / "pairing.csv")
+    assert len(pairing) == 2 * SEEDS
+    assert (pairing["points"] == 80).all()
+    assert (pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")["verdict"] == "ppo better").all()
+    missing = invoke("compare", str(tmp_path / "runs"), "--group", "{env}__{method}__{seed}__*/*", "--tag",
+                     "eval/mean_reward", "--out", str(tmp_path / "other"), columns=300)
+    assert missing.exit_code == 2
+    assert "expected the tag 'eval/mean_reward'" in missing.output
+    assert not (tmp_path / "other").exists()

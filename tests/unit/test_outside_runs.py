@@ -142,3 +142,67 @@ def test_an_evaluations_archive_without_its_arrays_is_refused(tmp_path):
     np.savez(path, steps=np.arange(3))
     with pytest.raises(OutsideRunError, match="timesteps and results"):
         read_runs([path], tmp_path, grouping(RULE))
+
+
+def write_events(directory: Path, tag: str, steps: np.ndarray, values: np.ndarray) -> Path:
+    """An event file written by TensorBoard's own writer."""
+    from tensorboard.summary import Writer
+
+    writer = Writer(str(directory))
+    for step, value in zip(steps, values, strict=True):
+        writer.add_scalar(tag, float(value), step=int(step))
+    writer.close()
+    (path,) = directory.glob("events.out.tfevents.*")
+    return path
+
+
+def test_tensorboard_files_under_cleanrls_tag_names_read_as_their_scalars(tmp_path):
+    pytest.importorskip("tensorboard")
+    steps, values = np.arange(0, 5000, 100), np.linspace(-3.0, 40.0, 50)
+    for method, seed in (("ppo", 1), ("dqn", 2)):
+        write_events(tmp_path / f"CartPole-v1__{method}__{seed}__1700000000", "charts/episodic_return", steps,
+                     values * seed)
+    rule = grouping("{env}__{method}__{seed}__*/*")
+    frame = read_runs(sorted(tmp_path.rglob("events.out.tfevents.*")), tmp_path, rule)
+    dqn = frame[frame["method"] == "dqn"]
+    assert set(dqn["env"]) == {"CartPole-v1"}
+    assert set(dqn["seed"]) == {"2"}
+    np.testing.assert_array_equal(dqn["step"], steps)
+    np.testing.assert_allclose(dqn["value"], values * 2, rtol=1e-6)  # stored as float32
+
+
+def test_a_tag_the_file_lacks_is_one_message_naming_the_tags_there(tmp_path):
+    pytest.importorskip("tensorboard")
+    path = write_events(tmp_path / "ppo" / "CartPole-v1" / "0", "losses/value_loss", np.arange(3), np.ones(3))
+    with pytest.raises(OutsideRunError, match="expected one of the tags charts/episodic_return") as refused:
+        read_runs([path], tmp_path, grouping(RULE.replace("seed_", "")))
+    assert "losses/value_loss" in str(refused.value)
+    with pytest.raises(OutsideRunError, match="expected the tag 'eval/mean_reward'"):
+        read_runs([path], tmp_path, grouping(RULE.replace("seed_", "")), tag="eval/mean_reward")
+    assert len(read_runs([path], tmp_path, grouping(RULE.replace("seed_", "")), tag="losses/value_loss")) == 3
+
+
+def test_a_file_named_as_events_that_is_not_is_one_message(tmp_path):
+    pytest.importorskip("tensorboard")
+    path = tmp_path / "ppo" / "CartPole-v1" / "0" / "events.out.tfevents.1.host"
+    path.parent.mkdir(parents=True)
+    path.write_bytes(b"\x00" * 40 + b"not an event file")
+    with pytest.raises(OutsideRunError) as refused:
+        read_runs([path], tmp_path, grouping(RULE.replace("seed_", "")))
+    assert str(refused.value).startswith(str(path))
+
+
+@pytest.mark.slow("starts a pool of processes")
+def test_many_tensorboard_files_read_in_processes_equal_them_read_here(tmp_path, monkeypatch):
+    pytest.importorskip("tensorboard")
+    from rlcompare.experiment import outside
+
+    for seed in range(4):
+        write_events(tmp_path / f"CartPole-v1__ppo__{seed}__0", "charts/episodic_return", np.arange(50) * 10,
+                     np.sin(np.arange(50) + seed))
+    files = sorted(tmp_path.rglob("events.out.tfevents.*"))
+    rule = grouping("{env}__{method}__{seed}__*/*")
+    here = read_runs(files, tmp_path, rule)
+    monkeypatch.setattr(outside, "PARALLEL_FROM", 2)
+    monkeypatch.setattr(outside.os, "cpu_count", lambda: 2)
+    pd.testing.assert_frame_equal(read_runs(files, tmp_path, rule), here)

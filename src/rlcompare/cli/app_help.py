@@ -22,7 +22,7 @@ SUMMARIES = {
     "report": "Rebuild the tables, verdicts, figures, videos and report.html of a study or a sweep, without "
               "training; or show a single run's results.",
     "compare": "Verdicts and a report for runs other libraries made: Stable-Baselines3's Monitor files, RL Zoo's "
-               "evaluations, tidy tables.",
+               "evaluations, TensorBoard files, tidy tables.",
     "uci": "Serve a network trained at chess as a UCI engine on standard input and output, for any chess program.",
     "bench": "Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop.",
     "reproduce": "Reproduce a study (the paper's by default): train what its directory lacks, then build its report.",

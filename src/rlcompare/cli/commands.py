@@ -175,12 +175,15 @@ def report(
 @command("compare")
 def compare(
     paths: Annotated[list[Path], typer.Argument(
-        metavar="PATH...", help="Directories to search for Stable-Baselines3 Monitor files (*.monitor.csv) and RL Zoo "
-                                "evaluations (evaluations.npz), or those files, or tidy tables (.csv, .parquet) of "
-                                "method, env, seed, step, value.")],
+        metavar="PATH...", help="Directories to search for Stable-Baselines3 Monitor files (*.monitor.csv), RL Zoo "
+                                "evaluations (evaluations.npz) and TensorBoard event files, or those files, or tidy "
+                                "tables (.csv, .parquet) of method, env, seed, step, value.")],
     group: Annotated[str, typer.Option(help="How a file's path, below the directory given (or the common one of "
                                             "several), names its method, environment and seed: {method}, {env} and "
                                             "{seed} once each, * for any name.")] = "{method}/{env}/{seed}/*",
+    tag: Annotated[str | None, typer.Option(help="The scalar of TensorBoard event files to read. Default: the first "
+                                                 "there of charts/episodic_return (CleanRL), eval/mean_reward, "
+                                                 "rollout/ep_rew_mean (Stable-Baselines3).")] = None,
     paired: Annotated[bool, typer.Option(help="The seeds share randomness across methods (seed s of each on the "
                                               "same starts): compare them pair by pair. Default: independent.")
                       ] = False,
@@ -205,7 +208,7 @@ def compare(
         raise typer.BadParameter(f"{margin:g}; allowed: a positive number", param_hint="'--margin'")
     try:
         root, files = run_files(paths)
-        frame = read_runs(files, root, rule)
+        frame = read_runs(files, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
         shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin)
     except OutsideRunError as error:

@@ -7,6 +7,8 @@ naming it and what was expected, never a silent result):
   step of an episode is the environment steps up to its end (the sum of ``l``), its value the return ``r``.
 - RL Zoo's ``evaluations.npz`` (Stable-Baselines3's ``EvalCallback``): ``timesteps`` and ``results``
   ``(evaluations, episodes)``; the value at a step is the mean of its episodes.
+- TensorBoard event files (``events.out.tfevents.*``): one scalar by its tag (:data:`TAGS`: CleanRL's and
+  Stable-Baselines3's names), read with TensorBoard's own loader.
 - A tidy CSV or Parquet with the columns :data:`TIDY`, one file holding many runs.
 
 Which method, environment and seed a file holds comes from a grouping rule over its path (:func:`grouping`), as
@@ -18,9 +20,13 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from functools import partial
+from multiprocessing import get_context
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -131,18 +137,81 @@ def read_tidy(path: Path) -> pd.DataFrame:
                          "value": values.astype(np.float64)})
 
 
-READERS = {".monitor.csv": read_monitor, "evaluations.npz": read_zoo_evaluations}
-"""A run's file by how its name ends, and its reader."""
+TAGS = ("charts/episodic_return", "eval/mean_reward", "rollout/ep_rew_mean")
+"""The tags a TensorBoard file is read by where ``--tag`` names none, the first present: CleanRL's episode returns,
+Stable-Baselines3's evaluations, then its training episodes' running mean."""
+
+
+def scalar_series(path: Path) -> dict[str, tuple[list[int], list[float]]]:
+    """Every scalar of a TensorBoard event file by tag: its steps and values, its records read by TensorBoard's own
+    loader and parsed as its ``Event`` protocol buffers (``simple_value`` as PyTorch's writer and TensorFlow 1 write
+    a scalar, or a one-number tensor as TensorBoard's and TensorFlow 2's writers do)."""
+    try:
+        from tensorboard.backend.event_processing.event_file_loader import RawEventFileLoader
+        from tensorboard.compat.proto.event_pb2 import Event
+    except ImportError:
+        raise OutsideRunError(f"{path}: a TensorBoard file, and TensorBoard is not installed; pip install -e "
+                              "'.[compare]'") from None
+    series: dict[str, tuple[list[int], list[float]]] = {}
+    try:
+        for record in RawEventFileLoader(str(path)).Load():
+            event = Event.FromString(record)
+            for value in event.summary.value:
+                number = scalar_of(value)
+                if number is not None:
+                    steps, values = series.setdefault(value.tag, ([], []))
+                    steps.append(int(event.step))
+                    values.append(number)
+    except Exception as error:  # the loader's and the parser's own errors (a truncated or foreign file)
+        raise OutsideRunError(f"{path}: not a TensorBoard event file ({type(error).__name__}: {error})") from None
+    return series
+
+
+def scalar_of(value: Any) -> float | None:
+    """The number of a summary value that holds one scalar; None for any other (an image, a histogram)."""
+    kind = value.WhichOneof("value")
+    if kind == "simple_value":
+        return float(value.simple_value)
+    if kind != "tensor" or value.metadata.plugin_data.plugin_name != "scalars":
+        return None
+    tensor = value.tensor
+    for field in ("float_val", "double_val", "int_val", "int64_val"):
+        if len(getattr(tensor, field)):
+            return float(getattr(tensor, field)[0])
+    dtype = {1: np.float32, 2: np.float64, 3: np.int32, 9: np.int64}.get(tensor.dtype)  # TensorFlow's DataType
+    return float(np.frombuffer(tensor.tensor_content, dtype)[0]) if dtype and tensor.tensor_content else None
+
+
+def read_tensorboard(path: Path, tag: str | None = None) -> pd.DataFrame:
+    """``(step, value)`` of one scalar of a TensorBoard event file: ``tag``, or the first of :data:`TAGS` there."""
+    series = scalar_series(path)
+    chosen = tag if tag is not None else next((t for t in TAGS if t in series), None)
+    if chosen is None or chosen not in series:
+        wanted = f"the tag {tag!r}" if tag is not None else f"one of the tags {', '.join(TAGS)} (or --tag)"
+        raise OutsideRunError(f"{path}: scalars {', '.join(sorted(series)) or 'none'}; expected {wanted}")
+    steps, values = series[chosen]
+    return pd.DataFrame({"step": np.asarray(steps, np.int64), "value": np.asarray(values, np.float64)})
+
+
+def reader_of(path: Path) -> Callable[..., pd.DataFrame] | None:
+    """The reader of a run's file, by its name: a Monitor file, RL Zoo's evaluations or a TensorBoard event file."""
+    if path.name.endswith(".monitor.csv"):
+        return read_monitor
+    if path.name == "evaluations.npz":
+        return read_zoo_evaluations
+    if "tfevents" in path.name:
+        return read_tensorboard
+    return None
 
 
 def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
-    """The files ``paths`` name: each file itself, each directory's run files (:data:`READERS`) below it; and the
+    """The files ``paths`` name: each file itself, each directory's run files (:func:`reader_of`) below it; and the
     root their grouping rule reads paths from (the directory given, or the deepest one common to all)."""
     files: list[Path] = []
     given = [Path(p) for p in paths]
     for path in given:
         if path.is_dir():
-            files += sorted(f for f in path.rglob("*") if f.is_file() and any(f.name.endswith(e) for e in READERS))
+            files += sorted(f for f in path.rglob("*") if f.is_file() and reader_of(f) is not None)
         elif path.is_file():
             files.append(path)
         else:
@@ -154,27 +223,48 @@ def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
     return Path(os.path.commonpath([str(b.resolve()) for b in bases])), [f.resolve() for f in files]
 
 
-def read_runs(paths: Iterable[Path], root: Path, rule: Grouping) -> pd.DataFrame:
+PARALLEL_FROM = 16
+"""TensorBoard files are read by a pool of processes, one a core, from this many on (the record reader is Python's,
+so threads would wait on each other); fewer are read here."""
+
+
+def read_in_parallel(paths: list[Path], tag: str | None) -> dict[Path, pd.DataFrame]:
+    """Each of ``paths`` (TensorBoard files) read with :func:`read_tensorboard`, in a pool of processes where there
+    are many; the first file that cannot be read is its :class:`OutsideRunError`."""
+    read = partial(read_tensorboard, tag=tag)
+    workers = min(os.cpu_count() or 1, len(paths))
+    if len(paths) < PARALLEL_FROM or workers < 2:
+        return {path: read(path) for path in paths}
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+        return dict(zip(paths, pool.map(read, paths, chunksize=max(1, len(paths) // (4 * workers))), strict=True))
+
+
+def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None = None) -> pd.DataFrame:
     """Every file of ``paths`` as tidy rows (:data:`TIDY`, and the ``source`` file of each): a tidy table as it is,
-    a run's file (:data:`READERS`) labelled by ``rule``; another file is an :class:`OutsideRunError` naming it. Two
-    files of the same method, environment and seed are one too."""
+    a run's file (:func:`reader_of`; a TensorBoard file's scalar ``tag``) labelled by ``rule``; another file is an
+    :class:`OutsideRunError` naming it. Two files of the same method, environment and seed are one too."""
     frames: list[pd.DataFrame] = []
     seen: dict[tuple[str, ...], Path] = {}
-    for path in sorted(Path(p) for p in paths):
-        reader = next((read for ending, read in READERS.items() if path.name.endswith(ending)), None)
+    ordered = sorted(Path(p) for p in paths)
+    events = read_in_parallel([p for p in ordered if reader_of(p) is read_tensorboard], tag)
+    for path in ordered:
+        reader = reader_of(path)
         if reader is None and path.suffix in (".csv", ".parquet"):
             frames.append(read_tidy(path).assign(source=str(path)))
             continue
         if reader is None:
-            raise OutsideRunError(f"{path}: not a run rlcompare reads; expected *.monitor.csv, evaluations.npz, or a "
-                                  f"tidy .csv or .parquet of {', '.join(TIDY)}")
+            raise OutsideRunError(f"{path}: not a run rlcompare reads; expected *.monitor.csv, evaluations.npz, a "
+                                  f"TensorBoard events file, or a tidy .csv or .parquet of {', '.join(TIDY)}")
         labels = rule.of(path, root)
         key = tuple(labels[name] for name in FIELDS)
         if key in seen:
             raise OutsideRunError(f"{path}: method {key[0]}, environment {key[1]}, seed {key[2]} again (also "
                                   f"{seen[key]}); expected one file a run")
         seen[key] = path
-        frames.append(reader(path).assign(**labels, source=str(path)))
+        read = events[path] if reader is read_tensorboard else reader(path)
+        if read.empty:
+            raise OutsideRunError(f"{path}: no points; expected at least one")
+        frames.append(read.assign(**labels, source=str(path)))
     if not frames:
         raise OutsideRunError(f"{root}: no run found; expected *.monitor.csv, evaluations.npz or a tidy table")
     return pd.concat(frames, ignore_index=True)[[*TIDY, "source"]]
