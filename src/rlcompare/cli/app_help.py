@@ -23,6 +23,7 @@ SUMMARIES = {
               "training; or show a single run's results.",
     "compare": "Verdicts and a report for runs other libraries made: Stable-Baselines3's Monitor files, RL Zoo's "
                "evaluations, TensorBoard files, tidy tables.",
+    "export": "Write a run's training episodes where other tools read them: a tidy CSV, or TensorBoard files.",
     "uci": "Serve a network trained at chess as a UCI engine on standard input and output, for any chess program.",
     "bench": "Steps per second of the kernels on 1 and all threads against a plain Gymnasium loop.",
     "reproduce": "Reproduce a study (the paper's by default): train what its directory lacks, then build its report.",

@@ -187,6 +187,9 @@ def compare(
     paired: Annotated[bool, typer.Option(help="The seeds share randomness across methods (seed s of each on the "
                                               "same starts): compare them pair by pair. Default: independent.")
                       ] = False,
+    cut_to_shortest: Annotated[bool, typer.Option(help="Compare runs that end at different steps (budgets of "
+                                                       "episodes) on the steps every one reached; without it such "
+                                                       "runs are refused.")] = False,
     margin: Annotated[float | None, typer.Option(help="The difference that counts as none, in the values' units, "
                                                       "declared before reading the report; without it no "
                                                       "comparison is called equivalent.", min=0.0)] = None,
@@ -210,10 +213,51 @@ def compare(
         root, files = run_files(paths)
         frame = read_runs(files, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
-        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin)
+        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest)
     except OutsideRunError as error:
         fail(str(error))
     print_report(shown)
+
+
+EXPORT = store.Owner("export")
+
+
+@command("export")
+def export(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", help="A run directory (written by run, or one "
+                                                                   "configuration of a study).")],
+    to: Annotated[str, typer.Option(help="csv (the tidy table: method, env, seed, step, value) or tensorboard "
+                                         "(event files under charts/episodic_return, one directory a seed: "
+                                         "METHOD/ENV/SEED).")] = "csv",
+    out: Annotated[str | None, typer.Option(help="Directory to write into (new, empty, or one export wrote). "
+                                                 "Default: runs/export.", show_default=False)] = None,
+) -> None:
+    """Write a run's training episodes (each return at the environment steps up to its end, as Stable-Baselines3's
+    Monitor records them) where other tools read them."""
+    from rlcompare.experiment.engines import load_run
+    from rlcompare.experiment.outside import episodes_table, tensorboard_directory, write_tensorboard
+
+    if to not in ("csv", "tensorboard"):
+        raise typer.BadParameter(f"{to!r}; allowed: csv, tensorboard", param_hint="'--to'")
+    if store.owner_of(run_dir) != store.RUN:
+        raise typer.BadParameter(f"{run_dir}: not a run directory rlcompare wrote; allowed: a run directory",
+                                 param_hint="'RUN_DIR'")
+    out_dir = out_path(out, Path("runs/export"))
+    check_out(out_dir, EXPORT, False)
+    table = episodes_table(load_run(run_dir))
+    with store.output_directory(out_dir, EXPORT):
+        if to == "csv":
+            store.enter_outputs(out_dir / "episodes.csv")
+            store.write_bytes_atomic(out_dir / "episodes.csv", table.to_csv(index=False).encode())
+            written = [out_dir / "episodes.csv"]
+        else:
+            # this run's files of an earlier export go; other runs exported here stay
+            first = table.iloc[0]
+            store.remove_outputs(out_dir, f"{tensorboard_directory(first['method'], first['env'], '*')}/"
+                                          "events.out.tfevents.*")
+            written = write_tensorboard(table, out_dir)
+    console.print(f"{plural(len(table), 'episode')} of {table['seed'].nunique()} seeds written to "
+                  f"{plural(len(written), 'file')} in {out_dir}", highlight=False)
 
 
 @command("uci")

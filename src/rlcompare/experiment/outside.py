@@ -10,6 +10,8 @@ naming it and what was expected, never a silent result):
 - TensorBoard event files (``events.out.tfevents.*``): one scalar by its tag (:data:`TAGS`: CleanRL's and
   Stable-Baselines3's names), read with TensorBoard's own loader.
 - A tidy CSV or Parquet with the columns :data:`TIDY`, one file holding many runs.
+- rlcompare's own run directories: their training episodes (:func:`episodes_table`), labelled by their own
+  configuration.
 
 Which method, environment and seed a file holds comes from a grouping rule over its path (:func:`grouping`), as
 ``{method}/{env}/seed_{seed}/*`` reads ``ppo/CartPole-v1/seed_3/0.monitor.csv``.
@@ -30,6 +32,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from rlcompare.experiment import store
+from rlcompare.experiment.engines import load_run
 
 TIDY = ("method", "env", "seed", "step", "value")
 """The columns of the tidy table every reader gives."""
@@ -210,8 +215,12 @@ def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
     files: list[Path] = []
     given = [Path(p) for p in paths]
     for path in given:
-        if path.is_dir():
-            files += sorted(f for f in path.rglob("*") if f.is_file() and reader_of(f) is not None)
+        if path.is_dir() and store.owner_of(path) == store.RUN:
+            files.append(path)
+        elif path.is_dir():
+            files += sorted(f for f in path.rglob("*") if (f.is_file() and reader_of(f) is not None)
+                            or (f.name == store.MARKER_FILE and store.owner_of(f.parent) == store.RUN))
+            files = [f.parent if f.name == store.MARKER_FILE else f for f in files]
         elif path.is_file():
             files.append(path)
         else:
@@ -248,6 +257,9 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
     ordered = sorted(Path(p) for p in paths)
     events = read_in_parallel([p for p in ordered if reader_of(p) is read_tensorboard], tag)
     for path in ordered:
+        if path.is_dir():  # one of rlcompare's own run directories: its training episodes, labelled as it is
+            frames.append(episodes_table(load_run(path)).astype({"seed": str}).assign(source=str(path)))
+            continue
         reader = reader_of(path)
         if reader is None and path.suffix in (".csv", ".parquet"):
             frames.append(read_tidy(path).assign(source=str(path)))
@@ -268,3 +280,52 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
     if not frames:
         raise OutsideRunError(f"{root}: no run found; expected *.monitor.csv, evaluations.npz or a tidy table")
     return pd.concat(frames, ignore_index=True)[[*TIDY, "source"]]
+
+
+# --- the other way: rlcompare's runs where other tools read them ----------------------------------------------
+
+EXPORT_TAG = "charts/episodic_return"
+"""The tag an exported run's episode returns carry in TensorBoard: CleanRL's, which :data:`TAGS` reads first."""
+
+
+def episodes_table(results: Any) -> pd.DataFrame:
+    """A run's training episodes as the tidy table (:data:`TIDY`): each episode's return at the environment steps
+    up to its end, as Stable-Baselines3's Monitor records them; the method is the run's algorithm."""
+    config = results.config
+    episodes = results.episodes() if callable(results.episodes) else results.episodes
+    if "env_step" in episodes:  # the deep engine's vectorised environments: the step at which each episode ended
+        steps = episodes["env_step"].to_numpy(np.int64)
+    else:
+        steps = episodes.groupby("seed", sort=False)["length"].cumsum().to_numpy(np.int64)
+    return pd.DataFrame({"method": config.algorithm, "env": config.env, "seed": episodes["seed"].to_numpy(),
+                         "step": steps, "value": episodes["return"].to_numpy(np.float64)})
+
+
+def tensorboard_directory(method: str, env: str, seed: object) -> str:
+    """``{method}/{env}/{seed}``, the layout :func:`grouping`'s default rule reads (a ``/`` in a name as ``_``)."""
+    return "/".join(str(part).replace("/", "_") for part in (method, env, seed))
+
+
+def write_tensorboard(frame: pd.DataFrame, out: Path) -> list[Path]:
+    """Each run of a tidy table as a TensorBoard event file written by TensorBoard's own writer, under
+    :data:`EXPORT_TAG`, in ``out / {method}/{env}/{seed}``; each written beside and moved into place once whole,
+    and entered in ``out``'s list of outputs first (:func:`rlcompare.experiment.store.enter_outputs`)."""
+    import tempfile
+
+    from tensorboard.summary import Writer
+
+    written = []
+    for (method, env, seed), run in frame.groupby(["method", "env", "seed"], sort=True):
+        target = out / tensorboard_directory(str(method), str(env), seed)
+        with tempfile.TemporaryDirectory(dir=out, prefix=".export-") as scratch:
+            writer = Writer(scratch)
+            for step, value in zip(run["step"], run["value"], strict=True):
+                writer.add_scalar(EXPORT_TAG, float(value), step=int(step))
+            writer.close()
+            (made,) = Path(scratch).glob("events.out.tfevents.*")
+            final = target / made.name
+            store.enter_outputs(final)
+            target.mkdir(parents=True, exist_ok=True)
+            os.replace(made, final)
+        written.append(final)
+    return written

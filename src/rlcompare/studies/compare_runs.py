@@ -58,18 +58,19 @@ def runs_of(frame: pd.DataFrame) -> dict[tuple[str, str, str], pd.DataFrame]:
             for (env, method, seed), rows in frame.groupby(["env", "method", "seed"], sort=True)}
 
 
-def checked(frame: pd.DataFrame) -> None:
-    """Refuse, naming the file, a run that ends well before its environment's longest (another budget) and a seed
-    one method of an environment has and another lacks."""
+def checked(frame: pd.DataFrame, cut: bool = False) -> None:
+    """Refuse, naming the file, a run that ends well before its environment's longest (another budget, unless
+    ``cut``: the comparison is then on the steps every run reached) and a seed one method of an environment has
+    and another lacks."""
     runs = runs_of(frame)
     for env, rows in frame.groupby("env", sort=True):
         ends = {key: run["step"].iloc[-1] for key, run in runs.items() if key[0] == env}
         longest = max(ends.values())
         for key, end in ends.items():
-            if end < SHORTEST_SHARE * longest:
+            if end < SHORTEST_SHARE * longest and not cut:
                 source = runs[key]["source"].iloc[0]
                 raise OutsideRunError(f"{source}: {key[1]} seed {key[2]} on {env} ends at step {end:,}; expected runs "
-                                      f"of one budget (the longest ends at {longest:,})")
+                                      f"of one budget (the longest ends at {longest:,}), or --cut-to-shortest")
         seeds = {str(method): set(group.astype(str)) for method, group in rows.groupby("method")["seed"]}
         every = set().union(*seeds.values())
         for method, have in seeds.items():
@@ -183,9 +184,10 @@ def pairing_table(frame: pd.DataFrame) -> pd.DataFrame:
             .agg(points=("step", "size"), first_step=("step", "min"), last_step=("step", "max")).reset_index())
 
 
-def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None) -> Report:
-    """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out``."""
-    checked(frame)
+def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False) -> Report:
+    """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out``; ``cut``: runs that end apart
+    are compared on the steps all of them reached (:func:`checked`)."""
+    checked(frame, cut)
     found = curves(frame)
     comparisons = compared(found, paired, margin)
     with store.output_directory(out, COMPARISON):
@@ -202,7 +204,8 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
             Section("The answer", lines),
             Section("What was compared", [
                 f"Each run's values on a common grid of {GRID_POINTS} environment steps per environment, from the step "
-                f"where every run has begun to where the shortest ends ({grids}), by linear interpolation. Metrics: "
+                f"where every run has begun to where the shortest ends ({grids}), by linear interpolation"
+                + (" (--cut-to-shortest: runs that ended apart are cut to it)" if cut else "") + ". Metrics: "
                 + "; ".join(f"{name}, the {words}" for name, words in METRICS.items())
                 + ". " + ("Seeds paired by their labels (--paired): the user says they share randomness." if paired
                           else "Seeds compared as independent samples: runs of different libraries share no "

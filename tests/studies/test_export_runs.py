@@ -1,0 +1,71 @@
+"""``rlcompare export``: a run's training episodes as a tidy CSV and as TensorBoard files written by TensorBoard's
+own writer; both read back by ``rlcompare compare`` to the run's own numbers, and the verdicts on the exported
+files equal those on the run directories themselves."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from helpers import invoke
+
+from rlcompare.experiment.engines import load_run
+from rlcompare.experiment.outside import grouping, read_runs, run_files
+
+pytestmark = pytest.mark.slow("trains two small tabular runs and exports them")
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("export")
+    for algorithm in ("q_learning", "sarsa"):
+        result = invoke("run", "--algorithm", algorithm, "--seeds", "5", "--episodes", "40", "--out",
+                        str(root / algorithm), columns=300)
+        assert result.exit_code == 0, result.output
+    return root
+
+
+def test_the_csv_holds_each_episodes_return_at_the_steps_up_to_its_end(runs, tmp_path):
+    result = invoke("export", str(runs / "sarsa"), "--out", str(tmp_path / "csv"), columns=300)
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(tmp_path / "csv" / "episodes.csv")
+    episodes = load_run(runs / "sarsa").episodes()
+    assert list(table.columns) == ["method", "env", "seed", "step", "value"]
+    assert set(table["method"]) == {"sarsa"}
+    np.testing.assert_array_equal(table["value"], episodes["return"])
+    np.testing.assert_array_equal(table["step"], episodes.groupby("seed")["length"].cumsum())
+
+
+def test_tensorboard_files_read_back_to_the_runs_numbers_and_verdicts(runs, tmp_path):
+    pytest.importorskip("tensorboard")
+    for algorithm in ("q_learning", "sarsa"):
+        result = invoke("export", str(runs / algorithm), "--to", "tensorboard", "--out", str(tmp_path / "tb"),
+                        columns=300)
+        assert result.exit_code == 0, result.output
+    again = invoke("export", str(runs / "sarsa"), "--to", "tensorboard", "--out", str(tmp_path / "tb"), columns=300)
+    assert again.exit_code == 0, again.output
+    assert len(list((tmp_path / "tb").rglob("events.out.tfevents.*"))) == 10  # the second export replaced its own
+    root, files = run_files([tmp_path / "tb"])
+    from_events = read_runs(files, root, grouping("{method}/{env}/{seed}/*")).drop(columns="source")
+    root, dirs = run_files([runs / "q_learning", runs / "sarsa"])
+    from_runs = read_runs(dirs, root, grouping("{method}/{env}/{seed}/*")).drop(columns="source")
+    pd.testing.assert_frame_equal(from_events.reset_index(drop=True), from_runs.reset_index(drop=True),
+                                  check_dtype=False)
+    verdicts = []
+    for name, paths in (("events", [str(tmp_path / "tb")]), ("runs", [str(runs / "q_learning"), str(runs / "sarsa")])):
+        result = invoke("compare", *paths, "--paired", "--cut-to-shortest", "--out", str(tmp_path / name),
+                        columns=300)
+        assert result.exit_code == 0, result.output
+        verdicts.append(pd.read_csv(tmp_path / name / "tables" / "verdicts.csv"))
+    pd.testing.assert_frame_equal(*verdicts)
+
+
+def test_bad_input_is_one_line(runs, tmp_path):
+    unknown = invoke("export", str(runs / "sarsa"), "--to", "wandb", "--out", str(tmp_path / "x"), columns=300)
+    assert unknown.exit_code == 2
+    assert "--to" in unknown.output
+    not_a_run = invoke("export", str(tmp_path), "--out", str(tmp_path / "y"), columns=300)
+    assert not_a_run.exit_code == 2
+    assert "not a run directory" in not_a_run.output
+    assert not (tmp_path / "x").exists()
+    assert not (tmp_path / "y").exists()
