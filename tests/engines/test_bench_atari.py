@@ -85,7 +85,7 @@ def test_dqns_cost_is_its_formula_on_its_measured_parts() -> None:
 
 @pytest.mark.slow("compiles and runs a PQN training on a 2-game emulator")
 def test_the_timed_pqn_training_is_its_updates_with_a_one_step_evaluation() -> None:
-    config = dataclasses.replace(bench.pqn_preset(), n_envs=2, n_steps=4, n_minibatches=2)
+    config = dataclasses.replace(bench.pqn_preset(), n_envs=2, n_steps=4, n_minibatches=2, hidden=(32,))
     training = bench.pqn_training(bench.bench_env(), 2, config)
     assert math.isfinite(training.steps_per_second)
     assert training.steps_per_second > 0

@@ -157,7 +157,7 @@ def test_several_seeds_side_by_side_are_refused_naming_the_field() -> None:
 
 def _tiny_config(algorithm: str, seed: int) -> DeepConfig:
     return DeepConfig(algorithm=algorithm, env="Breakout-Atari", seeds=(seed,), vmap_width=1, eval_rounds=1,
-                      eval_episodes=2, hyperparameters={"total_steps": 128, "n_envs": 4, "n_steps": 16,
+                      eval_episodes=1, hyperparameters={"total_steps": 128, "n_envs": 4, "n_steps": 16,
                                                         "n_minibatches": 2, "hidden": (32,)})
 
 

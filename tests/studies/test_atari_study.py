@@ -38,7 +38,7 @@ def small_preset():
     with pytest.MonkeyPatch.context() as patch:
         patch.setitem(pqn.PRESETS["default"], "Breakout-Atari", SMALL)
         patch.setattr(atari_play, "STAGE_STEPS", 40)
-        patch.setitem(atari_study.BUDGETS, "smoke", atari_study.Budget("breakout", 256, 2, 4, "seconds"))
+        patch.setitem(atari_study.BUDGETS, "smoke", atari_study.Budget("breakout", 256, 1, 2, "seconds"))
         yield
 
 

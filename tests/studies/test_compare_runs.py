@@ -4,6 +4,7 @@ a declared margin, and bad input as one line naming the file, exit 2, nothing wr
 
 from __future__ import annotations
 
+import html
 import json
 import math
 from pathlib import Path
@@ -165,3 +166,20 @@ def test_tensorboard_files_in_cleanrls_layout_become_a_report(tmp_path):
     assert missing.exit_code == 2
     assert "expected the tag 'eval/mean_reward'" in missing.output
     assert not (tmp_path / "other").exists()
+
+
+@pytest.mark.slow("bootstraps rliable's aggregates over two environments")
+def test_two_environments_are_pooled_as_rliable_does(tmp_path):
+    runs = write_runs(tmp_path / "runs")
+    for method in LEVELS:  # the same runs again as a second environment
+        for seed_dir in (runs / method / "CartPole-v1").iterdir():
+            target = runs / method / "Acrobot-v1" / seed_dir.name
+            target.mkdir(parents=True)
+            (target / "0.monitor.csv").write_text((seed_dir / "0.monitor.csv").read_text())
+    result = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 0, result.output
+    intervals = pd.read_csv(tmp_path / "out" / "tables" / "aggregates.csv")
+    assert set(intervals.iloc[:, 0]) == {"dqn", "ppo"}
+    page = html.unescape((tmp_path / "out" / "report.html").read_text())
+    assert "Across environments" in page
+    assert "worst method's mean (0)" in page

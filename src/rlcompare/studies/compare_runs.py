@@ -24,9 +24,11 @@ from matplotlib.figure import Figure
 
 from rlcompare.experiment import store
 from rlcompare.experiment.outside import OutsideRunError
+from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.plots import plot_return_curves
+from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
 from rlcompare.studies.interface import Report
 
@@ -169,6 +171,23 @@ def smallest_p(n: int, m: int, paired: bool) -> float:
     return 2.0 / 2.0**n if paired else 2.0 / math.comb(n + m, n)
 
 
+def across(found: list[Curves], figures: Path, tables: Path) -> tuple[Aggregates | None, dict[str, str]]:
+    """rliable's aggregates of the final-window numbers over two or more environments that two or more methods ran
+    (each environment normalised between its worst method's mean, 0, and its best's, 1: a relative scale, with no
+    published reference for runs of any library), drawn and written; none otherwise."""
+    finals = {c.env: {m: v["final"] for m, v in per_seed(c).items()} for c in found}
+    scales = score_scales(finals)
+    scores = by_method(finals, scales)
+    if len(next(iter(scores.values()), [])) < 2 or len(scores) < 2:
+        return None, {}
+    curves = by_method({c.env: c.values for c in found}, scales)
+    drawn = draw_aggregates(scores, figures, tasks="environments", curves={m: curves[m] for m in scores},
+                            x=np.linspace(0.0, 1.0, GRID_POINTS),
+                            curve_xlabel="share of each environment's common steps")
+    return drawn, {name: write_table(frame, tables, name) for name, frame in (
+        ("aggregates", drawn.intervals), ("improvement", drawn.improvements))}
+
+
 def curves_figure(curve: Curves) -> Figure:
     figure = Figure(figsize=(7, 4.2))
     ax = figure.subplots()
@@ -199,6 +218,8 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
         figures = [(save_figure(curves_figure(c), out / "figures" / f"curves-{i}.png"),
                     f"{c.env}: each method's mean over seeds on the common grid, 95% band")
                    for i, c in enumerate(found)]
+        aggregates, aggregate_files = across(found, out / "figures", out / "tables")
+        files |= aggregate_files
         grids = "; ".join(f"{c.env}: steps {c.steps[0]:,.0f} to {c.steps[-1]:,.0f}" for c in found)
         sections = [
             Section("The answer", lines),
@@ -214,6 +235,16 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
                    else " No margin was declared, so no comparison can be called equivalent.")],
                 [("What each file was taken as", pairing_table(frame), files["pairing"])]),
             Section("Verdicts", tables=[("Every comparison, one Holm family", table, files["verdicts"])]),
+            Section("Across environments", [
+                "The final-window numbers pooled over the environments as rliable does (Agarwal et al. 2021): each "
+                "environment normalised between its worst method's mean (0) and its best's (1), a relative scale "
+                "for runs with no published reference; interval estimates, the probability of improvement, "
+                "performance profiles and sample-efficiency curves, with 95% stratified bootstrap intervals."
+                if aggregates else "Across environments: needs two or more environments that two or more methods "
+                                   "ran."],
+                [("Interval estimates", aggregates.intervals, files["aggregates"]),
+                 ("Probability of improvement", aggregates.improvements, files["improvement"])]
+                if aggregates else [], aggregates.figures if aggregates else []),
             Section("Curves", figures=figures),
         ]
         page = write_report(out / "report.html", "Runs compared", sections, [])

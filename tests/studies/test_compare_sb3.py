@@ -1,0 +1,68 @@
+"""``rlcompare compare`` on runs Stable-Baselines3 trained itself (the ``bench`` extra; skipped without it): PPO and
+DQN on CartPole-v1 over 3 seeds with ``Monitor`` and ``EvalCallback``, read from its Monitor files and from its
+evaluations, and the verdicts on its files equal to those on the same numbers given as a tidy table."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from helpers import invoke
+
+from rlcompare.experiment.outside import grouping, read_runs, run_files
+
+sb3 = pytest.importorskip("stable_baselines3")
+pytestmark = pytest.mark.slow("trains Stable-Baselines3's PPO and DQN on CartPole over 3 seeds")
+SEEDS, STEPS = 3, 2_048
+
+
+def train(method: str, seed: int, root: Path) -> None:
+    """One SB3 training whose Monitor file goes to ``root/monitor/...`` and evaluations to ``root/eval/...``."""
+    import gymnasium as gym
+    from stable_baselines3.common.callbacks import EvalCallback
+    from stable_baselines3.common.monitor import Monitor
+
+    monitor_dir = root / "monitor" / method / "CartPole-v1" / str(seed)
+    eval_dir = root / "eval" / method / "CartPole-v1" / str(seed)
+    monitor_dir.mkdir(parents=True)
+    eval_dir.mkdir(parents=True)
+    env = Monitor(gym.make("CartPole-v1"), str(monitor_dir / "0"))
+    model = (sb3.PPO("MlpPolicy", env, n_steps=256, batch_size=64, seed=seed, device="cpu") if method == "ppo"
+             else sb3.DQN("MlpPolicy", env, learning_starts=256, train_freq=4, seed=seed, device="cpu"))
+    callback = EvalCallback(Monitor(gym.make("CartPole-v1")), eval_freq=512, n_eval_episodes=3,
+                            log_path=str(eval_dir), verbose=0)
+    model.learn(total_timesteps=STEPS, callback=callback)
+    env.close()
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    import torch
+
+    torch.set_num_threads(1)
+    root = tmp_path_factory.mktemp("sb3")
+    for method in ("ppo", "dqn"):
+        for seed in range(SEEDS):
+            train(method, seed, root)
+    return root
+
+
+@pytest.mark.parametrize("kind", ["monitor", "eval"])
+def test_sb3s_own_files_become_a_report_with_the_verdicts_of_the_same_numbers_as_a_table(runs, tmp_path, kind):
+    result = invoke("compare", str(runs / kind), "--cut-to-shortest", "--out", str(tmp_path / "files"), columns=300)
+    assert result.exit_code == 0, result.output
+    pairing = pd.read_csv(tmp_path / "files" / "tables" / "pairing.csv")
+    assert sorted(set(zip(pairing["method"], pairing["seed"], strict=True))) == [
+        (m, s) for m in ("dqn", "ppo") for s in range(SEEDS)]
+    if kind == "eval":
+        assert (pairing["last_step"] == STEPS).all()  # EvalCallback's evaluations every 512 steps, the last at 2,048
+    root, files = run_files([runs / kind])
+    table = tmp_path / "tidy.parquet"
+    read_runs(files, root, grouping("{method}/{env}/{seed}/*")).drop(columns="source").to_parquet(table)
+    again = invoke("compare", str(table), "--cut-to-shortest", "--out", str(tmp_path / "table"), columns=300)
+    assert again.exit_code == 0, again.output
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "files" / "tables" / "verdicts.csv"),
+                                  pd.read_csv(tmp_path / "table" / "tables" / "verdicts.csv"))
+    page = (tmp_path / "files" / "report.html").read_text()
+    assert "independent samples" in page
