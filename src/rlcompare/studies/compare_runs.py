@@ -87,7 +87,7 @@ def curves(frame: pd.DataFrame) -> list[Curves]:
     """Every environment's runs interpolated onto its common grid of steps."""
     found = []
     for env, rows in frame.groupby("env", sort=True):
-        runs = {key: run for key, run in runs_of(rows).items()}
+        runs = runs_of(rows)
         start = max(run["step"].iloc[0] for run in runs.values())
         end = min(run["step"].iloc[-1] for run in runs.values())
         grid = np.linspace(start, end, GRID_POINTS)
@@ -111,6 +111,8 @@ def per_seed(curve: Curves) -> dict[str, dict[str, np.ndarray]]:
 
 @dataclass(frozen=True)
 class Comparison:
+    """One row of the verdict table: method ``a`` against ``b`` on an environment, by a metric (:data:`METRICS`)."""
+
     env: str
     metric: str
     a: str
