@@ -14,7 +14,7 @@ from rlcompare.experiment.outside import grouping, read_runs, run_files
 
 sb3 = pytest.importorskip("stable_baselines3")
 pytestmark = pytest.mark.slow("trains Stable-Baselines3's PPO and DQN on CartPole over 3 seeds")
-SEEDS, STEPS = 3, 2_048
+SEEDS, STEPS = 3, 1_024
 
 
 def train(method: str, seed: int, root: Path) -> None:
@@ -30,7 +30,7 @@ def train(method: str, seed: int, root: Path) -> None:
     env = Monitor(gym.make("CartPole-v1"), str(monitor_dir / "0"))
     model = (sb3.PPO("MlpPolicy", env, n_steps=256, batch_size=64, seed=seed, device="cpu") if method == "ppo"
              else sb3.DQN("MlpPolicy", env, learning_starts=256, train_freq=4, seed=seed, device="cpu"))
-    callback = EvalCallback(Monitor(gym.make("CartPole-v1")), eval_freq=512, n_eval_episodes=3,
+    callback = EvalCallback(Monitor(gym.make("CartPole-v1")), eval_freq=256, n_eval_episodes=3,
                             log_path=str(eval_dir), verbose=0)
     model.learn(total_timesteps=STEPS, callback=callback)
     env.close()
@@ -56,7 +56,7 @@ def test_sb3s_own_files_become_a_report_with_the_verdicts_of_the_same_numbers_as
     assert sorted(set(zip(pairing["method"], pairing["seed"], strict=True))) == [
         (m, s) for m in ("dqn", "ppo") for s in range(SEEDS)]
     if kind == "eval":
-        assert (pairing["last_step"] == STEPS).all()  # EvalCallback's evaluations every 512 steps, the last at 2,048
+        assert (pairing["last_step"] == STEPS).all()  # EvalCallback evaluates every 256 steps, the last at 1,024
     root, files = run_files([runs / kind])
     table = tmp_path / "tidy.parquet"
     read_runs(files, root, grouping("{method}/{env}/{seed}/*")).drop(columns="source").to_parquet(table)
