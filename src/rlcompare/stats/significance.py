@@ -124,6 +124,15 @@ def _one_sided(distance: float, se: float, df: float) -> float:
     return float(stats.t.sf(distance / se, df))
 
 
+def _beyond(mean: float, lower: float, upper: float, se: float, df: float) -> float:
+    """Twice the one-sided p-value that the mean lies beyond the margin on its estimate's side; 1 inside it."""
+    if mean > upper:
+        return min(1.0, 2 * _one_sided(mean - upper, se, df))
+    if mean < lower:
+        return min(1.0, 2 * _one_sided(lower - mean, se, df))
+    return 1.0
+
+
 def tost(values: np.ndarray, lower: float, upper: float, confidence: float = 0.95) -> Equivalence:
     """Whether the mean of ``values`` (e.g. paired differences over seeds) lies within ``[lower, upper]``.
 
@@ -143,14 +152,8 @@ def tost(values: np.ndarray, lower: float, upper: float, confidence: float = 0.9
     se, df = float(values.std(ddof=1) / np.sqrt(n)), n - 1
     half = float(stats.t.ppf(0.5 + confidence / 2, df)) * se
     p_lower, p_upper = _one_sided(mean - lower, se, df), _one_sided(upper - mean, se, df)
-    if mean > upper:
-        p_beyond = 2 * _one_sided(mean - upper, se, df)
-    elif mean < lower:
-        p_beyond = 2 * _one_sided(lower - mean, se, df)
-    else:
-        p_beyond = 1.0
     return Equivalence(Estimate(mean, mean - half, mean + half), lower, upper, max(p_lower, p_upper),
-                       min(1.0, p_beyond))
+                       _beyond(mean, lower, upper, se, df))
 
 
 def welch_tost(a: np.ndarray, b: np.ndarray, lower: float, upper: float, confidence: float = 0.95) -> Equivalence:
@@ -171,14 +174,8 @@ def welch_tost(a: np.ndarray, b: np.ndarray, lower: float, upper: float, confide
     df = float((va + vb) ** 2 / (va**2 / (a.size - 1) + vb**2 / (b.size - 1))) if se > 0 else float(a.size + b.size - 2)
     half = float(stats.t.ppf(0.5 + confidence / 2, df)) * se
     p_lower, p_upper = _one_sided(mean - lower, se, df), _one_sided(upper - mean, se, df)
-    if mean > upper:
-        p_beyond = 2 * _one_sided(mean - upper, se, df)
-    elif mean < lower:
-        p_beyond = 2 * _one_sided(lower - mean, se, df)
-    else:
-        p_beyond = 1.0
     return Equivalence(Estimate(mean, mean - half, mean + half), lower, upper, max(p_lower, p_upper),
-                       min(1.0, p_beyond))
+                       _beyond(mean, lower, upper, se, df))
 
 
 def ratio_tost(numerator: np.ndarray, denominator: np.ndarray, claimed: float, factor: float = 1.25,
