@@ -23,7 +23,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from rlcompare.report.page import save_figure
+from rlcompare.report.page import Section, save_figure
 from rlcompare.stats.aggregates import (
     curve_band,
     every_pair,
@@ -225,3 +225,14 @@ def _drawn_anew(path: Path, draw: Callable[[Path], str]) -> str:
 def _saved(make: Callable[[], Figure], path: Path) -> str:
     """``make()``'s figure saved at ``path`` (:func:`~rlcompare.report.page.save_figure`)."""
     return save_figure(make(), path)
+
+
+def across_section(title: str, words: str, aggregates: Aggregates | None, files: Mapping[str, str], intervals: str,
+                   missing: str) -> Section:
+    """rliable's aggregates as a report's section: ``words``, the interval estimates (captioned ``intervals``) and
+    the probability of improvement with their files, and the figures; ``missing`` alone where none were drawn."""
+    if aggregates is None:
+        return Section(title, [missing])
+    return Section(title, [words], [(intervals, aggregates.intervals, files["aggregates"]),
+                                    ("Probability of improvement", aggregates.improvements, files["improvement"])],
+                   aggregates.figures)

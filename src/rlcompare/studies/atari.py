@@ -25,6 +25,7 @@ from rlcompare.deep.results import DeepResults
 from rlcompare.envs import atari, atari_scores
 from rlcompare.experiment import store
 from rlcompare.formatting import number
+from rlcompare.report.aggregate_plots import across_section
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
@@ -254,13 +255,13 @@ def _build_report(out: Path, videos: bool) -> Report:
             "(about a tenth relative error); each seed's estimate, then their mean."
             if atari5 is not None else "Needs a method run on all five Atari-5 games (--games atari5)."],
             [("Atari-5 estimate", atari5, files["atari5"])] if atari5 is not None else []),
-        Section("Across games", [
+        across_section(
+            "Across games",
             "Human-normalised final scores pooled over the games as rliable does (Agarwal et al. 2021): interval "
             "estimates, the probability of improvement, performance profiles and sample-efficiency curves, with 95% "
-            "stratified bootstrap intervals." if aggregates else "Across games: needs two or more games and methods."],
-            [("Interval estimates of human-normalised final returns", aggregates.intervals, files["aggregates"]),
-             ("Probability of improvement", aggregates.improvements, files["improvement"])]
-            if aggregates else [], aggregates.figures if aggregates else []),
+            "stratified bootstrap intervals.",
+            aggregates, files, "Interval estimates of human-normalised final returns",
+            "Across games: needs two or more games and methods."),
         Section("Learning curves", figures=curve_figures),
         Section("The agents at three stages of learning, in Gymnasium", [
             "Each training's first seed, loaded by rlcompare.load_agent at a tenth, half and the end of its training, "

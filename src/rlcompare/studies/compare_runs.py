@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.experiment import store
 from rlcompare.experiment.outside import OutsideRunError
-from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
+from rlcompare.report.aggregate_plots import Aggregates, across_section, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.plots import plot_return_curves
@@ -237,16 +237,14 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
                    else " No margin was declared, so no comparison can be called equivalent.")],
                 [("What each file was taken as", pairing_table(frame), files["pairing"])]),
             Section("Verdicts", tables=[("Every comparison, one Holm family", table, files["verdicts"])]),
-            Section("Across environments", [
+            across_section(
+                "Across environments",
                 "The final-window numbers pooled over the environments as rliable does (Agarwal et al. 2021): each "
                 "environment normalised between its worst method's mean (0) and its best's (1), a relative scale "
                 "for runs with no published reference; interval estimates, the probability of improvement, "
-                "performance profiles and sample-efficiency curves, with 95% stratified bootstrap intervals."
-                if aggregates else "Across environments: needs two or more environments that two or more methods "
-                                   "ran."],
-                [("Interval estimates", aggregates.intervals, files["aggregates"]),
-                 ("Probability of improvement", aggregates.improvements, files["improvement"])]
-                if aggregates else [], aggregates.figures if aggregates else []),
+                "performance profiles and sample-efficiency curves, with 95% stratified bootstrap intervals.",
+                aggregates, files, "Interval estimates",
+                "Across environments: needs two or more environments that two or more methods ran."),
             Section("Curves", figures=figures),
         ]
         page = write_report(out / "report.html", "Runs compared", sections, [])

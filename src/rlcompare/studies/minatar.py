@@ -31,6 +31,7 @@ from rlcompare.deep.train import params_template
 from rlcompare.envs import minatar
 from rlcompare.experiment import store
 from rlcompare.formatting import number
+from rlcompare.report.aggregate_plots import across_section
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
@@ -296,15 +297,14 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
             f"episodes a seed played when this report was drawn. Random: the mean of {RANDOM_EPISODES} "
             "episodes of a uniformly random policy under the same protocol."],
             [("Summary", summary, files["summary"])]),
-        Section("Across games", [
+        across_section(
+            "Across games",
             "Scores normalised game by game between the random policy (0) and the MinAtar paper's DQN at 5 M frames "
             "(1), as human-normalised scores are on the Atari 2600, pooled over the games as rliable does (Agarwal "
             "et al. 2021): interval estimates, the probability of improvement, performance profiles and "
-            "sample-efficiency curves, with 95% stratified bootstrap intervals."
-            if aggregates else "Across games: needs two or more games and methods."],
-            [("Interval estimates of normalised final returns", aggregates.intervals, files["aggregates"]),
-             ("Probability of improvement", aggregates.improvements, files["improvement"])]
-            if aggregates else [], aggregates.figures if aggregates else []),
+            "sample-efficiency curves, with 95% stratified bootstrap intervals.",
+            aggregates, files, "Interval estimates of normalised final returns",
+            "Across games: needs two or more games and methods."),
         Section("Learning curves", figures=curve_figures),
         Section("The agents at three stages of learning", [
             "Each training's first seed, its networks after a tenth and half of the training and at its end, playing "
