@@ -16,7 +16,8 @@ import time
 
 import numpy as np
 
-from rlcompare.envs import chess_rules, chess_solver
+from rlcompare.envs.chess import rules as chess_rules
+from rlcompare.envs.chess import solver as chess_solver
 
 
 def seconds(piece: int) -> float:

@@ -50,7 +50,7 @@ def digests(directory: Path) -> dict[str, str]:
 
 def paper_study(path: Path, seeds: int, episodes: int, **settings: Any) -> Path:
     """The paper's configurations on ``seeds`` seeds trained into the study directory ``path``."""
-    from rlcompare.studies.paper import paper_configs, reproduce
+    from rlcompare.studies.paper.study import paper_configs, reproduce
 
     list(reproduce(path, paper_configs(tuple(range(seeds)), episodes, **settings)))
     return path

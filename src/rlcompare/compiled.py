@@ -38,7 +38,7 @@ Codegen = Callable[[Any, Any, "Signature", tuple[Any, ...]], Any]
 types)."""
 
 COMPILED_SOURCES = ("algorithms", "envs", "rng.py", "tabular/state.py", "tabular/steps.py", "tabular/episodes.py",
-                    "tabular/runs.py", "tabular/borrowed.py", "tabular/games.py")
+                    "tabular/loops.py", "tabular/runs.py", "tabular/borrowed.py", "tabular/games.py")
 """The packages and modules compiled code is made of: the kernels inline the rules, the ports, the tables, the
 random streams and the tabular engine's loops."""
 KEEP_UNUSED_DAYS = 30

@@ -13,8 +13,9 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rlcompare.deep import dqn, dqn_config, replay  # noqa: E402
-from rlcompare.deep.envs import CARTPOLE  # noqa: E402
-from rlcompare.envs import atari, minatar  # noqa: E402
+from rlcompare.deep.classic import CARTPOLE  # noqa: E402
+from rlcompare.envs import minatar  # noqa: E402
+from rlcompare.envs.atari import games as atari  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402
 
 # --- the target and the loss, by hand ---

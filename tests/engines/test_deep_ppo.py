@@ -14,9 +14,10 @@ import jax
 import jax.numpy as jnp
 
 from rlcompare.deep import ppo, ppo_config
-from rlcompare.deep.envs import CARTPOLE, MOUNTAIN_CAR, jax_env_names
+from rlcompare.deep.classic import CARTPOLE, MOUNTAIN_CAR
+from rlcompare.deep.envs import jax_env_names
 from rlcompare.deep.rollout import TrainOutput
-from rlcompare.envs import chess_games
+from rlcompare.envs.chess import games as chess_games
 from rlcompare.validation import ConfigError
 
 F, T = False, True

@@ -8,7 +8,7 @@ pytest.importorskip("jax")
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep.envs import CARTPOLE
+from rlcompare.deep.classic import CARTPOLE
 from rlcompare.deep.pqn import (
     PQNConfig,
     bootstrap_values,

@@ -14,8 +14,8 @@ pytest.importorskip("jax")
 
 from rlcompare.deep import pqn
 from rlcompare.deep.agent import agent
+from rlcompare.deep.classic import CARTPOLE
 from rlcompare.deep.config import DeepConfig
-from rlcompare.deep.envs import CARTPOLE
 from rlcompare.deep.results import DeepResults, merge_seeds
 from rlcompare.deep.rollout import STAGES, evaluate, stage_rounds
 from rlcompare.experiment import rundir

@@ -15,7 +15,7 @@ from gymnasium_play import gymnasium_returns
 from rlcompare import ExperimentConfig, load_agent, run
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_if_complete, load_run
-from rlcompare.studies.paper import paper_configs, reproduce
+from rlcompare.studies.paper.study import paper_configs, reproduce
 
 
 def test_results_tables_are_long_format(small_config: ExperimentConfig) -> None:

@@ -81,7 +81,7 @@ def test_the_tabular_engine_refuses_an_image_environment_in_one_line():
 def test_one_game_object_serves_two_traces():
     """gymnax's game is built outside the first trace that asks for it, so the second trace does not meet the
     first one's leaked tracers (``UnexpectedTracerError``)."""
-    from rlcompare.deep.minatar import minatar_env
+    from rlcompare.deep.minatar.games import minatar_env
 
     env = minatar_env("Breakout-MinAtar")
 

@@ -25,7 +25,7 @@ from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import chain
 from rlcompare.rng import stream_state
-from rlcompare.tabular import episodes
+from rlcompare.tabular import episodes, loops
 from rlcompare.tabular.runs import train_runs
 from rlcompare.tabular.state import Settings, allocate_records, initial_state
 
@@ -62,7 +62,7 @@ def _chain_episode(algorithm: str, before: bool, seed: int = 0, w2=None):
     w2 = np.zeros_like(w) if w2 is None else np.array(w2)
     agent_rng, visits = stream_state(seed), np.zeros(2, np.int64)
     rule = _rule(algorithm, before)
-    ret, steps, terminated = _compiled(episodes.LOOPS[type(rule)][0])(
+    ret, steps, terminated = _compiled(loops.LOOPS[type(rule)][0])(
         rule, SETTINGS, table_env, OneHot(2), w, w2, _no_traces(), 0.0, stream_state(1000),
         agent_rng, stream_state(2000), visits)
     assert (ret, terminated) == (1.0, True)

@@ -19,16 +19,19 @@ def layout_block() -> list[str]:
 
 
 def listed_modules() -> set[str]:
-    """``cli/commands.py``, ``validation.py``: each module the layout names, by its path in the package."""
-    listed, package = set(), ""
+    """``cli/commands.py``, ``envs/chess/rules.py``, ``validation.py``: each module the layout names, by its path in
+    the package; a package's line (``chess/``) holds the lines indented below it."""
+    listed, packages = set(), {}  # indent -> the package a line at that indent opened
     for line in layout_block():
-        indent = len(line) - len(line.lstrip())
-        first = line.split()[0] if line.strip() else ""
-        if indent == 2 and first.endswith("/"):
-            package = first
+        if not line.strip():
             continue
-        if indent == 2:
-            package = ""
+        indent = len(line) - len(line.lstrip())
+        packages = {level: name for level, name in packages.items() if level < indent}
+        package = "".join(packages[level] for level in sorted(packages))
+        first = line.split()[0]
+        if first.endswith("/"):
+            packages[indent] = first
+            continue
         listed |= {package + name for name in MODULE.findall(_names_part(line))}
     return listed
 

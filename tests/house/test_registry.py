@@ -14,7 +14,7 @@ from rlcompare.algorithms.registry import rule_for as method_rule
 from rlcompare.bench.kernels import MULTI_STEP, ONE_STEP
 from rlcompare.cli import app
 from rlcompare.tabular.config import ALGORITHMS, NEXT_ACTION_DEFAULTS
-from rlcompare.tabular.episodes import LOOPS
+from rlcompare.tabular.loops import LOOPS
 
 
 def test_the_configuration_accepts_exactly_the_registered_methods():

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from rlcompare.compiled import njit
-from rlcompare.envs import chess_rules as rules
-from rlcompare.envs.chess import ENDGAMES, QUEEN, ROOK
-from rlcompare.envs.chess_rules import N_POSITIONS
+from rlcompare.envs.chess import rules
+from rlcompare.envs.chess.endgames import ENDGAMES, QUEEN, ROOK
+from rlcompare.envs.chess.rules import N_POSITIONS
 
 CHUNKS = 4
 """The exhaustive test's share of the positions per endgame, by the white king's rank (pytest-xdist spreads them)."""

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from rlcompare.compiled import njit
-from rlcompare.envs import chess_rules as rules
-from rlcompare.envs.chess import ENDGAMES, QUEEN, ROOK
-from rlcompare.envs.chess_rules import N_POSITIONS
-from rlcompare.envs.chess_solver import Tablebase, solve
+from rlcompare.envs.chess import rules
+from rlcompare.envs.chess.endgames import ENDGAMES, QUEEN, ROOK
+from rlcompare.envs.chess.rules import N_POSITIONS
+from rlcompare.envs.chess.solver import Tablebase, solve
 
 LONGEST_MATE = {ROOK: 16, QUEEN: 10}
 """Moves to mate from the worst white-to-move position (Ströhlein 1970; Thompson 1986)."""

@@ -9,7 +9,7 @@ import pytest
 from rlcompare import ExperimentConfig, run
 from rlcompare.envs.table import from_gymnasium, reset, step
 from rlcompare.rng import stream_state
-from rlcompare.studies.book import CLIFF, greedy_path
+from rlcompare.studies.book.figures import CLIFF, greedy_path
 
 
 def test_table_steps_exactly_as_gymnasium_cliff_walking() -> None:

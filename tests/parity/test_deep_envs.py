@@ -17,7 +17,9 @@ import jax
 import jax.numpy as jnp
 
 from rlcompare.deep.envs import DeepEnv, EnvState, jax_env, jax_env_names, step_autoreset
-from rlcompare.envs import acrobot, atari, cartpole, chess_games, minatar, mountain_car
+from rlcompare.envs import acrobot, cartpole, minatar, mountain_car
+from rlcompare.envs.atari import games as atari
+from rlcompare.envs.chess import games as chess_games
 
 NAMES = [name for name in jax_env_names()
          if name not in minatar.NAMES and name not in atari.NAMES and name not in chess_games.GAMES]

@@ -1,4 +1,4 @@
-"""Seaquest (``rlcompare.deep.minatar_seaquest``) against the reference ``minatar`` package (1.0.15).
+"""Seaquest (``rlcompare.deep.minatar.seaquest``) against the reference ``minatar`` package (1.0.15).
 
 Whole episodes: the reference's state is translated into gymnax's ``EnvState`` at its reset, both then play the same
 actions, and after every step the observation, the reward, the ending and every state field must be equal (entity
@@ -26,7 +26,7 @@ from gymnax.environments.minatar.seaquest import MinSeaquest  # noqa: E402
 from minatar.environments import seaquest as ref_seaquest  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from rlcompare.deep.minatar_seaquest import EnvState, Seaquest, seaquest_draws, spawn_row  # noqa: E402
+from rlcompare.deep.minatar.seaquest import EnvState, Seaquest, seaquest_draws, spawn_row  # noqa: E402
 
 NOOP, LEFT, UP, RIGHT, DOWN, FIRE = range(6)
 ROWS = 100

@@ -1,5 +1,5 @@
 """pgx's chess (and Gardner's 5 x 5 minichess) against python-chess, and the conversions of
-:mod:`rlcompare.deep.chess_board`.
+:mod:`rlcompare.deep.chess.board`.
 
 pgx's legal moves are counted by perft (from the start and from four classic positions, with a vmapped step over
 (position, legal action) pairs) and compared move for move on every position of seeded random games; its game
@@ -36,7 +36,7 @@ from pgx._src.games import chess as pgx_rules  # noqa: E402
 from pgx.chess import State  # noqa: E402
 from pgx.experimental.chess import from_fen  # noqa: E402
 
-from rlcompare.deep import chess_board as cb  # noqa: E402
+from rlcompare.deep.chess import board as cb  # noqa: E402
 
 BATCH = 64
 """States per call of the vmapped step: the random games, and the chunks of perft's (position, action) pairs."""

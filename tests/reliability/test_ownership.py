@@ -31,7 +31,7 @@ from rlcompare.experiment.backends import LocalBackend
 from rlcompare.experiment.engines import load_if_complete, load_run
 from rlcompare.experiment.sweep import parse_sweep
 from rlcompare.experiment.sweep_store import MANIFEST_FILE, load_configurations, run_sweep, trial_path
-from rlcompare.studies.paper import paper_configs, reproduce
+from rlcompare.studies.paper.study import paper_configs, reproduce
 
 TINY = ExperimentConfig(algorithm="sarsa", seeds=(0, 1), episodes=30, eval_every=10, eval_episodes=2)
 SWEEP = """

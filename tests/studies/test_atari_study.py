@@ -19,10 +19,11 @@ from helpers import invoke  # noqa: E402
 from rlcompare import load_agent  # noqa: E402
 from rlcompare.deep import pqn  # noqa: E402
 from rlcompare.deep.agent import DeepAgent  # noqa: E402
-from rlcompare.envs import atari, atari_scores  # noqa: E402
+from rlcompare.envs.atari import games as atari  # noqa: E402
+from rlcompare.envs.atari import scores as atari_scores  # noqa: E402
 from rlcompare.experiment.engines import load_run  # noqa: E402
-from rlcompare.studies import atari as atari_study  # noqa: E402
-from rlcompare.studies import atari_play  # noqa: E402
+from rlcompare.studies.atari import play as atari_play  # noqa: E402
+from rlcompare.studies.atari import study as atari_study  # noqa: E402
 from rlcompare.studies.paired import final_returns  # noqa: E402
 
 pytestmark = pytest.mark.slow("trains and reports an Atari study")

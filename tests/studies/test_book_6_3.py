@@ -17,7 +17,7 @@ from scipy import stats
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_if_complete
 from rlcompare.stats.intervals import mean_interval
-from rlcompare.studies import book_6_3
+from rlcompare.studies.book import figure_6_3 as book_6_3
 from rlcompare.studies.registry import STUDIES
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.memory import records_bytes

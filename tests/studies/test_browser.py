@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_claims import CLAIMS
-from rlcompare.studies.paper_report import build_report, load_study
-from rlcompare.studies.paper_videos import CONFIGURATIONS, video_plan
+from rlcompare.studies.paper.claims import CLAIMS
+from rlcompare.studies.paper.report import build_report, load_study
+from rlcompare.studies.paper.study import paper_configs, reproduce
+from rlcompare.studies.paper.videos import CONFIGURATIONS, video_plan
 
 pytestmark = pytest.mark.slow("renders a report in Chromium")
 

@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 from helpers import invoke
 
-from rlcompare.envs import chess_endgame, chess_rules
-from rlcompare.envs.chess import ENDGAMES, MOVE_LIMIT, REWARDS, parse
-from rlcompare.envs.chess_solver import Tablebase, solve
+from rlcompare.envs.chess import endgame as chess_endgame
+from rlcompare.envs.chess import rules as chess_rules
+from rlcompare.envs.chess.endgames import ENDGAMES, MOVE_LIMIT, REWARDS, parse
+from rlcompare.envs.chess.solver import Tablebase, solve
 from rlcompare.rng import stream_state
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.validation import ConfigError
@@ -192,7 +193,7 @@ def test_the_benchmark_s_plain_kernel_learns_what_the_engine_learns() -> None:
 def test_the_answer_says_when_the_seeds_are_too_few_for_the_family() -> None:
     import pandas as pd
 
-    from rlcompare.studies.chess_report import answer
+    from rlcompare.studies.chess.endgames_report import answer
 
     frame = pd.DataFrame({"measure": ["mate rate", "excess moves"] * 10, "better": ["not resolved"] * 20})
     assert "run more seeds" in answer(frame, 10)  # 2 / 2^10 > 0.05 / 40

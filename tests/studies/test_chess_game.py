@@ -13,7 +13,7 @@ pytest.importorskip("pgx")
 
 from helpers import invoke
 
-from rlcompare.studies.chess_game import LADDER, load_ladder
+from rlcompare.studies.chess.game import LADDER, load_ladder
 from rlcompare.studies.paired import load_runs
 
 TINY = ["reproduce", "chess", "--seeds", "2", "--steps", "40960", "--pairs", "2"]
@@ -103,9 +103,9 @@ def test_uci_refuses_a_network_of_gardners_game_in_one_line(study):
 
 @pytest.mark.slow("imports the deep engine in the command")
 def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monkeypatch):
-    from rlcompare.envs import chess_ladder
+    from rlcompare.players import stockfish
 
-    monkeypatch.setattr(chess_ladder, "STOCKFISH_DIRS", ())
+    monkeypatch.setattr(stockfish, "STOCKFISH_DIRS", ())
     monkeypatch.setenv("PATH", str(tmp_path))
     result = invoke("reproduce", "chess", "--game", "chess", "--out", str(tmp_path / "out"), columns=300)
     assert result.exit_code != 0
@@ -115,7 +115,7 @@ def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monk
 
 
 def test_the_ratings_are_anchored_at_stockfish_only_where_the_ladder_reaches_it_by_points():
-    from rlcompare.studies.chess_game import anchor_of
+    from rlcompare.studies.chess.game import anchor_of
 
     def games(*rows):
         return pd.DataFrame(rows, columns=["white", "black", "score"])

@@ -316,7 +316,7 @@ def test_a_configuration_with_one_environment_has_no_aggregates_and_no_overall_r
 def test_a_diverged_training_is_no_verdict_and_the_report_names_it(study, tmp_path):
     import shutil
 
-    from rlcompare.studies.deep import DEEP
+    from rlcompare.studies.deep.study import DEEP
     from rlcompare.studies.paired import Key
     from rlcompare.studies.paired_report import DIVERGED, findings
 

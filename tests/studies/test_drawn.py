@@ -13,8 +13,8 @@ from helpers import invoke
 
 from rlcompare.experiment import store
 from rlcompare.report import drawn
-from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_report import build_report
+from rlcompare.studies.paper.report import build_report
+from rlcompare.studies.paper.study import paper_configs, reproduce
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def stamps(directory: Path) -> dict[str, tuple[int, int]]:
 def test_a_second_report_keeps_every_figure_and_video_and_rewrites_the_tables(
         study_copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from rlcompare.report import aggregate_plots
-    from rlcompare.studies import paper_report
+    from rlcompare.studies.paper import report as paper_report
 
     before, page = stamps(study_copy), (study_copy / "report.html").read_bytes()
     ledger = json.loads((study_copy / drawn.LEDGER).read_text())
@@ -158,5 +158,5 @@ def test_the_code_that_trains_or_parses_options_does_not_enter_the_key() -> None
     assert not drawn._draws("cli/commands.py")
     assert not drawn._draws("engine/run.py")
     for relative in ("engine/state.py", "analysis/plots.py", "experiment/results.py", "envs/mountain_car.py",
-                     "algorithms/policies.py", "studies/paper_figures.py"):
+                     "algorithms/policies.py", "studies/paper/figures.py"):
         assert drawn._draws(relative), relative

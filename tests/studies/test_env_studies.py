@@ -9,7 +9,7 @@ import pytest
 from helpers import invoke
 
 from rlcompare.experiment.engines import load_run
-from rlcompare.studies.contrast import contrast_table, load_pairs, sibling_studies
+from rlcompare.studies.book.contrast import contrast_table, load_pairs, sibling_studies
 
 
 @pytest.mark.slow("trains and reports studies on other environments")

@@ -23,9 +23,9 @@ from rlcompare.deep.envs import jax_env  # noqa: E402
 from rlcompare.deep.methods import DEEP_METHODS  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
 from rlcompare.formatting import number  # noqa: E402
-from rlcompare.studies.minatar import plan_of  # noqa: E402
+from rlcompare.studies.deep.minatar import plan_of  # noqa: E402
 from rlcompare.studies.paired import random_returns  # noqa: E402
-from rlcompare.studies.paper_claims import CLAIMS as PAPER_CLAIMS  # noqa: E402
+from rlcompare.studies.paper.claims import CLAIMS as PAPER_CLAIMS  # noqa: E402
 from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 
 TINY = ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960", "--methods",
@@ -161,7 +161,7 @@ def test_a_trained_agent_plays_the_reference_game_and_gymnasiums_as_it_plays_our
 
 
 def test_the_smallest_p_the_report_quotes_is_the_signed_rank_tests():
-    from rlcompare.studies.minatar import smallest_p
+    from rlcompare.studies.deep.minatar import smallest_p
 
     for seeds in range(3, 11):
         assert stats.wilcoxon(np.arange(1.0, seeds + 1)).pvalue == pytest.approx(smallest_p(seeds))
@@ -269,7 +269,7 @@ def _results_with_finals(method: str, env: str, finals: np.ndarray):
 
 
 def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_the_games():
-    from rlcompare.studies.minatar import MARGIN, MINATAR, OVERALL_MARGIN, by_game
+    from rlcompare.studies.deep.minatar import MARGIN, MINATAR, OVERALL_MARGIN, by_game
     from rlcompare.studies.paired_report import across, answer, judged, verdict_table
 
     rng = np.random.default_rng(0)
@@ -313,7 +313,7 @@ def test_the_overall_verdict_pairs_each_seed_s_normalised_score_averaged_over_th
 
 def test_a_game_neither_method_learnt_has_no_verdict_and_stays_out_of_the_overall_row():
     from rlcompare.stats.compare import NEITHER_LEARNT
-    from rlcompare.studies.minatar import MARGIN, MINATAR, by_game
+    from rlcompare.studies.deep.minatar import MARGIN, MINATAR, by_game
     from rlcompare.studies.paired_report import across, answer, judged, verdict_table
 
     rng = np.random.default_rng(1)
@@ -372,8 +372,8 @@ def _rows_of(table, study):
 
 @pytest.mark.slow("trains and reports MinAtar studies")
 def test_the_report_sets_the_paper_and_deep_verdicts_beside_its_own(study, other_studies, tmp_path):
-    from rlcompare.studies import minatar as minatar_study
-    from rlcompare.studies.same_question import CAPTION
+    from rlcompare.studies.deep import minatar as minatar_study
+    from rlcompare.studies.deep.same_question import CAPTION
 
     out = _copied(study[0], tmp_path / "minatar")
     for name in ("paper", "deep"):
@@ -436,7 +436,7 @@ TABLES = {"paper": "tables/verdicts.csv", "deep": "tables/deep_verdicts.csv"}
     ("deep", "deep", _verdicts_unlisted, "has no verdict table rlcompare wrote"),
 ])
 def test_a_directory_that_is_not_the_study_s_is_not_read(other_studies, tmp_path, name, made_from, change, said):
-    from rlcompare.studies.same_question import COLUMNS, beside
+    from rlcompare.studies.deep.same_question import COLUMNS, beside
 
     other = "deep" if name == "paper" else "paper"
     _copied(other_studies / other, tmp_path / other)
@@ -459,7 +459,7 @@ def test_a_directory_that_is_not_the_study_s_is_not_read(other_studies, tmp_path
                                      b"CartPole-v1,network,final greedy return,\"1.0 [0.0, 2.0]\",0.5,\n"],
                          ids=["not a table", "columns missing", "a row without a verdict"])
 def test_a_malformed_verdict_file_is_one_line_naming_it_not_a_crash(other_studies, tmp_path, content):
-    from rlcompare.studies.same_question import COLUMNS, beside
+    from rlcompare.studies.deep.same_question import COLUMNS, beside
 
     for name in ("paper", "deep"):
         _copied(other_studies / name, tmp_path / name)
@@ -476,7 +476,7 @@ def test_a_malformed_verdict_file_is_one_line_naming_it_not_a_crash(other_studie
 @pytest.mark.slow("trains and reports MinAtar studies")
 def test_an_empty_verdict_table_is_read_as_no_rows(other_studies, tmp_path):
     """A deep study run without the pair writes a table with no rows: read as none, not as malformed."""
-    from rlcompare.studies.same_question import COLUMNS, beside
+    from rlcompare.studies.deep.same_question import COLUMNS, beside
 
     _copied(other_studies / "deep", tmp_path / "deep")
     (tmp_path / "deep" / "tables" / "deep_verdicts.csv").write_text(pd.DataFrame([]).to_csv(index=False))
@@ -488,8 +488,8 @@ def test_an_empty_verdict_table_is_read_as_no_rows(other_studies, tmp_path):
 
 @pytest.mark.slow("trains and reports MinAtar studies")
 def test_the_other_studies_can_be_named_where_they_are(other_studies, tmp_path):
-    from rlcompare.studies import minatar as minatar_study
-    from rlcompare.studies.same_question import COLUMNS, beside
+    from rlcompare.studies.deep import minatar as minatar_study
+    from rlcompare.studies.deep.same_question import COLUMNS, beside
 
     found = beside(tmp_path / "minatar", pd.DataFrame(columns=COLUMNS),
                    {"paper": other_studies / "paper", "deep": str(other_studies / "deep")})

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rlcompare.studies.paper_videos import video_plan, video_seeds
+from rlcompare.studies.paper.videos import video_plan, video_seeds
 
 
 def runs_with_final_returns(final: list[float]) -> SimpleNamespace:
@@ -27,8 +27,8 @@ def test_the_median_lowest_and_highest_seeds_by_final_greedy_return() -> None:
 
 
 def test_the_plan_shows_the_median_seed_at_every_stage_and_the_extremes_at_the_end(tmp_path) -> None:
-    from rlcompare.studies.paper import paper_configs, reproduce
-    from rlcompare.studies.paper_report import load_study
+    from rlcompare.studies.paper.report import load_study
+    from rlcompare.studies.paper.study import paper_configs, reproduce
 
     configs = [c for c in paper_configs((0, 1, 2), episodes=60, max_steps=200, eval_every=20, eval_episodes=2)
                if c.name in ("random", "sarsa-constant")]

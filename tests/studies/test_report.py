@@ -22,11 +22,11 @@ from rlcompare.stats.intervals import interval
 from rlcompare.stats.significance import VERDICTS
 from rlcompare.stats.verdicts import columns, is_fragile
 from rlcompare.studies.measures import per_seed_metrics
-from rlcompare.studies.paper import paper_configs, reproduce
-from rlcompare.studies.paper_claims import CLAIMS, NAMES, paper_claim, within
-from rlcompare.studies.paper_figures import curve_figure, paired_difference_figure, stages_figure, visits_figure
-from rlcompare.studies.paper_report import FIGURES, build_report, load_study
-from rlcompare.studies.paper_videos import CONFIGURATIONS
+from rlcompare.studies.paper.claims import CLAIMS, NAMES, paper_claim, within
+from rlcompare.studies.paper.figures import curve_figure, paired_difference_figure, stages_figure, visits_figure
+from rlcompare.studies.paper.report import FIGURES, build_report, load_study
+from rlcompare.studies.paper.study import paper_configs, reproduce
+from rlcompare.studies.paper.videos import CONFIGURATIONS
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 from rlcompare.tabular.state import Records
@@ -322,7 +322,7 @@ def test_judge_refuses_unpaired_seeds() -> None:
 def test_a_time_to_converge_around_the_end_of_the_decay_is_flagged_as_the_schedule() -> None:
     from types import SimpleNamespace
 
-    from rlcompare.studies.paper_report import schedule_notes
+    from rlcompare.studies.paper.report import schedule_notes
     from rlcompare.tabular.config import ExperimentConfig
 
     runs = {name: SimpleNamespace(config=ExperimentConfig(algorithm=algorithm, schedule=schedule, episodes=5000))
@@ -338,7 +338,7 @@ def test_a_time_to_converge_around_the_end_of_the_decay_is_flagged_as_the_schedu
 
 @pytest.mark.slow("trains a study and builds its report")
 def test_the_paper_report_draws_rliable_s_aggregates_of_the_four_learners(study_copy: Path) -> None:
-    from rlcompare.studies.paper_report import load_study, paper_aggregates
+    from rlcompare.studies.paper.report import load_study, paper_aggregates
 
     runs, _ = load_study(study_copy)
     aggregates = paper_aggregates(runs, study_copy / "figures")

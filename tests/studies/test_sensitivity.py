@@ -17,8 +17,10 @@ from rlcompare.experiment import store
 from rlcompare.experiment.sweep import SweepError, derive_seeds
 from rlcompare.experiment.sweep_store import read_manifest, trial_path
 from rlcompare.stats.intervals import Estimate, paired_difference
-from rlcompare.studies import sensitivity_figures, sensitivity_grid, sensitivity_words
-from rlcompare.studies.sensitivity_grid import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
+from rlcompare.studies.sensitivity import figures as sensitivity_figures
+from rlcompare.studies.sensitivity import grid as sensitivity_grid
+from rlcompare.studies.sensitivity import words as sensitivity_words
+from rlcompare.studies.sensitivity.grid import NOT_RESOLVED, Q_BETTER, SARSA_BETTER
 from rlcompare.tabular.config import ExperimentConfig
 
 TINY = ("--grid", "alpha=0.05,0.5", "--grid", "gamma=0.9", "--grid", "epsilon_end=0", "--grid",

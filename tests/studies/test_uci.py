@@ -17,7 +17,7 @@ pytest.importorskip("pgx")
 from helpers import invoke
 
 from rlcompare import load_agent
-from rlcompare.envs.chess_ladder import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
+from rlcompare.players.stockfish import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
 
 
 def stockfish_or_skip() -> str:
@@ -95,8 +95,8 @@ def test_the_ladder_plays_stockfish_in_pairs_and_rates_from_its_anchor(chess_run
 
     from rlcompare.experiment.engines import load_run
     from rlcompare.stats.ratings import bootstrap_ratings
-    from rlcompare.studies.chess_game import anchor_of, ladder_table
-    from rlcompare.studies.chess_ladder import Learner, games_of, stockfish_games
+    from rlcompare.studies.chess.game import anchor_of, ladder_table
+    from rlcompare.studies.chess.ladder import Learner, games_of, stockfish_games
 
     stockfish_or_skip()
     results = load_run(chess_run)

@@ -10,11 +10,11 @@ import pandas as pd
 import pytest
 from helpers import invoke
 
-from rlcompare.studies import why
 from rlcompare.studies.interface import UI
-from rlcompare.studies.paper_claims import paper_claim, within
+from rlcompare.studies.paper import why
+from rlcompare.studies.paper.claims import paper_claim, within
+from rlcompare.studies.paper.why import TERMS, decomposition, per_seed_returns, term_per_seed, why_configs
 from rlcompare.studies.registry import WhyOptions
-from rlcompare.studies.why import TERMS, decomposition, per_seed_returns, term_per_seed, why_configs
 
 SEEDS, EPISODES = (0, 1, 2, 3), 120
 
@@ -96,9 +96,9 @@ def test_report_opens_with_findings_and_names_every_term(study):
 
 @pytest.mark.slow("trains the why study")
 def test_the_paper_study_runs_the_order_ablation_and_its_report_opens_with_findings(study):
-    from rlcompare.studies.paper import paper_configs, reproduce
-    from rlcompare.studies.paper_claims import CLAIMS
-    from rlcompare.studies.paper_report import build_report
+    from rlcompare.studies.paper.claims import CLAIMS
+    from rlcompare.studies.paper.report import build_report
+    from rlcompare.studies.paper.study import paper_configs, reproduce
 
     out, runs = study
     paper_dir = out.parent / "paper"

@@ -131,7 +131,7 @@ def _findings(runs, envs, across=None, drawn=(None, {})):
 
 
 def test_the_deep_study_normalises_each_environment_between_random_and_its_best_method(tmp_path):
-    deep = pytest.importorskip("rlcompare.studies.deep")  # the deep extra
+    deep = pytest.importorskip("rlcompare.studies.deep.study")  # the deep extra
     from rlcompare.studies.paired_report import across as across_environments
     from rlcompare.studies.paired_report import draw_across
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlcompare.envs.atari_scores import (
+from rlcompare.envs.atari.scores import (
     ATARI5_WEIGHTS,
     ATARI_5,
     ATARI_100K,

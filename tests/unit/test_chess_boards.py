@@ -19,7 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
-from rlcompare.report import chess_boards
+from rlcompare.report import boards as chess_boards
 
 SIDE = 20
 """Pixels a square on the test's board: the axes fill a 160-pixel figure."""

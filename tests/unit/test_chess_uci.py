@@ -14,8 +14,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rlcompare.envs.chess_ladder import SKILL_0, MissingEngine, RandomPlayer, StockfishPlayer, find_stockfish, play_game
-from rlcompare.envs.chess_uci import serve
+from rlcompare.players.basic import RandomPlayer
+from rlcompare.players.games import play_game
+from rlcompare.players.stockfish import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
+from rlcompare.players.uci import serve
 
 AFTER_E4 = chess.Board("rnbqkbnr/pppppppp/8/8/4P3/8/PPPP1PPP/RNBQKBNR b KQkq - 0 1")
 MATED = "rnb1kbnr/pppp1ppp/8/4p3/6Pq/5P2/PPPPP2P/RNBQKBNR w KQkq - 1 3"
@@ -252,8 +254,8 @@ def test_no_input_raises_and_every_answer_is_one_the_protocol_knows(lines):
     assert answers[-1].startswith("bestmove ")
 
 
-SERVE_RANDOM = ("import sys; from rlcompare.envs.chess_ladder import RandomPlayer; "
-                "from rlcompare.envs.chess_uci import serve; serve(RandomPlayer(0), sys.stdin, sys.stdout)")
+SERVE_RANDOM = ("import sys; from rlcompare.players.basic import RandomPlayer; "
+                "from rlcompare.players.uci import serve; serve(RandomPlayer(0), sys.stdin, sys.stdout)")
 
 
 class ThroughUci:

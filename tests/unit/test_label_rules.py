@@ -26,7 +26,7 @@ from rlcompare.stats.significance import (
     worst_case_sign_p,
 )
 from rlcompare.stats.verdicts import censored_at_worst, is_fragile, labels_by_definition
-from rlcompare.studies.paper_claims import NAMES, paper_claim
+from rlcompare.studies.paper.claims import NAMES, paper_claim
 
 
 def judge_by_rule(*args, **kwargs):

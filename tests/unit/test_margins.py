@@ -46,7 +46,9 @@ def test_power_scales_with_the_spread_and_shrinks_with_the_seeds() -> None:
 
 
 def test_every_margin_has_its_reason_and_the_studies_read_them_from_the_table() -> None:
-    from rlcompare.studies import book_6_3, deep, paper_claims
+    from rlcompare.studies.book import figure_6_3 as book_6_3
+    from rlcompare.studies.deep import study as deep
+    from rlcompare.studies.paper import claims as paper_claims
 
     assert all(m.reason and m.unit and m.value > 0 for m in MARGINS.values())
     assert {env: margin("deep", f"{env} (final greedy return)") for env in deep.MARGIN} == deep.MARGIN

@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from rlcompare.deep import float64
-from rlcompare.deep.chess_games import chess_game_env
+from rlcompare.deep.chess.games import chess_game_env
 from rlcompare.deep.envs import is_game, jax_env
 from rlcompare.deep.pqn import (
     bootstrap_values,
@@ -94,7 +94,7 @@ def test_the_mover_is_rewarded_for_mate_and_every_move_is_from_its_side() -> Non
     """Fool's mate in pgx's chess: +1 to the side that mates, the observation always from the side to move."""
     import chess
 
-    from rlcompare.deep.chess_board import action_of
+    from rlcompare.deep.chess.board import action_of
 
     game = chess_game_env("chess")
     step, observe = jax.jit(game.step), jax.jit(game.observe)
@@ -133,8 +133,8 @@ def test_the_material_player_counts_captures_as_python_chess_does() -> None:
     against Stockfish), en passant included."""
     import chess
 
-    from rlcompare.deep.chess_board import legal_actions, move_of
-    from rlcompare.envs.chess_ladder import captured_value
+    from rlcompare.deep.chess.board import legal_actions, move_of
+    from rlcompare.players.basic import captured_value
 
     game = chess_game_env("chess")
     step, captures = jax.jit(game.step), jax.jit(game.captures)
@@ -144,7 +144,7 @@ def test_the_material_player_counts_captures_as_python_chess_does() -> None:
                   "rnbqkbnr/ppp1p1pp/8/3pPp2/8/8/PPPP1PPP/RNBQKBNR w KQkq f6 0 3"):
         for _ in range(3 if start.startswith("rnbqkbnr/pppp") else 1):
             board = chess.Board(start)
-            from rlcompare.deep.chess_board import state_of
+            from rlcompare.deep.chess.board import state_of
 
             state = state_of(board)
             for _ply in range(40):

@@ -11,7 +11,7 @@ import pytest
 from rlcompare.report.findings import _verdict_words, gap_and_interval, opening, tally
 from rlcompare.stats.compare import Judged, compare_paired
 from rlcompare.stats.significance import VERDICTS
-from rlcompare.studies.paper_claims import paper_claim, within
+from rlcompare.studies.paper.claims import paper_claim, within
 
 CLAIMS = [paper_claim("a", "constant", "behaviour_return"), paper_claim("b", "constant", "greedy_return"),
           paper_claim("c", "decay", "behaviour_return"),

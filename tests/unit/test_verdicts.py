@@ -30,7 +30,7 @@ from rlcompare.stats.significance import (
 )
 from rlcompare.stats.verdicts import columns, holm_family
 from rlcompare.studies.measures import convergence, convergence_by_rule, first_action_floor
-from rlcompare.studies.paper_claims import NAMES, paper_claim, within
+from rlcompare.studies.paper.claims import NAMES, paper_claim, within
 from rlcompare.studies.start_region import start_cells
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results

@@ -16,8 +16,8 @@ from rlcompare.algorithms.policies import greedy_action_random_ties
 from rlcompare.bench.harness import Measurement, bench_config, kernel_seconds, numba_threads, thread_counts
 from rlcompare.bench.tables import BenchTable, Measured, Say, Stage
 from rlcompare.compiled import njit
-from rlcompare.envs.chess import parse
-from rlcompare.envs.chess_endgame import Endgame, make_endgame, reset, step
+from rlcompare.envs.chess.endgame import Endgame, make_endgame, reset, step
+from rlcompare.envs.chess.endgames import parse
 from rlcompare.rng import next_below, next_double
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.runs import over_runs

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 
 from rlcompare.bench.tables import BenchTable, Measured, Say, Stage
 from rlcompare.deep import float64
-from rlcompare.deep.chess_games import chess_game_env
+from rlcompare.deep.chess.games import chess_game_env
 from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.rollout import random_mover
 from rlcompare.deep.train import compiled_training, seed_keys

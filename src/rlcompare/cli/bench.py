@@ -33,7 +33,7 @@ Out = Annotated[str | None, typer.Option(
 
 def paper_study() -> list[ExperimentConfig]:
     """The paper's study as ``reproduce`` trains it: 9 configurations x 10 seeds x 5000 episodes."""
-    from rlcompare.studies.paper import paper_configs
+    from rlcompare.studies.paper.study import paper_configs
 
     return paper_configs(tuple(range(10)), 5000)
 

@@ -76,7 +76,7 @@ def run(
     """Train one configuration over many seeds and write its run directory."""
     from rlcompare.experiment.runner import refuse_replacing
     from rlcompare.experiment.runner import run as run_experiment
-    from rlcompare.studies.paper import summary
+    from rlcompare.studies.paper.study import summary
 
     out_dir = out_path(out, Path("runs/run"))
     check_out(out_dir, store.RUN, force)
@@ -272,8 +272,8 @@ def uci(
     string' line, never a crash."""
     import sys
 
-    from rlcompare.envs.chess_uci import serve
     from rlcompare.experiment.engines import load_agent
+    from rlcompare.players.uci import serve
 
     if not run_dir.is_dir():
         raise typer.BadParameter(f"{run_dir} is not a directory; allowed: a run directory of a network trained at "
@@ -325,7 +325,7 @@ def _bench_report(directory: Path) -> None:
 def run_summary(results: Any) -> tuple[pd.DataFrame, str, str]:
     """A run's table: its mean behaviour and greedy return over seeds with 95% intervals, as ``run`` prints
     (a deep run: the greedy return of its last evaluation round)."""
-    from rlcompare.studies.paper import summary
+    from rlcompare.studies.paper.study import summary
     from rlcompare.tabular.results import Results
 
     if isinstance(results, Results):

@@ -13,18 +13,18 @@ from rlcompare.deep.envs import is_game
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.train import params_template
-from rlcompare.envs import atari
+from rlcompare.envs.atari import games as atari
 from rlcompare.envs.observations import check_box_observation
 
 if TYPE_CHECKING:  # pgx and python-chess are imported where a chess network plays, not by every deep run
     import chess
 
-    from rlcompare.deep.chess_games import ChessGameEnv
+    from rlcompare.deep.chess.games import ChessGameEnv
 
 
 class DeepAgent:
     """The greedy policy of one seed's network at one stage of learning: ``act(observation) -> action``, for an
-    observation of Gymnasium's own environment (an Atari game's: :func:`rlcompare.envs.atari.gymnasium_env`)."""
+    observation of Gymnasium's own environment (an Atari game's: :func:`rlcompare.envs.atari.games.gymnasium_env`)."""
 
     def __init__(self, results: DeepResults, seed: int, stage: str = "final") -> None:
         config = results.config
@@ -45,8 +45,8 @@ class DeepAgent:
 
 
 class BoardAgent:
-    """A network's greedy move on python-chess boards (:class:`rlcompare.envs.chess_ladder.ChessPlayer`), chosen on
-    pgx's copy of the board (:func:`rlcompare.deep.chess_board.state_of`), which keeps the history pgx's planes
+    """A network's greedy move on python-chess boards (:class:`rlcompare.players.basic.ChessPlayer`), chosen on
+    pgx's copy of the board (:func:`rlcompare.deep.chess.board.state_of`), which keeps the history pgx's planes
     show. Chess only: python-chess has no Gardner's minichess."""
 
     def __init__(self, name: str, game: ChessGameEnv, act: Any, params: Any) -> None:
@@ -59,7 +59,7 @@ class BoardAgent:
 
     @classmethod
     def of(cls, results: DeepResults, seed: int, stage: str = "final") -> BoardAgent:
-        from rlcompare.deep.chess_games import ChessGameEnv
+        from rlcompare.deep.chess.games import ChessGameEnv
 
         config = results.config
         game = config.environment
@@ -72,15 +72,15 @@ class BoardAgent:
     @float64
     def move(self, board: chess.Board) -> chess.Move:
         """The network's move for the side to move on ``board``."""
-        from rlcompare.deep.chess_board import move_of
+        from rlcompare.deep.chess.board import move_of
 
         state = self._state_of(board)
         return move_of(state, int(self._choose(self.params, state)))
 
     def _state_of(self, board: chess.Board) -> Any:
         """pgx's state of ``board``: the last one this agent saw, stepped on by the moves since, where ``board``
-        continues that game; else replayed from its root (:func:`~rlcompare.deep.chess_board.state_of`)."""
-        from rlcompare.deep.chess_board import action_of, state_of, step
+        continues that game; else replayed from its root (:func:`~rlcompare.deep.chess.board.state_of`)."""
+        from rlcompare.deep.chess.board import action_of, state_of, step
 
         seen, moves = self._seen, board.move_stack
         if seen is None or seen[0] != board.root().fen() or moves[:len(seen[1])] != seen[1]:

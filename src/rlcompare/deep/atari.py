@@ -1,5 +1,5 @@
 """Atari 2600 games for the deep engine: ALE's vector environment (``ale_py.AtariVectorEnv``, the emulator and
-the preprocessing in C++ threads) under :mod:`rlcompare.envs.atari`'s protocol, stepped from inside the jitted
+the preprocessing in C++ threads) under :mod:`rlcompare.envs.atari.games`'s protocol, stepped from inside the jitted
 training through ``jax.experimental.io_callback``, and the network of Mnih et al. (2015).
 
 The emulator's state lives outside JAX, so this environment is batched, not vmapped: the engine resets and steps
@@ -26,8 +26,8 @@ import numpy as np
 from jax.experimental import io_callback
 
 from rlcompare.deep.envs import Step
-from rlcompare.envs import atari
-from rlcompare.envs.atari import ACTION_NAMES, PROTOCOL, Protocol
+from rlcompare.envs.atari import games as atari
+from rlcompare.envs.atari.games import ACTION_NAMES, PROTOCOL, Protocol
 
 _EMULATORS: dict[tuple[AtariEnv, str, int], Any] = {}
 """One ``AtariVectorEnv`` per (environment, role, number of games), made at its first reset."""
@@ -42,7 +42,7 @@ def close_emulators() -> None:
 
 @dataclass(frozen=True)
 class AtariEnv:
-    """One game under :data:`~rlcompare.envs.atari.PROTOCOL`, with the batched interface of the deep engine:
+    """One game under :data:`~rlcompare.envs.atari.games.PROTOCOL`, with the batched interface of the deep engine:
     ``reset_batch(keys, role)``, ``step_batch(state, actions, keys, role)``, ``step_autoreset_batch`` and
     ``observe_batch``; ``role`` (training, evaluation) names the emulator that plays."""
 
@@ -154,7 +154,7 @@ def is_frames(observation_shape: tuple[int, ...]) -> bool:
 
 
 def atari_env(name: str) -> AtariEnv:
-    """``<Game>-Atari`` (:data:`rlcompare.envs.atari.NAMES`)."""
+    """``<Game>-Atari`` (:data:`rlcompare.envs.atari.games.NAMES`)."""
     return AtariEnv(name, atari.NAMES[name])
 
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from rlcompare.envs import atari, minatar
+from rlcompare.envs import minatar
+from rlcompare.envs.atari import games as atari
 from rlcompare.validation import (
     COUNT,
     NON_NEGATIVE,

@@ -30,7 +30,7 @@ class Played:
 
     observations: np.ndarray
     """(stages, max_steps + 1, ...): MinAtar's (10, 10, channels) bool images, or an Atari game's screens
-    (:mod:`rlcompare.studies.atari_play`); an ended episode keeps its last."""
+    (:mod:`rlcompare.studies.atari.play`); an ended episode keeps its last."""
     returns: np.ndarray
     """(stages, max_steps + 1) return so far."""
     lengths: np.ndarray

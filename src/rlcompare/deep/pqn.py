@@ -17,7 +17,7 @@ taken, exploratory ones included, so at λ = 0.65 it differs from SARSA(λ) only
 Watkins's Q(λ) (Sutton and Barto 12.10) bootstraps from ``max_a Q(s', a)`` alone after an exploratory action:
 off-policy learning of Q* in full. At ``lam = 0`` all of ``max``, ``watkins`` are one-step Q-learning.
 
-In a two-player game whose sides alternate (chess, :mod:`rlcompare.deep.chess_games`) one network plays both sides
+In a two-player game whose sides alternate (chess, :mod:`rlcompare.deep.chess.games`) one network plays both sides
 (self-play): every choice, ε-greedy, max and expectation, is over the legal moves alone, and the value at ``s'`` is
 the opponent's, so the return negates it (negamax): ``G_t = r_t - γ [(1 - λ) v(s') + λ G_{t+1}]``, the λ-return
 above with a discount of ``-γ``. Q(λ) then bootstraps from the opponent's best legal reply, SARSA(λ) from the reply
@@ -33,9 +33,7 @@ purejaxql.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import jax
@@ -43,7 +41,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
+from rlcompare.algorithms.registry import AFTER_UPDATE
 from rlcompare.deep.atari import NatureCNN, is_frames
 from rlcompare.deep.envs import (
     Environment,
@@ -55,131 +53,16 @@ from rlcompare.deep.envs import (
     step_autoreset_all,
 )
 from rlcompare.deep.networks import MLP, ConvNet, Network, is_image
+from rlcompare.deep.pqn_config import NEXT_ACTIONS, OBSERVATION_BOXES, PRESETS, TARGETS, PQNConfig
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
-from rlcompare.envs import acrobot, atari, chess_games, minatar, mountain_car
-from rlcompare.validation import (
-    COUNT,
-    POSITIVE,
-    STEP_SIZE,
-    UNIT,
-    Choice,
-    Flag,
-    Rule,
-    Widths,
-    check_fields,
-    plain_fields,
-    require,
-)
+from rlcompare.validation import require
 
-TARGETS = ("max", "sample", "expected", "watkins")
-NEXT_ACTIONS = (BEFORE_UPDATE, AFTER_UPDATE)
-OBSERVATION_BOXES = {
-    "MountainCar-v0": (tuple(mountain_car.OBSERVATION_LOW.tolist()), tuple(mountain_car.OBSERVATION_HIGH.tolist())),
-    "Acrobot-v1": (tuple(acrobot.OBSERVATION_LOW.tolist()), tuple(acrobot.OBSERVATION_HIGH.tolist())),
-}
-"""Gymnasium's observation boxes where every bound is finite."""
-
-
-@dataclass(frozen=True)
-class PQNConfig:
-    """One PQN-style configuration (defaults: purejaxql's ``pqn_cartpole.yaml``, but a 2 x 128 network)."""
-
-    target: str = "max"
-    """What the return bootstraps from: ``max`` (Q(λ)), ``sample`` (SARSA(λ)), ``expected`` (Expected SARSA(λ))."""
-    lam: float = 0.95
-    """λ of the λ-return; 0 gives the one-step target."""
-    gamma: float = 0.99
-    """Discount."""
-    total_steps: int = 500_000
-    """Environment steps over all parallel environments."""
-    n_envs: int = 32
-    """Environments stepped in parallel."""
-    n_steps: int = 64
-    """Steps of each environment per rollout (one update)."""
-    n_epochs: int = 4
-    """Passes over each rollout."""
-    n_minibatches: int = 16
-    """Minibatches per pass."""
-    learning_rate: float = 1e-4
-    """RAdam's step size."""
-    anneal_lr: bool = True
-    """Decay the step size linearly to zero over the training."""
-    max_grad_norm: float = 10.0
-    """Gradients clipped to this global norm."""
-    epsilon_start: float = 1.0
-    """ε of the first rollout."""
-    epsilon_end: float = 0.05
-    """ε after the decay."""
-    decay_fraction: float = 0.2
-    """Fraction of the updates over which ε decays linearly."""
-    reward_scale: float = 0.1
-    """Rewards are multiplied by this in the return (the recorded returns are the environment's own)."""
-    hidden: tuple[int, ...] = (128, 128)
-    """Widths of the hidden layers, each followed by LayerNorm and ReLU."""
-    next_action: str = BEFORE_UPDATE
-    """When the action after a rollout's last step is drawn: ``before_update`` (Algorithm 2's order: the one the
-    return bootstraps from is taken next) or ``after_update`` (Algorithm 1's: drawn again from the updated
-    network)."""
-    scale_observations: bool = False
-    """Map a bounded observation box onto [-1, 1] before the network (Mountain Car's velocity spans ±0.07)."""
-
-    def __post_init__(self) -> None:
-        plain_fields(self)
-        check_fields(self, RULES)
-        rollout = self.n_envs * self.n_steps
-        require(rollout % self.n_minibatches == 0, "n_minibatches", self.n_minibatches,
-                f"a divisor of n_envs x n_steps = {rollout}")
-        require(self.total_steps >= rollout, "total_steps", self.total_steps,
-                f"at least one rollout, n_envs x n_steps = {rollout}")
-
-    @property
-    def updates(self) -> int:
-        return self.total_steps // (self.n_envs * self.n_steps)
-
-
-RULES: dict[str, Rule] = {
-    "target": Choice(TARGETS), "next_action": Choice(NEXT_ACTIONS), "lam": UNIT, "gamma": STEP_SIZE,
-    "learning_rate": POSITIVE, "max_grad_norm": POSITIVE, "reward_scale": POSITIVE, "epsilon_start": UNIT,
-    "epsilon_end": UNIT, "decay_fraction": STEP_SIZE, "n_envs": COUNT, "n_steps": COUNT, "n_epochs": COUNT,
-    "n_minibatches": COUNT, "total_steps": COUNT, "anneal_lr": Flag(), "scale_observations": Flag(),
-    "hidden": Widths(),
-}
-"""What each setting may hold (:mod:`rlcompare.validation`), checked in this order."""
-
-
-_SMALL = PQNConfig(total_steps=500_000, n_envs=16, n_steps=128, n_epochs=4, n_minibatches=4, hidden=(64, 64),
-                   learning_rate=1e-3)
-_MINATAR = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=32,
-                     learning_rate=5e-4, lam=0.65, decay_fraction=0.1, reward_scale=1.0, hidden=(128,))
-_ATARI = PQNConfig(total_steps=10_000_000, n_envs=128, n_steps=32, n_epochs=2, n_minibatches=32,
-                   learning_rate=2.5e-4, anneal_lr=False, lam=0.65, epsilon_end=0.001, decay_fraction=0.1,
-                   reward_scale=1.0, hidden=(512,))
-_CHESS = PQNConfig(total_steps=500_000, n_envs=128, n_steps=32, n_epochs=4, n_minibatches=8, learning_rate=1e-3,
-                   lam=0.95, decay_fraction=0.2, reward_scale=1.0, hidden=(256, 256))
-PRESETS = {"default": {
-    "CartPole-v1": _SMALL,
-    "Acrobot-v1": _SMALL,
-    "MountainCar-v0": dataclasses.replace(_SMALL, total_steps=1_000_000, scale_observations=True),
-    **dict.fromkeys(minatar.NAMES, _MINATAR),
-    **dict.fromkeys(atari.NAMES, _ATARI),
-    **dict.fromkeys(chess_games.GAMES, _CHESS),
-}}
-"""Preset name -> environment -> config. ``default``: the shape the speed target is set on (16 environments x 128
-steps, 4 epochs x 4 minibatches, 2 x 64 LayerNorm MLP), with purejaxql's CartPole settings otherwise
-(``pqn_cartpole.yaml``: λ 0.95, γ 0.99, RAdam, gradients clipped at 10, rewards scaled by 0.1, ε from 1 over the
-first fifth) but ε ending at 0.05, a step size of 1e-3 for the smaller batches, and twice the steps on
-Mountain Car, whose observations are scaled onto [-1, 1]. MinAtar: purejaxql's ``pqn_minatar.yaml`` (128 environments
-x 32 steps, 2 epochs x 32 minibatches, RAdam at 5e-4 decayed linearly, λ 0.65, ε 1 -> 0.05 over the first tenth,
-rewards unscaled, 10 M steps) with MinAtar's network, LayerNorm after the convolution and the dense layer of 128.
-Atari: purejaxql's ``pqn_atari.yaml`` (128 environments x 32 steps, 2 epochs x 32 minibatches, RAdam at 2.5e-4 not
-decayed, λ 0.65, ε 1 -> 0.001 over the first tenth, 10 M steps) with Mnih et al.'s network, LayerNorm after each
-layer; it learns from the score's sign, as there. Chess and Gardner's minichess (self-play, ``docs/chess-game.md``):
-128 environments x 32 plies, 4 epochs x 8 minibatches, RAdam at 1e-3 decayed linearly, λ 0.95, ε 1 -> 0.05 over
-the first fifth, a 2 x 256 LayerNorm MLP over the board's planes, 500,000 plies: the settings that took Gardner's
-game from a score of 0.57 against the random player (MinAtar's λ 0.65, 2 epochs at 5e-4, 1 M plies) to 0.80 at half
-the plies (2 seeds)."""
 Config = PQNConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
+
+__all__ = ["NEXT_ACTIONS", "PRESETS", "TARGETS", "Config", "PQNConfig", "act", "bootstrap_values", "epsilon_greedy",
+           "expected_value", "greedy", "lambda_returns", "make_train", "masked", "network", "sarsa_actions",
+           "uniform_legal"]
 
 
 class Rollout(NamedTuple):

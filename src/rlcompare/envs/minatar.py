@@ -1,6 +1,6 @@
 """MinAtar's five games (Young and Tian 2019, arXiv 1903.03176) and the two protocols they are played under: the
 facts the registry, the pictures and the deep engine's port share (no JAX here; the port is
-:mod:`rlcompare.deep.minatar`).
+:mod:`rlcompare.deep.minatar.games`).
 
 | protocol    | sticky actions | actions         | episode ends                        | example name            |
 |-------------|----------------|-----------------|-------------------------------------|-------------------------|

@@ -35,7 +35,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
-from rlcompare.envs import atari, chess, chess_games, minatar
+from rlcompare.envs import minatar
+from rlcompare.envs.atari import games as atari
+from rlcompare.envs.chess import endgames as chess
+from rlcompare.envs.chess import games as chess_games
 
 if TYPE_CHECKING:
     import numpy as np
@@ -152,7 +155,7 @@ def _cartpole() -> Environment:
     high = np.array([np.float32(cartpole.X_THRESHOLD), _CARTPOLE_VELOCITY, theta, _CARTPOLE_ANGULAR_VELOCITY])
     return Environment(cartpole.ENV_ID, cartpole.CartPole(), cartpole.N_ACTIONS, 0, -high, high, 500, (1, 1, 6, 12),
                        "truncated", endings=("the pole fell", "balanced to the end"),
-                       bench_episodes=5000, jax_port="rlcompare.deep.envs:CARTPOLE")
+                       bench_episodes=5000, jax_port="rlcompare.deep.classic:CARTPOLE")
 
 
 def _acrobot() -> Environment:
@@ -164,7 +167,7 @@ def _acrobot() -> Environment:
                        acrobot.OBSERVATION_LOW.astype(np.float64), acrobot.OBSERVATION_HIGH.astype(np.float64), 500,
                        (4, 4, 4, 4, 8, 8),
                        "terminated", endings=("swung above the bar", "out of time"), bench_episodes=300,
-                       jax_port="rlcompare.deep.envs:ACROBOT")
+                       jax_port="rlcompare.deep.classic:ACROBOT")
 
 
 def _minatar(name: str) -> Environment:
@@ -178,15 +181,15 @@ def _minatar(name: str) -> Environment:
     return Environment(name, None, len(actions), 0, np.zeros(int(np.prod(shape))), np.ones(int(np.prod(shape))),
                        minatar.max_steps(game, protocol) or 0, 1, "positive_return",
                        action_names=tuple(minatar.ACTION_NAMES[action] for action in actions),
-                       endings=("game over", "out of time"), jax_port="rlcompare.deep.minatar:minatar_env",
+                       endings=("game over", "out of time"), jax_port="rlcompare.deep.minatar.games:minatar_env",
                        observation_shape=shape, tabular=False)
 
 
 def _endgame(name: str) -> Environment:
-    """A chess endgame against its defender (:mod:`rlcompare.envs.chess_endgame`); ``name`` carries its options."""
+    """A chess endgame against its defender (:mod:`rlcompare.envs.chess.endgame`); ``name`` carries its options."""
     import numpy as np
 
-    from rlcompare.envs import chess_endgame
+    from rlcompare.envs.chess import endgame as chess_endgame
 
     options = chess.parse(name)
     tables = chess_endgame.make_endgame(options)
@@ -197,7 +200,7 @@ def _endgame(name: str) -> Environment:
 
 
 def _atari(name: str) -> Environment:
-    """An Atari 2600 game under Machado et al.'s protocol (:mod:`rlcompare.envs.atari`), through ale-py."""
+    """An Atari 2600 game under Machado et al.'s protocol (:mod:`rlcompare.envs.atari.games`), through ale-py."""
     import numpy as np
 
     shape = atari.PROTOCOL.observation_shape
@@ -209,7 +212,7 @@ def _atari(name: str) -> Environment:
 
 
 def _chess_game(name: str) -> Environment:
-    """A whole game of chess, played against itself (:mod:`rlcompare.envs.chess_games`), through pgx."""
+    """A whole game of chess, played against itself (:mod:`rlcompare.envs.chess.games`), through pgx."""
     import numpy as np
 
     game = chess_games.GAMES[name]
@@ -217,12 +220,12 @@ def _chess_game(name: str) -> Environment:
     size = int(np.prod(shape))
     return Environment(name, None, game.n_actions, 0, np.zeros(size), np.ones(size), game.max_plies, 1, "won",
                        endings=("mate, or a draw by the rules", f"{game.max_plies} plies"),
-                       jax_port="rlcompare.deep.chess_games:chess_game_env", observation_shape=shape, tabular=False)
+                       jax_port="rlcompare.deep.chess.games:chess_game_env", observation_shape=shape, tabular=False)
 
 
 _PORTED = {
     "MountainCar-v0": lambda: _mountain_car("MountainCar-v0", bench_episodes=300,
-                                            jax_port="rlcompare.deep.envs:MOUNTAIN_CAR"),
+                                            jax_port="rlcompare.deep.classic:MOUNTAIN_CAR"),
     "MountainCar-book": lambda: _mountain_car("MountainCar-book", book=True, shown_as="MountainCar-v0"),
     "CartPole-v1": _cartpole,
     "Acrobot-v1": _acrobot,

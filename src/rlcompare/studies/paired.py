@@ -2,8 +2,8 @@
 
 SARSA(λ) and Q(λ) in one PQN-style engine whose only switch is the bootstrap (purejaxql's ``pqn_gymnax.py``), on
 paired seeds, beside any other deep method. Each set of environments it is asked on is a configuration of it:
-classic control with the tabular pair beside (:mod:`rlcompare.studies.deep`), MinAtar's games
-(:mod:`rlcompare.studies.minatar`). A configuration gives a :class:`PairedStudy` (environments, margins, labels),
+classic control with the tabular pair beside (:mod:`rlcompare.studies.deep.study`), MinAtar's games
+(:mod:`rlcompare.studies.deep.minatar`). A configuration gives a :class:`PairedStudy` (environments, margins, labels),
 a :class:`Plan` from its options, and the registry's ``run`` (:func:`train`) and ``report``
 (:func:`rlcompare.studies.paired_report.findings`, then sections of its own). Here, written once: a plan trained
 or loaded, on this machine or as a backend's tasks, and what a report reads of each run (greedy curves, each

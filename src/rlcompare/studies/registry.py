@@ -130,7 +130,7 @@ ATARI_BUDGETS = ("smoke", "100k", "10m", "200m")
 
 @dataclass(frozen=True)
 class AtariOptions(Seeded):
-    """Q(λ) against SARSA(λ) on the Atari 2600 (:mod:`rlcompare.studies.atari`)."""
+    """Q(λ) against SARSA(λ) on the Atari 2600 (:mod:`rlcompare.studies.atari.study`)."""
 
     seeds: int = option(2, minimum=1, spellings=("--runs",))
     """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
@@ -154,7 +154,7 @@ class AtariOptions(Seeded):
     machine."""
 
     def check(self) -> None:
-        from rlcompare.envs.atari_scores import chosen_games
+        from rlcompare.envs.atari.scores import chosen_games
 
         if self.budget not in ATARI_BUDGETS:
             raise ConfigError("budget", self.budget, f"one of {', '.join(ATARI_BUDGETS)}")
@@ -164,7 +164,7 @@ class AtariOptions(Seeded):
 
 @dataclass(frozen=True)
 class ChessEndgameOptions(Seeded):
-    """Q-Learning against SARSA on chess endgames (:mod:`rlcompare.studies.chess_endgames`)."""
+    """Q-Learning against SARSA on chess endgames (:mod:`rlcompare.studies.chess.endgames`)."""
 
     episodes: int | None = option(None, minimum=1)
     """Training episodes per seed in every setting, in place of each setting's budget (KRK against the optimal
@@ -184,7 +184,7 @@ class ChessEndgameOptions(Seeded):
     @property
     def chosen(self) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
         from rlcompare.algorithms.registry import METHODS
-        from rlcompare.envs.chess import ENDGAMES
+        from rlcompare.envs.chess.endgames import ENDGAMES
 
         return (listed("endgames", self.endgames, tuple(ENDGAMES)),
                 listed("defenders", self.defenders, ("optimal", "random")),
@@ -193,7 +193,7 @@ class ChessEndgameOptions(Seeded):
 
 @dataclass(frozen=True)
 class ChessOptions(Seeded):
-    """Q(λ) against SARSA(λ) in self-play on a whole game of chess (:mod:`rlcompare.studies.chess_game`)."""
+    """Q(λ) against SARSA(λ) in self-play on a whole game of chess (:mod:`rlcompare.studies.chess.game`)."""
 
     seeds: int = option(6, minimum=1, spellings=("--runs",))
     """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
@@ -219,7 +219,7 @@ class ChessOptions(Seeded):
     """Train on the Ray cluster at this address ('auto', or HOST:PORT) instead of on this machine."""
 
     def check(self) -> None:
-        from rlcompare.envs.chess_games import GAMES
+        from rlcompare.envs.chess.games import GAMES
 
         for name, allowed in (("game", tuple(GAMES)), ("budget", ("cpu", "gpu"))):
             if getattr(self, name) not in allowed:
@@ -269,34 +269,34 @@ class Study:
 
 STUDIES = {study.name: study for study in (
     Study("paper", "the paper: Q-Learning vs SARSA on MountainCar-v0, ε constant and decaying, and the order ablation",
-          PaperOptions, "rlcompare.studies.paper:MOUNTAIN_CAR"),
+          PaperOptions, "rlcompare.studies.paper.study:MOUNTAIN_CAR"),
     Study("why", "why SARSA wins there: target (max, taken, expectation) x order of choosing A' and updating",
-          WhyOptions, "rlcompare.studies.why"),
+          WhyOptions, "rlcompare.studies.paper.why"),
     Study("cartpole", "the paper's grid of configurations on CartPole-v1", PaperOptions,
-          "rlcompare.studies.paper:CARTPOLE"),
+          "rlcompare.studies.paper.study:CARTPOLE"),
     Study("acrobot", "the paper's grid of configurations on Acrobot-v1", PaperOptions,
-          "rlcompare.studies.paper:ACROBOT"),
+          "rlcompare.studies.paper.study:ACROBOT"),
     Study("book-10.2", "Semi-gradient SARSA with tile coding (Figure 10.2)", Book100Options,
-          "rlcompare.studies.book:FIG_10_2"),
+          "rlcompare.studies.book.figures:FIG_10_2"),
     Study("book-12.10", "SARSA(λ) with replacing traces (Figure 12.10)", Book100Options,
-          "rlcompare.studies.book:FIG_12_10"),
+          "rlcompare.studies.book.figures:FIG_12_10"),
     Study("cliff", "Cliff Walking: SARSA, Q-Learning and Expected SARSA (Example 6.6)", CliffOptions,
-          "rlcompare.studies.book:CLIFF_STUDY"),
+          "rlcompare.studies.book.figures:CLIFF_STUDY"),
     Study("book-6.3", "Cliff Walking against α, 100 episodes x 50,000 runs and 100,000 x 10 (Figure 6.3; about "
-          "5 min on 2 cores)", Fig63Options, "rlcompare.studies.book:FIG_6_3"),
+          "5 min on 2 cores)", Fig63Options, "rlcompare.studies.book.figures:FIG_6_3"),
     Study("deep", "the question with networks: Q(λ), SARSA(λ), DQN, PPO on three environments (the 'deep' extra)",
-          DeepOptions, "rlcompare.studies.deep", extra="deep"),
+          DeepOptions, "rlcompare.studies.deep.study", extra="deep"),
     Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
-          "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.minatar", extra="deep"),
+          "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.deep.minatar", extra="deep"),
     Study("atari", "the question on the Atari 2600 through Gymnasium's ALE: Q(λ) vs SARSA(λ), human-normalised "
-          "scores (the 'atari' extra)", AtariOptions, "rlcompare.studies.atari", extra="atari"),
+          "scores (the 'atari' extra)", AtariOptions, "rlcompare.studies.atari.study", extra="atari"),
     Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
-          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess_report"),
+          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess.endgames_report"),
     Study("chess", "the question on a whole game in self-play: Q(λ) vs SARSA(λ) on Gardner's minichess or chess, "
-          "rated on a ladder up to Stockfish (the 'deep' extra)", ChessOptions, "rlcompare.studies.chess_game",
+          "rated on a ladder up to Stockfish (the 'deep' extra)", ChessOptions, "rlcompare.studies.chess.game",
           extra="deep"),
     Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, the ε schedule and the time limit? (a sweep; "
-          "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity"),
+          "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity.study"),
 )}
 """Every study, in the order ``reproduce --list`` shows them; ``paper`` is what ``reproduce`` alone runs."""
 DEFAULT_STUDY = "paper"

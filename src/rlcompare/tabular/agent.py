@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rlcompare.envs import mountain_car
-from rlcompare.envs.chess import is_endgame_name
+from rlcompare.envs.chess.endgames import is_endgame_name
 from rlcompare.envs.discretize import UniformGrid, cell_index
 from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.observations import check_box_observation, check_observation, check_state
@@ -22,7 +22,7 @@ from rlcompare.envs.tiles import TileCoding, active_tiles_nd
 from rlcompare.tabular.results import Results
 
 if TYPE_CHECKING:
-    from rlcompare.envs.chess_play import ChessAgent
+    from rlcompare.players.endgame import ChessAgent
 
 
 def observation_shape(env: Environment) -> tuple[int, ...]:
@@ -94,7 +94,7 @@ def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | Ra
     weights = results.q_table(seed, stage)
     c = results.config
     if is_endgame_name(c.env) and c.algorithm != "random":
-        from rlcompare.envs.chess_play import ChessAgent
+        from rlcompare.players.endgame import ChessAgent
 
         return ChessAgent(weights, c.env, seed, stage)
     env = c.environment

@@ -1,10 +1,9 @@
-"""One episode loop per family of methods, written once for every environment, features and method of the
-family; :func:`train_episode` picks the method's loop by the type of its rule when the run loop compiles.
+"""One training episode loop per family of methods, written once for every environment, features and method of the
+family; :mod:`rlcompare.tabular.loops` picks the method's loop by the type of its rule when the run loop compiles.
 
 The one-step loop is built for each method with its update and the values it acts on compiled in
-(:func:`one_step_loop`), and the evaluation loop with the action of its target policy (:func:`evaluation_loop`):
-a call chosen by type on every step would cost a third of the speed, and inlining it at numba's level several
-times the compile time.
+(:func:`one_step_loop`), as the evaluation loop is with the action of its target policy: a call chosen by type on
+every step would cost a third of the speed, and inlining it at numba's level several times the compile time.
 
 - one-step: Q-Learning (the paper's Algorithm 1), SARSA (Algorithm 2), Expected SARSA, Double Q-Learning;
 - n-step SARSA (7.2); SARSA(λ) and Watkins's Q(λ) (12.7, 12.10); REINFORCE (13.3, 13.4; Algorithm 3);
@@ -26,12 +25,11 @@ from rlcompare.algorithms import nstep, traces
 from rlcompare.algorithms.linear import action_value, action_values, add_to_action, count_visit
 from rlcompare.algorithms.policies import (
     epsilon_greedy_action,
-    greedy_action,
     largest,
     uniform_action,
     uniform_legal_action,
 )
-from rlcompare.algorithms.registry import METHODS, Method
+from rlcompare.algorithms.registry import METHODS
 from rlcompare.algorithms.reinforce import episode_update
 from rlcompare.algorithms.softmax import sample_softmax
 from rlcompare.algorithms.td import Rates, Transition
@@ -315,90 +313,3 @@ def reinforce_episode(rule: Any, settings: Settings, env: Any, features: Any, w:
     episode_update(rule, w, w2, states, actions, rewards, steps, settings.alpha, settings.gamma, h, pi)
     kept(owners)
     return episode_return, steps, terminated
-
-
-# --- evaluation -----------------------------------------------------------------------------------------
-
-
-def greedy(values: Values = values_of_w) -> TargetAction:
-    """The first action of highest value (``np.argmax``) in these values, as a loaded agent acts."""
-
-    @njit(inline="always")
-    def greedy_in(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray, scratch: np.ndarray,
-                  rng: np.ndarray) -> int:
-        return greedy_action(values(rule, w, w2, s, q, scratch))
-
-    return greedy_in
-
-
-@njit(inline="always")
-def softmax_policy(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray,
-                   scratch: np.ndarray, rng: np.ndarray) -> int:
-    """REINFORCE's target policy is its behaviour: the softmax over its preferences."""
-    return sample_softmax(action_values(w, s, q), scratch, rng)
-
-
-@njit(inline="always")
-def uniform(rule: Any, w: np.ndarray, w2: np.ndarray, s: int | np.ndarray, q: np.ndarray, scratch: np.ndarray,
-            rng: np.ndarray) -> int:
-    return uniform_legal_action(action_values(w, s, q), rng)
-
-
-def evaluation_loop(target_action: TargetAction) -> Episode:
-    """Episodes of the target policy whose action in a state is ``target_action(...)``."""
-
-    @njit
-    def evaluation_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
-                           env_rng: np.ndarray, agent_rng: np.ndarray,
-                           transitions: np.ndarray) -> tuple[float, int, bool]:
-        """One episode of the target policy, drawing from the evaluation's own streams."""
-        w, w2, agent_rng, transitions = borrowed((w, w2, agent_rng, transitions))
-        n_actions = w.shape[1]
-        owners = (states_buffer(features, 1), np.empty(n_actions), np.empty(n_actions))
-        buffer, q, scratch = borrowed(owners)
-        state = reset(env, env_rng)
-        episode_return, steps, terminated = 0.0, 0, False
-        while not terminated and steps < settings.max_steps:
-            s = features_of(features, observe(env, state), buffer, 0)
-            action = target_action(rule, w, w2, s, q, scratch, agent_rng)
-            state, reward, terminated = step(env, state, action, transitions)
-            episode_return += reward
-            steps += 1
-        kept(owners)
-        return episode_return, steps, terminated
-
-    return evaluation_episode
-
-
-def _loops(method: Method) -> tuple[Episode, Episode]:
-    """A method's training episode and its target policy's episode: greedy in the learned values, the softmax
-    policy for REINFORCE, uniform for the baseline."""
-    values = method.values or values_of_w
-    if method.family == "one-step":
-        update = method.update
-        if update is None:
-            raise ValueError(f"the one-step method {method.name!r} names no update (update_at)")
-        return (one_step_loop(update, values, method.target_takes_next_action), evaluation_loop(greedy(values)))
-    train, act = {"baseline": (random_episode, uniform), "n-step": (n_step_episode, greedy()),
-                  "traces": (lambda_episode, greedy()), "policy gradient": (reinforce_episode, softmax_policy),
-                  }[method.family]
-    return train, evaluation_loop(act)
-
-
-LOOPS = {m.rule: _loops(m) for m in METHODS.values()}
-"""Each rule's training episode and evaluation episode."""
-
-
-@by_type({rule: loops[0] for rule, loops in LOOPS.items()})
-def train_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray, work: Traces,
-                  epsilon: float, env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray,
-                  visits: np.ndarray) -> tuple[float, int, bool]:
-    """One training episode of the rule's method: ``(return, steps, terminated)``."""
-    raise NotImplementedError(COMPILED_ONLY)
-
-
-@by_type({rule: loops[1] for rule, loops in LOOPS.items()})
-def evaluation_episode(rule: Any, settings: Settings, env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
-                       env_rng: np.ndarray, agent_rng: np.ndarray, transitions: np.ndarray) -> tuple[float, int, bool]:
-    """One episode of the rule's target policy: ``(return, steps, terminated)``."""
-    raise NotImplementedError(COMPILED_ONLY)

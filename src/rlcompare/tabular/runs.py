@@ -19,7 +19,8 @@ import numpy as np
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.compiled import njit
 from rlcompare.tabular.borrowed import borrowed
-from rlcompare.tabular.episodes import Traces, evaluation_episode, train_episode
+from rlcompare.tabular.episodes import Traces
+from rlcompare.tabular.loops import evaluation_episode, train_episode
 from rlcompare.tabular.state import (
     AGENT_STREAM,
     ENV_STREAM,

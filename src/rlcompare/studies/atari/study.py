@@ -1,0 +1,279 @@
+"""``rlcompare reproduce atari``: the paper's question on the Atari 2600 itself, through Gymnasium's ALE.
+
+A configuration of the paired study (:mod:`rlcompare.studies.paired`), as MinAtar's is: SARSA(λ) against Q(λ) in
+one PQN-style engine (the bootstrap the only switch), with Mnih et al. (2015)'s network and purejaxql's Atari
+settings, on paired seeds, under Machado et al. (2018)'s protocol (``docs/atari.md``), on named sets of games and
+budgets. Scores are human-normalised from the published random and human scores
+(:mod:`rlcompare.envs.atari.scores`), pooled over games as rliable does, and, where the five games of Atari-5 ran,
+read through Aitchison et al. (2023)'s estimate of the median over 57 games. Each agent, loaded by
+:func:`rlcompare.load_agent`, plays Gymnasium's own ``ALE/<Game>-v5`` at three stages of learning, in the game's
+own pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.playback import stage_titles
+from rlcompare.deep.results import DeepResults
+from rlcompare.envs.atari import games as atari
+from rlcompare.envs.atari import scores as atari_scores
+from rlcompare.experiment import store
+from rlcompare.formatting import number
+from rlcompare.report.aggregate_plots import across_section
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.report.stage_video import render_stages
+from rlcompare.stats import intervals as stats
+from rlcompare.stats.compare import NEITHER_LEARNT
+from rlcompare.studies.atari import play as atari_play
+from rlcompare.studies.atari.play import play_stages, upscaled
+from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.margins import margin
+from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, train
+from rlcompare.studies.paired_report import (
+    answer,
+    curves_drawn,
+    difference_figure,
+    findings,
+    pair_finals,
+    short_label,
+)
+from rlcompare.studies.registry import AtariOptions
+from rlcompare.validation import ConfigError
+
+STUDY = "atari"
+
+
+@dataclass(frozen=True)
+class Budget:
+    """A named budget (:data:`rlcompare.studies.registry.ATARI_BUDGETS`): its games (a set of
+    :data:`rlcompare.envs.atari.scores.SETS`), agent steps per training, evaluations, and how long it takes, measured
+    or not (``docs/atari.md``)."""
+
+    games: str
+    steps: int
+    eval_rounds: int
+    eval_episodes: int
+    takes: str
+
+
+BUDGETS = {
+    "smoke": Budget("breakout", 32_768, 4, 8,
+                    "about 10 minutes on 2 CPU cores at the default 2 seeds (measured: docs/atari.md)"),
+    "100k": Budget("atari100k", 100_000, 10, 8,
+                   "about 30 minutes a game on 2 CPU cores at 2 seeds (13 hours for the 26), from the smoke's "
+                   "measured pace; not run whole"),
+    "10m": Budget("atari5", 10_000_000, 20, 8, "about 12 hours a seed of a method and game on 2 CPU cores, from the "
+                  "smoke's measured pace: a GPU's work, not yet measured on one"),
+    "200m": Budget("atari5", 50_000_000, 20, 8,
+                   "purejaxql's 200 M frames a training: a GPU's work, not yet measured"),
+}
+"""Budget -> its defaults. A step is 4 frames: ``10m`` is 10 M steps (40 M frames), ``200m`` 200 M frames; Atari
+100k's is 100,000 steps (Kaiser et al. 2020)."""
+MARGIN = margin("atari", "a game (final return)")
+LEARNT = margin("atari", "learnt (final return above random)")
+OVERALL_MARGIN = margin("atari", "over the games (human-normalised score)")
+EPSILON = atari.PROTOCOL.eval_epsilon
+
+
+def name_of(title: str) -> str:
+    return f"{title}-Atari"
+
+
+def title(env: str) -> str:
+    """``Breakout`` for ``Breakout-Atari`` (and :data:`~rlcompare.studies.paired.OVERALL` for itself)."""
+    return env if env == OVERALL else atari.title_of(env)
+
+
+ENVS = tuple(name_of(t) for t in atari_scores.GAMES)
+ATARI = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game": title(key.env)},
+                    label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
+                    overall_margin=OVERALL_MARGIN, prefix="across-games-",
+                    references={name_of(t): g.human for t, g in atari_scores.GAMES.items()},
+                    floors={name_of(t): g.random for t, g in atari_scores.GAMES.items()}, learnt_share=LEARNT)
+"""Every game of the 57, each margin a share of its random-to-human range, human-normalised scores over them."""
+
+
+def check_roms(titles: tuple[str, ...]) -> None:
+    """Each game's ROM, which ale-py ships; one it lacks a :class:`~rlcompare.validation.ConfigError` naming it."""
+    from ale_py import roms
+
+    missing = [t for t in titles if roms.get_rom_path(atari_scores.GAMES[t].rom) is None]
+    if missing:
+        raise ConfigError("games", ",".join(missing), "games whose ROM ale-py has (pip install -e '.[atari]')")
+
+
+def plan_of(options: AtariOptions) -> Plan:
+    """The plan from the options; an unknown game or method, a missing ROM, or steps a method cannot train in is a
+    :class:`~rlcompare.validation.ConfigError` naming the option."""
+    budget = BUDGETS[options.budget]
+    titles = atari_scores.chosen_games(options.games or budget.games)
+    check_roms(titles)
+    methods = listed("methods", options.methods, tuple(DEEP_METHODS), every="all")
+    return checked(Plan(options.seed_range, methods, {t: name_of(t) for t in titles},
+                        options.steps or budget.steps, 1, eval_rounds=budget.eval_rounds,
+                        eval_episodes=budget.eval_episodes, vmap_width=1))
+
+
+def run(out: Path, options: AtariOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
+    """Every training of the plan, one after another on this machine (its emulators are the process's), or as
+    tasks of the Ray cluster at ``options.address`` (each a process of its own)."""
+    plan = plan_of(options)
+    backend = cluster(options.address)
+    where = f"on Ray at {options.address}" if backend else "on this machine, one after another"
+    ui.say(f"Atari 2600, {atari.PROTOCOL.summary}: {len(plan.configs())} trainings x {len(plan.seeds)} seeds x "
+           f"{plan.steps:,} steps (budget '{options.budget}': {BUDGETS[options.budget].takes}) {where}.")
+    return train(out, STUDY, plan, ui, force=force, backend=backend)
+
+
+# --- what the report adds to the paired study's --------------------------------------------------------------
+
+def human_normalised(results: DeepResults) -> np.ndarray:
+    """Each seed's final return, human-normalised (random 0, human 1)."""
+    return np.asarray(atari_scores.human_normalised(title(results.config.env), final_returns(results)))
+
+
+def cut_episodes(results: DeepResults) -> tuple[int, int]:
+    """``(cut, all)``: the evaluation episodes that reached the protocol's 108,000 frames, of all played."""
+    cut = ~results.evaluations["terminated"].to_numpy()
+    return int(cut.sum()), int(cut.size)
+
+
+def summary_table(runs: dict[str, DeepResults]) -> pd.DataFrame:
+    """Per game and method: the final return (mean and IQM, 95% intervals), human-normalised, the published
+    random and human scores, and the evaluation episodes cut."""
+    rows = []
+    for results in runs.values():
+        game = atari_scores.GAMES[title(results.config.env)]
+        cut, played = cut_episodes(results)
+        rows.append({"game": game.title, "method": DEEP_METHODS[results.config.algorithm].label,
+                     "final return, mean": stats.interval(final_returns(results)).format(1),
+                     "final return, IQM": stats.interval(final_returns(results), "iqm").format(1),
+                     "human-normalised, mean": stats.interval(human_normalised(results)).format(3),
+                     "random": game.random, "human": game.human, "seeds": len(results.seeds),
+                     "evaluation episodes cut at 108,000 frames": f"{cut} of {played}",
+                     "steps/s": round(results.meta["timings"]["steps_per_second"])})
+    return pd.DataFrame(rows)
+
+
+def atari5_table(runs: dict[str, DeepResults]) -> pd.DataFrame | None:
+    """Per method that ran every Atari-5 game on the same seeds: each seed's estimate of the median
+    human-normalised score over the 57 games (:func:`~rlcompare.envs.atari.scores.atari5_median`), its mean and
+    95% interval; None where no method did."""
+    rows = []
+    for method in sorted({r.config.algorithm for r in runs.values()}):
+        ran = {title(r.config.env): r for r in runs.values() if r.config.algorithm == method}
+        if not set(atari_scores.ATARI_5) <= set(ran) or len({ran[t].seeds for t in atari_scores.ATARI_5}) != 1:
+            continue
+        estimates = atari_scores.atari5_median({t: human_normalised(ran[t]) for t in atari_scores.ATARI_5})
+        rows.append({"method": DEEP_METHODS[method].label,
+                     "Atari-5 estimate of the 57-game median, mean": stats.interval(np.asarray(estimates)).format(3),
+                     "seeds": len(ran[atari_scores.ATARI_5[0]].seeds)})
+    return pd.DataFrame(rows) if rows else None
+
+
+def video_cells(run_dirs: dict[str, Path], runs: dict[str, DeepResults], videos: Path
+                ) -> tuple[list[tuple[str, str, str]], pd.DataFrame]:
+    """Each training's first seed at its three stages of learning, loaded by ``load_agent`` and playing Gymnasium's
+    ``ALE/<Game>-v5``: a video per game and method, and a table of what each stage scored there."""
+    cells, rows = [], []
+    for name, results in runs.items():
+        seed = results.seeds[0]
+        played = play_stages(run_dirs[name], results, seed, atari_play.STAGE_STEPS)
+        label = f"{title(results.config.env)}, {DEEP_METHODS[results.config.algorithm].label}, seed {seed}"
+        mp4, gif = render_stages(played, stage_titles(results), upscaled, videos / f"{name}.mp4",
+                                 videos / f"{name}.gif")
+        cells.append((f"videos/{mp4.name}", f"videos/{gif.name}", f"{label}: {', '.join(results.stages)}"))
+        rows += [{"game": title(results.config.env), "method": DEEP_METHODS[results.config.algorithm].label,
+                  "seed": seed, "stage": stage, "return": float(played.returns[i, played.lengths[i]]),
+                  "steps": int(played.lengths[i]), "game over": bool(played.ended[i])}
+                 for i, stage in enumerate(results.stages)]
+    return cells, pd.DataFrame(rows)
+
+
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
+    """Tables, verdicts, figures, videos and ``report.html`` of an Atari study directory, from its run
+    directories."""
+    with store.rewriting(Path(out), "study"):
+        return _build_report(Path(out), videos)
+
+
+def _build_report(out: Path, videos: bool) -> Report:
+    found = findings(out, ATARI)
+    runs, aggregates, files = found.runs, found.aggregates, found.files
+    summary = summary_table(runs)
+    files["summary"] = write_table(summary, out / "tables", "atari_summary")
+    atari5 = atari5_table(runs)
+    if atari5 is not None:
+        files["atari5"] = write_table(atari5, out / "tables", "atari_atari5")
+    compared = {title(key.env): j for key, j in found.judged.items()}
+    steps = max((r.config.method_config().total_steps for r in runs.values()), default=0)
+    seeds = min((len(r.seeds) for r in runs.values()), default=0)
+    games = [title(env) for env in found.envs]
+    floors = {t: atari_scores.GAMES[t].random for t in games}
+    humans = {t: atari_scores.GAMES[t].human for t in games}
+    lines = answer(compared, seeds, floors=floors, references=humans, measure=f"final return at ε = {EPSILON:g}",
+                   reference="the human")
+    not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
+    if not_learnt:
+        lines.append(f"Not learnt at this budget ({steps:,} steps a training): {', '.join(not_learnt)}; the "
+                     "published learning curves of PQN and DQN need millions of steps (docs/atari.md).")
+    pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, found.envs).items()})
+    answer_figure = [(save_figure(pictured, out / "figures" / "paired-differences.png"),
+                      "SARSA(λ) minus Q(λ), seed by seed, per game")] if pictured is not None else []
+    cells, played = video_cells({name: out / name for name in runs}, runs, out / "videos") if videos else ([], None)
+    if played is not None:
+        files["gymnasium"] = write_table(played, out / "tables", "atari_gymnasium")
+    curve_figures = [curves_drawn(runs, env, "steps", out / "figures" / f"curves-{env}.png", "environment steps")
+                     for env in found.envs]
+    sections = [
+        Section("The answer", lines, figures=answer_figure),
+        Section("On-policy or off-policy target on the Atari 2600", [
+            f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, each "
+            f"seed's mean return in the last evaluation round ({EPSILON:g}-greedy, Mnih et al. 2015's evaluation). "
+            f"Protocol: {atari.PROTOCOL.summary}. Training: {steps:,} agent steps ({4 * steps:,} frames) per seed. "
+            "Each game's scale runs from the published random score to the published human score "
+            "(human-normalised: random 0, human 1; Mnih et al. 2015's table, as docs/atari.md cites). A method has "
+            f"learnt a game when its final return beats the random score by {LEARNT:g} of that range (one-sided "
+            f"signed-rank test, α = 0.05); where neither has, the verdict is \"{NEITHER_LEARNT}\". Margins of no "
+            f"difference, declared before the runs: {MARGIN:g} of the game's range ("
+            + ", ".join(f"{t} ±{number(MARGIN * (humans[t] - floors[t]))}" for t in games)
+            + f"), ±{OVERALL_MARGIN:g} of the human-normalised score over the games. p-values Holm-adjusted over "
+            "the games and the overall row."], [("Verdicts", found.verdicts, files["verdicts"])]),
+        Section("Every game", [
+            "Final return: each seed's mean over the last evaluation round's episodes; human-normalised against the "
+            "published random and human scores. Episodes that reached 108,000 frames are cut there (the protocol's "
+            "limit) and counted."], [("Summary", summary, files["summary"])]),
+        Section("The 57-game median, estimated from Atari-5", [
+            "Aitchison, Sweetser and Hutter (2023) estimate the median human-normalised score over the 57 games from "
+            "five (Battle Zone, Double Dunk, Name This Game, Phoenix, Q*bert) by a regression on log scores "
+            "(about a tenth relative error); each seed's estimate, then their mean."
+            if atari5 is not None else "Needs a method run on all five Atari-5 games (--games atari5)."],
+            [("Atari-5 estimate", atari5, files["atari5"])] if atari5 is not None else []),
+        across_section(
+            "Across games",
+            "Human-normalised final scores pooled over the games as rliable does (Agarwal et al. 2021): interval "
+            "estimates, the probability of improvement, performance profiles and sample-efficiency curves, with 95% "
+            "stratified bootstrap intervals.",
+            aggregates, files, "Interval estimates of human-normalised final returns",
+            "Across games: needs two or more games and methods."),
+        Section("Learning curves", figures=curve_figures),
+        Section("The agents at three stages of learning, in Gymnasium", [
+            "Each training's first seed, loaded by rlcompare.load_agent at a tenth, half and the end of its training, "
+            "playing Gymnasium's own ALE/<Game>-v5 under the same protocol (AtariPreprocessing and "
+            f"FrameStackObservation as in training) from the same start, {EPSILON:g}-greedy with the same draws, for "
+            f"at most {atari_play.STAGE_STEPS:,} steps, in the game's own pixels." if videos else
+            "Videos were not rendered (--no-videos)."],
+            [("What each stage scored in Gymnasium", played, files["gymnasium"])] if played is not None else [],
+            videos=cells),
+    ]
+    page = write_report(out / "report.html", "Atari 2600: on- or off-policy target with a network", sections,
+                        found.problems)
+    return Report(page, lines, found.problems)
+

@@ -1,0 +1,254 @@
+"""``rlcompare reproduce chess``: the paper's question on a whole game of chess, with networks, in self-play.
+
+A configuration of the paired study (:mod:`rlcompare.studies.paired`): Q(λ) (off-policy, the opponent's best
+legal reply) against SARSA(λ) (on-policy, the reply played), one network playing both sides, on Gardner's 5 x 5
+minichess by default or on chess (``--game chess``), through pgx (:mod:`rlcompare.deep.chess.games`). A method's
+result is its final greedy network's score against the uniformly random player; the verdicts compare those on paired
+seeds. Then a rating ladder (:mod:`rlcompare.studies.chess.ladder`): every network against the random player, the
+one-ply material player and the other method's network of the same seed, and on chess against Stockfish at Skill
+Level 0 and at ``UCI_Elo`` 1350, every game rated together by a Bradley-Terry fit on the Elo scale with bootstrap
+intervals. The ladder's games are played once, when the runs are trained, and kept beside them.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from rlcompare.deep.chess.games import chess_game_env
+from rlcompare.deep.methods import DEEP_METHODS
+from rlcompare.deep.results import DeepResults
+from rlcompare.envs.chess.games import GAMES
+from rlcompare.experiment import store
+from rlcompare.players.stockfish import ELO_1350
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.intervals import Estimate
+from rlcompare.stats.ratings import bootstrap_ratings, player_records
+from rlcompare.stats.significance import ALPHA
+from rlcompare.studies.chess import ladder as chess_ladder
+from rlcompare.studies.chess.ladder import MATERIAL, RANDOM, Learner, games_of
+from rlcompare.studies.chess.stages import stage_games
+from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.margins import margin
+from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, cluster, train
+from rlcompare.studies.paired_report import curves_drawn, findings, short_label
+from rlcompare.studies.registry import ChessOptions
+
+STUDY = "chess"
+BUDGETS = {"cpu": 500_000, "gpu": 10_000_000}
+"""Budget -> environment steps per training (``docs/chess-game.md`` gives the time each took)."""
+MARGIN = margin("chess", "a game (result against the random player)")
+LEARNT = margin("chess", "learnt (result above the random player's)")
+WON_EVERY_GAME = 1.0
+"""The reference a result is measured against: +1, winning every game against the random player."""
+DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
+STOCKFISH = "stockfish"
+"""What the Stockfish rungs' names begin with."""
+MIN_GATE_SEEDS = 5
+"""The fewest seeds whose one-sided signed-rank test can pass the learning gate at its level
+(:func:`rlcompare.stats.significance.has_learnt`): 1/2^5 < 0.05."""
+LADDER = "ladder"
+"""The directory, inside the study's, of each game's ladder: its games and what they were played from."""
+
+
+def game_title(env: str) -> str:
+    return GAMES[env].label
+
+
+CHESS = PairedStudy(STUDY, tuple(GAMES), dict.fromkeys(GAMES, MARGIN), lambda key: {"game": game_title(key.env)},
+                    label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
+                    references=dict.fromkeys(GAMES, WON_EVERY_GAME), learnt_share=LEARNT)
+"""The game played, its margin a share of the range from the random player's result against itself (0) to winning
+every game (+1)."""
+
+
+def plan_of(options: ChessOptions) -> Plan:
+    """The plan from the options; an unknown game or method is a :class:`~rlcompare.validation.ConfigError`."""
+    methods = listed("methods", options.methods, tuple(m for m in DEEP_METHODS if m.startswith("pqn_")))
+    return checked(Plan(options.seed_range, methods, {options.game: options.game},
+                        options.steps or BUDGETS[options.budget], options.workers or DEFAULT_WORKERS,
+                        eval_rounds=10, eval_episodes=64))
+
+
+def run(out: Path, options: ChessOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
+    """Every training of the plan (on this machine or on the Ray cluster at ``options.address``), then the ladder's
+    games, where the directory has none for these runs."""
+    if options.game == "chess" and options.stockfish:
+        from rlcompare.players.stockfish import find_stockfish
+
+        find_stockfish()  # a missing engine is one line, before anything is trained
+    plan = plan_of(options)
+    backend = cluster(options.address)
+    where = f"on Ray at {options.address}" if backend else "on this machine"
+    ui.say(f"{game_title(options.game)}: {len(plan.configs())} trainings x {len(plan.seeds)} seeds x "
+           f"{plan.steps:,} steps of self-play {where}.")
+    runs = train(out, study, plan, ui, force=force, backend=backend)
+    with ui.working("Playing the rating ladder"):
+        play_ladder(Path(out), runs, options)
+    return runs
+
+
+def learners_of(runs: dict[str, DeepResults], env: str) -> list[Learner]:
+    return [Learner(short_label(r.config.algorithm), r) for r in sorted(runs.values(), key=lambda r: r.config.name)
+            if r.config.env == env]
+
+
+def played_from(runs: dict[str, DeepResults]) -> dict[str, str]:
+    """What the ladder was played from: each run's name and when it was trained."""
+    return {name: str(r.meta.get("created", "")) for name, r in sorted(runs.items())}
+
+
+def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
+    """The game's ladder, written once for its runs (kept where ``ladder.json`` says it was played from the same
+    runs)."""
+    deep = {name: r for name, r in runs.items() if isinstance(r, DeepResults) and r.config.env == options.game}
+    where = out / LADDER / options.game
+    marker = where / "ladder.json"
+    if marker.exists() and store.read_json(marker).get("runs") == played_from(deep):
+        return
+    game = chess_game_env(options.game)
+    learners = learners_of(deep, options.game)
+    games = chess_ladder.pgx_games(game, learners, options.pairs)
+    if options.game == "chess" and options.stockfish:
+        engine_games, records = chess_ladder.stockfish_games(game, learners, max(1, options.pairs // 16))
+        games = pd.concat([games, engine_games], ignore_index=True)
+        pgn = "\n\n".join(str(record.game) for record in records) + "\n"
+        store.write_bytes_atomic(where / "stockfish.pgn", pgn.encode())
+    store.write_atomic(where / "games.parquet", lambda handle: games.to_parquet(handle, index=False))
+    store.write_json_atomic(marker, {"runs": played_from(deep), "pairs": options.pairs, "game": options.game})
+
+
+def load_ladder(out: Path, env: str, runs: dict[str, DeepResults]) -> pd.DataFrame:
+    """The game's ladder, refused (naming the file) where it was played from other runs than these."""
+    where = out / LADDER / env
+    marker = where / "ladder.json"
+    if not marker.exists():
+        raise store.StoreError(f"{marker}: no ladder was played for these runs; run 'rlcompare reproduce chess' "
+                               "with the same options to play it")
+    if store.read_json(marker).get("runs") != played_from(runs):
+        raise store.StoreError(f"{marker}: the ladder was played from other runs than those in {out}")
+    games = pd.read_parquet(where / "games.parquet")
+    missing = set(chess_ladder.COLUMNS) - set(games.columns)
+    if missing:
+        raise store.StoreError(f"{where / 'games.parquet'}: not a ladder's games (no {sorted(missing)})")
+    return games
+
+
+# --- the report -------------------------------------------------------------------------------------------------
+
+def anchor_of(games: pd.DataFrame) -> tuple[str, float]:
+    """Stockfish's ``UCI_Elo`` 1350 where some player other than Stockfish scored against a Stockfish rung (the
+    ladder reaches it by points, not only by the prior's virtual draws), else the random player at 0."""
+    engine = games["white"].str.startswith(STOCKFISH) != games["black"].str.startswith(STOCKFISH)
+    others_points = np.where(games["white"].str.startswith(STOCKFISH), 1 - games["score"], games["score"])
+    reached = float(others_points[engine.to_numpy()].sum()) > 0
+    return (ELO_1350.name, float(ELO_1350.options["UCI_Elo"])) if reached else (RANDOM, 0.0)
+
+
+def ladder_table(games: pd.DataFrame, ratings: dict[str, Estimate]) -> pd.DataFrame:
+    """Per player: its rating, and its games, wins, draws, losses and score over all its games and against the
+    random player, strongest first."""
+    played = games_of(games)
+    overall = player_records(played)
+    against_random = player_records(g for g in played if RANDOM in (g.white, g.black))
+    rows = []
+    for player, rating in sorted(ratings.items(), key=lambda item: -item[1].value):
+        record = overall[player]
+        versus = against_random.get(player) if player != RANDOM else None
+        rows.append({"player": player, "rating (Elo)": rating.format(0), "games": record.games,
+                     "won-drawn-lost": f"{record.wins}-{record.draws}-{record.losses}",
+                     "score": record.interval().format(3),
+                     "score against random": versus.interval().format(3) if versus else ""})
+    return pd.DataFrame(rows)
+
+
+def ladder_figure(ratings: dict[str, Estimate], anchor: tuple[str, float]) -> Figure:
+    """Each player's rating with its 95% interval, strongest at the top."""
+    ordered = sorted(ratings.items(), key=lambda item: item[1].value)
+    figure = Figure(figsize=(7, 0.5 * len(ordered) + 1.2))
+    ax = figure.subplots()
+    values = np.array([r.value for _, r in ordered])
+    errors = np.array([[r.value - r.low for _, r in ordered], [r.high - r.value for _, r in ordered]])
+    ax.errorbar(values, np.arange(len(ordered)), xerr=errors, fmt="o", color="#1f4e79", capsize=4)
+    ax.set_yticks(np.arange(len(ordered)), [name for name, _ in ordered])
+    ax.set_xlabel(f"rating (Elo), {anchor[0]} at {anchor[1]:g}; 95% bootstrap intervals")
+    ax.grid(axis="x", alpha=0.3)
+    figure.tight_layout()
+    return figure
+
+
+def answer_lines(table: pd.DataFrame, judged_label: str, difference: str, seeds: int, game: str) -> list[str]:
+    """The answer in words: the verdict on the pair, then the ladder's order."""
+    on, off = (short_label(method) for method in PAIR)
+    order = ", ".join(f"{player} {rating}" for player, rating in zip(table["player"], table["rating (Elo)"],
+                                                                     strict=True))
+    return [f"{game}, self-play, {seeds} paired seeds, result of the final greedy network against the uniformly "
+            f"random player (+1 won, 0 drawn, -1 lost): {on} minus {off} = {difference} ({judged_label}).",
+            f"The ladder, strongest first (Elo, 95% intervals): {order}."]
+
+
+def learners_against_random(table: pd.DataFrame) -> str:
+    learners = table[~table["player"].isin([RANDOM, MATERIAL]) & ~table["player"].str.startswith(STOCKFISH)]
+    return "; ".join(f"{player} {score}" for player, score in zip(learners["player"],
+                                                                  learners["score against random"], strict=True))
+
+
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
+    """Verdicts, the ladder (table, figure, games) and ``report.html`` of a chess study directory."""
+    with store.rewriting(Path(out), "study"):
+        return _build_report(Path(out), videos)
+
+
+def _build_report(out: Path, videos: bool) -> Report:
+    found = findings(out, CHESS)
+    problems = list(found.problems)
+    lines: list[str] = []
+    sections: list[Section] = []
+    for env in found.envs:
+        game = game_title(env)
+        key = Key(env)
+        if key not in found.judged:
+            continue
+        judged = found.judged[key]
+        env_runs = {name: r for name, r in found.runs.items() if r.config.env == env}
+        games = load_ladder(out, env, env_runs)
+        anchor = anchor_of(games)
+        ratings = bootstrap_ratings(games_of(games), *anchor, seed=0)
+        table = ladder_table(games, ratings)
+        table_file = write_table(table, out / "tables", f"chess_ladder_{env}")
+        figure = save_figure(ladder_figure(ratings, anchor), out / "figures" / f"ladder-{env}.png")
+        curves = curves_drawn(found.runs, env, "steps", out / "figures" / f"curves-{env}.png", "environment steps")
+        seeds = min(len(r.seeds) for r in env_runs.values())
+        lines += answer_lines(table, judged.label, judged.paired.difference.format(2), seeds, game)
+        lines.append(f"Score against the random player over the ladder's games (95% Wilson intervals): "
+                     f"{learners_against_random(table)}.")
+        if 0.5**seeds > ALPHA:
+            lines.append(f"With {seeds} seeds the learning gate cannot pass: the one-sided signed-rank test's "
+                         f"smallest p is 1/2^{seeds} = {0.5**seeds:g}, above {ALPHA:g}; at least "
+                         f"{MIN_GATE_SEEDS} seeds can show a game learnt.")
+        steps = {r.config.method_config().total_steps for r in env_runs.values()}
+        sections.append(Section(f"{game}: the ladder", [
+            f"{len(games):,} games, each pairing in pairs of games with colours swapped; a method's networks (every "
+            f"seed's) are one player. Ratings: a "
+            f"Bradley-Terry fit on the Elo scale over every game (a draw half a win), one virtual draw between every "
+            f"pair that met, anchored at {anchor[0]} = {anchor[1]:g}; 95% intervals from 1,000 bootstrap resamples "
+            f"of the games within each pairing. Training: {', '.join(f'{s:,}' for s in sorted(steps))} steps per "
+            "seed."], [("The ladder", table, table_file)], [(figure, "Ratings with 95% intervals"), curves]))
+        if videos:
+            sections.append(stage_section(out, env_runs, env))
+    sections.insert(0, Section("The answer", lines, [("Verdicts", found.verdicts, found.files["verdicts"])]))
+    page = write_report(out / "report.html", "Chess: on- or off-policy target in self-play", sections, problems)
+    return Report(page, lines, problems)
+
+
+def stage_section(out: Path, runs: dict[str, DeepResults], env: str) -> Section:
+    """Each method's first seed at three stages of learning: one game each as White against the random player, its
+    last position drawn and its record written (PGN for chess, pgx's FEN of every position for Gardner's)."""
+    figures, paragraphs = stage_games(out, runs, env)
+    return Section(f"{game_title(env)}: the networks at three stages of learning", paragraphs, figures=figures)
+

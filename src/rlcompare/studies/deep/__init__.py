@@ -1,0 +1,1 @@
+"""The paper's question with neural networks: classic control and MinAtar."""

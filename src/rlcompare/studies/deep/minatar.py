@@ -1,0 +1,318 @@
+"""``rlcompare reproduce minatar``: the paper's question on MinAtar's games (Young and Tian 2019), with networks.
+
+A configuration of the paired study (:mod:`rlcompare.studies.paired`). The pair is the paper's, in one PQN-style
+engine whose only switch is the bootstrap: Q(λ) (off-policy, the max) and SARSA(λ) (on-policy, the action taken),
+with MinAtar's convolutional network and purejaxql's MinAtar settings, trained on paired seeds under one protocol
+(``docs/minatar.md``) and budget, on this machine or on a Ray cluster; ``--methods`` adds DQN, Double DQN, PPO or
+Expected SARSA(λ) with their MinAtar presets. Beside what every configuration reports, each game's final return
+at ε = 0.05 (DQN's protocol) beside the greedy one and a uniformly random policy's, the answer in words and
+seed by seed, the verdicts the paper's tabular study and the deep study wrote for the same question
+(:mod:`rlcompare.studies.deep.same_question`), and each method's agent at three stages of learning in every game.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from rlcompare.deep import float64
+from rlcompare.deep.methods import DEEP_METHODS, deep_method
+from rlcompare.deep.playback import MAX_STEPS, play_stages, stage_titles
+from rlcompare.deep.results import DeepResults
+from rlcompare.deep.rollout import evaluate
+from rlcompare.deep.train import params_template
+from rlcompare.envs import minatar
+from rlcompare.experiment import store
+from rlcompare.formatting import number
+from rlcompare.report.aggregate_plots import across_section
+from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.report.stage_video import render_stages
+from rlcompare.stats import intervals as stats
+from rlcompare.stats.compare import NEITHER_LEARNT, Judged
+from rlcompare.studies.deep import same_question
+from rlcompare.studies.interface import UI, Report, listed
+from rlcompare.studies.margins import margin
+from rlcompare.studies.paired import (
+    OVERALL,
+    RANDOM_EPISODES,
+    Key,
+    PairedStudy,
+    Plan,
+    checked,
+    cluster,
+    final_returns,
+    random_floor,
+    train,
+)
+from rlcompare.studies.paired_report import (
+    answer,
+    curves_drawn,
+    difference_figure,
+    findings,
+    pair_finals,
+    short_label,
+)
+from rlcompare.studies.registry import MinAtarOptions
+
+STUDY = "minatar"
+BUDGETS = {
+    "short": (("breakout", "space_invaders", "asterix"), 250_000),
+    "paper": (tuple(minatar.GAMES), 5_000_000),
+    "pqn": (tuple(minatar.GAMES), 10_000_000),
+}
+"""Budget -> (default games, environment steps per training). ``short``: about 37 minutes on 2 CPU cores with the
+default 8 seeds and five methods, a short look that says so in its report (at 5 seeds and 400,000 steps every game
+was already far above random, and no verdict could be reached: see :func:`smallest_p`); ``paper``: the MinAtar
+paper's 5 M frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
+MARGIN = margin("minatar", "a game (final greedy return)")
+"""Differences of mean return smaller than this share of the game's range from the random policy to the MinAtar
+paper's DQN count as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
+LEARNT = margin("minatar", "learnt (final greedy return above random)")
+"""A method has learnt a game when its final return beats the random policy's by this share of the same range."""
+OVERALL_MARGIN = margin("minatar", "over the games (normalised score)")
+"""Across games, differences of mean normalised score (random 0, the reference 1) smaller than this count as no
+difference."""
+PAIR_DIFFERS_IN = (
+    "What the pair differs in: Q(λ) here is Peng's (purejaxql's), whose return G = r + γ[(1 − λ) max Q(s′) + λ G′] "
+    "never cuts its trace on an exploratory action, so at λ = {lam:g} it differs from SARSA(λ) only in the "
+    "{share:g}-weighted bootstrap (max against the action taken): it is not off-policy learning of Q* in full. "
+    "Watkins's Q(λ) (the trace cut after an exploratory action, Sutton and Barto 12.10) and the pair at λ = 0 (the "
+    "one-step targets alone) stand beside it in every table, to separate the target from the traces.")
+PAIR_LAMBDA = 0.65
+"""λ of the pair's MinAtar preset (purejaxql's)."""
+SCHEDULES = (
+    "Schedules: ε and the learning rate decay over the share of each training their preset gives (PQN: ε over "
+    "its first tenth; DQN: ε over 2%), so a shorter budget decays them sooner; purejaxql and MinAtar's own DQN fix "
+    "them in steps instead (TOTAL_TIMESTEPS_DECAY; 100,000 steps). At the short budget ε reaches its end after "
+    "25,000 steps, not 1 M: the methods are compared under the same rescaled schedules, which docs/minatar.md "
+    "states.")
+EVAL_EPSILON = 0.05
+"""DQN's evaluation protocol (Mnih et al. 2015): ε-greedy with ε = 0.05, beside the greedy evaluation (ε = 0)."""
+EPSILON_EPISODES = 8
+"""Episodes per seed of the final network at :data:`EVAL_EPSILON`, played when the report is drawn."""
+EPSILON_KEY = 20_000
+"""Seed ``s``'s episodes at ε = 0.05 play from ``jax.random.key(EPSILON_KEY + s)``, apart from training's keys."""
+DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
+
+
+def smallest_p(seeds: int) -> float:
+    """The smallest two-sided p-value the signed-rank test can give on ``seeds`` pairs, every pair on one side:
+    ``2 / 2**seeds``. Below 0.05 divided by the number of games, no verdict can be reached at all."""
+    return 2.0 / 2.0**seeds
+
+
+def title(env: str) -> str:
+    """``Breakout`` for ``MinAtar/Breakout-v0`` (and for :data:`~rlcompare.studies.paired.OVERALL`, itself)."""
+    return env if env == OVERALL else minatar.NAMES[env][0].title
+
+
+def game_of(results: DeepResults) -> str:
+    return minatar.NAMES[results.config.env][0].module_name
+
+
+ENVS = tuple(minatar.NAMES)
+"""Every game under every protocol, game by game."""
+MINATAR = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game": title(key.env)},
+                      label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
+                      overall_margin=OVERALL_MARGIN, prefix="across-games-",
+                      references={env: game.reference for env, (game, _) in minatar.NAMES.items()},
+                      learnt_share=LEARNT)
+"""MinAtar's games, each margin a share of the game's random-to-reference range, one margin over them, the methods
+by their short names."""
+
+
+def plan_of(options: MinAtarOptions) -> Plan:
+    """The plan from the options; an unknown game, protocol or method, or steps a method cannot train in, is a
+    :class:`~rlcompare.validation.ConfigError` naming the option."""
+    default_games, default_steps = BUDGETS[options.budget]
+    games = listed("games", options.games, tuple(minatar.GAMES)) if options.games else default_games
+    methods = listed("methods", options.methods, tuple(DEEP_METHODS), every="all")
+    envs = {game: minatar.GAMES[game].name(options.protocol) for game in games}
+    return checked(Plan(options.seed_range, methods, envs, options.steps or default_steps,
+                        options.workers or DEFAULT_WORKERS, eval_rounds=10, eval_episodes=8))
+
+
+def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
+    """Every training of the plan on this machine, or on the Ray cluster at ``options.address`` (each training's
+    blocks of seeds a task: :mod:`rlcompare.studies.seed_blocks`)."""
+    plan = plan_of(options)
+    backend = cluster(options.address)
+    where = f"on Ray at {options.address}" if backend else "on this machine"
+    ui.say(f"MinAtar, {minatar.PROTOCOLS[options.protocol].summary}: {len(plan.configs())} trainings x "
+           f"{len(plan.seeds)} seeds x {plan.steps:,} steps (budget '{options.budget}') {where}; each compiles its "
+           "program first.")
+    return train(out, STUDY, plan, ui, force=force, backend=backend)
+
+
+# --- what the report adds to the paired study's --------------------------------------------------------------
+
+def by_game(judged: dict[Key, Judged]) -> dict[str, Judged]:
+    """The verdicts by game title (and :data:`~rlcompare.studies.paired.OVERALL`)."""
+    return {title(key.env): j for key, j in judged.items()}
+
+
+@float64
+def epsilon_returns(results: DeepResults, epsilon: float = EVAL_EPSILON, episodes: int = EPSILON_EPISODES
+                    ) -> np.ndarray:
+    """Each seed's mean return of its final network acting ε-greedily (DQN's evaluation protocol)."""
+    config = results.config
+    act = deep_method(config.algorithm).module.act(config.method_config(), config.environment)
+    params = results.stacked_params(params_template(config))
+    keys = jnp.stack([jax.random.key(EPSILON_KEY + seed) for seed in results.seeds])
+    play = jax.vmap(lambda p, key: evaluate(config.environment, act, p, key, episodes, epsilon)[0])
+    returns: np.ndarray = np.asarray(jax.jit(play)(params, keys)).mean(axis=1)
+    return returns
+
+
+def summary_table(runs: dict[str, DeepResults], floors: dict[str, float]) -> pd.DataFrame:
+    """Per game and method: the final greedy return (mean and IQM, 95% intervals), at ε = 0.05, and the random
+    policy's."""
+    rows = []
+    for results in runs.values():
+        final = final_returns(results)
+        rows.append({"game": minatar.GAMES[game_of(results)].title, "env": results.config.env,
+                     "method": DEEP_METHODS[results.config.algorithm].label,
+                     "final greedy (ε = 0), mean": stats.interval(final).format(2),
+                     "final greedy (ε = 0), IQM": stats.interval(final, "iqm").format(2),
+                     f"final at ε = {EVAL_EPSILON:g}, mean": stats.interval(epsilon_returns(results)).format(2),
+                     "random policy": round(floors[results.config.env], 2), "seeds": len(final),
+                     "steps/s": round(results.meta["timings"]["steps_per_second"])})
+    return pd.DataFrame(rows)
+
+
+def same_question_rows(compared: dict[str, Judged]) -> pd.DataFrame:
+    """The verdicts by game (:func:`by_game`) in the columns of the table set beside the other studies' verdicts
+    (:mod:`rlcompare.studies.deep.same_question`)."""
+    return pd.DataFrame([{
+        "study": "minatar (this study)", "environment": f"MinAtar, {'over the games' if game == OVERALL else game}",
+        "engine: on- vs off-policy": "network (CNN): SARSA(λ) vs Q(λ), PQN-style",
+        "metric": "normalised final greedy return" if game == OVERALL else "final greedy return",
+        "claim": same_question.TWO_SIDED, "estimate": j.paired.difference.format(2),
+        "estimate of": "on - off, mean [95% CI]", "p (Holm)": j.p, "verdict": j.label,
+    } for game, j in compared.items()], columns=same_question.COLUMNS)
+
+
+SAME_QUESTION = (
+    "The verdicts above beside those the paper's tabular study (Mountain Car) and the deep study (classic control, "
+    "with a network and in a table) wrote in their own verdict tables, read as written: nothing is recomputed. The "
+    "paper's rows are its claims (a direction, a sameness or \"about R times\", labelled supported, contradicted, "
+    "not resolved, undecidable here or no data), the others' two-sided comparisons labelled by the better target. "
+    "Each study Holm-corrects its own claims (the paper study its claims, the deep study its whole table, this one "
+    "its games and the overall row), so each label is read within its own study's family: the rows are not one "
+    "family.")
+
+
+def budget_words(steps: int) -> str:
+    """How a training of ``steps`` stands beside the named budgets."""
+    if steps >= BUDGETS["pqn"][1]:
+        return "PQN's budget"
+    return "the MinAtar paper's budget" if steps >= BUDGETS["paper"][1] else "a short budget"
+
+
+def video_cells(runs: dict[str, DeepResults], videos: Path) -> list[tuple[str, str, str]]:
+    """Each training's first seed at its three stages of learning, one video per game and method."""
+    cells = []
+    for name, results in runs.items():
+        seed = results.seeds[0]
+        played = play_stages(results, seed)
+        colours = minatar.palette(played.observations.shape[-1])
+        mp4, gif = render_stages(played, stage_titles(results),
+                                 functools.partial(minatar.picture, colours=colours), videos / f"{name}.mp4",
+                                 videos / f"{name}.gif")
+        cells.append((f"videos/{mp4.name}", f"videos/{gif.name}",
+                      f"{minatar.GAMES[game_of(results)].title}, {DEEP_METHODS[results.config.algorithm].label}, "
+                      f"seed {seed}: {', '.join(results.stages)}"))
+    return cells
+
+
+def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True,
+           beside: dict[str, Path | str] | None = None) -> Report:
+    """Tables, verdicts, figures, videos and ``report.html`` of a MinAtar study directory, from its run
+    directories; the paper's and the deep study's verdicts beside its own, read from ``beside`` (by study name:
+    ``paper``, ``deep``) or from the study directories of those names beside ``out``."""
+    siblings = same_question.sibling_dirs(Path(out), beside)
+    with store.rewriting(Path(out), "study"):
+        return _build_report(Path(out), videos, siblings)
+
+
+def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
+    found = findings(out, MINATAR)
+    runs, aggregates, files = found.runs, found.aggregates, found.files
+    floors = {env: random_floor(env) for env in found.envs}
+    summary = summary_table(runs, floors)
+    floors_by_game = {title(env): floor for env, floor in floors.items()}
+    references_by_game = {title(env): minatar.NAMES[env][0].reference for env in found.envs}
+    compared = by_game(found.judged)
+    elsewhere = same_question.beside(out, same_question_rows(compared), siblings)
+    files |= {name: write_table(frame, out / "tables", f"minatar_{name}")
+              for name, frame in (("summary", summary), ("same_question", elsewhere.table))}
+    curve_figures = [curves_drawn(runs, env, "steps", out / "figures" / f"curves-{env.replace('/', '_')}.png",
+                                  "environment steps") for env in found.envs]
+    steps = {r.config.method_config().total_steps for r in runs.values()}
+    budget = budget_words(max(steps, default=0))
+    protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
+    seeds = min((len(r.seeds) for r in runs.values()), default=0)
+    lines = answer(compared, seeds, floors=floors_by_game, references=references_by_game)
+    not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
+    if not_learnt:
+        lines.append(f"Not learnt at this budget ({budget}, {max(steps, default=0):,} steps): "
+                     f"{', '.join(not_learnt)}. docs/minatar.md expects the 'paper' budget (--budget paper, 5 M "
+                     "steps, where the MinAtar paper's DQN reaches its reference) to learn them; not yet measured "
+                     "here.")
+    pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, found.envs).items()})
+    answer_figure = [(save_figure(pictured, out / "figures" / "paired-differences.png"),
+                      "SARSA(λ) minus Q(λ), seed by seed, per game")] if pictured is not None else []
+    sections = [
+        Section("The answer", lines, figures=answer_figure),
+        Section("On-policy or off-policy target, with a convolutional network", [
+            f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, final "
+            f"greedy return. Protocol: {'; '.join(protocols)}. Training: {', '.join(f'{s:,}' for s in sorted(steps))}"
+            f" environment steps per seed, {budget}: read the verdicts as what this budget shows, not what the "
+            f"methods reach. Each game's scale runs from the random policy's return to {minatar.REFERENCE_SOURCE}: "
+            + ", ".join(f"{title(env)} {number(floors[env])} to {number(minatar.NAMES[env][0].reference)}"
+                        for env in found.envs)
+            + f". A method has learnt a game when its final return beats the random policy's by {LEARNT:g} of "
+            f"that range (one-sided signed-rank test, α = 0.05); where neither has, the verdict is \"{NEITHER_LEARNT}"
+            "\" and the game is left out of the overall row; where one has, that is the answer. Margins of no "
+            f"difference, declared before the runs: {MARGIN:g} of the game's range ("
+            + ", ".join(f"{title(env)} ±{number(MARGIN * (minatar.NAMES[env][0].reference - floors[env]))}"
+                        for env in found.envs)
+            + f"), ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
+            f"the games learnt; random 0, the reference 1). p-values Holm-adjusted over the games and the overall "
+            f"row; with {seeds} seeds the signed-rank test cannot give a p below {number(smallest_p(seeds))}.",
+            PAIR_DIFFERS_IN.format(lam=PAIR_LAMBDA, share=round(1 - PAIR_LAMBDA, 2)),
+            SCHEDULES], [("Verdicts", found.verdicts, files["verdicts"])]),
+        Section("The same question on tables and on classic control", [SAME_QUESTION, *elsewhere.paragraphs],
+                [(same_question.CAPTION, elsewhere.table, files["same_question"])]),
+        Section("Every game", [
+            f"Final greedy (ε = 0): each seed's mean return in the last evaluation round of training, in the port. "
+            f"At ε = {EVAL_EPSILON:g} (DQN's protocol): the same final network acting ε-greedily, {EPSILON_EPISODES} "
+            f"episodes a seed played when this report was drawn. Random: the mean of {RANDOM_EPISODES} "
+            "episodes of a uniformly random policy under the same protocol."],
+            [("Summary", summary, files["summary"])]),
+        across_section(
+            "Across games",
+            "Scores normalised game by game between the random policy (0) and the MinAtar paper's DQN at 5 M frames "
+            "(1), as human-normalised scores are on the Atari 2600, pooled over the games as rliable does (Agarwal "
+            "et al. 2021): interval estimates, the probability of improvement, performance profiles and "
+            "sample-efficiency curves, with 95% stratified bootstrap intervals.",
+            aggregates, files, "Interval estimates of normalised final returns",
+            "Across games: needs two or more games and methods."),
+        Section("Learning curves", figures=curve_figures),
+        Section("The agents at three stages of learning", [
+            "Each training's first seed, its networks after a tenth and half of the training and at its end, playing "
+            "one greedy episode side by side from the same start and with the same draws (the first "
+            f"{MAX_STEPS:,} steps), in MinAtar's own colours." if videos else
+            "Videos were not rendered (--no-videos)."],
+            videos=video_cells(runs, out / "videos") if videos else []),
+    ]
+    page = write_report(out / "report.html", "MinAtar: on- or off-policy target with a network", sections,
+                        found.problems)
+    return Report(page, lines, found.problems)

@@ -1,0 +1,1 @@
+"""The paper's experiment, its claims, figures, videos and report, and why SARSA wins."""
