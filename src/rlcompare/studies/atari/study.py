@@ -36,14 +36,7 @@ from rlcompare.studies.atari.play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
 from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, train
-from rlcompare.studies.paired_report import (
-    answer,
-    curves_drawn,
-    difference_figure,
-    findings,
-    pair_finals,
-    short_label,
-)
+from rlcompare.studies.paired_report import answer, curves_drawn, difference_figure, findings, pair_finals, short_label
 from rlcompare.studies.registry import AtariOptions
 from rlcompare.validation import ConfigError
 

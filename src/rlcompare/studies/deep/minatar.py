@@ -51,14 +51,7 @@ from rlcompare.studies.paired import (
     random_floor,
     train,
 )
-from rlcompare.studies.paired_report import (
-    answer,
-    curves_drawn,
-    difference_figure,
-    findings,
-    pair_finals,
-    short_label,
-)
+from rlcompare.studies.paired_report import answer, curves_drawn, difference_figure, findings, pair_finals, short_label
 from rlcompare.studies.registry import MinAtarOptions
 
 STUDY = "minatar"
