@@ -9,7 +9,7 @@ Precipice"); the learning curves and the seed-by-seed differences of the pair.
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -277,3 +277,14 @@ def difference_figure(pairs: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> Fig
     figure.suptitle("SARSA(λ) minus Q(λ) on the same seeds:\neach dot one seed, the bar the mean with its 95% "
                     "BCa interval")
     return figure
+
+
+def answer_figures(runs: Mapping[str, DeepResults], envs: Sequence[str], title: Callable[[str], str],
+                   figures_dir: Path) -> list[tuple[Path, str]]:
+    """The answer's picture saved as ``paired-differences.png``, each environment under ``title(env)``, with its
+    caption: none where no environment has both methods."""
+    pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, envs).items()})
+    if pictured is None:
+        return []
+    return [(save_figure(pictured, figures_dir / "paired-differences.png"),
+             "SARSA(λ) minus Q(λ), seed by seed, per game")]

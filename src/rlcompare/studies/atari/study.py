@@ -27,7 +27,7 @@ from rlcompare.envs.atari import scores as atari_scores
 from rlcompare.experiment import store
 from rlcompare.formatting import number
 from rlcompare.report.aggregate_plots import across_section
-from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.report.page import Section, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
 from rlcompare.stats.compare import NEITHER_LEARNT
@@ -36,7 +36,7 @@ from rlcompare.studies.atari.play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
 from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, train
-from rlcompare.studies.paired_report import answer, curves_drawn, difference_figure, findings, pair_finals, short_label
+from rlcompare.studies.paired_report import answer, answer_figures, curves_drawn, findings, short_label
 from rlcompare.studies.registry import AtariOptions
 from rlcompare.validation import ConfigError
 
@@ -217,9 +217,7 @@ def _build_report(out: Path, videos: bool) -> Report:
     if not_learnt:
         lines.append(f"Not learnt at this budget ({steps:,} steps a training): {', '.join(not_learnt)}; the "
                      "published learning curves of PQN and DQN need millions of steps (docs/atari.md).")
-    pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, found.envs).items()})
-    answer_figure = [(save_figure(pictured, out / "figures" / "paired-differences.png"),
-                      "SARSA(λ) minus Q(λ), seed by seed, per game")] if pictured is not None else []
+    answer_figure = answer_figures(runs, found.envs, title, out / "figures")
     cells, played = video_cells({name: out / name for name in runs}, runs, out / "videos") if videos else ([], None)
     if played is not None:
         files["gymnasium"] = write_table(played, out / "tables", "atari_gymnasium")

@@ -32,7 +32,7 @@ from rlcompare.envs import minatar
 from rlcompare.experiment import store
 from rlcompare.formatting import number
 from rlcompare.report.aggregate_plots import across_section
-from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.report.page import Section, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
 from rlcompare.stats.compare import NEITHER_LEARNT, Judged
@@ -51,7 +51,7 @@ from rlcompare.studies.paired import (
     random_floor,
     train,
 )
-from rlcompare.studies.paired_report import answer, curves_drawn, difference_figure, findings, pair_finals, short_label
+from rlcompare.studies.paired_report import answer, answer_figures, curves_drawn, findings, short_label
 from rlcompare.studies.registry import MinAtarOptions
 
 STUDY = "minatar"
@@ -259,9 +259,7 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
                      f"{', '.join(not_learnt)}. docs/minatar.md expects the 'paper' budget (--budget paper, 5 M "
                      "steps, where the MinAtar paper's DQN reaches its reference) to learn them; not yet measured "
                      "here.")
-    pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, found.envs).items()})
-    answer_figure = [(save_figure(pictured, out / "figures" / "paired-differences.png"),
-                      "SARSA(λ) minus Q(λ), seed by seed, per game")] if pictured is not None else []
+    answer_figure = answer_figures(runs, found.envs, title, out / "figures")
     sections = [
         Section("The answer", lines, figures=answer_figure),
         Section("On-policy or off-policy target, with a convolutional network", [
