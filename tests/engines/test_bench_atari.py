@@ -19,7 +19,7 @@ ale_py = pytest.importorskip("ale_py")
 from helpers import invoke  # noqa: E402
 
 from rlcompare.bench import atari as bench  # noqa: E402
-from rlcompare.bench import emulator  # noqa: E402
+from rlcompare.bench import emulator as bench_emulator  # noqa: E402
 from rlcompare.deep import dqn_config, ppo_config  # noqa: E402
 
 
@@ -30,12 +30,12 @@ def number(cell: str) -> float:
 @pytest.mark.slow("makes a 2-game emulator and compiles its callback")
 def test_the_emulators_rows_are_its_rates_per_core_beside_envpools() -> None:
     said: list[str] = []
-    rates = emulator.measure_emulator(emulator.bench_env(), said.append, games=(2,), steps=32, turns=2)
+    rates = bench_emulator.measure_emulator(bench_emulator.bench_env(), said.append, games=(2,), steps=32, turns=2)
     (rate,) = rates
     assert rate.games == 2
     assert all(math.isfinite(value) and value > 0 for value in (rate.alone, rate.callback))
     assert said == [f"2 games: {rate.alone:,.0f} steps/s alone, {rate.callback:,.0f} through the callback"]
-    table = emulator.emulator_table(rates, steps=32, turns=2)
+    table = bench_emulator.emulator_table(rates, steps=32, turns=2)
     assert table.columns == ("what", "games", "ALE threads", "steps/s", "steps/s per core",
                              "per core / envpool's 1,100", "callback / alone")
     alone, callback = table.rows
@@ -56,7 +56,7 @@ def test_ales_default_pool_is_one_thread_a_game_up_to_one_a_core() -> None:
         before = len(os.listdir("/proc/self/task"))
         emulator = ale_py.AtariVectorEnv("breakout", games)
         try:
-            assert len(os.listdir("/proc/self/task")) - before == emulator.emulator_threads(games)
+            assert len(os.listdir("/proc/self/task")) - before == bench_emulator.emulator_threads(games)
         finally:
             emulator.close()
             del emulator  # its threads end with the object
@@ -77,7 +77,7 @@ def test_steps_per_gradient_and_the_learners_formula() -> None:
 
 @pytest.mark.slow("compiles a gradient step of Mnih et al.'s network")
 def test_dqns_cost_is_its_formula_on_its_measured_parts() -> None:
-    cost = bench.dqn_cost(emulator.bench_env(), gradients=2, passes=2)
+    cost = bench.dqn_cost(bench_emulator.bench_env(), gradients=2, passes=2)
     assert (cost.forward_batch, cost.forwards_per_step, cost.gradient_batch, cost.steps_per_gradient) == (
         1, 1.0, 32, 4.0)
     assert 0 < cost.forward_seconds < cost.gradient_seconds  # a pass of 1 frame stack, a gradient of 32
@@ -87,7 +87,7 @@ def test_dqns_cost_is_its_formula_on_its_measured_parts() -> None:
 @pytest.mark.slow("compiles and runs a PQN training on a 2-game emulator")
 def test_the_timed_pqn_training_is_its_updates_with_a_one_step_evaluation() -> None:
     config = dataclasses.replace(bench.pqn_preset(), n_envs=2, n_steps=4, n_minibatches=2, hidden=(32,))
-    training = bench.pqn_training(emulator.bench_env(), 2, config)
+    training = bench.pqn_training(bench_emulator.bench_env(), 2, config)
     assert math.isfinite(training.steps_per_second)
     assert training.steps_per_second > 0
     assert training.compile_seconds > 0
@@ -96,7 +96,7 @@ def test_the_timed_pqn_training_is_its_updates_with_a_one_step_evaluation() -> N
 
 
 def test_the_learners_table_names_its_rows_and_derives_them() -> None:
-    emulator = {n: emulator.EmulatorRates(n, alone=1_000.0 * n, callback=500.0 * n) for n in (1, 8, 128)}
+    emulator = {n: bench_emulator.EmulatorRates(n, alone=1_000.0 * n, callback=500.0 * n) for n in (1, 8, 128)}
     costs = [bench.LearnerCost("DQN, x", 1, 1.0, 32, 4.0, 0.001, 0.04),
              bench.LearnerCost("PPO, x", 8, 1 / 8, 256, 64.0, 0.004, 0.32)]
     training = bench.TrainingRate(200.0, 12.0, None)  # type: ignore[arg-type]  # the table reads no output

@@ -178,7 +178,8 @@ def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our
     from rlcompare.experiment.runner import run as deep_run
 
     deep_run(DeepConfig(algorithm="pqn_q_lambda", env="Breakout-MinAtar", seeds=(0,), vmap_width=1, eval_rounds=2,
-                        eval_episodes=2, hyperparameters={"total_steps": 128 * 32 * 8}), out=tmp_path / "run")
+                        eval_episodes=2, hyperparameters={"total_steps": 16 * 16 * 8, "n_envs": 16, "n_steps": 16,
+                                                          "n_minibatches": 2, "hidden": (32,)}), out=tmp_path / "run")
     agent = load_agent(tmp_path / "run", seed=0)
     port = jax_env("Breakout-MinAtar")
     in_port = float64(lambda: np.asarray(jax.jit(
@@ -210,14 +211,18 @@ def test_every_method_trains_with_its_minatar_preset_when_asked():
 
 
 @pytest.mark.slow("trains and reports MinAtar studies")
-def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path):
+def test_blocks_of_seeds_trained_as_tasks_equal_the_whole_trained_here(tmp_path, monkeypatch):
     import dataclasses
 
+    from rlcompare.deep import pqn
     from rlcompare.experiment.backends import LocalBackend
     from rlcompare.studies.paired import reproduce
     from rlcompare.studies.seed_blocks import seed_blocks
 
-    plan = plan_of(MinAtarOptions(seeds=2, games="breakout", steps=40960, methods="pqn_q_lambda"))
+    small = dataclasses.replace(pqn.PRESETS["default"]["MinAtar/Breakout-v0"], n_envs=4, n_steps=16, n_minibatches=2,
+                                hidden=(32,))  # the tasks are threads of this process: they train the same preset
+    monkeypatch.setitem(pqn.PRESETS["default"], "MinAtar/Breakout-v0", small)
+    plan = plan_of(MinAtarOptions(seeds=2, games="breakout", steps=640, methods="pqn_q_lambda"))
     plan = dataclasses.replace(plan, vmap_width=1)  # two seeds: two blocks, each its own task
     assert [b.seeds for b in seed_blocks(plan.configs()["pqn_q_lambda-breakout"])] == [(0,), (1,)]
     whole = list(reproduce(tmp_path / "whole", "minatar", plan))

@@ -39,7 +39,7 @@ from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
 from rlcompare.rng import next_double, stream_state
-from rlcompare.tabular import episodes as loops
+from rlcompare.tabular import loops
 from rlcompare.tabular.runs import train_block, train_runs
 from rlcompare.tabular.state import (
     AGENT_STREAM,
