@@ -280,7 +280,7 @@ def difference_figure(pairs: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> Fig
 
 
 def answer_figures(runs: Mapping[str, DeepResults], envs: Sequence[str], title: Callable[[str], str],
-                   figures_dir: Path) -> list[tuple[Path, str]]:
+                   figures_dir: Path) -> list[tuple[str, str]]:
     """The answer's picture saved as ``paired-differences.png``, each environment under ``title(env)``, with its
     caption: none where no environment has both methods."""
     pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, envs).items()})
