@@ -15,20 +15,22 @@ pytest.importorskip("pgx")
 from helpers import invoke
 
 from rlcompare.deep import pqn
+from rlcompare.studies.chess import game as chess_game
 from rlcompare.studies.chess.game import LADDER, load_ladder
 from rlcompare.studies.paired import load_runs
 
 TINY = ["reproduce", "chess", "--seeds", "2", "--steps", "1280", "--pairs", "2"]
 SMALL = dataclasses.replace(pqn.PRESETS["default"]["gardner_chess"], n_envs=8, n_steps=16, n_epochs=1,
                             n_minibatches=2, hidden=(32,))
-"""Gardner's preset with a small network and batch, for the whole module: its runs are loaded with it too (the study
-runs in this process; the preset's own size is the bench's and docs/chess-game.md's)."""
+"""Gardner's preset with a small network and batch, and 8 evaluation games a round, for the whole module: its runs are
+loaded with them too (the study runs in this process; the preset's own size is the bench's and docs/chess-game.md's)."""
 
 
 @pytest.fixture(scope="module", autouse=True)
 def small_preset():
     with pytest.MonkeyPatch.context() as patch:
         patch.setitem(pqn.PRESETS["default"], "gardner_chess", SMALL)
+        patch.setattr(chess_game, "EVAL_EPISODES", 8)
         yield
 
 

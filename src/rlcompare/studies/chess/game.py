@@ -54,6 +54,9 @@ MIN_GATE_SEEDS = 5
 (:func:`rlcompare.stats.significance.has_learnt`): 1/2^5 < 0.05."""
 LADDER = "ladder"
 """The directory, inside the study's, of each game's ladder: its games and what they were played from."""
+EVAL_ROUNDS, EVAL_EPISODES = 10, 64
+"""Each training's evaluations: rounds over the training, and games of the greedy network against the random player
+in each."""
 
 
 def game_title(env: str) -> str:
@@ -72,7 +75,7 @@ def plan_of(options: ChessOptions) -> Plan:
     methods = listed("methods", options.methods, tuple(m for m in DEEP_METHODS if m.startswith("pqn_")))
     return checked(Plan(options.seed_range, methods, {options.game: options.game},
                         options.steps or BUDGETS[options.budget], options.workers or DEFAULT_WORKERS,
-                        eval_rounds=10, eval_episodes=64))
+                        eval_rounds=EVAL_ROUNDS, eval_episodes=EVAL_EPISODES))
 
 
 def run(out: Path, options: ChessOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:

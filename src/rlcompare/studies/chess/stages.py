@@ -4,6 +4,7 @@ position drawn, and the game's record written (PGN for chess, pgx's FEN of every
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -28,17 +29,31 @@ STAGE_KEY = 40_000
 RESULTS = {1.0: "1-0", 0.0: "1/2-1/2", -1.0: "0-1"}
 
 
+Choose = Any
+"""``choose(params, state) -> action``: a network's greedy move, compiled once for every stage of its training."""
+
+
+def greedy_player(game: ChessGameEnv, act: Any) -> Choose:
+    """The network's greedy move in ``game``, its parameters an argument (one compile serves every stage)."""
+    return jax.jit(lambda params, state: act(params, game.observe(state)[None], game.legal(state)[None])[0])
+
+
+@functools.cache
+def random_player_and_step(game: ChessGameEnv) -> tuple[Any, Any]:
+    """The random player's reply and ``game``'s step, compiled once per game."""
+    reply = jax.jit(lambda state, k: random_mover(game, jax.tree.map(lambda x: x[None], state), k)[0])
+    return reply, jax.jit(game.step)
+
+
 @float64
-def stage_game(game: ChessGameEnv, act: Any, params: Any, key: jax.Array) -> tuple[list[Any], list[int], float]:
+def stage_game(game: ChessGameEnv, choose: Choose, params: Any, key: jax.Array) -> tuple[list[Any], list[int], float]:
     """``(states, actions, result)``: one game of the greedy network (White) against the random player, every
     position from the start, every move, and White's result (+1, 0, -1)."""
-    choose = jax.jit(lambda state: act(params, game.observe(state)[None], game.legal(state)[None])[0])
-    reply = jax.jit(lambda state, k: random_mover(game, jax.tree.map(lambda x: x[None], state), k)[0])
-    step = jax.jit(game.step)
+    reply, step = random_player_and_step(game)
     state = game.reset(key)  # White to move: the network's
     states, actions, result = [state], [], 0.0
     for ply in range(game.game.max_plies):
-        action = int(choose(state) if ply % 2 == 0 else reply(state, jax.random.fold_in(key, ply)))
+        action = int(choose(params, state) if ply % 2 == 0 else reply(state, jax.random.fold_in(key, ply)))
         state, reward, terminated, _ = step(state, jnp.int32(action))
         states.append(state)
         actions.append(action)
@@ -86,14 +101,15 @@ def stage_games(out: Path, runs: dict[str, DeepResults], env: str) -> tuple[list
     figures, written = [], []
     for results in sorted(runs.values(), key=lambda r: r.config.name):
         config, seed = results.config, results.seeds[0]
-        act = deep_method(config.algorithm).module.act(config.method_config(), config.environment)
+        choose = greedy_player(game, deep_method(config.algorithm).module.act(config.method_config(),
+                                                                               config.environment))
         template = params_template(config)
         stages = [(stage, jax.tree.map(lambda leaf: leaf[0], results.stacked_params(template, stage)))
                   for stage in results.stages]
         label = DEEP_METHODS[config.algorithm].label
         figure = Figure(figsize=(3.2 * len(stages), 3.6))
         for ax, (stage, params) in zip(figure.subplots(1, len(stages), squeeze=False)[0], stages, strict=True):
-            states, actions, result = stage_game(game, act, params, jax.random.key(STAGE_KEY + seed))
+            states, actions, result = stage_game(game, choose, params, jax.random.key(STAGE_KEY + seed))
             name = f"{config.name}-seed{seed}-{stage}"
             suffix = "pgn" if game.game.board_size == 8 else "fen.txt"
             text = record(game, states, actions, result, {"Event": f"{label}, {stage}", "White": label,
