@@ -30,6 +30,13 @@ def rlcompare(*args: str) -> list[str]:
     return [sys.executable, "-m", "rlcompare.cli", *args]
 
 
+def cold_compiles(tmp_path: Path) -> dict[str, str]:
+    """The environment of a study whose networks compile afresh, in a JAX cache of the test's own: a compile takes
+    seconds, time to send the signals while a training is in flight (with the user's warm cache a training of
+    CartPole can end within the test's reaction)."""
+    return {**ENV, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "jax-cache")}
+
+
 def wait_for(ready: Callable[[], bool], process: subprocess.Popen[bytes], log: Path, timeout: float = 240) -> None:
     deadline = time.monotonic() + timeout
     while not ready():
@@ -46,7 +53,7 @@ def in_flight(study: Path) -> bool:
 
 def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path) -> None:
     out, log = tmp_path / "study", tmp_path / "log"
-    process = start(rlcompare(*DEEP, "--out", str(out)), log)
+    process = start(rlcompare(*DEEP, "--out", str(out)), log, cold_compiles(tmp_path))
     wait_for(lambda: in_flight(out), process, log)
     process.send_signal(signal.SIGINT)
     wait_for(lambda: "Ctrl-C: finishing the trainings in flight (" in log.read_text(), process, log,
@@ -60,7 +67,7 @@ def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path
 
 def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Path) -> None:
     out, log = tmp_path / "study", tmp_path / "log"
-    process = start(rlcompare(*DEEP, "--out", str(out)), log)
+    process = start(rlcompare(*DEEP, "--out", str(out)), log, cold_compiles(tmp_path))
     wait_for(lambda: in_flight(out), process, log)
     process.send_signal(signal.SIGINT)
     wait_for(lambda: "Ctrl-C again abandons them" in log.read_text(), process, log, timeout=SAYS_SO)
@@ -73,7 +80,7 @@ def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Pa
     kept = finished_runs(out)
     assert len(kept) == 2
     resumed = subprocess.run(rlcompare(*DEEP, "--out", str(out)),
-                             capture_output=True, text=True, env=ENV, check=False)
+                             capture_output=True, text=True, env=cold_compiles(tmp_path), check=False)
     assert resumed.returncode == 0, resumed.stderr
     assert len(finished_runs(out)) == 4
 
