@@ -20,7 +20,8 @@ from helpers import invoke  # noqa: E402
 
 from rlcompare.bench import atari as bench  # noqa: E402
 from rlcompare.bench import emulator as bench_emulator  # noqa: E402
-from rlcompare.deep import dqn_config, ppo_config  # noqa: E402
+from rlcompare.deep.presets import dqn as dqn_config  # noqa: E402
+from rlcompare.deep.presets import ppo as ppo_config  # noqa: E402
 
 
 def number(cell: str) -> float:

@@ -14,8 +14,9 @@ pytest.importorskip("gymnax")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn, dqn_config  # noqa: E402
+from rlcompare.deep import dqn  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
+from rlcompare.deep.presets import dqn as dqn_config  # noqa: E402
 
 ENV = "Breakout-MinAtar"
 

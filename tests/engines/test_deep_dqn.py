@@ -12,8 +12,9 @@ jax = pytest.importorskip("jax")
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rlcompare.deep import dqn, dqn_config, replay  # noqa: E402
+from rlcompare.deep import dqn, replay  # noqa: E402
 from rlcompare.deep.classic import CARTPOLE  # noqa: E402
+from rlcompare.deep.presets import dqn as dqn_config  # noqa: E402
 from rlcompare.envs import minatar  # noqa: E402
 from rlcompare.envs.atari import games as atari  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402

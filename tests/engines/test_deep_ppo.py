@@ -13,9 +13,10 @@ pytest.importorskip("jax")
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep import ppo, ppo_config
+from rlcompare.deep import ppo
 from rlcompare.deep.classic import CARTPOLE, MOUNTAIN_CAR
 from rlcompare.deep.envs import jax_env_names
+from rlcompare.deep.presets import ppo as ppo_config
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.envs.chess import games as chess_games
 from rlcompare.validation import ConfigError

@@ -15,10 +15,11 @@ pytest.importorskip("gymnax")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn, dqn_config, replay  # noqa: E402
+from rlcompare.deep import dqn, replay  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.minatar.games import minatar_env  # noqa: E402
 from rlcompare.deep.networks import ConvNet  # noqa: E402
+from rlcompare.deep.presets import dqn as dqn_config  # noqa: E402
 from rlcompare.deep.results import DeepResults  # noqa: E402
 from rlcompare.envs import minatar  # noqa: E402
 from rlcompare.experiment.runner import run as deep_run  # noqa: E402

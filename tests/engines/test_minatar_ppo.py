@@ -15,10 +15,11 @@ pytest.importorskip("gymnax")
 import flax.linen as nn  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import ppo, ppo_config, ppo_networks  # noqa: E402
+from rlcompare.deep import ppo, ppo_networks  # noqa: E402
 from rlcompare.deep.classic import CARTPOLE  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.envs import jax_env  # noqa: E402
+from rlcompare.deep.presets import ppo as ppo_config  # noqa: E402
 from rlcompare.envs.minatar import NAMES  # noqa: E402
 from rlcompare.experiment.runner import run as deep_run  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402

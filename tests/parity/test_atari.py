@@ -16,10 +16,12 @@ ale_py = pytest.importorskip("ale_py")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn, dqn_config, ppo, ppo_config, pqn  # noqa: E402
+from rlcompare.deep import dqn, ppo, pqn  # noqa: E402
 from rlcompare.deep.atari import AtariEnv, NatureCNN, atari_env, reset_seed  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.envs import evaluation_epsilon, jax_env, jax_env_names, learning_reward  # noqa: E402
+from rlcompare.deep.presets import dqn as dqn_config  # noqa: E402
+from rlcompare.deep.presets import ppo as ppo_config  # noqa: E402
 from rlcompare.envs.atari import games as atari  # noqa: E402
 from rlcompare.envs.registry import environment  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402

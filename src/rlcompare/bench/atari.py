@@ -30,11 +30,13 @@ from rlcompare.bench.emulator import (
     measure_emulator,
 )
 from rlcompare.bench.tables import BenchTable, Measured, Say, Stage
-from rlcompare.deep import dqn, dqn_config, float64, ppo, ppo_config, pqn
+from rlcompare.deep import dqn, float64, ppo, pqn
 from rlcompare.deep.atari import AtariEnv
 from rlcompare.deep.envs import playing
 from rlcompare.deep.networks import Network
 from rlcompare.deep.ppo_networks import network as ppo_network
+from rlcompare.deep.presets import dqn as dqn_config
+from rlcompare.deep.presets import ppo as ppo_config
 from rlcompare.deep.replay import Transitions
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.envs.atari import games as atari

@@ -24,7 +24,7 @@ from rlcompare.bench.deep import (
 )
 from rlcompare.bench.tables import BenchTable
 from rlcompare.deep import dqn, float64, pqn
-from rlcompare.deep.dqn_config import RMSPROP_DECAY, RMSPROP_EPS, DQNConfig
+from rlcompare.deep.presets.dqn import RMSPROP_DECAY, RMSPROP_EPS, DQNConfig
 from rlcompare.envs import minatar
 
 MINATAR_ENV, MINATAR_SEEDS = "Breakout-MinAtar", 4

@@ -34,9 +34,9 @@ import optax
 
 from rlcompare.deep import rollout
 from rlcompare.deep.atari import NatureCNN, is_frames
-from rlcompare.deep.dqn_config import OPTIMIZERS, PRESETS, RMSPROP_DECAY, RMSPROP_EPS, DQNConfig
 from rlcompare.deep.envs import Environment, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import MLP, ConvNet, Network, is_image
+from rlcompare.deep.presets.dqn import OPTIMIZERS, PRESETS, RMSPROP_DECAY, RMSPROP_EPS, DQNConfig
 from rlcompare.deep.replay import Buffer, Transitions, buffer_add, buffer_init, buffer_sample
 from rlcompare.validation import (
     COUNT,

@@ -19,9 +19,10 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep import dqn, dqn_config, rollout
-from rlcompare.deep.dqn_config import DQNConfig
+from rlcompare.deep import dqn, rollout
 from rlcompare.deep.envs import Environment
+from rlcompare.deep.presets import dqn as dqn_config
+from rlcompare.deep.presets.dqn import DQNConfig
 from rlcompare.deep.replay import Transitions
 from rlcompare.validation import POSITIVE, UNIT, Number, Rule, check_fields
 
@@ -49,7 +50,7 @@ RULES: dict[str, Rule] = {"tau": POSITIVE, "scale": UNIT, "log_floor": Number(hi
 
 PRESETS = {preset: {env: MunchausenConfig(**dataclasses.asdict(settings)) for env, settings in table.items()}
            for preset, table in dqn_config.PRESETS.items()}
-"""DQN's presets (:data:`rlcompare.deep.dqn_config.PRESETS`) with the paper's Munchausen settings: τ = 0.03,
+"""DQN's presets (:data:`rlcompare.deep.presets.dqn.PRESETS`) with the paper's Munchausen settings: τ = 0.03,
 α = 0.9, l0 = -1 (Vieillard et al. 2020, section 4 and appendix B.1, the same on every game)."""
 Config = MunchausenConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""

@@ -35,8 +35,8 @@ import optax
 
 from rlcompare.deep.envs import Environment, learning_reward, observe_all, reset_all, step_autoreset_all
 from rlcompare.deep.networks import Network, is_image
-from rlcompare.deep.ppo_config import ADAM_EPSILON, NORMALIZE_CLIP, NORMALIZE_EPSILON, PRESETS, PPOConfig
 from rlcompare.deep.ppo_networks import network
+from rlcompare.deep.presets.ppo import ADAM_EPSILON, NORMALIZE_CLIP, NORMALIZE_EPSILON, PRESETS, PPOConfig
 from rlcompare.deep.rollout import Act, Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.validation import COUNT, check, require
 

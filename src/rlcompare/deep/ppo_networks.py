@@ -14,7 +14,7 @@ import numpy as np
 from rlcompare.deep.atari import NatureTorso, is_frames
 from rlcompare.deep.envs import Environment
 from rlcompare.deep.networks import ACTIVATIONS, Conv3x3, is_image
-from rlcompare.deep.ppo_config import PPOConfig
+from rlcompare.deep.presets.ppo import PPOConfig
 
 CONV_CHANNELS = 16
 """MinAtar's convolution: 16 channels of 3 x 3, stride 1, no padding (Young and Tian 2019)."""

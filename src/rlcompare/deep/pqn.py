@@ -53,7 +53,7 @@ from rlcompare.deep.envs import (
     step_autoreset_all,
 )
 from rlcompare.deep.networks import MLP, ConvNet, Network, is_image
-from rlcompare.deep.pqn_config import NEXT_ACTIONS, OBSERVATION_BOXES, PRESETS, TARGETS, PQNConfig
+from rlcompare.deep.presets.pqn import NEXT_ACTIONS, OBSERVATION_BOXES, PRESETS, TARGETS, PQNConfig
 from rlcompare.deep.rollout import Episodes, Finished, TrainOutput, track, train_in_rounds
 from rlcompare.validation import require
 
