@@ -196,8 +196,8 @@ def test_the_answer_says_when_the_seeds_are_too_few_for_the_family() -> None:
     from rlcompare.studies.chess.endgames_report import answer
 
     frame = pd.DataFrame({"measure": ["mate rate", "excess moves"] * 10, "better": ["not resolved"] * 20})
-    assert "run more seeds" in answer(frame, 10)  # 2 / 2^10 > 0.05 / 40
-    assert "run more seeds" not in answer(frame, 12)  # 2 / 2^12 < 0.05 / 40
+    assert "this design cannot decide; with 11 seeds it can" in answer(frame, 10)  # 2 / 2^10 > 0.05 / 40
+    assert "cannot decide" not in answer(frame, 11)  # 2 / 2^11 < 0.05 / 40
     assert "not resolved in 10" in answer(frame, 30)
 
 

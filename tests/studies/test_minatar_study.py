@@ -160,13 +160,6 @@ def test_a_trained_agent_plays_the_reference_game_and_gymnasiums_as_it_plays_our
         assert abs(played.mean() - in_port.mean()) < 4 * np.hypot(played.std(), in_port.std()) / np.sqrt(EPISODES)
 
 
-def test_the_smallest_p_the_report_quotes_is_the_signed_rank_tests():
-    from rlcompare.studies.deep.minatar import smallest_p
-
-    for seeds in range(3, 11):
-        assert stats.wilcoxon(np.arange(1.0, seeds + 1)).pvalue == pytest.approx(smallest_p(seeds))
-
-
 @pytest.mark.slow("trains and reports MinAtar studies")
 def test_an_agent_of_gymnaxs_protocol_plays_gymnasiums_minimal_action_set_as_our_port(tmp_path):
     """``Breakout-MinAtar`` (gymnax's protocol: the minimal actions, no sticky actions) is Gymnasium's

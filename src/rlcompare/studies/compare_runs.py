@@ -12,7 +12,6 @@ command line before the report is read; without one, no claim of equivalence is 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Hashable
 from dataclasses import dataclass
 from itertools import combinations
@@ -30,6 +29,7 @@ from rlcompare.report.page import Section, save_figure, write_report, write_tabl
 from rlcompare.report.plots import plot_return_curves
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
+from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, smallest_p
 from rlcompare.studies.interface import Report
 
 GRID_POINTS = 200
@@ -162,15 +162,9 @@ def answer(found: dict[Comparison, tuple[Judged, str]], paired: bool) -> list[st
             lines.append(f"On {key.env}, {key.a} against {key.b} over the final tenth of the steps: {key.a} scores "
                          f"{gap} ({interval}; {label}).")
     seeds = min((j.paired.seeds for j, _ in found.values()), default=0)
-    floor = smallest_p(seeds, seeds, paired)
+    floor = smallest_p(SIGNED_RANK if paired else RANK_SUM, seeds)
     return [*lines, f"Tested as {test}; p-values Holm-adjusted over every row of the verdict table. With {seeds} "
                     f"seeds a side the test cannot give a p below {floor:.3g}."]
-
-
-def smallest_p(n: int, m: int, paired: bool) -> float:
-    """The smallest two-sided p-value of the rank test on ``n`` and ``m`` seeds, every value of one side above the
-    other's: Wilcoxon's ``2 / 2**n`` on ``n`` pairs, Mann-Whitney's ``2 / C(n + m, n)``."""
-    return 2.0 / 2.0**n if paired else 2.0 / math.comb(n + m, n)
 
 
 def across(found: list[Curves], figures: Path, tables: Path) -> tuple[Aggregates | None, dict[str, str]]:

@@ -1,2 +1,2 @@
-"""Chess endgames and pgx's whole games as facts and compiled rules: the endgames by name, their rules equal to python-
-chess's, the exact solver, the environment, pgx's games."""
+"""Chess as facts and compiled rules: the endgames by name, their rules equal to python-chess's, the exact solver,
+the endgame environment, and pgx's whole games as facts."""

@@ -23,8 +23,9 @@ from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.compare import Paired, compare_paired, gated_label, judge_family
+from rlcompare.stats.design import SIGNED_RANK, reach
 from rlcompare.stats.intervals import Estimate, interval
-from rlcompare.stats.significance import ALPHA, has_learnt
+from rlcompare.stats.significance import has_learnt
 from rlcompare.studies.chess import endgames as study
 from rlcompare.studies.chess.endgames import run
 from rlcompare.studies.interface import UI, Report
@@ -110,10 +111,8 @@ def answer(frame: pd.DataFrame, seeds: int) -> str:
         return "No setting has both learners trained: no answer yet."
     counts = Counter(rows["better"])
     told = ", ".join(f"{what} in {n}" for what, n in counts.most_common())
-    tests = 2 * len(frame)  # each comparison's direction and equivalence, one Holm family
-    floor = 2 / 2**seeds  # the signed-rank test's smallest two-sided p: every seed on one side
-    short = (f" With {seeds} seeds the signed-rank test's smallest p ({floor:.2g}) cannot pass Holm's strictest "
-             f"level over {tests} tests ({ALPHA / tests:.2g}): run more seeds." if floor > ALPHA / tests else "")
+    design = reach(SIGNED_RANK, seeds, family=2 * len(frame))  # each comparison's direction and equivalence
+    short = f" {design.sentence()}" if not design.can_decide else ""
     return (f"On-policy or off-policy in chess endgames? Over {len(rows)} settings (endgame x defender x ε), "
             f"by the greedy mate rate from {study.EVAL_STARTS} fixed won starts: {told}.{short}")
 

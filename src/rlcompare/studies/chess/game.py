@@ -27,6 +27,7 @@ from rlcompare.envs.chess.games import GAMES
 from rlcompare.experiment import store
 from rlcompare.players.stockfish import ELO_1350
 from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.design import GATE, can_pass, seeds_needed, smallest_p
 from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.ratings import bootstrap_ratings, player_records
 from rlcompare.stats.significance import ALPHA
@@ -49,9 +50,6 @@ WON_EVERY_GAME = 1.0
 DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
 STOCKFISH = "stockfish"
 """What the Stockfish rungs' names begin with."""
-MIN_GATE_SEEDS = 5
-"""The fewest seeds whose one-sided signed-rank test can pass the learning gate at its level
-(:func:`rlcompare.stats.significance.has_learnt`): 1/2^5 < 0.05."""
 LADDER = "ladder"
 """The directory, inside the study's, of each game's ladder: its games and what they were played from."""
 EVAL_ROUNDS, EVAL_EPISODES = 10, 64
@@ -230,10 +228,10 @@ def _build_report(out: Path, videos: bool) -> Report:
         lines += answer_lines(table, judged.label, judged.paired.difference.format(2), seeds, game)
         lines.append(f"Score against the random player over the ladder's games (95% Wilson intervals): "
                      f"{learners_against_random(table)}.")
-        if 0.5**seeds > ALPHA:
+        if not can_pass(GATE, seeds):
             lines.append(f"With {seeds} seeds the learning gate cannot pass: the one-sided signed-rank test's "
-                         f"smallest p is 1/2^{seeds} = {0.5**seeds:g}, above {ALPHA:g}; at least "
-                         f"{MIN_GATE_SEEDS} seeds can show a game learnt.")
+                         f"smallest p is 1/2^{seeds} = {smallest_p(GATE, seeds):g}, above {ALPHA:g}; at least "
+                         f"{seeds_needed(GATE)} seeds can show a game learnt.")
         steps = {r.config.method_config().total_steps for r in env_runs.values()}
         sections.append(Section(f"{game}: the ladder", [
             f"{len(games):,} games, each pairing in pairs of games with colours swapped; a method's networks (every "

@@ -36,6 +36,7 @@ from rlcompare.report.page import Section, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
 from rlcompare.stats.compare import NEITHER_LEARNT, Judged
+from rlcompare.stats.design import SIGNED_RANK, smallest_p
 from rlcompare.studies.deep import same_question
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
@@ -62,8 +63,8 @@ BUDGETS = {
 }
 """Budget -> (default games, environment steps per training). ``short``: about 37 minutes on 2 CPU cores with the
 default 8 seeds and five methods, a short look that says so in its report (at 5 seeds and 400,000 steps every game
-was already far above random, and no verdict could be reached: see :func:`smallest_p`); ``paper``: the MinAtar
-paper's 5 M frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
+was already far above random, and no verdict could be reached: see :mod:`rlcompare.stats.design`); ``paper``: the
+MinAtar paper's 5 M frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
 MARGIN = margin("minatar", "a game (final greedy return)")
 """Differences of mean return smaller than this share of the game's range from the random policy to the MinAtar
 paper's DQN count as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
@@ -93,12 +94,6 @@ EPSILON_EPISODES = 8
 EPSILON_KEY = 20_000
 """Seed ``s``'s episodes at ε = 0.05 play from ``jax.random.key(EPSILON_KEY + s)``, apart from training's keys."""
 DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
-
-
-def smallest_p(seeds: int) -> float:
-    """The smallest two-sided p-value the signed-rank test can give on ``seeds`` pairs, every pair on one side:
-    ``2 / 2**seeds``. Below 0.05 divided by the number of games, no verdict can be reached at all."""
-    return 2.0 / 2.0**seeds
 
 
 def title(env: str) -> str:
@@ -277,7 +272,8 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
                         for env in found.envs)
             + f"), ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
             f"the games learnt; random 0, the reference 1). p-values Holm-adjusted over the games and the overall "
-            f"row; with {seeds} seeds the signed-rank test cannot give a p below {number(smallest_p(seeds))}.",
+            f"row; with {seeds} seeds the signed-rank test cannot give a p below "
+            f"{number(smallest_p(SIGNED_RANK, seeds))}.",
             PAIR_DIFFERS_IN.format(lam=PAIR_LAMBDA, share=round(1 - PAIR_LAMBDA, 2)),
             SCHEDULES], [("Verdicts", found.verdicts, files["verdicts"])]),
         Section("The same question on tables and on classic control", [SAME_QUESTION, *elsewhere.paragraphs],

@@ -1,0 +1,84 @@
+"""What a design can decide before it runs: each rank test's smallest p against scipy's exact tests on the most
+extreme data, Holm's strictest level, and the seeds each study's family needs, computed by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from rlcompare.stats.design import (
+    GATE,
+    RANK_SUM,
+    SIGNED_RANK,
+    can_pass,
+    reach,
+    seeds_needed,
+    smallest_p,
+    strictest_level,
+)
+
+
+@pytest.mark.parametrize("seeds", range(1, 13))
+def test_the_signed_rank_tests_smallest_p_is_every_seed_on_one_side(seeds):
+    differences = np.arange(1.0, seeds + 1)
+    assert smallest_p(SIGNED_RANK, seeds) == pytest.approx(stats.wilcoxon(differences, method="exact").pvalue)
+    assert smallest_p(GATE, seeds) == pytest.approx(
+        stats.wilcoxon(differences, method="exact", alternative="greater").pvalue)
+    # no arrangement of the same number of seeds does better
+    mixed = differences * np.where(np.arange(seeds) == 0, -1, 1)
+    assert stats.wilcoxon(mixed, method="exact").pvalue >= smallest_p(SIGNED_RANK, seeds)
+
+
+@pytest.mark.parametrize(("n", "m"), [(1, 1), (2, 3), (3, 3), (4, 5), (5, 5), (8, 8), (3, 9)])
+def test_the_rank_sum_tests_smallest_p_is_one_side_wholly_above_the_other(n, m):
+    a, b = np.arange(n) + 100.0, np.arange(m, dtype=float)
+    exact = stats.mannwhitneyu(a, b, method="exact").pvalue
+    assert smallest_p(RANK_SUM, n, m) == pytest.approx(exact)
+    assert smallest_p(RANK_SUM, n, m) == min(1.0, 2 / math.comb(n + m, n))
+
+
+def test_ties_only_raise_the_rank_sum_tests_p():
+    """4 seeds a side, A's all at a cap of 500: scipy's default falls back to its normal approximation with ties
+    (0.0202); the exact permutation p is the smallest the design allows, 2 / C(8, 4) = 0.0286."""
+    capped, other = np.full(4, 500.0), np.array([100.0, 200.0, 300.0, 400.0])
+    assert smallest_p(RANK_SUM, 4) == pytest.approx(2 / 70)
+    assert stats.mannwhitneyu(capped, other).pvalue < smallest_p(RANK_SUM, 4)  # the approximation goes below it
+    assert stats.permutation_test((capped, other), lambda x, y: np.mean(x) - np.mean(y),
+                                  n_resamples=np.inf, permutation_type="independent").pvalue == pytest.approx(2 / 70)
+
+
+def test_no_seed_gives_no_evidence():
+    assert smallest_p(SIGNED_RANK, 0) == smallest_p(GATE, 0) == smallest_p(RANK_SUM, 0, 3) == 1.0
+
+
+def test_holms_strictest_level_is_the_level_over_the_family():
+    assert strictest_level(1) == 0.05
+    assert strictest_level(40) == pytest.approx(0.00125)
+    with pytest.raises(ValueError, match="at least one test"):
+        strictest_level(0)
+
+
+@pytest.mark.parametrize(("test", "family", "needed"), [
+    (GATE, 1, 5),  # 1/2^5 = 0.031; 1/2^4 = 0.0625: the learning gate cannot pass below 5 seeds
+    (SIGNED_RANK, 1, 6),  # one game: 2/2^6 = 0.031 <= 0.05 < 2/2^5
+    (SIGNED_RANK, 6, 8),  # Atari-5 with the overall row: 0.05/6 = 0.0083; 2/2^8 = 0.0078, 2/2^7 = 0.0156
+    (SIGNED_RANK, 27, 11),  # Atari 100k's 26 games and the overall row: 0.00185; 2/2^11 = 0.00098, 2/2^10 = 0.00195
+    (SIGNED_RANK, 40, 11),  # the chess endgames' 40 tests: 0.00125; 10 seeds give 0.00195
+    (RANK_SUM, 1, 4),  # 3 seeds a side: 2/C(6,3) = 0.1; 4: 2/C(8,4) = 0.029
+])
+def test_the_seeds_each_family_needs(test, family, needed):
+    assert seeds_needed(test, family) == needed
+    assert can_pass(test, needed, family)
+    assert not can_pass(test, needed - 1, family)
+
+
+def test_a_design_that_cannot_decide_says_so_and_how_many_seeds_can():
+    endgames = reach(SIGNED_RANK, 10, family=40)
+    assert not endgames.can_decide
+    assert endgames.sentence() == ("With 10 seeds the signed-rank test cannot give a p below 0.002, above the 0.0013 "
+                                   "Holm asks over 40 tests: this design cannot decide; with 11 seeds it can.")
+    assert reach(SIGNED_RANK, 11, family=40).can_decide
+    assert reach(GATE, 5).sentence().endswith("this design can decide.")
