@@ -52,6 +52,7 @@ def test_the_emulators_rows_are_its_rates_per_core_beside_envpools() -> None:
 
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts threads in /proc")
+@pytest.mark.slow("makes emulators")
 def test_ales_default_pool_is_one_thread_a_game_up_to_one_a_core() -> None:
     for games in (1, 3):
         before = len(os.listdir("/proc/self/task"))

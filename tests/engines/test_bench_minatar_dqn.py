@@ -79,6 +79,7 @@ def carried_over(params: dict, policy) -> None:
         head.bias.copy_(torch.from_numpy(layers["Dense_1"]["bias"]))
 
 
+@pytest.mark.slow("builds Stable-Baselines3's DQN")
 def test_sb3s_dqn_has_our_network_and_settings() -> None:
     pytest.importorskip("stable_baselines3")
     import torch

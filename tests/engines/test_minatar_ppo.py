@@ -71,6 +71,7 @@ def test_initialisation_scales_are_the_mlps() -> None:
 
 
 @pytest.mark.parametrize(("shape", "scale"), [((1024, 128), np.sqrt(2.0)), ((128, 6), 0.01), ((4, 64), 1.0)])
+@pytest.mark.slow("compiles flax's initialiser")
 def test_gram_schmidt_initialisation_is_flaxs_orthogonal(shape: tuple[int, int], scale: float) -> None:
     """The same matrix as ``nn.initializers.orthogonal`` (LAPACK's QR) to float32 rounding, without LAPACK."""
     key = jax.random.key(7)

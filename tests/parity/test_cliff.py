@@ -12,6 +12,7 @@ from rlcompare.rng import stream_state
 from rlcompare.studies.book.figures import CLIFF, greedy_path
 
 
+@pytest.mark.slow("steps Gymnasium's Cliff Walking")
 def test_table_steps_exactly_as_gymnasium_cliff_walking() -> None:
     table = from_gymnasium("CliffWalking-v1")
     env = gym.make("CliffWalking-v1")

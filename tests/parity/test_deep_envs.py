@@ -175,6 +175,7 @@ def test_scanned_autoreset_rollout_equals_gymnasium(name, same_trigonometry) -> 
     assert endings["terminated"] >= 2
 
 
+@pytest.mark.slow("compiles environments' steps")
 def test_step_autoreset_resets_exactly_where_an_episode_ended() -> None:
     """Terminated, truncated, both on one step (terminated only) or neither: a fresh start exactly where the
     episode ended, the steps counted from 0 again, and the observation the action led to kept."""

@@ -277,6 +277,7 @@ def outcome(step, state: EnvState, action: int) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.slow("steps the reference game from constructed states")
 def test_constructed_states_step_as_the_reference_where_gymnax_does_not(case: str):
     build, action = CASES[case]
     ref = build()

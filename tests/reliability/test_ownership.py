@@ -306,6 +306,7 @@ def small_sweep(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow("trains a sweep's trials")
 def test_a_copied_or_corrupt_trial_is_redone_on_resume(small_sweep: Path, tmp_path: Path) -> None:
     out = Path(shutil.copytree(small_sweep, tmp_path / "store"))
     trials = parse_sweep(SWEEP).trials()

@@ -48,6 +48,7 @@ algorithm = ["pqn_q_lambda"]
         "fixed.hyperparameters.total_steps: got 9223372036854775807"]
 
 
+@pytest.mark.slow("traces a training")
 def test_an_array_past_memory_is_refused_after_tracing_and_before_compiling(monkeypatch: pytest.MonkeyPatch
                                                                            ) -> None:
     config = DeepConfig(algorithm="dqn", env="CartPole-v1", seeds=(0,), vmap_width=1,

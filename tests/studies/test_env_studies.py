@@ -68,6 +68,7 @@ def test_cliff_report_sets_the_cliff_against_mountain_car_in_numbers(studies: Pa
     assert "MountainCar-v0 (ε = 0.5, 4 seeds): online SARSA - Q-Learning" in html
 
 
+@pytest.mark.slow("trains the book's 50 runs")
 def test_cliff_runs_the_books_50_runs_and_says_how_to_add_mountain_car(tmp_path: Path) -> None:
     assert invoke("reproduce", "cliff", "--out", str(tmp_path / "cliff")).exit_code == 0
     assert load_run(tmp_path / "cliff" / "sarsa").seeds == tuple(range(50))

@@ -97,6 +97,7 @@ def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow("plays 150 episodes of the reference game")
 def test_the_random_policy_scores_as_the_reference_games_random_policy():
     ours = random_returns("MinAtar/Breakout-v0", EPISODES)
     reference = minatar_reference.Environment("breakout", sticky_action_prob=0.1)

@@ -23,6 +23,7 @@ def xla_patches(x: jax.Array) -> jax.Array:
 
 @pytest.mark.parametrize(("leading", "depth"), [((), 4), ((1,), 5), ((32,), 6), ((2, 3), 7), ((4, 64), 8),
                                                ((128,), 9), ((32,), 10)])  # MinAtar's games: 4 to 10 channels
+@pytest.mark.slow("compiles XLA's patches")
 def test_gathered_windows_are_xlas_patches(leading: tuple[int, ...], depth: int) -> None:
     rng = np.random.default_rng(depth)
     shape = (*leading, 10, 10, depth)
