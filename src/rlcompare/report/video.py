@@ -291,11 +291,17 @@ class VideoRenders:
         if self._pool is None:
             return
         workers = list((getattr(self._pool, "_processes", None) or {}).values())  # the executor lists no public handle
+        manager = getattr(self._pool, "_executor_manager_thread", None)
         self._pool.shutdown(wait=False, cancel_futures=True)
         for process in workers:
             process.terminate()
         for process in workers:
             process.join()
+        if manager is not None:
+            # The executor's own thread closes its wake-up pipe once it sees the workers gone; left running, it
+            # races Python 3.11's exit hook, which writes to that pipe (OSError: Bad file descriptor, a traceback
+            # after "Terminated").
+            manager.join(timeout=10)
 
     def __enter__(self) -> VideoRenders:
         return self
