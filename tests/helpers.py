@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pytest
 from click.testing import Result
 from typer.testing import CliRunner
 
@@ -32,6 +33,35 @@ def invoke(*args: str, columns: int | None = 200, **options: Any) -> Result:
 
     env = {} if columns is None else {"COLUMNS": str(columns)}
     return CliRunner(env=env).invoke(cli.app, list(args), prog_name="rlcompare", **options)
+
+
+def study_run(directory: Path, *args: str, columns: int | None = None) -> tuple[Path, str]:
+    """``rlcompare ARGS --out DIRECTORY/study``, which must succeed: the study's directory and its output."""
+    out = directory / "study"
+    result = invoke(*args, "--out", str(out), columns=columns)
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def study_fixture(name: str, *args: str) -> Any:
+    """A module's fixture: ``(out, output)`` of :func:`study_run` with ``args``, run once for the module."""
+
+    @pytest.fixture(scope="module")
+    def study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+        return study_run(tmp_path_factory.mktemp(name), *args)
+
+    return study
+
+
+def assert_loaded_not_trained(out: Path, *args: str, runs: int, kept: str = "*/episodes.parquet") -> None:
+    """``rlcompare ARGS --out OUT`` again over a finished study: each of its ``runs`` loaded, and no file matching
+    ``kept`` written again."""
+    before = {p: p.stat().st_mtime_ns for p in out.glob(kept)}
+    assert before
+    result = invoke(*args, "--out", str(out), columns=300)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("loaded") == runs
+    assert before == {p: p.stat().st_mtime_ns for p in out.glob(kept)}
 
 
 def command_line(*args: str, columns: int = 200, python: tuple[str, ...] = (), **options: Any

@@ -126,7 +126,7 @@ def cartpole_runs() -> tuple:
 def test_dqn_learns_cartpole(cartpole_runs: tuple) -> None:
     out, _ = cartpole_runs
     assert out.eval_returns.shape == (2, 2, 10)
-    updates = dqn.updates_per_round(LEARNING, 2)
+    updates = LEARNING.updates_per_round(2)
     assert out.finished.done.shape == (2, 2, updates, LEARNING.train_freq, 1)
     # Recorded from these keys (integer step counts, the same bits on every x86-64 CPU as the golden records): per
     # seed and round, ten greedy episodes of 110 to 257 steps on average, where a random policy lasts about 22.

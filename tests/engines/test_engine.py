@@ -15,19 +15,9 @@ from rlcompare.algorithms.td import QLearning, Sarsa
 from rlcompare.envs import mountain_car
 from rlcompare.envs.discretize import cell_of, make_grid
 from rlcompare.rng import stream_state
+from rlcompare.tabular import state as streams
 from rlcompare.tabular.runs import train_block, train_runs
-from rlcompare.tabular.state import (
-    AGENT_STREAM,
-    ENV_STREAM,
-    EVAL_AGENT_STREAM,
-    EVAL_ENV_STREAM,
-    EVAL_TRANSITION_STREAM,
-    TRANSITION_STREAM,
-    Records,
-    Settings,
-    allocate_records,
-    initial_state,
-)
+from rlcompare.tabular.state import Records, Settings, allocate_records, initial_state
 
 SEEDS = [0, 1, 2, 3, 4]
 EPISODES = 300
@@ -250,7 +240,7 @@ def test_start_states_are_shared_across_algorithms(seed):
         state = initial_state([seed], GRID.n_cells, mountain_car.N_ACTIONS)
         starts = []
         for episode in range(episodes):
-            starts.append(mountain_car.reset(ENV, state.rng[0, ENV_STREAM].copy()))
+            starts.append(mountain_car.reset(ENV, state.rng[0, streams.ENV_STREAM].copy()))
             train_block(0, 1, RULES[algorithm], settings, ENV, GRID, state, EPSILONS, episode, episode + 1, records)
         assert starts == expected, algorithm
 
@@ -264,8 +254,8 @@ def test_environment_streams_end_where_resets_leave_them(q_learning_result, sars
         for _ in range(EPISODES):
             mountain_car.reset(ENV, expected)
         for state in states:
-            np.testing.assert_array_equal(state.rng[run, ENV_STREAM], expected)
-        agent_streams = {tuple(state.rng[run, AGENT_STREAM].tolist()) for state in states}
+            np.testing.assert_array_equal(state.rng[run, streams.ENV_STREAM], expected)
+        agent_streams = {tuple(state.rng[run, streams.AGENT_STREAM].tolist()) for state in states}
         assert len(agent_streams) == len(states)
 
 
@@ -275,7 +265,7 @@ def test_environment_stream_is_gymnasiums():
     try:
         for seed in (0, 4):
             state = initial_state([seed], GRID.n_cells, mountain_car.N_ACTIONS)
-            env_stream = state.rng[0, ENV_STREAM].copy()
+            env_stream = state.rng[0, streams.ENV_STREAM].copy()
             for k in range(4):
                 env.reset(seed=seed) if k == 0 else env.reset()
                 position, velocity = env.unwrapped.state
@@ -292,12 +282,12 @@ def test_initial_streams_are_seeded_as_documented():
     assert np.all(state.w == 0.0)
     for run, seed in enumerate([7, 8]):
         agent, eval_env, eval_agent, transition, eval_transition = np.random.SeedSequence(seed).spawn(5)
-        np.testing.assert_array_equal(state.rng[run, ENV_STREAM], stream_state(seed))
-        np.testing.assert_array_equal(state.rng[run, AGENT_STREAM], stream_state(agent))
-        np.testing.assert_array_equal(state.rng[run, EVAL_ENV_STREAM], stream_state(eval_env))
-        np.testing.assert_array_equal(state.rng[run, EVAL_AGENT_STREAM], stream_state(eval_agent))
-        np.testing.assert_array_equal(state.rng[run, TRANSITION_STREAM], stream_state(transition))
-        np.testing.assert_array_equal(state.rng[run, EVAL_TRANSITION_STREAM], stream_state(eval_transition))
+        np.testing.assert_array_equal(state.rng[run, streams.ENV_STREAM], stream_state(seed))
+        np.testing.assert_array_equal(state.rng[run, streams.AGENT_STREAM], stream_state(agent))
+        np.testing.assert_array_equal(state.rng[run, streams.EVAL_ENV_STREAM], stream_state(eval_env))
+        np.testing.assert_array_equal(state.rng[run, streams.EVAL_AGENT_STREAM], stream_state(eval_agent))
+        np.testing.assert_array_equal(state.rng[run, streams.TRANSITION_STREAM], stream_state(transition))
+        np.testing.assert_array_equal(state.rng[run, streams.EVAL_TRANSITION_STREAM], stream_state(eval_transition))
     assert len({tuple(row) for row in state.rng.reshape(-1, 4).tolist()}) == 12
 
 
@@ -314,9 +304,10 @@ def test_evaluation_does_not_change_training(algorithm, results, eval_every, eva
     reference_state, reference_records = results
     assert_records_equal(records, reference_records, TRAINING_FIELDS)
     np.testing.assert_array_equal(state.w, reference_state.w)
-    np.testing.assert_array_equal(state.rng[:, :EVAL_ENV_STREAM], reference_state.rng[:, :EVAL_ENV_STREAM])
-    assert not np.array_equal(state.rng[:, EVAL_ENV_STREAM], reference_state.rng[:, EVAL_ENV_STREAM])
-    moved = not np.array_equal(state.rng[:, EVAL_AGENT_STREAM], reference_state.rng[:, EVAL_AGENT_STREAM])
+    rng, reference_rng = state.rng, reference_state.rng
+    np.testing.assert_array_equal(rng[:, :streams.EVAL_ENV_STREAM], reference_rng[:, :streams.EVAL_ENV_STREAM])
+    assert not np.array_equal(rng[:, streams.EVAL_ENV_STREAM], reference_rng[:, streams.EVAL_ENV_STREAM])
+    moved = not np.array_equal(rng[:, streams.EVAL_AGENT_STREAM], reference_rng[:, streams.EVAL_AGENT_STREAM])
     assert moved == (algorithm == "random")
     if eval_every == 0:
         assert records.eval_returns.shape[1] == 0
@@ -432,8 +423,8 @@ def test_engine_equals_python_episodes(algorithm, max_steps, truncation_as_termi
         q_table[:, BINS // 2 :, :2] = -1.0  # positive velocity: push right
     initial_q = state.w[0].copy()
     q = initial_q.copy()
-    env_rng, agent_rng = state.rng[0, ENV_STREAM].copy(), state.rng[0, AGENT_STREAM].copy()
-    transitions = state.rng[0, TRANSITION_STREAM].copy()
+    env_rng, agent_rng = state.rng[0, streams.ENV_STREAM].copy(), state.rng[0, streams.AGENT_STREAM].copy()
+    transitions = state.rng[0, streams.TRANSITION_STREAM].copy()
     visits = np.zeros(GRID.n_cells, dtype=np.int64)
     with np.errstate(over="ignore"):
         expected = [
@@ -448,10 +439,10 @@ def test_engine_equals_python_episodes(algorithm, max_steps, truncation_as_termi
 
     np.testing.assert_array_equal(state.w[0], q)
     np.testing.assert_array_equal(records.visits[0], visits)
-    np.testing.assert_array_equal(state.rng[0, ENV_STREAM], env_rng)
-    np.testing.assert_array_equal(state.rng[0, AGENT_STREAM], agent_rng)
-    np.testing.assert_array_equal(state.rng[0, TRANSITION_STREAM], transitions)
-    np.testing.assert_array_equal(transitions, initial_state([seed], 1, 1).rng[0, TRANSITION_STREAM])
+    np.testing.assert_array_equal(state.rng[0, streams.ENV_STREAM], env_rng)
+    np.testing.assert_array_equal(state.rng[0, streams.AGENT_STREAM], agent_rng)
+    np.testing.assert_array_equal(state.rng[0, streams.TRANSITION_STREAM], transitions)
+    np.testing.assert_array_equal(transitions, initial_state([seed], 1, 1).rng[0, streams.TRANSITION_STREAM])
     assert [
         (r, n, t) for r, n, t in zip(records.returns[0], records.lengths[0], records.terminated[0], strict=True)
     ] == expected

@@ -11,7 +11,7 @@ from helpers import finished_runs, invoke
 
 pytestmark = pytest.mark.slow("reproduces a small study into a directory a user shares")
 
-PAPER = ["reproduce", "--seeds", "2", "--episodes", "60"]
+PAPER = ["reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "60"]
 
 
 def test_force_writes_beside_a_users_file_in_a_run_directory(tmp_path: Path) -> None:

@@ -15,7 +15,8 @@ from helpers import ENV, assert_same_runs, finished_runs, kill_when, start
 pytestmark = pytest.mark.slow("kills a study in a process of its own and runs it again")
 
 def _why(out: Path, *extra: str) -> list[str]:
-    return [sys.executable, "-m", "rlcompare.cli", "reproduce", "why", "--seeds", "6", "--episodes", "5000",
+    return [sys.executable, "-m", "rlcompare.cli", "reproduce", "why", "--allow-undecidable", "--seeds", "6",
+            "--episodes", "5000",
             "--out", str(out), *extra]
 
 
@@ -63,7 +64,8 @@ def test_a_report_killed_half_way_is_rebuilt_equal_to_one_never_interrupted(tmp_
 
 
 def _book(out: Path) -> list[str]:
-    return [sys.executable, "-m", "rlcompare.cli", "reproduce", "book-6.3", "--runs", "200", "--out", str(out)]
+    return [sys.executable, "-m", "rlcompare.cli", "reproduce", "book-6.3", "--allow-undecidable", "--runs", "200",
+            "--out", str(out)]
 
 
 def test_the_book_figure_study_killed_mid_training_resumes_to_the_uninterrupted_tables(tmp_path: Path) -> None:

@@ -13,10 +13,12 @@ from helpers import digests, invoke
 @pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    first = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
+    first = invoke("reproduce", "--allow-undecidable", "--seeds", "3", "--episodes", "20", "--no-videos", "--out",
+                   str(out))
     assert first.exit_code == 0, first.output
     before = digests(out)
-    refused = invoke("reproduce", "--seeds", "2", "--episodes", "20", "--no-videos", "--out", str(out))
+    refused = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "20", "--no-videos", "--out",
+                     str(out))
     assert refused.exit_code == 2
     lines = refused.output.strip().splitlines()
     assert len(lines) == 1
@@ -26,10 +28,12 @@ def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp
     assert "another --out" in lines[0]
     assert "Traceback" not in refused.output
     assert digests(out) == before
-    again = invoke("reproduce", "--seeds", "3", "--episodes", "20", "--no-videos", "--out", str(out))
+    again = invoke("reproduce", "--allow-undecidable", "--seeds", "3", "--episodes", "20", "--no-videos", "--out",
+                   str(out))
     assert again.exit_code == 0, again.output  # the same settings resume: every run loaded
     assert again.output.count("loaded (already complete)") == 9
-    replaced = invoke("reproduce", "--seeds", "2", "--episodes", "20", "--no-videos", "--out", str(out), "--force")
+    replaced = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "20", "--no-videos", "--out",
+                      str(out), "--force")
     assert replaced.exit_code == 0, replaced.output
     assert digests(out) != before
 
@@ -54,7 +58,8 @@ def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_lin
     import time
 
     out = tmp_path / "paper"
-    command = [sys.executable, "-m", "rlcompare.cli", "reproduce", "--seeds", "4", "--episodes", "8000",
+    command = [sys.executable, "-m", "rlcompare.cli", "reproduce", "--allow-undecidable", "--seeds", "4",
+               "--episodes", "8000",
                "--no-videos", "--out", str(out)]
     env = {**__import__("os").environ, "COLUMNS": "300"}
     first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)

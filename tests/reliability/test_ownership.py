@@ -112,7 +112,7 @@ def test_a_directory_with_a_users_files_is_refused_and_left_as_it_was(command: s
     sweep_file = tmp_path / "s.toml"
     sweep_file.write_text(SWEEP)
     args = {"run": ["run", "--episodes", "5", "--seeds", "1"],
-            "reproduce": ["reproduce", "--episodes", "5", "--seeds", "1", "--no-videos"],
+            "reproduce": ["reproduce", "--allow-undecidable", "--episodes", "5", "--seeds", "1", "--no-videos"],
             "sweep": ["sweep", str(sweep_file)]}[command]
     result = invoke(*args, "--out", str(target))
     one_clear_line(result)
@@ -149,7 +149,8 @@ def test_force_writes_beside_a_users_files_but_never_over_them(tmp_path: Path) -
     (target / "notes.txt").write_text("keep")
     (target / "figures").mkdir()
     (target / "figures" / "mine.png").write_bytes(b"mine")
-    args = ["reproduce", "--episodes", "20", "--seeds", "1", "--no-videos", "--out", str(target), "--force"]
+    args = ["reproduce", "--allow-undecidable", "--episodes", "20", "--seeds", "1", "--no-videos", "--out",
+            str(target), "--force"]
     refused = invoke(*args)  # a figure's name is known only after training: refused before it (issue 39)
     one_clear_line(refused)
     assert "where it writes its own (figures/mine.png)" in refused.output
@@ -209,7 +210,7 @@ def test_report_on_a_run_directory_writes_nothing_and_on_a_plain_directory_is_re
 
 def test_another_study_into_a_study_directory_is_refused(study_copy: Path) -> None:
     before = snapshot(study_copy)
-    result = invoke("reproduce", "cliff", "--seeds", "1", "--out", str(study_copy))
+    result = invoke("reproduce", "cliff", "--allow-undecidable", "--seeds", "1", "--out", str(study_copy))
     one_clear_line(result)
     assert snapshot(study_copy) == before
 
@@ -425,13 +426,15 @@ FULL_DISK_COMMANDS = {
     "run": ["run", "--episodes", "50", "--seeds", "2"],
     "report": ["report"],
     "sweep": ["sweep"],
-    "why": ["reproduce", "why", "--seeds", "2", "--episodes", "50"],
-    "book-6.3": ["reproduce", "book-6.3", "--runs", "2"],
-    "cliff": ["reproduce", "cliff", "--seeds", "2"],
-    "sensitivity": ["reproduce", "sensitivity", "--seeds", "2", "--episodes", "50"],
-    "deep": ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--methods", "pqn_q_lambda,pqn_sarsa_lambda",
+    "why": ["reproduce", "why", "--allow-undecidable", "--seeds", "2", "--episodes", "50"],
+    "book-6.3": ["reproduce", "book-6.3", "--allow-undecidable", "--runs", "2"],
+    "cliff": ["reproduce", "cliff", "--allow-undecidable", "--seeds", "2"],
+    "sensitivity": ["reproduce", "sensitivity", "--allow-undecidable", "--seeds", "2", "--episodes", "50"],
+    "deep": ["reproduce", "deep", "--allow-undecidable", "--seeds", "2", "--steps", "41000", "--methods",
+             "pqn_q_lambda,pqn_sarsa_lambda",
              "--envs", "CartPole-v1"],
-    "minatar": ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960"],
+    "minatar": ["reproduce", "minatar", "--allow-undecidable", "--seeds", "2", "--games", "breakout", "--steps",
+                "40960"],
 }
 
 
@@ -458,7 +461,7 @@ def test_a_disk_that_fills_mid_study_keeps_the_finished_runs_and_resumes_once_th
     the rest, and writes the tables of an uninterrupted study byte for byte."""
     from helpers import assert_same_runs, finished_runs
 
-    why = ["reproduce", "why", "--seeds", "6", "--episodes", "5000"]
+    why = ["reproduce", "why", "--allow-undecidable", "--seeds", "6", "--episodes", "5000"]
     reference = tmp_path / "reference"
     assert invoke(*why, "--out", str(reference)).exit_code == 0
     with small_filesystem(tmp_path / "fs", "1500k") as fs:

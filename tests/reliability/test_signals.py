@@ -17,7 +17,8 @@ from helpers import ENV, finished_runs, paper_study, start
 
 pytestmark = pytest.mark.slow("sends signals to rlcompare processes that train or render")
 
-DEEP = ["reproduce", "deep", "--steps", "300000", "--seeds", "2", "--envs", "CartPole-v1", "--methods",
+DEEP = ["reproduce", "deep", "--allow-undecidable", "--steps", "300000", "--seeds", "2", "--envs", "CartPole-v1",
+        "--methods",
         "pqn_q_lambda,dqn", "--workers", "1"]
 
 

@@ -14,7 +14,7 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("ale_py")
 pytest.importorskip("cv2")  # Gymnasium's AtariPreprocessing
 
-from helpers import invoke  # noqa: E402
+from helpers import assert_loaded_not_trained, invoke, study_run  # noqa: E402
 
 from rlcompare import load_agent  # noqa: E402
 from rlcompare.deep import pqn  # noqa: E402
@@ -27,7 +27,7 @@ from rlcompare.studies.atari import study as atari_study  # noqa: E402
 from rlcompare.studies.paired import final_returns  # noqa: E402
 
 pytestmark = pytest.mark.slow("trains and reports an Atari study")
-TINY = ["reproduce", "atari", "--seeds", "2"]
+TINY = ["reproduce", "atari", "--allow-undecidable", "--seeds", "2"]
 SMALL = dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], n_envs=4, n_steps=16, n_minibatches=2,
                             hidden=(32,))
 """Breakout's preset with a small network and batch, for the whole module: its runs are loaded with it too."""
@@ -45,10 +45,8 @@ def small_preset():
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    out = tmp_path_factory.mktemp("atari") / "study"
-    result = invoke(*TINY, "--out", str(out), columns=300)
-    assert result.exit_code == 0, result.output
-    return out, " ".join(result.output.split())
+    out, output = study_run(tmp_path_factory.mktemp("atari"), *TINY, columns=300)
+    return out, " ".join(output.split())
 
 
 def test_the_study_writes_its_runs_and_a_human_normalised_report(study):
@@ -102,11 +100,7 @@ def test_the_agents_loaded_by_load_agent_play_gymnasiums_game(study):
 
 def test_a_finished_study_is_loaded_not_trained_again(study):
     out, _ = study
-    before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
-    result = invoke(*TINY, "--out", str(out), "--no-videos", columns=300)
-    assert result.exit_code == 0, result.output
-    assert result.output.count("loaded") == 2
-    assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+    assert_loaded_not_trained(out, *TINY, "--no-videos", runs=2)
 
 
 @pytest.mark.parametrize(("arguments", "named"), [

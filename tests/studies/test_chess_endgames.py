@@ -146,7 +146,8 @@ def test_the_study_answers_resumes_and_its_agent_plays_python_chess_boards(tmp_p
     import rlcompare
 
     out = tmp_path / "chess"
-    args = ["reproduce", "chess-endgames", "--seeds", "3", "--episodes", "400", "--endgames", "KQK",
+    args = ["reproduce", "chess-endgames", "--allow-undecidable", "--seeds", "3", "--episodes", "400", "--endgames",
+            "KQK",
             "--defenders", "random", "--no-videos", "--out", str(out)]
     first = invoke(*args)
     assert first.exit_code == 0, first.output
@@ -169,7 +170,8 @@ def test_the_study_answers_resumes_and_its_agent_plays_python_chess_boards(tmp_p
 def test_bad_study_options_are_refused_before_anything_is_written(tmp_path: Path) -> None:
     for option, value, allowed in (("--endgames", "KBK", "KRK, KQK"), ("--defenders", "smart", "optimal, random"),
                                    ("--algorithms", "reinforce", "q_learning")):
-        result = invoke("reproduce", "chess-endgames", option, value, "--out", str(tmp_path / "x"))
+        result = invoke("reproduce", "chess-endgames", "--allow-undecidable", option, value, "--out",
+                        str(tmp_path / "x"))
         assert result.exit_code == 2, result.output
         assert allowed in result.output
         assert "Traceback" not in result.output

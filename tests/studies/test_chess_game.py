@@ -12,14 +12,14 @@ import pytest
 pytest.importorskip("jax")
 pytest.importorskip("pgx")
 
-from helpers import invoke
+from helpers import assert_loaded_not_trained, invoke, study_fixture
 
 from rlcompare.deep import pqn
 from rlcompare.studies.chess import game as chess_game
 from rlcompare.studies.chess.game import LADDER, load_ladder
 from rlcompare.studies.paired import load_runs
 
-TINY = ["reproduce", "chess", "--seeds", "2", "--steps", "1280", "--pairs", "2"]
+TINY = ["reproduce", "chess", "--allow-undecidable", "--seeds", "2", "--steps", "1280", "--pairs", "2"]
 SMALL = dataclasses.replace(pqn.PRESETS["default"]["gardner_chess"], n_envs=8, n_steps=16, n_epochs=1,
                             n_minibatches=2, hidden=(32,))
 """Gardner's preset with a small network and batch, and 8 evaluation games a round, for the whole module: its runs are
@@ -34,12 +34,7 @@ def small_preset():
         yield
 
 
-@pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    out = tmp_path_factory.mktemp("chess") / "study"
-    result = invoke(*TINY, "--out", str(out), columns=None)
-    assert result.exit_code == 0, result.output
-    return out, result.output
+study = study_fixture("chess", *TINY)
 
 
 @pytest.mark.slow("trains, rates and reports a chess study")
@@ -70,11 +65,7 @@ def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
 @pytest.mark.slow("trains, rates and reports a chess study")
 def test_a_finished_study_is_loaded_and_its_ladder_kept(study):
     out, _ = study
-    before = (out / LADDER / "gardner_chess" / "games.parquet").stat().st_mtime_ns
-    result = invoke(*TINY, "--out", str(out), columns=None)
-    assert result.exit_code == 0, result.output
-    assert result.output.count("loaded") == 2
-    assert (out / LADDER / "gardner_chess" / "games.parquet").stat().st_mtime_ns == before
+    assert_loaded_not_trained(out, *TINY, runs=2, kept=f"{LADDER}/gardner_chess/games.parquet")
 
 
 @pytest.mark.slow("trains, rates and reports a chess study")
@@ -99,7 +90,8 @@ def test_a_ladder_of_other_runs_is_refused_naming_it(study, tmp_path):
     (["--methods", "dqn"], "--methods"),
 ])
 def test_bad_options_are_one_line_naming_the_option(arguments, named, tmp_path):
-    result = invoke("reproduce", "chess", *arguments, "--out", str(tmp_path / "out"), columns=None)
+    result = invoke("reproduce", "chess", "--allow-undecidable", *arguments, "--out", str(tmp_path / "out"),
+                    columns=None)
     assert result.exit_code == 2
     assert named in result.output
     assert "Traceback" not in result.output
@@ -122,7 +114,8 @@ def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monk
 
     monkeypatch.setattr(stockfish, "STOCKFISH_DIRS", ())
     monkeypatch.setenv("PATH", str(tmp_path))
-    result = invoke("reproduce", "chess", "--game", "chess", "--out", str(tmp_path / "out"), columns=300)
+    result = invoke("reproduce", "chess", "--allow-undecidable", "--game", "chess", "--out", str(tmp_path / "out"),
+                    columns=300)
     assert result.exit_code != 0
     assert "apt-get install stockfish" in " ".join(result.output.split())
     assert "Traceback" not in result.output

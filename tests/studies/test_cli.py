@@ -22,7 +22,8 @@ from rlcompare.tabular.config import field_docs
 
 @pytest.mark.slow("trains studies through the command line")
 def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
-    result = invoke("reproduce", "--seeds", "2", "--episodes", "100", "--no-videos", "--out", str(tmp_path))
+    result = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "100", "--no-videos", "--out",
+                    str(tmp_path))
     assert result.exit_code == 0, result.output
     names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant",
              "q_learning-decay-before_update", "q_learning-constant-before_update", "sarsa-decay-after_update",
@@ -40,8 +41,10 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
 
 @pytest.mark.slow("trains studies through the command line")
 def test_reproduce_again_loads_instead_of_training(tmp_path: Path) -> None:
-    invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
-    result = invoke("reproduce", "--seeds", "1", "--episodes", "20", "--no-videos", "--out", str(tmp_path))
+    invoke("reproduce", "--allow-undecidable", "--seeds", "1", "--episodes", "20", "--no-videos", "--out",
+           str(tmp_path))
+    result = invoke("reproduce", "--allow-undecidable", "--seeds", "1", "--episodes", "20", "--no-videos", "--out",
+                    str(tmp_path))
     assert result.exit_code == 0
     assert result.output.count("loaded (already complete)") == 9
 

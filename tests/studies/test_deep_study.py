@@ -12,7 +12,7 @@ pytest.importorskip("jax")
 import gymnasium as gym
 import jax
 import jax.numpy as jnp
-from helpers import invoke
+from helpers import assert_loaded_not_trained, invoke, study_fixture
 
 from rlcompare import load_agent
 from rlcompare.deep.config import DeepConfig
@@ -24,16 +24,11 @@ from rlcompare.experiment.runner import run as deep_run
 from rlcompare.studies.interface import UI
 from rlcompare.validation import ConfigError
 
-TINY = ["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50", "--methods",
+TINY = ["reproduce", "deep", "--allow-undecidable", "--seeds", "2", "--steps", "41000", "--episodes", "50", "--methods",
         "pqn_q_lambda,pqn_sarsa_lambda", "--envs", "CartPole-v1"]
 
 
-@pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    out = tmp_path_factory.mktemp("deep") / "study"
-    result = invoke(*TINY, "--out", str(out), columns=None)
-    assert result.exit_code == 0, result.output
-    return out, result.output
+study = study_fixture("deep", *TINY)
 
 
 @pytest.mark.slow("trains and reports a deep study")
@@ -68,11 +63,7 @@ def test_episodes_are_recorded_with_the_step_at_which_they_ended(study):
 @pytest.mark.slow("trains and reports a deep study")
 def test_a_finished_study_is_loaded_not_trained_again(study):
     out, _ = study
-    before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
-    result = invoke(*TINY, "--out", str(out), columns=None)
-    assert result.exit_code == 0, result.output
-    assert result.output.count("loaded") == 4
-    assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+    assert_loaded_not_trained(out, *TINY, runs=4)
 
 
 @pytest.mark.slow("trains and reports a deep study")
@@ -116,7 +107,8 @@ def test_a_seed_gives_the_same_results_whatever_seeds_train_beside_it(study):
     (["--steps", "100"], "--steps"),
 ])
 def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
-    result = invoke("reproduce", "deep", "--seeds", "2", *arguments, "--out", str(tmp_path / "x"), columns=None)
+    result = invoke("reproduce", "deep", "--allow-undecidable", "--seeds", "2", *arguments, "--out",
+                    str(tmp_path / "x"), columns=None)
     assert result.exit_code == 2
     assert named in result.output
     assert "Traceback" not in result.output
@@ -147,7 +139,7 @@ def test_without_jax_the_deep_study_says_how_to_install_it(monkeypatch, tmp_path
     for study in needing_jax:
         monkeypatch.delattr(rlcompare.studies, study, raising=False)
     monkeypatch.setitem(sys.modules, "jax", None)
-    result = invoke("reproduce", "deep", "--out", str(tmp_path / "x"), columns=None)
+    result = invoke("reproduce", "deep", "--allow-undecidable", "--out", str(tmp_path / "x"), columns=None)
     assert result.exit_code == 2
     assert "pip install -e '.[deep]'" in result.output
     assert "Traceback" not in result.output

@@ -146,7 +146,7 @@ def test_a_users_own_ledger_file_is_left_alone_and_nothing_kept(tmp_path: Path) 
     target = tmp_path / "shared"
     target.mkdir()
     (target / drawn.LEDGER).write_text("mine")
-    result = invoke("reproduce", "--episodes", "20", "--seeds", "1", "--no-videos", "--out",
+    result = invoke("reproduce", "--allow-undecidable", "--episodes", "20", "--seeds", "1", "--no-videos", "--out",
                                           str(target), "--force", columns=None)
     assert result.exit_code == 0, result.output
     assert (target / drawn.LEDGER).read_text() == "mine"

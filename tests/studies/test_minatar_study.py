@@ -15,7 +15,7 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("gymnax")
 minatar_reference = pytest.importorskip("minatar")
 
-from helpers import assert_same_runs, finished_runs, invoke, kill_when, start  # noqa: E402
+from helpers import assert_loaded_not_trained, assert_same_runs, finished_runs, invoke, kill_when, start, study_fixture  # noqa: E402
 
 from rlcompare import load_agent  # noqa: E402
 from rlcompare.deep import float64  # noqa: E402
@@ -28,17 +28,13 @@ from rlcompare.studies.paired import random_returns  # noqa: E402
 from rlcompare.studies.paper.claims import CLAIMS as PAPER_CLAIMS  # noqa: E402
 from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 
-TINY = ["reproduce", "minatar", "--seeds", "2", "--games", "breakout", "--steps", "40960", "--methods",
+TINY = ["reproduce", "minatar", "--allow-undecidable", "--seeds", "2", "--games", "breakout", "--steps", "40960",
+        "--methods",
         "pqn_sarsa_lambda,pqn_q_lambda"]
 EPISODES = 150
 
 
-@pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    out = tmp_path_factory.mktemp("minatar") / "study"
-    result = invoke(*TINY, "--out", str(out), columns=None)
-    assert result.exit_code == 0, result.output
-    return out, result.output
+study = study_fixture("minatar", *TINY)
 
 
 @pytest.mark.slow("trains and reports MinAtar studies")
@@ -74,11 +70,7 @@ def test_the_study_writes_its_runs_and_a_report(study):
 @pytest.mark.slow("trains and reports MinAtar studies")
 def test_a_finished_study_is_loaded_not_trained_again(study):
     out, _ = study
-    before = {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
-    result = invoke(*TINY, "--out", str(out), columns=None)
-    assert result.exit_code == 0, result.output
-    assert result.output.count("loaded") == 2
-    assert before == {p: p.stat().st_mtime_ns for p in out.glob("*/episodes.parquet")}
+    assert_loaded_not_trained(out, *TINY, runs=2)
 
 
 @pytest.mark.parametrize(("arguments", "named"), [
@@ -89,7 +81,7 @@ def test_a_finished_study_is_loaded_not_trained_again(study):
     (["--methods", "pqn_q_lambda,a2c"], "--methods"),
 ])
 def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
-    result = invoke("reproduce", "minatar", "--seeds", "2", *arguments,
+    result = invoke("reproduce", "minatar", "--allow-undecidable", "--seeds", "2", *arguments,
                                       "--out", str(tmp_path / "x"), columns=None)
     assert result.exit_code == 2
     assert named in result.output
@@ -347,8 +339,10 @@ def test_a_game_neither_method_learnt_has_no_verdict_and_stays_out_of_the_overal
 def other_studies(tmp_path_factory):
     """The paper's tabular study and the deep study at a tiny size, each made by its own command (about 25 s)."""
     root = tmp_path_factory.mktemp("others")
-    for arguments, name in ((["reproduce", "--seeds", "3", "--episodes", "30", "--no-videos"], "paper"),
-                            (["reproduce", "deep", "--seeds", "2", "--steps", "41000", "--episodes", "50",
+    for arguments, name in ((["reproduce", "--allow-undecidable", "--seeds", "3", "--episodes", "30", "--no-videos"],
+                             "paper"),
+                            (["reproduce", "deep", "--allow-undecidable", "--seeds", "2", "--steps", "41000",
+                              "--episodes", "50",
                               "--methods", "pqn_q_lambda,pqn_sarsa_lambda", "--envs", "CartPole-v1"], "deep")):
         result = invoke(*arguments, "--out", str(root / name), columns=None)
         assert result.exit_code == 0, result.output

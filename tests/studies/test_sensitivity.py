@@ -38,7 +38,7 @@ def trial_files(root: Path) -> dict[str, str]:
 @pytest.fixture(scope="module")
 def tiny_study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     out = tmp_path_factory.mktemp("sensitivity") / "study"
-    result = invoke("reproduce", "sensitivity", *TINY, "--workers", "2", "--out", str(out))
+    result = invoke("reproduce", "sensitivity", "--allow-undecidable", *TINY, "--workers", "2", "--out", str(out))
     assert result.exit_code == 0, result.output
     return out, result.output
 
@@ -86,14 +86,14 @@ def test_resume_does_not_retrain_finished_trials(tiny_study: tuple[Path, str], t
     out = tmp_path / "copy"
     shutil.copytree(tiny_study[0], out)
     before = trial_files(out)
-    again = invoke("reproduce", "sensitivity", *TINY, "--out", str(out))
+    again = invoke("reproduce", "sensitivity", "--allow-undecidable", *TINY, "--out", str(out))
     assert again.exit_code == 0, again.output
     assert "0 trials run, 18 already finished" in again.output
     assert trial_files(out) == before
     first = read_manifest(out / "sweep")["trials"][0]
     removed = trial_path(out / "sweep", first["config_hash"], first["seed"])
     shutil.rmtree(removed)
-    resumed = invoke("reproduce", "sensitivity", *TINY, "--out", str(out))
+    resumed = invoke("reproduce", "sensitivity", "--allow-undecidable", *TINY, "--out", str(out))
     assert resumed.exit_code == 0, resumed.output
     assert "1 trials run, 17 already finished" in resumed.output
     kept = {k: v for k, v in before.items() if not k.startswith(str(removed.relative_to(out)))}
@@ -109,7 +109,7 @@ def test_a_wider_schedule_block_trains_only_its_new_configurations(tiny_study: t
     shutil.copytree(tiny_study[0], out)
     before = trial_files(out)
     wider = [*TINY[:TINY.index("epsilon=0.5")], "epsilon=0.25,0.5", *TINY[TINY.index("epsilon=0.5") + 1:]]
-    result = invoke("reproduce", "sensitivity", *wider, "--out", str(out))
+    result = invoke("reproduce", "sensitivity", "--allow-undecidable", *wider, "--out", str(out))
     assert result.exit_code == 0, result.output
     assert "6 trials run, 18 already finished" in result.output  # constant ε = 0.25, both algorithms, 3 seeds
     assert {k: v for k, v in trial_files(out).items() if k in before} == before
@@ -239,7 +239,7 @@ def test_a_bad_grid_names_its_field(grid: dict, field: str) -> None:
 ])
 def test_bad_input_gets_one_clear_message_and_exit_code_2(args: list[str], option: str, message: str,
                                                           tmp_path: Path) -> None:
-    result = invoke("reproduce", "sensitivity", *args, "--out", str(tmp_path / "out"))
+    result = invoke("reproduce", "sensitivity", "--allow-undecidable", *args, "--out", str(tmp_path / "out"))
     assert result.exit_code == 2, result.output
     assert option in result.output
     assert message in result.output
@@ -252,7 +252,8 @@ def test_a_ray_address_where_no_cluster_listens_is_one_clear_error(tmp_path: Pat
     with socket.socket() as probe:  # a port where nothing listens
         probe.bind(("127.0.0.1", 0))
         address = f"127.0.0.1:{probe.getsockname()[1]}"
-    result = invoke("reproduce", "sensitivity", *TINY, "--address", address, "--out", str(tmp_path / "out"))
+    result = invoke("reproduce", "sensitivity", "--allow-undecidable", *TINY, "--address", address, "--out",
+                    str(tmp_path / "out"))
     assert result.exit_code == 2
     assert f"no Ray cluster at '{address}'" in result.output
     assert not (tmp_path / "out").exists()

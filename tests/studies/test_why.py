@@ -161,7 +161,8 @@ def test_reproduce_why_through_the_cli_then_report_rebuilds_it(tmp_path):
 
 
     out = tmp_path / "why"
-    result = invoke("reproduce", "why", "--seeds", "3", "--episodes", "60", "--out", str(out), columns=None)
+    result = invoke("reproduce", "why", "--allow-undecidable", "--seeds", "3", "--episodes", "60", "--out", str(out),
+                    columns=None)
     assert result.exit_code == 0, result.output
     assert "With ε constant, SARSA's return while learning" in result.output
     assert len(list(out.glob("*/config.json"))) == 12
@@ -228,7 +229,7 @@ def test_a_window_without_a_greedy_evaluation_says_so_instead_of_a_number(tmp_pa
     nothing to compare, never "nan"."""
 
 
-    result = invoke("reproduce", "why", "--seeds", "2", "--episodes", "30", "--out",
+    result = invoke("reproduce", "why", "--allow-undecidable", "--seeds", "2", "--episodes", "30", "--out",
                                       str(tmp_path / "why"), columns=300)
     assert result.exit_code == 0, result.output
     assert "no greedy evaluation fell in them, so there is nothing to compare" in result.output

@@ -10,14 +10,9 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from rlcompare.stats import verdicts
+from rlcompare.stats import significance, verdicts
 from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.significance import (
-    CONTRADICTED,
-    NO_DATA,
-    NOT_RESOLVED,
-    SUPPORTED,
-    UNDECIDABLE,
     Equivalence,
     equivalence_verdict,
     holm_factors,
@@ -27,6 +22,10 @@ from rlcompare.stats.significance import (
 )
 from rlcompare.stats.verdicts import censored_at_worst, is_fragile, labels_by_definition
 from rlcompare.studies.paper.claims import NAMES, paper_claim
+
+SUPPORTED, CONTRADICTED, NOT_RESOLVED, UNDECIDABLE, NO_DATA = (
+    significance.SUPPORTED, significance.CONTRADICTED, significance.NOT_RESOLVED, significance.UNDECIDABLE,
+    significance.NO_DATA)
 
 
 def judge_by_rule(*args, **kwargs):

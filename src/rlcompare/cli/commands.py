@@ -109,6 +109,9 @@ def sweep(
         help="Also write the report's table grouped by this swept key; repeat the option.")] = None,
     report_: Annotated[bool, typer.Option("--report/--no-report", help="Build report.html at the end.")] = True,
     force: Force = False,
+    show_plan: Annotated[bool, typer.Option("--plan", help="Print every configuration with its seeds and the "
+                                                           "episodes or steps each trial runs, and exit without "
+                                                           "training or writing anything.")] = False,
 ) -> None:
     """Run every configuration of a sweep over its seeds; finished trials in OUT are kept, the rest run."""
     from rlcompare.experiment.backends import BACKENDS
@@ -131,6 +134,12 @@ def sweep(
                                  param_hint="'--group-by'")
     out_dir = out_path(out, Path("runs") / "sweeps" / plan.name)
     check_out(out_dir, store.SWEEP, force)
+    if show_plan:
+        from rlcompare.studies.plans import sweep_plan
+
+        for line in sweep_plan(plan).lines():
+            console.print(line, highlight=False, soft_wrap=True)
+        return
     finished, ran = run_trials(
         plan, backend, workers, address, f"on the {backend} backend; store {out_dir}", ConsoleUI(),
         lambda executor, progress: run_sweep(plan, sweep_file.read_text(), out_dir, executor, progress=progress,

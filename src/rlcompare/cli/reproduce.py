@@ -28,6 +28,7 @@ from rlcompare.cli.console import (
 )
 from rlcompare.experiment import store
 from rlcompare.studies.interface import Options
+from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
 from rlcompare.tabular.config import field_docs
 from rlcompare.validation import ConfigError
@@ -35,7 +36,12 @@ from rlcompare.validation import ConfigError
 FORCE_HELP = ("Write into OUT even though it holds files rlcompare did not write (they are left as they are: "
               "rlcompare never replaces or deletes a file it did not write), and replace the runs rlcompare wrote "
               "there with other settings.")
-COMMON = ("out", "force")
+PLAN_HELP = ("Print the design that would run and exit, without training or writing anything: every training, "
+             "its seeds and the steps or episodes it runs, each family of tests with its smallest attainable p, and "
+             "whether the design can decide.")
+UNDECIDABLE_HELP = ("Run a design that cannot decide its headline question (its first line says why); without this "
+                    "it is refused, naming the seeds that could.")
+COMMON = ("out", "force", "plan", "allow_undecidable")
 """Options of every study, beside its own."""
 
 
@@ -43,9 +49,12 @@ def _common_parameters(study: str) -> list[inspect.Parameter]:
     out = Annotated[str | None, typer.Option(
         help=f"Study directory (new, empty, or this study's, written by rlcompare); one run directory per "
              f"configuration. Default: runs/{study}.", show_default=False)]
-    force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
-    return [inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, default=None, annotation=out),
-            inspect.Parameter("force", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=force)]
+    flags = {"force": ("--force", FORCE_HELP), "plan": ("--plan", PLAN_HELP),
+             "allow_undecidable": ("--allow-undecidable", UNDECIDABLE_HELP)}
+    return [inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, default=None, annotation=out), *(
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=False,
+                          annotation=Annotated[bool, typer.Option(flag, help=text)])
+        for name, (flag, text) in flags.items())]
 
 
 def option_parameters(options: type[Options]) -> list[inspect.Parameter]:
@@ -87,12 +96,30 @@ def load_runner(study: Study) -> Any:
         fail(str(error))
 
 
+def study_plan(study: Study, runner: Any, options: Options) -> StudyPlan:
+    """The study's design from its options (:mod:`rlcompare.studies.plans`); a refused value names its option."""
+    try:
+        return runner.study_plan(options)  # type: ignore[no-any-return]
+    except ConfigError as error:
+        raise bad_option(error) from None
+
+
 def reproduce_study(study: Study, values: dict[str, Any]) -> None:
-    """Check the options and the output directory, train what the study's directory lacks, then its report."""
+    """Check the options and the design (``--plan``: print it and stop), then the output directory; train what
+    the study's directory lacks, then its report."""
     out, force = out_path(values.pop("out"), Path("runs") / study.name), values.pop("force")
+    show_plan, allow_undecidable = values.pop("plan"), values.pop("allow_undecidable")
     options = study_options(study, values)
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
+    plan = study_plan(study, runner, options)
+    if show_plan:
+        for line in plan.lines():
+            console.print(line, highlight=False, soft_wrap=True)
+        return
+    if plan.undecidable and not allow_undecidable:
+        fail(f"{plan.first_line()} Run it anyway with --allow-undecidable.")
+    console.print(plan.first_line(), highlight=False)
     announce_compiling()
     # one hold of the directory's lock for the training and the report, so no other process writes in between
     with store.output_directory(out, store.Owner("study", study.name), force=force):

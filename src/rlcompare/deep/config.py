@@ -94,6 +94,12 @@ class DeepConfig:
         return f"{self.algorithm}-{self.env}"
 
     @property
+    def steps_trained(self) -> int:
+        """Environment steps each seed trains: whole batches in each evaluation round, which may be fewer or more
+        than its ``total_steps``."""
+        return int(self.method_config().steps_trained(self.eval_rounds))
+
+    @property
     def progress_total(self) -> int:
         """What a run's ``progress`` callback counts to: seeds (trained ``vmap_width`` at a time)."""
         return len(self.seeds)

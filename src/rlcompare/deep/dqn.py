@@ -11,7 +11,7 @@ bootstraps from the true last observation; a termination does not (SB3's ``handl
 
 Departures from SB3: each environment draws its own ε coin (SB3 draws one per vector step); the network has
 flax's initialisation (lecun normal, zero biases), not torch's; gradients are clipped exactly to the norm (torch
-adds 1e-6); the training runs whole rounds of updates (:func:`updates_per_round`).
+adds 1e-6); the training runs whole rounds of updates (``DQNConfig.updates_per_round``).
 
 On MinAtar's images (Young and Tian 2019, arXiv 1903.03176) the Q-network is MinAtar's (:class:`ConvNet`, no
 LayerNorm), the buffer keeps the observations as booleans, and the ``default`` preset is the MinAtar paper's DQN
@@ -24,7 +24,6 @@ counts gradient steps, so its refreshes land one step later); flax's initialisat
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -274,21 +273,15 @@ def make_update(config: DQNConfig, env: Environment, targets: Targets = dqn_targ
     return update
 
 
-def updates_per_round(config: DQNConfig, rounds: int) -> int:
-    """Updates in each of ``rounds`` rounds: the fewest whose steps reach ``total_steps`` (SB3 too ends on a
-    whole rollout, so may overshoot)."""
-    return math.ceil(config.total_steps / (config.train_freq * config.n_envs * rounds))
-
-
 def make_train(config: DQNConfig, env: Environment, rounds: int, eval_episodes: int, targets: Targets = dqn_targets
                ) -> Callable[[jax.Array], rollout.TrainOutput]:
-    """``key -> TrainOutput``: one seed's whole training, ``rounds`` rounds of :func:`updates_per_round` updates
-    with a greedy evaluation of ``eval_episodes`` episodes after each, learning toward ``targets``; jit-able and
+    """``key -> TrainOutput``: one seed's whole training, ``rounds`` rounds of ``config.updates_per_round(rounds)``
+    updates with a greedy evaluation of ``eval_episodes`` episodes after each, learning toward ``targets``; jit-able and
     vmap-able over keys."""
     check("rounds", rounds, COUNT)
     check("eval_episodes", eval_episodes, COUNT)
     train = rollout.train_in_rounds(make_update(config, env, targets), lambda runner: runner.params, env,
-                                    act(config, env), rounds, updates_per_round(config, rounds), eval_episodes)
+                                    act(config, env), rounds, config.updates_per_round(rounds), eval_episodes)
 
     def run(key: jax.Array) -> rollout.TrainOutput:
         start_key, train_key = jax.random.split(key)

@@ -9,6 +9,7 @@ its most extreme arrangement (every seed on one side), however large the differe
 | Wilcoxon signed-rank, ``n`` pairs, two-sided   | ``2 / 2**n``        | ``2**n`` equally likely signs              |
 | the same, one-sided (the learning gate)        | ``1 / 2**n``        |                                            |
 | Mann-Whitney, ``n`` and ``m`` seeds, two-sided | ``2 / C(n + m, n)`` | ``C(n + m, n)`` equally likely orders      |
+| a t test, or a bootstrap interval, ``n >= 2``  | 0                   | the spread can be as small as it likes     |
 
 These are the exact tests' values (scipy's ``wilcoxon`` and ``mannwhitneyu`` with ``method="exact"``); scipy's
 default computes the signed-rank test exactly up to 50 pairs without ties or zeros, and the rank-sum test exactly
@@ -25,10 +26,13 @@ from typing import Literal, NamedTuple
 
 from rlcompare.stats.significance import ALPHA
 
-Test = Literal["signed-rank", "signed-rank, one-sided", "rank-sum"]
+Test = Literal["signed-rank", "signed-rank, one-sided", "rank-sum", "t", "interval"]
 SIGNED_RANK: Test = "signed-rank"
 GATE: Test = "signed-rank, one-sided"
 RANK_SUM: Test = "rank-sum"
+T_TEST: Test = "t"
+INTERVAL: Test = "interval"
+"""A 95% bootstrap interval that excludes 0, read without a p-value (the why study's decomposition)."""
 LARGEST_SEEDS = 10_000
 """Where :func:`seeds_needed` stops looking: a design that needs more is beyond any study here."""
 
@@ -38,6 +42,8 @@ def smallest_p(test: Test, seeds: int, other_seeds: int | None = None) -> float:
     rank-sum test; the same number by default); 1 with no seed at all."""
     if seeds < 1 or (other_seeds is not None and other_seeds < 1):
         return 1.0
+    if test in (T_TEST, INTERVAL):
+        return 0.0 if seeds >= 2 else 1.0
     if test == SIGNED_RANK:
         return min(1.0, 2.0 / 2.0**seeds)
     if test == GATE:
@@ -93,7 +99,8 @@ class Reach(NamedTuple):
                 "it can.")
 
 
-def reach(test: Test, seeds: int, family: int = 1, level: float = ALPHA) -> Reach:
-    """:class:`Reach` of ``test`` on ``seeds`` seeds (a side) in a Holm family of ``family`` tests."""
-    return Reach(test, seeds, family, smallest_p(test, seeds), strictest_level(family, level),
+def reach(test: Test, seeds: int, family: int = 1, level: float = ALPHA, other_seeds: int | None = None) -> Reach:
+    """:class:`Reach` of ``test`` on ``seeds`` seeds (and ``other_seeds`` on the other side, for the rank-sum test)
+    in a Holm family of ``family`` tests."""
+    return Reach(test, seeds, family, smallest_p(test, seeds, other_seeds), strictest_level(family, level),
                  seeds_needed(test, family, level))

@@ -31,9 +31,11 @@ from rlcompare.experiment.backends import make_backend
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.stats.compare import Paired
+from rlcompare.stats.design import GATE, SIGNED_RANK
 from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.stats.significance import has_learnt
 from rlcompare.studies.interface import UI, Advance
+from rlcompare.studies.plans import Question, StudyPlan, Training
 from rlcompare.studies.seed_blocks import Backend, trained_on
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -91,6 +93,8 @@ class PairedStudy:
     others: Callable[[str, Mapping[str, Results]], dict[Key, Paired]] = no_others
     """The comparisons on an environment of another engine's runs beside the networks, after the pair's (the deep
     study's tabular pair)."""
+    others_per_env: int = 0
+    """How many comparisons ``others`` makes on an environment whose runs beside are all there."""
     references: Mapping[str, float] = field(default_factory=dict)
     """Per environment, a reference score with a published source (the MinAtar paper's DQN). Where given, the
     environment's margin is a share of the range from the random policy's return to it, normalised scores run from
@@ -110,6 +114,15 @@ class PairedStudy:
         if env in self.references and floor is not None:
             return self.margins[env] * (self.references[env] - floor)
         return self.margins[env]
+
+    def family(self, plan: Plan) -> int:
+        """The tests :func:`~rlcompare.studies.paired_report.judged` makes on ``plan``'s runs, all trained and
+        learnt: on each environment the pair's metrics and the comparisons beside; over two or more environments the
+        pair overall, where a margin is declared for it. Each is a direction test and an equivalence test."""
+        pair = len(self.metrics) if set(PAIR) <= set(plan.methods) else 0
+        beside = self.others_per_env if plan.beside else 0
+        overall = int(self.overall_margin is not None and pair > 0 and len(plan.envs) > 1)
+        return 2 * (len(plan.envs) * (pair + beside) + overall)
 
     def learnt(self, env: str, finals: np.ndarray, floor: float) -> bool:
         """Whether ``finals`` (each seed's final greedy return) show the environment learnt at this budget
@@ -147,6 +160,25 @@ class Plan:
                                                vmap_width=min(len(self.seeds), self.vmap_width),
                                                eval_rounds=self.eval_rounds, eval_episodes=self.eval_episodes)
                 for name, env in self.envs.items() for method in self.methods}
+
+
+def paired_plan(study: PairedStudy, plan: Plan, unit: str = "environment steps", plumbing: str = "") -> StudyPlan:
+    """What ``plan`` trains (each training's steps as it runs them: whole batches) and the tests of its report:
+    the pair, one family under Holm's correction, and where the study has references the learning gate on each
+    method, not corrected."""
+    seeds = len(plan.seeds)
+    trainings = (*(Training(name, len(c.seeds), c.episodes, "episodes") for name, c in plan.beside.items()),
+                 *(Training(name, len(c.seeds), c.steps_trained, unit) for name, c in plan.configs().items()))
+    questions = []
+    family = study.family(plan)
+    if family:
+        on, off = (study.label(method) for method in PAIR)
+        questions.append(Question(f"{on} against {off} ({family // 2} comparisons, each a direction and an "
+                                  "equivalence test)", SIGNED_RANK, seeds, family))
+    if study.references:
+        questions.append(Question("whether each method has learnt each game (above the random policy, one-sided)",
+                                  GATE, seeds))
+    return StudyPlan(trainings, tuple(questions), plumbing)
 
 
 def checked(plan: Plan) -> Plan:

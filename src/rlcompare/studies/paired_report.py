@@ -26,6 +26,7 @@ from rlcompare.report.page import save_figure, write_table
 from rlcompare.report.plots import plot_paired_differences, plot_return_curves
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import NEITHER_LEARNT, Judged, Paired, compare_paired, gated_label, judge_family
+from rlcompare.stats.design import SIGNED_RANK, smallest_p
 from rlcompare.studies.paired import (
     OVERALL,
     PAIR,
@@ -142,10 +143,12 @@ of NaNs' (:attr:`~rlcompare.deep.results.DeepResults.diverged`), so no test on t
 
 
 def verdict_table(study: PairedStudy, compared: Mapping[Key, Judged]) -> pd.DataFrame:
-    """One row per comparison, with the difference each row's seeds could detect."""
+    """One row per comparison, with the power its seeds gave it: the smallest p their signed-rank test can give
+    (:mod:`rlcompare.stats.design`) and the difference they could detect."""
     return pd.DataFrame([{
         **study.columns(key), "on - off (mean, 95% CI)": j.paired.difference.format(study.digits),
         "P(on > off)": j.paired.improvement.format(2), "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence,
+        "smallest p": number(smallest_p(SIGNED_RANK, j.paired.seeds), 2),
         "detectable (80% power)": number(j.detectable), "verdict": j.label,
     } for key, j in compared.items()])
 

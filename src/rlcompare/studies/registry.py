@@ -87,9 +87,10 @@ class DeepOptions(Seeded):
 
 @dataclass(frozen=True)
 class MinAtarOptions(Seeded):
-    seeds: int = option(8, minimum=1, spellings=("--runs",))
-    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (the MinAtar paper ran 30; below 8 the
-    signed-rank test cannot decide 3 games)."""
+    seeds: int = option(9, minimum=1, spellings=("--runs",))
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (the MinAtar paper ran 30; below 9 the
+    signed-rank test cannot decide 3 games and the overall row, a direction and an equivalence test each, under
+    Holm: --plan says so)."""
     budget: str = "short"
     """short (3 games, 250,000 steps: under 20 minutes on 2 CPU cores), paper (every game, the MinAtar paper's
     5 M frames) or pqn (every game, purejaxql's 10 M steps)."""
@@ -133,8 +134,9 @@ class AtariOptions(Seeded):
     """Q(λ) against SARSA(λ) on the Atari 2600 (:mod:`rlcompare.studies.atari.study`)."""
 
     seeds: int = option(2, minimum=1, spellings=("--runs",))
-    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
-    at α = 0.05: the smoke budget checks the pipeline, not the question)."""
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ... The smoke budget is a plumbing check (it
+    checks the pipeline, not the question); the others need 7 seeds for one game, 9 for Atari-5 and 12 for Atari
+    100k's 26 games (--plan says so)."""
     budget: str = "smoke"
     """smoke (Breakout, 32,768 steps: the whole pipeline in about 10 minutes on 2 CPU cores), 100k (Atari 100k's 26
     games, 100,000 steps), 10m (Atari-5, 10 M steps = 40 M frames) or 200m (Atari-5, purejaxql's 200 M frames);
@@ -195,9 +197,9 @@ class ChessEndgameOptions(Seeded):
 class ChessOptions(Seeded):
     """Q(λ) against SARSA(λ) in self-play on a whole game of chess (:mod:`rlcompare.studies.chess.game`)."""
 
-    seeds: int = option(6, minimum=1, spellings=("--runs",))
-    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 6 the signed-rank test cannot decide
-    at α = 0.05)."""
+    seeds: int = option(7, minimum=1, spellings=("--runs",))
+    """Number of seeds; the seeds are first-seed, first-seed + 1, ... (below 7 the signed-rank test cannot decide:
+    a direction and an equivalence test under Holm ask 0.025 of it)."""
     game: str = "gardner_chess"
     """gardner_chess (Gardner's 5 x 5 minichess, the CPU's game) or chess."""
     budget: str = "cpu"

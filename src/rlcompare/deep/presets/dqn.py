@@ -4,6 +4,7 @@ their sources (rl-baselines3-zoo; the MinAtar paper; Mnih et al. 2015 on the Ata
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 from rlcompare.envs import minatar
@@ -87,6 +88,16 @@ class DQNConfig:
         check_fields(self, RULES)
         require(self.buffer_size >= self.n_envs, "buffer_size", self.buffer_size,
                 f"an integer >= n_envs ({self.n_envs})")
+
+    def updates_per_round(self, rounds: int) -> int:
+        """Updates in each of ``rounds`` rounds: the fewest whose steps reach ``total_steps`` (SB3 too ends on a
+        whole rollout, so may overshoot)."""
+        return math.ceil(self.total_steps / (self.train_freq * self.n_envs * rounds))
+
+    def steps_trained(self, rounds: int) -> int:
+        """Environment steps the training runs over ``rounds`` rounds: whole updates of ``train_freq`` steps of
+        every environment."""
+        return self.updates_per_round(rounds) * rounds * self.train_freq * self.n_envs
 
 
 RULES: dict[str, Rule] = {

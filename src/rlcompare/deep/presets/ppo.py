@@ -100,6 +100,11 @@ class PPOConfig:
         """Updates in the whole training."""
         return self.total_steps // self.batch
 
+    def steps_trained(self, rounds: int) -> int:
+        """Environment steps the training runs over ``rounds`` rounds: ``updates // rounds`` whole updates a
+        round (the remainder is not run)."""
+        return self.updates // rounds * rounds * self.batch
+
     @property
     def minibatches(self) -> int:
         """Minibatches per epoch."""

@@ -89,6 +89,11 @@ class PQNConfig:
     def updates(self) -> int:
         return self.total_steps // (self.n_envs * self.n_steps)
 
+    def steps_trained(self, rounds: int) -> int:
+        """Environment steps the training runs over ``rounds`` rounds: ``updates // rounds`` whole rollouts a
+        round (the remainder is not run)."""
+        return self.updates // rounds * rounds * self.n_envs * self.n_steps
+
 
 RULES: dict[str, Rule] = {
     "target": Choice(TARGETS), "next_action": Choice(NEXT_ACTIONS), "lam": UNIT, "gamma": STEP_SIZE,

@@ -35,8 +35,9 @@ from rlcompare.studies.atari import play as atari_play
 from rlcompare.studies.atari.play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, train
+from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, paired_plan, train
 from rlcompare.studies.paired_report import answer, answer_figures, curves_drawn, findings, short_label
+from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import AtariOptions
 from rlcompare.validation import ConfigError
 
@@ -112,6 +113,21 @@ def plan_of(options: AtariOptions) -> Plan:
     return checked(Plan(options.seed_range, methods, {t: name_of(t) for t in titles},
                         options.steps or budget.steps, 1, eval_rounds=budget.eval_rounds,
                         eval_episodes=budget.eval_episodes, vmap_width=1))
+
+
+def plumbing(steps: int) -> str:
+    """Why a training of ``steps`` steps checks the pipeline, not the question (the smoke budget's or fewer); empty
+    where it asks the question."""
+    if steps > BUDGETS["smoke"].steps:
+        return ""
+    return f"{steps:,} steps a training, the smoke budget's or fewer: the pipeline checked, not the question"
+
+
+def study_plan(options: AtariOptions) -> StudyPlan:
+    """What the study trains and can decide (``reproduce atari --plan``); the smoke budget is a plumbing check."""
+    plan = plan_of(options)
+    steps = max(config.steps_trained for config in plan.configs().values())
+    return paired_plan(ATARI, plan, "agent steps", plumbing(steps))
 
 
 def run(out: Path, options: AtariOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
@@ -206,13 +222,15 @@ def _build_report(out: Path, videos: bool) -> Report:
     if atari5 is not None:
         files["atari5"] = write_table(atari5, out / "tables", "atari_atari5")
     compared = {title(key.env): j for key, j in found.judged.items()}
-    steps = max((r.config.method_config().total_steps for r in runs.values()), default=0)
+    steps = max((r.config.steps_trained for r in runs.values()), default=0)
     seeds = min((len(r.seeds) for r in runs.values()), default=0)
     games = [title(env) for env in found.envs]
     floors = {t: atari_scores.GAMES[t].random for t in games}
     humans = {t: atari_scores.GAMES[t].human for t in games}
     lines = answer(compared, seeds, floors=floors, references=humans, measure=f"final return at ε = {EPSILON:g}",
                    reference="the human")
+    if steps and plumbing(steps):
+        lines.insert(0, f"A plumbing check: no verdict is possible ({plumbing(steps)}).")
     not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
     if not_learnt:
         lines.append(f"Not learnt at this budget ({steps:,} steps a training): {', '.join(not_learnt)}; the "

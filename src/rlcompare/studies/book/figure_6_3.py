@@ -35,10 +35,12 @@ from rlcompare.experiment import rundir, store
 from rlcompare.experiment.runner import run
 from rlcompare.formatting import cut, number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.design import T_TEST
 from rlcompare.stats.intervals import Estimate, interval, mean_interval
 from rlcompare.stats.significance import ALPHA
 from rlcompare.stats.verdicts import Claim, judge, margin_text
 from rlcompare.studies.margins import margin
+from rlcompare.studies.plans import Question
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.memory import records_bytes
 from rlcompare.tabular.state import STREAMS
@@ -245,6 +247,12 @@ def claims() -> list[Claim]:
                     "within", bounds=(-np.inf, 0.0), about=f"Q-Learning - {method_label(other)}")
               for other in ("sarsa", "expected_sarsa") for alpha in ALPHAS]
     return found
+
+
+def questions(found: dict[str, ExperimentConfig]) -> tuple[Question, ...]:
+    """The book's claims, one family of t tests on the runs of the phase that has fewest."""
+    runs = min(len(config.seeds) for config in found.values())
+    return (Question(f"the book's {len(claims())} claims on Figure 6.3", T_TEST, runs, len(claims())),)
 
 
 def verdicts(found: list[Claim], runs: dict[str, PhaseRuns]) -> pd.DataFrame:

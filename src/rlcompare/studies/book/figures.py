@@ -38,10 +38,12 @@ from rlcompare.report import plots
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY
 from rlcompare.report.page import Section, save_figure, write_report
 from rlcompare.stats.curves import mean_band
+from rlcompare.stats.design import SIGNED_RANK
 from rlcompare.stats.intervals import interval
 from rlcompare.studies.book import figure_6_3 as book_6_3
 from rlcompare.studies.book.contrast import contrast_table, sibling_studies
 from rlcompare.studies.interface import UI, Report, Seeded, run_each
+from rlcompare.studies.plans import Question, StudyPlan, episodic
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
 
@@ -67,13 +69,23 @@ class BookStudy:
     """Trains a configuration into its run directory in place of its engine (``run_or_load``'s ``train``), with
     ``load`` (``load(run_dir, expected=None)``) that reads what it writes."""
     load: Callable[..., Any] | None = None
+    questions: Callable[[dict[str, ExperimentConfig]], tuple[Question, ...]] = lambda configs: ()
+    """The tests its report makes of these configurations; none where it only draws the book's figure."""
+
+    def configs_of(self, options: Seeded) -> dict[str, ExperimentConfig]:
+        extra = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)
+                 if f.name not in ("seeds", "first_seed")}
+        return self.configs(options.seed_range, **extra)
+
+    def study_plan(self, options: Seeded) -> StudyPlan:
+        """What the study trains and the tests its report makes."""
+        configs = self.configs_of(options)
+        return StudyPlan(episodic(configs), self.questions(configs))
 
     def run(self, out: Path, options: Seeded, ui: UI, *, study: str, force: bool = False) -> dict[str, Any]:
         """Each configuration into ``out / name``, or loaded when already complete there."""
-        extra = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)
-                 if f.name not in ("seeds", "first_seed")}
-        return run_each(out, self.configs(options.seed_range, **extra), ui, study=study, force=force,
-                        train=self.train, load=self.load)
+        return run_each(out, self.configs_of(options), ui, study=study, force=force, train=self.train,
+                        load=self.load)
 
     def report(self, out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True
                ) -> Report:
@@ -270,5 +282,13 @@ def _cliff_mask() -> np.ndarray:
 
 FIG_10_2 = BookStudy(fig_10_2_configs, report_10_2)
 FIG_12_10 = BookStudy(fig_12_10_configs, report_12_10)
-CLIFF_STUDY = BookStudy(cliff_configs, report_cliff)
-FIG_6_3 = BookStudy(book_6_3.configs, book_6_3.report_6_3, book_6_3.train, book_6_3.PhaseRuns.load)
+def cliff_questions(configs: dict[str, ExperimentConfig]) -> tuple[Question, ...]:
+    """SARSA against Q-Learning, online and greedy, on paired seeds (not corrected: the contrast's two numbers)."""
+    seeds = len(configs["sarsa"].seeds)
+    return (Question("SARSA against Q-Learning online (Example 6.6: SARSA collects more)", SIGNED_RANK, seeds),
+            Question("SARSA against Q-Learning's greedy path (Q-Learning's is the better)", SIGNED_RANK, seeds))
+
+
+CLIFF_STUDY = BookStudy(cliff_configs, report_cliff, questions=cliff_questions)
+FIG_6_3 = BookStudy(book_6_3.configs, book_6_3.report_6_3, book_6_3.train, book_6_3.PhaseRuns.load,
+                    book_6_3.questions)

@@ -36,8 +36,9 @@ from rlcompare.studies.chess.ladder import MATERIAL, RANDOM, Learner, games_of
 from rlcompare.studies.chess.stages import stage_games
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, cluster, train
+from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, cluster, paired_plan, train
 from rlcompare.studies.paired_report import curves_drawn, findings, short_label
+from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import ChessOptions
 
 STUDY = "chess"
@@ -74,6 +75,11 @@ def plan_of(options: ChessOptions) -> Plan:
     return checked(Plan(options.seed_range, methods, {options.game: options.game},
                         options.steps or BUDGETS[options.budget], options.workers or DEFAULT_WORKERS,
                         eval_rounds=EVAL_ROUNDS, eval_episodes=EVAL_EPISODES))
+
+
+def study_plan(options: ChessOptions) -> StudyPlan:
+    """What the study trains and can decide (``reproduce chess --plan``)."""
+    return paired_plan(CHESS, plan_of(options), "plies")
 
 
 def run(out: Path, options: ChessOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
@@ -232,7 +238,7 @@ def _build_report(out: Path, videos: bool) -> Report:
             lines.append(f"With {seeds} seeds the learning gate cannot pass: the one-sided signed-rank test's "
                          f"smallest p is 1/2^{seeds} = {smallest_p(GATE, seeds):g}, above {ALPHA:g}; at least "
                          f"{seeds_needed(GATE)} seeds can show a game learnt.")
-        steps = {r.config.method_config().total_steps for r in env_runs.values()}
+        steps = {r.config.steps_trained for r in env_runs.values()}
         sections.append(Section(f"{game}: the ladder", [
             f"{len(games):,} games, each pairing in pairs of games with colours swapped; a method's networks (every "
             f"seed's) are one player. Ratings: a "

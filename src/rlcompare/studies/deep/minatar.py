@@ -49,10 +49,12 @@ from rlcompare.studies.paired import (
     checked,
     cluster,
     final_returns,
+    paired_plan,
     random_floor,
     train,
 )
 from rlcompare.studies.paired_report import answer, answer_figures, curves_drawn, findings, short_label
+from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import MinAtarOptions
 
 STUDY = "minatar"
@@ -61,10 +63,11 @@ BUDGETS = {
     "paper": (tuple(minatar.GAMES), 5_000_000),
     "pqn": (tuple(minatar.GAMES), 10_000_000),
 }
-"""Budget -> (default games, environment steps per training). ``short``: about 37 minutes on 2 CPU cores with the
-default 8 seeds and five methods, a short look that says so in its report (at 5 seeds and 400,000 steps every game
-was already far above random, and no verdict could be reached: see :mod:`rlcompare.stats.design`); ``paper``: the
-MinAtar paper's 5 M frames (a frame is a step: MinAtar skips none); ``pqn``: purejaxql's 10 M steps."""
+"""Budget -> (default games, environment steps per training). ``short``: about 37 minutes on 2 CPU cores with 8
+seeds (the default is now 9, the fewest that can decide) and five methods, a short look that says so in its report
+(at 5 seeds and 400,000 steps every game was already far above random, and no verdict could be reached: see
+:mod:`rlcompare.stats.design`); ``paper``: the MinAtar paper's 5 M frames (a frame is a step: MinAtar skips none);
+``pqn``: purejaxql's 10 M steps."""
 MARGIN = margin("minatar", "a game (final greedy return)")
 """Differences of mean return smaller than this share of the game's range from the random policy to the MinAtar
 paper's DQN count as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
@@ -125,6 +128,11 @@ def plan_of(options: MinAtarOptions) -> Plan:
     envs = {game: minatar.GAMES[game].name(options.protocol) for game in games}
     return checked(Plan(options.seed_range, methods, envs, options.steps or default_steps,
                         options.workers or DEFAULT_WORKERS, eval_rounds=10, eval_episodes=8))
+
+
+def study_plan(options: MinAtarOptions) -> StudyPlan:
+    """What the study trains and can decide (``reproduce minatar --plan``)."""
+    return paired_plan(MINATAR, plan_of(options))
 
 
 def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
@@ -243,7 +251,7 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
               for name, frame in (("summary", summary), ("same_question", elsewhere.table))}
     curve_figures = [curves_drawn(runs, env, "steps", out / "figures" / f"curves-{env.replace('/', '_')}.png",
                                   "environment steps") for env in found.envs]
-    steps = {r.config.method_config().total_steps for r in runs.values()}
+    steps = {r.config.steps_trained for r in runs.values()}
     budget = budget_words(max(steps, default=0))
     protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
     seeds = min((len(r.seeds) for r in runs.values()), default=0)

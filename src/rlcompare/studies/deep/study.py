@@ -39,11 +39,13 @@ from rlcompare.studies.paired import (
     Plan,
     checked,
     eval_curves,
+    paired_plan,
     per_seed,
     seconds_per_step,
     train,
 )
 from rlcompare.studies.paired_report import Findings, curves_drawn, findings
+from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import DeepOptions
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -106,7 +108,7 @@ def tabular_pair(env: str, tabular: Mapping[str, Results]) -> dict[Key, Paired]:
 
 DEEP = PairedStudy(STUDY, ENVS, MARGIN, columns, label=lambda method: DEEP_METHODS[method].label,
                    method_order=tuple(DEEP_METHODS), tasks="environments", digits=1, metrics=tuple(METRIC_NAMES),
-                   others=tabular_pair)
+                   others=tabular_pair, others_per_env=1)
 """Classic control, each environment's margin, the network's two metrics and the tabular pair beside."""
 
 
@@ -119,6 +121,11 @@ def plan_of(options: DeepOptions) -> Plan:
                for env in envs for algorithm in TABULAR_PAIR}
     return checked(Plan(seeds, listed("methods", options.methods, tuple(DEEP_METHODS)), {env: env for env in envs},
                         options.steps, options.workers or DEFAULT_WORKERS, beside=tabular))
+
+
+def study_plan(options: DeepOptions) -> StudyPlan:
+    """What the study trains and can decide (``reproduce deep --plan``)."""
+    return paired_plan(DEEP, plan_of(options))
 
 
 def run(out: Path, options: DeepOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:

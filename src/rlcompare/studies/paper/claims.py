@@ -4,6 +4,7 @@ declared before any run is read (``docs/why.md``, "Verdicts")."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Collection
 from typing import Any
 
 from rlcompare.stats.verdicts import Claim
@@ -45,6 +46,12 @@ CLAIMS = (
                 "first_action_left", kind="level", sign=-1, value=0.5, reads="b", floor=True),
 )
 """The paper's claims, with their margins declared before any run is read (``docs/why.md``, "Verdicts")."""
+
+
+def claims_asked(runs: Collection[str], position_velocity: bool) -> list[Claim]:
+    """The claims whose two configurations are among ``runs``; the first action's claims only where the
+    observation is Mountain Car's position and velocity."""
+    return [c for c in CLAIMS if {c.a, c.b} <= set(runs) and (position_velocity or c.metric != "first_action_left")]
 
 
 def scaled(claim: Claim, episodes: int) -> Claim:

@@ -40,7 +40,7 @@ from rlcompare.studies.measures import (
     table_i,
     table_ii,
 )
-from rlcompare.studies.paper.claims import CLAIMS, NAMES, scaled
+from rlcompare.studies.paper.claims import CLAIMS, NAMES, claims_asked, scaled
 from rlcompare.studies.paper.figures import (
     curve_figure,
     differences_figure,
@@ -152,7 +152,7 @@ def _build_report_beside(study_dir: Path, runs: dict[str, Results], problems: li
     paper_learners = [runs[n] for n in CONFIGURATIONS if n in runs and n != "random"]
     metrics = {name: per_seed_metrics(results) for name, results in runs.items()}
     tables_dir, figures_dir = study_dir / "tables", study_dir / "figures"
-    claims = [c for c in CLAIMS if {c.a, c.b} <= set(runs) and (position_velocity or c.metric != "first_action_left")]
+    claims = claims_asked(runs, position_velocity)
     judgement = judge_by_rule([scaled(c, episodes) for c in claims], metrics, episodes, names=NAMES,
                               floors=noise_floors(runs) if position_velocity else {},
                               rules={name: convergence_by_rule(r) for name, r in runs.items() if name != "random"})

@@ -15,7 +15,9 @@ from typing import Any
 import pandas as pd
 
 from rlcompare.experiment.runner import run_or_load
+from rlcompare.stats.design import SIGNED_RANK
 from rlcompare.studies.interface import UI, Report
+from rlcompare.studies.plans import Question, StudyPlan, episodic
 from rlcompare.studies.registry import PaperOptions
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -95,6 +97,17 @@ class PaperStudy:
                 ui.done(results.config.name, results, reused)
         ui.table(*summary(runs.values(), paper=self.env == "MountainCar-v0"))
         return runs
+
+    def study_plan(self, options: PaperOptions) -> StudyPlan:
+        """What the study trains and can decide: the paper's claims, one family on paired seeds."""
+        from rlcompare.studies.paper.claims import claims_asked
+        from rlcompare.studies.start_region import has_start_region
+
+        configs = paper_configs(options.seed_range, options.episodes, options.learners, env=self.env)
+        claims = claims_asked({c.name for c in configs}, has_start_region(configs[0]))
+        questions = (Question(f"SARSA against Q-Learning on the paper's {len(claims)} claims", SIGNED_RANK,
+                              options.seeds, len(claims)),) if claims else ()
+        return StudyPlan(episodic({c.name: c for c in configs}), questions)
 
     def report(self, out: Path, ui: UI, *, runs: dict[str, Results] | None = None, videos: bool = True) -> Report:
         """Tables, verdicts, figures, videos and ``report.html`` (:mod:`rlcompare.studies.paper.report`)."""

@@ -37,9 +37,11 @@ from rlcompare.experiment.engines import load_run
 from rlcompare.formatting import NO_DATA, number
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less
 from rlcompare.report.page import Section, save_figure, write_report, write_table
+from rlcompare.stats.design import INTERVAL
 from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.studies.interface import UI, Report, run_each
+from rlcompare.studies.plans import Question, StudyPlan, episodic
 from rlcompare.studies.registry import WhyOptions
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -84,6 +86,12 @@ def run(out: Path, options: WhyOptions, ui: UI, *, study: str = STUDY, force: bo
         ) -> dict[str, Results]:
     """Each cell into ``out / name``, or loaded when already complete there."""
     return run_each(out, why_configs(options.seed_range, options.episodes), ui, study=study, force=force)
+
+
+def study_plan(options: WhyOptions) -> StudyPlan:
+    """What the study trains and can decide: each part of SARSA - Q-Learning, read by its 95% bootstrap interval."""
+    return StudyPlan(episodic(why_configs(options.seed_range, options.episodes)), (
+        Question("which part of SARSA - Q-Learning (order, target, interaction) is not 0", INTERVAL, options.seeds),))
 
 
 def windows(episodes: int) -> dict[str, tuple[int, int]]:

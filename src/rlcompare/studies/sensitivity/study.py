@@ -21,9 +21,11 @@ from rlcompare.experiment.sweep import Sweep, SweepError, Trial
 from rlcompare.experiment.sweep_store import (
     run_sweep,
 )
+from rlcompare.stats.design import SIGNED_RANK
 from rlcompare.studies.interface import UI, Report, run_trials
+from rlcompare.studies.plans import Question, StudyPlan, episodic
 from rlcompare.studies.registry import SensitivityOptions
-from rlcompare.studies.sensitivity.grid import STUDY, SWEEP_DIR, parse_grid, plan
+from rlcompare.studies.sensitivity.grid import METRICS, STUDY, SWEEP_DIR, parse_grid, plan
 from rlcompare.studies.sensitivity.report import build_report
 from rlcompare.validation import ConfigError
 
@@ -47,6 +49,17 @@ def plan_of(options: SensitivityOptions) -> tuple[Sweep, str]:
         raise ConfigError("grid", options.grid, "; ".join(error.problems)) from None
     except ValueError as error:
         raise ConfigError("grid", options.grid, str(error)) from None
+
+
+def study_plan(options: SensitivityOptions) -> StudyPlan:
+    """What the study trains and can decide: SARSA against Q-Learning in every cell of the grid, one family per
+    metric (:func:`~rlcompare.studies.sensitivity.grid.mark_family`)."""
+    sweep, _ = plan_of(options)
+    configs = {f"{config.algorithm}-{index}": config for index, config in enumerate(sweep.configs)}
+    cells = len(sweep.configs) // 2
+    return StudyPlan(episodic(configs), tuple(
+        Question(f"SARSA against Q-Learning by the {metric} return in each of the {cells} cells", SIGNED_RANK,
+                 options.seeds, cells) for metric in METRICS))
 
 
 def run(out: Path, options: SensitivityOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> None:

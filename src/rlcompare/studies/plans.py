@@ -1,0 +1,125 @@
+"""A study's design, stated before anything trains (``rlcompare reproduce STUDY --plan``, and the first line of every
+study): what it trains, the families of tests its report will make, and whether each can decide at all on these
+seeds (:mod:`rlcompare.stats.design`), as a preregistration would state them.
+
+A study's runner offers ``plan(options) -> StudyPlan`` beside ``run`` and ``report``
+(:mod:`rlcompare.studies.interface`). It builds its configurations as ``run`` does, and counts its families with
+the functions its report uses, so that the plan and the report cannot disagree. Nothing heavy is imported and no
+file is written.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from rlcompare.stats.design import INTERVAL, RANK_SUM, T_TEST, Reach, Test, reach
+
+
+@dataclass(frozen=True)
+class Question:
+    """A family of tests the report will make: what they ask, the test, the seeds on each side and the family's
+    size under Holm's correction (1: not corrected). A ``headline`` question is the one the study is for: a design
+    that cannot decide it cannot decide."""
+
+    asks: str
+    test: Test
+    seeds: int
+    family: int = 1
+    headline: bool = True
+    other_seeds: int | None = None
+    """The other side's seeds, for the rank-sum test (independent samples); None: as many as ``seeds``."""
+
+    @property
+    def reach(self) -> Reach:
+        return reach(self.test, self.seeds, self.family, other_seeds=self.other_seeds)
+
+    def reads(self) -> str:
+        """How far the test can go: its smallest p against the level it must pass."""
+        found = self.reach
+        if self.test in (T_TEST, INTERVAL):
+            what = "a t test" if self.test == T_TEST else "a 95% bootstrap interval"
+            return (f"{what} on {self.seeds} seeds {'can' if found.can_decide else 'cannot'} exclude no difference "
+                    f"(it needs {found.needed} seeds or more)")
+        sides = f"{self.seeds} and {self.other_seeds}" if self.test == RANK_SUM and self.other_seeds else str(
+            self.seeds)
+        level = (f"the {found.level:.2g} Holm asks over {self.family} tests" if self.family > 1 else
+                 f"the level {found.level:.2g}")
+        if found.can_decide:
+            return f"the {self.test} test on {sides} seeds can give a p of {found.smallest_p:.2g}, at or below {level}"
+        return f"the {self.test} test on {sides} seeds cannot give a p below {found.smallest_p:.2g}, above {level}"
+
+
+@dataclass(frozen=True)
+class Training:
+    """One configuration as it will train: its run's name, its seeds, and how long each seed trains, in whole
+    batches (what runs, not what was asked)."""
+
+    name: str
+    seeds: int
+    amount: int
+    unit: str
+    """``episodes``, ``environment steps``, ``agent steps`` or ``plies``."""
+
+
+def episodic(configs: Mapping[str, Any]) -> tuple[Training, ...]:
+    """Tabular configurations by run name, as trainings of so many episodes."""
+    return tuple(Training(name, len(config.seeds), config.episodes, "episodes") for name, config in configs.items())
+
+
+def sweep_plan(sweep: Any) -> StudyPlan:
+    """A sweep's trials, each configuration (named by its swept values) over the sweep's seeds
+    (:class:`~rlcompare.experiment.sweep.Sweep`): its report tabulates them and tests nothing."""
+    from rlcompare.experiment.sweep import swept_value
+
+    def named(config: Any) -> str:
+        return ", ".join(f"{key}={swept_value(config, key)}" for key in sweep.swept) or config.name
+
+    deep = sweep.engine == "deep"
+    return StudyPlan(tuple(Training(named(c), len(sweep.seeds), c.steps_trained if deep else c.episodes,
+                                    "environment steps" if deep else "episodes") for c in sweep.configs))
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """What a study will train and what its report can decide."""
+
+    trainings: tuple[Training, ...]
+    questions: tuple[Question, ...] = ()
+    plumbing: str = ""
+    """Why this design is a plumbing check (it checks the pipeline, not the question); empty where it asks its
+    question."""
+
+    @property
+    def undecidable(self) -> tuple[Question, ...]:
+        """The headline questions these seeds cannot decide (none in a plumbing check)."""
+        if self.plumbing:
+            return ()
+        return tuple(q for q in self.questions if q.headline and not q.reach.can_decide)
+
+    @property
+    def seeds_needed(self) -> int:
+        """The fewest seeds on which every headline question can be decided."""
+        return max((q.reach.needed for q in self.questions if q.headline), default=1)
+
+    def first_line(self) -> str:
+        """One line: whether this design can decide, and if not why, and with how many seeds it could."""
+        if self.plumbing:
+            return f"A plumbing check: no verdict is possible ({self.plumbing})."
+        headline = [q for q in self.questions if q.headline]
+        if not headline:
+            return "This design draws figures and tables; no test decides a question of it."
+        if not self.undecidable:
+            return f"This design can decide {'; '.join(q.asks for q in headline)}."
+        reasons = "; ".join(f"{q.asks}: {q.reads()}" for q in self.undecidable)
+        return f"This design cannot decide {reasons}; with --seeds {self.seeds_needed} it can."
+
+    def lines(self) -> list[str]:
+        """The whole plan: the first line, every training, every family of tests."""
+        lines = [self.first_line(), "", f"Trainings ({len(self.trainings)}):"]
+        lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]
+        if self.questions:
+            lines += ["", "Tests, each family under Holm's correction:"]
+            lines += [f"  {'(headline) ' if q.headline else ''}{q.asks}: {q.reads()}" for q in self.questions]
+        return lines
