@@ -43,19 +43,26 @@ def runs(tmp_path):
     return write_runs(tmp_path / "runs")
 
 
-def test_the_final_window_and_the_area_are_the_grids_by_hand(runs):
+def test_the_final_window_and_the_area_are_each_runs_own_points_by_hand(runs):
+    """The final window: the mean of the episodes that end in the last tenth of the common range; the area: each
+    episode's return held from its end to the next one's, averaged over the range."""
     frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
-    (curve,) = compare_runs.curves(frame)
+    (read,) = compare_runs.numbers(frame)
     ends = frame.groupby(["method", "seed"])["step"].agg(["min", "max"])
-    assert curve.steps[0] == ends["min"].max()
-    assert curve.steps[-1] == ends["max"].min()
+    assert (read.start, read.end) == (ends["min"].max(), ends["max"].min())
     one = frame[(frame["method"] == "dqn") & (frame["seed"] == "3")]
-    by_hand = np.interp(curve.steps, one["step"], one["value"])
-    np.testing.assert_array_equal(curve.values["dqn"][curve.seeds["dqn"].index("3")], by_hand)
-    numbers = compare_runs.per_seed(curve)["dqn"]
-    last = curve.steps >= curve.steps[-1] - 0.1 * (curve.steps[-1] - curve.steps[0])
-    assert numbers["final"][curve.seeds["dqn"].index("3")] == pytest.approx(by_hand[last].mean())
-    assert numbers["auc"][curve.seeds["dqn"].index("3")] == pytest.approx(by_hand.mean())
+    steps, values = one["step"].to_numpy(), one["value"].to_numpy()
+    low = read.end - 0.1 * (read.end - read.start)
+    final = values[(steps >= low) & (steps <= read.end)].mean()
+    held = sum(value * (min(following, read.end) - max(step, read.start))
+               for step, following, value in zip(steps, [*steps[1:], np.inf], values, strict=True)
+               if following > read.start and step < read.end) / (read.end - read.start)
+    seed = read.seeds["dqn"].index("3")
+    assert read.values["dqn"]["final"][seed] == pytest.approx(final)
+    assert read.values["dqn"]["auc"][seed] == pytest.approx(held)
+    (curve,) = compare_runs.curves(frame)  # the pictures' grid: interpolated
+    np.testing.assert_array_equal(curve.values["dqn"][curve.seeds["dqn"].index("3")],
+                                  np.interp(curve.steps, steps, values))
 
 
 @pytest.mark.slow("bootstraps every comparison and draws the report")
@@ -67,7 +74,7 @@ def test_compare_turns_monitor_files_into_a_report_with_independent_seeds(runs, 
     assert table["metric"].tolist() == ["final", "auc"]
     assert (table["verdict"] == "ppo better").all()
     frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
-    finals = compare_runs.per_seed(compare_runs.curves(frame)[0])
+    finals = compare_runs.numbers(frame)[0].values
     p = stats.mannwhitneyu(finals["dqn"]["final"], finals["ppo"]["final"], alternative="two-sided").pvalue
     assert table["p (Holm)"].iloc[0] == pytest.approx(2 * p)  # Holm over the two rows, both at the smallest p
     assert 2 * p == pytest.approx(2 * 2 / math.comb(2 * SEEDS, SEEDS))
@@ -100,15 +107,18 @@ def test_paired_seeds_and_a_declared_margin_are_what_the_report_says(tmp_path):
     assert "±40" in page
 
 
-def test_a_seed_missing_from_one_method_is_one_line_naming_it(runs, tmp_path):
+def test_a_seed_missing_from_one_method_is_refused_when_paired_and_fine_when_independent(runs, tmp_path):
     for path in (runs / "dqn" / "CartPole-v1" / "4").iterdir():
         path.unlink()
     (runs / "dqn" / "CartPole-v1" / "4").rmdir()
-    result = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    result = invoke("compare", str(runs), "--paired", "--out", str(tmp_path / "out"), columns=300)
     assert result.exit_code == 2
     assert "lacks seed 4" in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "out").exists()
+    independent = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    assert independent.exit_code == 0, independent.output
+    assert pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")["seeds"].tolist() == [SEEDS - 1] * 2
 
 
 def test_a_run_of_another_budget_is_one_line_naming_its_file(runs, tmp_path):

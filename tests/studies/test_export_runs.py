@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from helpers import invoke
+from helpers import digests, invoke
 
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.outside import grouping, read_runs, run_files
@@ -26,12 +26,15 @@ def runs(tmp_path_factory):
 
 
 def test_the_csv_holds_each_episodes_return_at_the_steps_up_to_its_end(runs, tmp_path):
-    result = invoke("export", str(runs / "sarsa"), "--out", str(tmp_path / "csv"), columns=300)
-    assert result.exit_code == 0, result.output
-    table = pd.read_csv(tmp_path / "csv" / "episodes.csv")
+    for algorithm in ("sarsa", "q_learning"):
+        result = invoke("export", str(runs / algorithm), "--out", str(tmp_path / "csv"), columns=300)
+        assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "csv").glob("*.csv")) == ["q_learning-decay.csv",
+                                                                         "sarsa-decay.csv"]
+    table = pd.read_csv(tmp_path / "csv" / "sarsa-decay.csv")
     episodes = load_run(runs / "sarsa").episodes()
     assert list(table.columns) == ["method", "env", "seed", "step", "value"]
-    assert set(table["method"]) == {"sarsa"}
+    assert set(table["method"]) == {"sarsa-decay"}
     np.testing.assert_array_equal(table["value"], episodes["return"])
     np.testing.assert_array_equal(table["step"], episodes.groupby("seed")["length"].cumsum())
 
@@ -46,9 +49,9 @@ def test_tensorboard_files_read_back_to_the_runs_numbers_and_verdicts(runs, tmp_
     assert again.exit_code == 0, again.output
     assert len(list((tmp_path / "tb").rglob("events.out.tfevents.*"))) == 10  # the second export replaced its own
     root, files = run_files([tmp_path / "tb"])
-    from_events = read_runs(files, root, grouping("{method}/{env}/{seed}/*")).drop(columns="source")
+    from_events = read_runs(files, root, grouping("{method}/{env}/{seed}/*")).drop(columns=["source", "kind"])
     root, dirs = run_files([runs / "q_learning", runs / "sarsa"])
-    from_runs = read_runs(dirs, root, grouping("{method}/{env}/{seed}/*")).drop(columns="source")
+    from_runs = read_runs(dirs, root, grouping("{method}/{env}/{seed}/*")).drop(columns=["source", "kind"])
     pd.testing.assert_frame_equal(from_events.reset_index(drop=True), from_runs.reset_index(drop=True),
                                   check_dtype=False)
     verdicts = []
@@ -69,3 +72,22 @@ def test_bad_input_is_one_line(runs, tmp_path):
     assert "not a run directory" in not_a_run.output
     assert not (tmp_path / "x").exists()
     assert not (tmp_path / "y").exists()
+
+
+@pytest.mark.parametrize("to", ["csv", "tensorboard"])
+def test_a_second_run_of_the_same_name_is_refused_and_the_first_runs_files_stay(runs, tmp_path, to):
+    """SARSA at α 0.05 exported, then SARSA at α 0.5 (the same configuration name) into the same directory: refused
+    in one line naming the first run, whose files are left byte for byte."""
+    if to == "tensorboard":
+        pytest.importorskip("tensorboard")
+    other = tmp_path / "sarsa-0.5"
+    assert invoke("run", "--algorithm", "sarsa", "--alpha", "0.5", "--seeds", "5", "--episodes", "40", "--out",
+                  str(other), columns=300).exit_code == 0
+    out = tmp_path / "export"
+    assert invoke("export", str(runs / "sarsa"), "--to", to, "--out", str(out)).exit_code == 0
+    before = digests(out)
+    refused = invoke("export", str(other), "--to", to, "--out", str(out), columns=300)
+    assert refused.exit_code == 2
+    assert str((runs / "sarsa").resolve()) in refused.output
+    assert "Traceback" not in refused.output
+    assert digests(out) == before

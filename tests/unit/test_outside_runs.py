@@ -98,7 +98,8 @@ def test_runs_of_two_methods_read_into_one_table(tmp_path):
             write_monitor(tmp_path / method / "CartPole-v1" / f"seed_{seed}" / "0.monitor.csv",
                           [scale * seed, scale * (seed + 1)], [10, 20])
     frame = read_runs(tmp_path.rglob("*.monitor.csv"), tmp_path, grouping(RULE))
-    assert list(frame.columns) == [*TIDY, "source"]
+    assert list(frame.columns) == [*TIDY, "source", "kind"]
+    assert set(frame["kind"]) == {"Monitor episodes"}
     assert len(frame) == 12
     assert frame.groupby("method")["seed"].nunique().to_dict() == {"dqn": 3, "ppo": 3}
     dqn = frame[(frame["method"] == "dqn") & (frame["seed"] == "2")]
@@ -111,7 +112,7 @@ def test_runs_of_two_methods_read_into_one_table(tmp_path):
     ("0.monitor.csv", "r,l,t\n1,2,3\n", "expected a first line"),
     ("0.monitor.csv", "#{}\nreward,length,time\n1,2,3\n", "expected r,l,t"),
     ("0.monitor.csv", "#{}\nr,l,t\n", "no episode"),
-    ("0.monitor.csv", "#{}\nr,l,t\nten,2,3\n", "not a number"),
+    ("0.monitor.csv", "#{}\nr,l,t\nten,2,3\n", "not a finite number"),
     ("0.monitor.csv", "#not json\nr,l,t\n1,2,3\n", "JSON"),
     ("evaluations.npz", "not an archive", "expected the arrays timesteps and results"),
     ("runs.csv", "method,env,seed,step\nppo,c,0,1\n", "no column value"),

@@ -244,7 +244,13 @@ def export(
     """Write a run's training episodes (each return at the environment steps up to its end, as Stable-Baselines3's
     Monitor records them) where other tools read them."""
     from rlcompare.experiment.engines import load_run
-    from rlcompare.experiment.outside import episodes_table, tensorboard_directory, write_tensorboard
+    from rlcompare.experiment.outside import (
+        claim_label,
+        episodes_table,
+        run_label,
+        tensorboard_directory,
+        write_tensorboard,
+    )
 
     if to not in ("csv", "tensorboard"):
         raise typer.BadParameter(f"{to!r}; allowed: csv, tensorboard", param_hint="'--to'")
@@ -253,12 +259,16 @@ def export(
                                  param_hint="'RUN_DIR'")
     out_dir = out_path(out, Path("runs/export"))
     check_out(out_dir, EXPORT, False)
-    table = episodes_table(load_run(run_dir))
+    results = load_run(run_dir)
+    label = run_label(results)
+    table = episodes_table(results, label)
     with store.output_directory(out_dir, EXPORT):
+        claim_label(out_dir, label, run_dir)
         if to == "csv":
-            store.enter_outputs(out_dir / "episodes.csv")
-            store.write_bytes_atomic(out_dir / "episodes.csv", table.to_csv(index=False).encode())
-            written = [out_dir / "episodes.csv"]
+            name = f"{label}.csv"
+            store.enter_outputs(out_dir / name)
+            store.write_bytes_atomic(out_dir / name, table.to_csv(index=False).encode())
+            written = [out_dir / name]
         else:
             # this run's files of an earlier export go; other runs exported here stay
             first = table.iloc[0]

@@ -103,9 +103,9 @@ def read_monitor(path: Path) -> pd.DataFrame:
         raise OutsideRunError(f"{path}: no episode; expected at least one row of r,l,t")
     lengths = pd.to_numeric(episodes["l"], errors="coerce").to_numpy()
     returns = pd.to_numeric(episodes["r"], errors="coerce").to_numpy(dtype=np.float64)
-    if np.isnan(lengths).any() or np.isnan(returns).any() or (lengths <= 0).any():
-        raise OutsideRunError(f"{path}: a row whose r or l is not a number (or l not positive); expected a return "
-                              "and a length per episode")
+    if not (np.isfinite(lengths).all() and np.isfinite(returns).all()) or (lengths <= 0).any():
+        raise OutsideRunError(f"{path}: a row whose r or l is not a finite number (or l not positive); expected a "
+                              "return and a length per episode")
     return pd.DataFrame({"step": np.cumsum(lengths.astype(np.int64)), "value": returns})
 
 
@@ -120,7 +120,7 @@ def read_zoo_evaluations(path: Path) -> pd.DataFrame:
     if results.ndim != 2 or steps.shape != results.shape[:1] or steps.size == 0:
         raise OutsideRunError(f"{path}: timesteps {steps.shape} and results {results.shape}; expected one row of "
                               "results, (episodes,), per timestep, and at least one")
-    return pd.DataFrame({"step": steps.astype(np.int64), "value": results.mean(axis=1)})
+    return checked_points(path, steps, results.mean(axis=1))
 
 
 def read_tidy(path: Path) -> pd.DataFrame:
@@ -133,13 +133,37 @@ def read_tidy(path: Path) -> pd.DataFrame:
     if missing or frame.empty:
         raise OutsideRunError(f"{path}: {'no column ' + ', '.join(missing) if missing else 'no row'}; expected the "
                               f"columns {', '.join(TIDY)} and a row per method, environment, seed and step")
-    steps = pd.to_numeric(frame["step"], errors="coerce")
-    values = pd.to_numeric(frame["value"], errors="coerce")
-    if steps.isna().any() or values.isna().any():
+    steps = pd.to_numeric(frame["step"], errors="coerce").to_numpy(np.float64)
+    values = pd.to_numeric(frame["value"], errors="coerce").to_numpy(np.float64)
+    if np.isnan(steps).any() or np.isnan(values).any():
         raise OutsideRunError(f"{path}: a step or value that is not a number; expected numbers in both")
+    points = checked_points(path, steps, values, ordered=False)
     return pd.DataFrame({"method": frame["method"].astype(str), "env": frame["env"].astype(str),
-                         "seed": frame["seed"].astype(str), "step": steps.astype(np.int64),
-                         "value": values.astype(np.float64)})
+                         "seed": frame["seed"].astype(str), "step": points["step"], "value": points["value"]})
+
+
+LARGEST_STEP = 2**53
+"""Steps above this are refused: a float holds every integer up to it, and no training runs so long."""
+
+
+def checked_points(path: Path, steps: Any, values: Any, *, ordered: bool = True) -> pd.DataFrame:
+    """``(step, value)`` of a run's points, each step a whole number from 0 to :data:`LARGEST_STEP` and each value
+    finite; where ``ordered``, steps that never go back (a file whose steps restart holds a resumed run, or two);
+    else an :class:`OutsideRunError` naming the file and the first point refused."""
+    steps, values = np.asarray(steps, np.float64), np.asarray(values, np.float64)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        raise OutsideRunError(f"{path}: the value at step {steps[bad][0]:g} is {values[bad][0]}; expected finite "
+                              "values")
+    bad = ~np.isfinite(steps) | (steps < 0) | (steps > LARGEST_STEP) | (steps != np.floor(steps))
+    if bad.any():
+        raise OutsideRunError(f"{path}: a step of {steps[bad][0]:g}; expected whole numbers from 0 to "
+                              f"{LARGEST_STEP:,}")
+    back = np.flatnonzero(np.diff(steps) < 0)
+    if ordered and back.size:
+        raise OutsideRunError(f"{path}: its steps go back from {steps[back[0]]:,.0f} to {steps[back[0] + 1]:,.0f}; "
+                              "expected steps that never go back (a resumed run's file holds two runs: give one)")
+    return pd.DataFrame({"step": steps.astype(np.int64), "value": values})
 
 
 TAGS = ("charts/episodic_return", "eval/mean_reward", "rollout/ep_rew_mean")
@@ -195,7 +219,7 @@ def read_tensorboard(path: Path, tag: str | None = None) -> pd.DataFrame:
         wanted = f"the tag {tag!r}" if tag is not None else f"one of the tags {', '.join(TAGS)} (or --tag)"
         raise OutsideRunError(f"{path}: scalars {', '.join(sorted(series)) or 'none'}; expected {wanted}")
     steps, values = series[chosen]
-    return pd.DataFrame({"step": np.asarray(steps, np.int64), "value": np.asarray(values, np.float64)})
+    return checked_points(path, steps, values).assign(kind=f"TensorBoard {chosen}")
 
 
 def reader_of(path: Path) -> Callable[..., pd.DataFrame] | None:
@@ -248,38 +272,65 @@ def read_in_parallel(paths: list[Path], tag: str | None) -> dict[Path, pd.DataFr
         return dict(zip(paths, pool.map(read, paths, chunksize=max(1, len(paths) // (4 * workers))), strict=True))
 
 
+KINDS = {read_monitor: "Monitor episodes", read_zoo_evaluations: "RL Zoo evaluations"}
+"""What each reader's points are, for the table of what was read (a TensorBoard file's kind names its tag)."""
+
+
 def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None = None) -> pd.DataFrame:
-    """Every file of ``paths`` as tidy rows (:data:`TIDY`, and the ``source`` file of each): a tidy table as it is,
-    a run's file (:func:`reader_of`; a TensorBoard file's scalar ``tag``) labelled by ``rule``; another file is an
-    :class:`OutsideRunError` naming it. Two files of the same method, environment and seed are one too."""
+    """Every file of ``paths`` as tidy rows (:data:`TIDY`, with the ``source`` file of each and its ``kind``): a
+    tidy table as it is, one of rlcompare's run directories under its configuration's name, a run's file
+    (:func:`reader_of`; a TensorBoard file's scalar ``tag``) labelled by ``rule``; another file is an
+    :class:`OutsideRunError` naming it. So is a run (method, environment, seed) found in two sources, and an
+    environment whose runs are of two kinds (episodes against evaluations, or two tags)."""
     frames: list[pd.DataFrame] = []
-    seen: dict[tuple[str, ...], Path] = {}
     ordered = sorted(Path(p) for p in paths)
     events = read_in_parallel([p for p in ordered if reader_of(p) is read_tensorboard], tag)
     for path in ordered:
-        if path.is_dir():  # one of rlcompare's own run directories: its training episodes, labelled as it is
-            frames.append(episodes_table(load_run(path)).astype({"seed": str}).assign(source=str(path)))
+        if path.is_dir():  # one of rlcompare's own run directories: its training episodes, under its own name
+            results = load_run(path)
+            frames.append(episodes_table(results, run_label(results)).astype({"seed": str})
+                          .assign(source=str(path), kind="rlcompare training episodes"))
             continue
         reader = reader_of(path)
         if reader is None and path.suffix in (".csv", ".parquet"):
-            frames.append(read_tidy(path).assign(source=str(path)))
+            frames.append(read_tidy(path).assign(source=str(path), kind="tidy table"))
             continue
         if reader is None:
             raise OutsideRunError(f"{path}: not a run rlcompare reads; expected *.monitor.csv, evaluations.npz, a "
                                   f"TensorBoard events file, or a tidy .csv or .parquet of {', '.join(TIDY)}")
         labels = rule.of(path, root)
-        key = tuple(labels[name] for name in FIELDS)
-        if key in seen:
-            raise OutsideRunError(f"{path}: method {key[0]}, environment {key[1]}, seed {key[2]} again (also "
-                                  f"{seen[key]}); expected one file a run")
-        seen[key] = path
-        read = events[path] if reader is read_tensorboard else reader(path)
+        read = events[path] if reader is read_tensorboard else reader(path).assign(kind=KINDS[reader])
         if read.empty:
             raise OutsideRunError(f"{path}: no points; expected at least one")
         frames.append(read.assign(**labels, source=str(path)))
     if not frames:
         raise OutsideRunError(f"{root}: no run found; expected *.monitor.csv, evaluations.npz or a tidy table")
-    return pd.concat(frames, ignore_index=True)[[*TIDY, "source"]]
+    frame = pd.concat(frames, ignore_index=True)[[*TIDY, "source", "kind"]]
+    one_source_a_run(frame)
+    one_kind_an_environment(frame)
+    return frame
+
+
+def one_source_a_run(frame: pd.DataFrame) -> None:
+    """Refuse a run (method, environment, seed) read from two sources, naming both: the same runs given twice, or
+    two runs given one name, would be merged into one."""
+    sources = frame.groupby(list(FIELDS), sort=True)["source"].unique()
+    for (method, env, seed), found in sources.items():
+        if len(found) > 1:
+            raise OutsideRunError(f"{found[1]}: method {method}, environment {env}, seed {seed} again (also "
+                                  f"{found[0]}); expected one source a run (name runs apart with --group, or give "
+                                  "one of them)")
+
+
+def one_kind_an_environment(frame: pd.DataFrame) -> None:
+    """Refuse an environment whose runs are of two kinds (training episodes against evaluations, or two tags),
+    naming a file of each: their numbers measure different things."""
+    for env, rows in frame.groupby("env", sort=True):
+        kinds = rows.groupby("kind", sort=True)["source"].first()
+        if len(kinds) > 1:
+            (first, a), (second, b) = list(kinds.items())[:2]
+            raise OutsideRunError(f"{b}: {second} on {env}, where {a} holds {first}; expected one kind of points on "
+                                  "an environment (give one kind, or --tag)")
 
 
 # --- the other way: rlcompare's runs where other tools read them ----------------------------------------------
@@ -288,17 +339,43 @@ EXPORT_TAG = "charts/episodic_return"
 """The tag an exported run's episode returns carry in TensorBoard: CleanRL's, which :data:`TAGS` reads first."""
 
 
-def episodes_table(results: Any) -> pd.DataFrame:
+def episodes_table(results: Any, method: str | None = None) -> pd.DataFrame:
     """A run's training episodes as the tidy table (:data:`TIDY`): each episode's return at the environment steps
-    up to its end, as Stable-Baselines3's Monitor records them; the method is the run's algorithm."""
+    up to its end, as Stable-Baselines3's Monitor records them; the method is ``method``, by default the run's
+    algorithm."""
     config = results.config
     episodes = results.episodes() if callable(results.episodes) else results.episodes
     if "env_step" in episodes:  # the deep engine's vectorised environments: the step at which each episode ended
         steps = episodes["env_step"].to_numpy(np.int64)
     else:
         steps = episodes.groupby("seed", sort=False)["length"].cumsum().to_numpy(np.int64)
-    return pd.DataFrame({"method": config.algorithm, "env": config.env, "seed": episodes["seed"].to_numpy(),
+    return pd.DataFrame({"method": method or config.algorithm, "env": config.env, "seed": episodes["seed"].to_numpy(),
                          "step": steps, "value": episodes["return"].to_numpy(np.float64)})
+
+
+def run_label(results: Any) -> str:
+    """What a run of rlcompare's is called where it is read beside others (``compare``) and where it is exported:
+    its configuration's name (``sarsa-decay``; a deep run's algorithm), not its algorithm alone, so that runs of one
+    algorithm under two settings stay apart or are refused as one."""
+    return str(results.config.name).removesuffix(f"-{results.config.env}")  # the deep engine's names end in it
+
+
+EXPORTS = "exports.json"
+"""The file of an export directory that says which run each label's files came from."""
+
+
+def claim_label(out: Path, label: str, run_dir: Path) -> None:
+    """Enter ``run_dir`` as the run whose files are exported under ``label`` in ``out`` (in :data:`EXPORTS`); an
+    :class:`~rlcompare.experiment.store.StoreError` where another run holds the label there: exporting this one
+    would replace its files."""
+    ledger = out / EXPORTS
+    claimed = store.read_json(ledger) if ledger.exists() else {}
+    source = str(Path(run_dir).resolve())
+    if claimed.get(label, source) != source:
+        raise store.StoreError(f"{out}: its {label} files were exported from {claimed[label]}, another run of the same "
+                               f"name; export {run_dir} into another --out")
+    store.enter_outputs(ledger)
+    store.write_json_atomic(ledger, {**claimed, label: source})
 
 
 def tensorboard_directory(method: str, env: str, seed: object) -> str:

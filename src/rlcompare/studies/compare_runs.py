@@ -1,13 +1,17 @@
 """``rlcompare compare``: rlcompare's verdicts and report for runs other libraries made (read by
 :mod:`rlcompare.experiment.outside` into one tidy table).
 
-Each run's values (episode returns, or evaluations) are put on a common grid of environment steps per environment,
-from the step where every run has begun to the step where the shortest has ended, by linear interpolation; two
-numbers a run are compared: the mean over the last tenth of that range (the final window) and the mean over all of
-it (the normalised area under the curve). Seeds of two libraries' runs share no randomness, so methods are compared
-as independent samples (:func:`~rlcompare.stats.compare.compare_independent`) unless the user says the seeds are
-paired; every comparison of a report is one Holm family. A margin of no difference is the user's, declared on the
-command line before the report is read; without one, no claim of equivalence is made.
+Each environment's common range runs from the step where every run has begun to the step where the shortest has
+ended. Two numbers a run are compared, each read from the run's own points (episode returns, or evaluations), so
+that no point weighs more for the steps it spans: the mean of the points recorded in the last tenth of the range
+(the final window; where a run has none there, the value in force at its end), and the mean over the range of the
+value in force at each step, each point holding until the next (a zero-order hold: the area under the curve as
+plotted, divided by its length). Curves are interpolated onto a common grid for the pictures alone. Seeds of two
+libraries' runs share no randomness, so methods are compared as independent samples
+(:func:`~rlcompare.stats.compare.compare_independent`: an exact rank-sum test on small samples, ties included)
+unless the user says the seeds are paired; every comparison of a report is one Holm family. A margin of no
+difference is the user's, declared on the command line before the report is read; without one, no claim of
+equivalence is made.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from rlcompare.report.page import Section, save_figure, write_report, write_tabl
 from rlcompare.report.plots import plot_return_curves
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
-from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, smallest_p
+from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, reach
 from rlcompare.studies.interface import Report
 
 GRID_POINTS = 200
@@ -38,7 +42,8 @@ FINAL_WINDOW = 0.1
 """The final window: the last tenth of the common steps."""
 SHORTEST_SHARE = 0.9
 """A run that ends before this share of its environment's longest run is refused: not one budget."""
-METRICS = {"final": "mean over the final tenth of the steps", "auc": "mean over all the steps (area under the curve)"}
+METRICS = {"final": "mean of the points in the final tenth of the steps",
+           "auc": "mean over all the steps of the value in force (area under the curve)"}
 COMPARISON = store.Owner("comparison")
 """What ``rlcompare compare`` writes its directory as."""
 
@@ -60,12 +65,17 @@ def runs_of(frame: pd.DataFrame) -> dict[tuple[str, str, str], pd.DataFrame]:
             for (env, method, seed), rows in frame.groupby(["env", "method", "seed"], sort=True)}
 
 
-def checked(frame: pd.DataFrame, cut: bool = False) -> None:
-    """Refuse, naming the file, a run that ends well before its environment's longest (another budget, unless
-    ``cut``: the comparison is then on the steps every run reached) and a seed one method of an environment has
-    and another lacks."""
+def checked(frame: pd.DataFrame, cut: bool = False, paired: bool = False) -> None:
+    """Refuse, naming the file, an environment that one method alone ran; a run that ends well before its
+    environment's longest (another budget, unless ``cut``: the comparison is then on the steps every run reached,
+    and there must be some); and, where ``paired``, a seed one method of an environment has and another lacks
+    (seeds matched by label; independent samples need no common labels)."""
     runs = runs_of(frame)
     for env, rows in frame.groupby("env", sort=True):
+        methods = sorted(set(rows["method"]))
+        if len(methods) < 2:
+            raise OutsideRunError(f"{rows['source'].iloc[0]}: {methods[0]} alone on {env}; expected two methods or "
+                                  "more on an environment to compare")
         ends = {key: run["step"].iloc[-1] for key, run in runs.items() if key[0] == env}
         longest = max(ends.values())
         for key, end in ends.items():
@@ -73,6 +83,12 @@ def checked(frame: pd.DataFrame, cut: bool = False) -> None:
                 source = runs[key]["source"].iloc[0]
                 raise OutsideRunError(f"{source}: {key[1]} seed {key[2]} on {env} ends at step {end:,}; expected runs "
                                       f"of one budget (the longest ends at {longest:,}), or --cut-to-shortest")
+        start = max(run["step"].iloc[0] for key, run in runs.items() if key[0] == env)
+        if start >= min(ends.values()):
+            raise OutsideRunError(f"{rows['source'].iloc[0]}: the runs on {env} share no steps (one begins at "
+                                  f"{start:,}, one ends at {min(ends.values()):,}); expected runs that overlap")
+        if not paired:
+            continue
         seeds = {str(method): set(group.astype(str)) for method, group in rows.groupby("method")["seed"]}
         every = set().union(*seeds.values())
         for method, have in seeds.items():
@@ -102,11 +118,57 @@ def curves(frame: pd.DataFrame) -> list[Curves]:
     return found
 
 
-def per_seed(curve: Curves) -> dict[str, dict[str, np.ndarray]]:
-    """Per method, each seed's final-window mean and area (:data:`METRICS`)."""
-    last = curve.steps >= curve.steps[-1] - FINAL_WINDOW * (curve.steps[-1] - curve.steps[0])
-    return {method: {"final": values[:, last].mean(axis=1), "auc": values.mean(axis=1)}
-            for method, values in curve.values.items()}
+def window_mean(steps: np.ndarray, values: np.ndarray, low: float, high: float) -> float:
+    """The mean of the values recorded at steps in ``[low, high]``, each point once however many steps it spans;
+    where none is, the value in force at ``high`` (the last recorded before it)."""
+    inside = (steps >= low) & (steps <= high)
+    if inside.any():
+        return float(values[inside].mean())
+    return float(values[np.searchsorted(steps, high, side="right") - 1])
+
+
+def held_mean(steps: np.ndarray, values: np.ndarray, start: float, end: float) -> float:
+    """The mean over ``[start, end]`` of the value in force at each step, each recorded value holding from its
+    step to the next (a zero-order hold); ``steps`` sorted, the first at or before ``start``, ``end > start``."""
+    first = int(np.searchsorted(steps, start, side="right")) - 1
+    inside = (steps > start) & (steps < end)
+    knots = np.concatenate([[start], steps[inside], [end]])
+    held = values[first:first + len(knots) - 1]
+    return float(np.sum(held * np.diff(knots)) / (end - start))
+
+
+@dataclass(frozen=True)
+class Numbers:
+    """One environment's two numbers a run (:data:`METRICS`): per method and metric, a value a seed, the seeds by
+    their labels in ``seeds[method]``; and the common range they were read over."""
+
+    env: str
+    start: float
+    end: float
+    values: dict[str, dict[str, np.ndarray]]
+    seeds: dict[str, tuple[str, ...]]
+
+
+def numbers(frame: pd.DataFrame) -> list[Numbers]:
+    """Every environment's runs read over their common range: the final window's mean and the held mean."""
+    found = []
+    for env, rows in frame.groupby("env", sort=True):
+        runs = runs_of(rows)
+        start = max(run["step"].iloc[0] for run in runs.values())
+        end = min(run["step"].iloc[-1] for run in runs.values())
+        low = end - FINAL_WINDOW * (end - start)
+        values: dict[str, dict[str, list[float]]] = {}
+        seeds: dict[str, list[str]] = {}
+        for (_, method, seed), run in runs.items():
+            steps, points = run["step"].to_numpy(np.float64), run["value"].to_numpy(np.float64)
+            mine = values.setdefault(method, {"final": [], "auc": []})
+            mine["final"].append(window_mean(steps, points, low, end))
+            mine["auc"].append(held_mean(steps, points, start, end))
+            seeds.setdefault(method, []).append(str(seed))
+        found.append(Numbers(str(env), float(start), float(end),
+                             {m: {k: np.asarray(v) for k, v in by.items()} for m, by in values.items()},
+                             {m: tuple(s) for m, s in seeds.items()}))
+    return found
 
 
 @dataclass(frozen=True)
@@ -119,17 +181,17 @@ class Comparison:
     b: str
 
 
-def compared(found: list[Curves], paired: bool, margin: float | None) -> dict[Comparison, Paired]:
+def compared(found: list[Numbers], paired: bool, margin: float | None) -> dict[Comparison, Paired]:
     """Each pair of methods on each environment, on each metric; seeds matched by label where ``paired``."""
     result = {}
-    for curve in found:
-        numbers = per_seed(curve)
-        for a, b in combinations(sorted(curve.values), 2):
-            order_b = [curve.seeds[b].index(seed) for seed in curve.seeds[a]]
+    for env in found:
+        for a, b in combinations(sorted(env.values), 2):
             for metric in METRICS:
-                x, y = numbers[a][metric], numbers[b][metric][order_b]
-                result[Comparison(curve.env, metric, a, b)] = (compare_paired(x, y, margin) if paired
-                                                               else compare_independent(x, y, margin))
+                x, y = env.values[a][metric], env.values[b][metric]
+                if paired:
+                    y = y[[env.seeds[b].index(seed) for seed in env.seeds[a]]]
+                result[Comparison(env.env, metric, a, b)] = (compare_paired(x, y, margin) if paired
+                                                             else compare_independent(x, y, margin))
     return result
 
 
@@ -161,17 +223,30 @@ def answer(found: dict[Comparison, tuple[Judged, str]], paired: bool) -> list[st
             gap, interval = gap_and_interval(j.paired.difference)
             lines.append(f"On {key.env}, {key.a} against {key.b} over the final tenth of the steps: {key.a} scores "
                          f"{gap} ({interval}; {label}).")
+    return [*lines, f"Tested as {test}; p-values Holm-adjusted over every row of the verdict table. "
+                    + design_sentence(found, paired)]
+
+
+def design_sentence(found: dict[Comparison, tuple[Judged, str]], paired: bool) -> str:
+    """What the seeds and the family allowed: the smallest p the fewest seeds' test can give, against the level
+    Holm asks of it over the family (each comparison's direction test, and its equivalence test where a margin was
+    declared)."""
     seeds = min((j.paired.seeds for j, _ in found.values()), default=0)
-    floor = smallest_p(SIGNED_RANK if paired else RANK_SUM, seeds)
-    return [*lines, f"Tested as {test}; p-values Holm-adjusted over every row of the verdict table. With {seeds} "
-                    f"seeds a side the test cannot give a p below {floor:.3g}."]
+    family = sum(1 + (j.paired.equivalence is not None) for j, _ in found.values())
+    reached = reach(SIGNED_RANK if paired else RANK_SUM, seeds, max(family, 1))
+    side = "pairs" if paired else "seeds a side"
+    verb = "can" if reached.can_decide else "cannot"
+    return (f"With {seeds} {side} the test cannot give a p below {reached.smallest_p:.3g}; Holm asks "
+            f"{reached.level:.3g} of the smallest over the {family} tests: this design {verb} decide"
+            + ("." if reached.can_decide else f" (with {reached.needed} {side} it can)."))
 
 
-def across(found: list[Curves], figures: Path, tables: Path) -> tuple[Aggregates | None, dict[str, str]]:
+def across(found: list[Curves], read: list[Numbers], figures: Path, tables: Path
+           ) -> tuple[Aggregates | None, dict[str, str]]:
     """rliable's aggregates of the final-window numbers over two or more environments that two or more methods ran
     (each environment normalised between its worst method's mean, 0, and its best's, 1: a relative scale, with no
     published reference for runs of any library), drawn and written; none otherwise."""
-    finals = {c.env: {m: v["final"] for m, v in per_seed(c).items()} for c in found}
+    finals = {n.env: {m: v["final"] for m, v in n.values.items()} for n in read}
     scales = score_scales(finals)
     scores = by_method(finals, scales)
     if len(next(iter(scores.values()), [])) < 2 or len(scores) < 2:
@@ -194,17 +269,18 @@ def curves_figure(curve: Curves) -> Figure:
 
 
 def pairing_table(frame: pd.DataFrame) -> pd.DataFrame:
-    """What was read: each source file and the method, environment and seed it was taken as."""
-    return (frame.groupby(["source", "method", "env", "seed"], sort=True)
+    """What was read: each source file, what its points are, and the method, environment and seed it was taken
+    as."""
+    return (frame.groupby(["source", "kind", "method", "env", "seed"], sort=True)
             .agg(points=("step", "size"), first_step=("step", "min"), last_step=("step", "max")).reset_index())
 
 
 def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False) -> Report:
     """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out``; ``cut``: runs that end apart
     are compared on the steps all of them reached (:func:`checked`)."""
-    checked(frame, cut)
-    found = curves(frame)
-    comparisons = compared(found, paired, margin)
+    checked(frame, cut, paired)
+    found, read = curves(frame), numbers(frame)
+    comparisons = compared(read, paired, margin)
     with store.output_directory(out, COMPARISON):
         labelled = judged(comparisons)
         table = verdicts(labelled)
@@ -214,14 +290,14 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
         figures = [(save_figure(curves_figure(c), out / "figures" / f"curves-{i}.png"),
                     f"{c.env}: each method's mean over seeds on the common grid, 95% band")
                    for i, c in enumerate(found)]
-        aggregates, aggregate_files = across(found, out / "figures", out / "tables")
+        aggregates, aggregate_files = across(found, read, out / "figures", out / "tables")
         files |= aggregate_files
-        grids = "; ".join(f"{c.env}: steps {c.steps[0]:,.0f} to {c.steps[-1]:,.0f}" for c in found)
+        ranges = "; ".join(f"{n.env}: steps {n.start:,.0f} to {n.end:,.0f}" for n in read)
         sections = [
             Section("The answer", lines),
             Section("What was compared", [
-                f"Each run's values on a common grid of {GRID_POINTS} environment steps per environment, from the step "
-                f"where every run has begun to where the shortest ends ({grids}), by linear interpolation"
+                f"Each run's own points (episodes or evaluations) over its environment's common range, from the step "
+                f"where every run has begun to where the shortest ends ({ranges})"
                 + (" (--cut-to-shortest: runs that ended apart are cut to it)" if cut else "") + ". Metrics: "
                 + "; ".join(f"{name}, the {words}" for name, words in METRICS.items())
                 + ". " + ("Seeds paired by their labels (--paired): the user says they share randomness." if paired

@@ -1,0 +1,161 @@
+"""``rlcompare compare`` attacked: episodes of unequal length, ties at a cap, the same runs given twice, two kinds of
+points on one environment, a resumed TensorBoard run, values that are not finite, steps past any training, runs
+that never overlap and a method alone. Each right answer is computed by hand; each refusal is one line naming the
+file, exit 2, and nothing written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from helpers import invoke
+
+from rlcompare.experiment.outside import grouping, read_runs
+from rlcompare.studies import compare_runs
+
+RULE = "{method}/{env}/{seed}/*"
+
+
+def monitor(path: Path, returns: np.ndarray, lengths: np.ndarray) -> Path:
+    """A Monitor file as Stable-Baselines3 writes it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = "".join(f"{r:.6f},{n},{0.01 * i:.2f}\n" for i, (r, n) in enumerate(zip(returns, lengths, strict=True)))
+    path.write_text("#" + json.dumps({"t_start": 0.0, "env_id": "CartPole-v1"}) + "\nr,l,t\n" + rows)
+    return path
+
+
+def tidy(path: Path, rows: list[tuple[str, str, int, float, float]]) -> Path:
+    pd.DataFrame(rows, columns=["method", "env", "seed", "step", "value"]).to_csv(path, index=False)
+    return path
+
+
+def refused(tmp_path: Path, *args: str) -> str:
+    """``compare ARGS`` into a fresh directory: exit 2, one message, nothing written; the output."""
+    out = tmp_path / "refused"
+    result = invoke("compare", *args, "--out", str(out), columns=400)
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert not out.exists()
+    return result.output
+
+
+def test_long_episodes_weigh_no_more_than_short_ones(tmp_path: Path) -> None:
+    """Return equals length (CartPole's), both methods averaging 250 a episode: 'bimodal' episodes of 10 or 490 at
+    random, 'steady' ones of 250. On a grid even in steps the bimodal runs scored 181 more, since a step lands on
+    an episode in proportion to its length. Read from the episodes: each seed's final number is the mean of the
+    episodes that end in the final window, computed here by hand, and the two methods are not told apart."""
+    rng = np.random.default_rng(7)
+    for seed in range(6):
+        bimodal = rng.choice([10, 490], size=600)
+        monitor(tmp_path / "runs" / "bimodal" / "CartPole-v1" / str(seed) / "0.monitor.csv", bimodal, bimodal)
+        steady = np.full(600, 250)
+        monitor(tmp_path / "runs" / "steady" / "CartPole-v1" / str(seed) / "0.monitor.csv", steady, steady)
+    frame = read_runs(sorted((tmp_path / "runs").rglob("*.monitor.csv")), tmp_path / "runs", grouping(RULE))
+    (read,) = compare_runs.numbers(frame)
+    low = read.end - 0.1 * (read.end - read.start)
+    for seed, label in enumerate(read.seeds["bimodal"]):
+        run = frame[(frame["method"] == "bimodal") & (frame["seed"] == label)]
+        ending = run[(run["step"] >= low) & (run["step"] <= read.end)]["value"]
+        assert read.values["bimodal"]["final"][seed] == pytest.approx(ending.mean())
+    assert abs(read.values["bimodal"]["final"].mean() - 250) < 20
+    assert (read.values["steady"]["final"] == 250).all()
+    result = invoke("compare", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 0, result.output
+    verdicts = pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")
+    assert verdicts.loc[verdicts["metric"] == "final", "verdict"].tolist() == ["not resolved"]
+
+
+def test_ties_at_a_cap_get_the_exact_p_and_holm_over_both_metrics(tmp_path: Path) -> None:
+    """4 seeds a side, A at the cap of 500 on every seed, B at 100, 200, 300 and 400: the exact rank-sum p is
+    2 / C(8, 4) = 0.0286 (scipy's normal approximation said 0.021), and Holm over the two metrics doubles it to
+    0.057: not resolved. The answer says this design cannot decide, and that 5 seeds a side could."""
+    rows = [(method, "CartPole-v1", seed, step, value)
+            for method, levels in (("capped", [500.0] * 4), ("other", [100.0, 200.0, 300.0, 400.0]))
+            for seed, value in enumerate(levels) for step in (100, 200, 300)]
+    path = tidy(tmp_path / "runs.csv", rows)
+    result = invoke("compare", str(path), "--out", str(tmp_path / "out"), columns=400)
+    assert result.exit_code == 0, result.output
+    verdicts = pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")
+    assert verdicts["p (Holm)"].tolist() == pytest.approx([4 / 70, 4 / 70])
+    assert verdicts["verdict"].tolist() == ["not resolved"] * 2
+    words = " ".join(result.output.split())
+    assert "cannot give a p below 0.0286; Holm asks 0.025 of the smallest over the 2 tests" in words
+    assert "(with 5 seeds a side it can)" in words
+
+
+def test_the_same_runs_given_twice_are_refused_naming_both_sources(tmp_path: Path) -> None:
+    returns, lengths = np.arange(1.0, 21.0), np.full(20, 10)
+    for method in ("ppo", "a2c"):
+        monitor(tmp_path / "runs" / method / "CartPole-v1" / "0" / "0.monitor.csv", returns, lengths)
+    table = tidy(tmp_path / "runs" / "runs.csv",
+                 [("ppo", "CartPole-v1", 0, 10 * (i + 1), r) for i, r in enumerate(returns)])
+    said = refused(tmp_path, str(tmp_path / "runs"), str(table))
+    assert "method ppo, environment CartPole-v1, seed 0 again" in said
+    assert "runs.csv" in said
+    assert "0.monitor.csv" in said
+
+
+def test_two_runs_of_one_method_under_other_settings_are_refused_not_merged(tmp_path: Path) -> None:
+    """SARSA at α 0.05 and at 0.5, two run directories of one configuration name: once both became 'sarsa' and
+    nothing was compared, exit 0."""
+    for alpha in ("0.05", "0.5"):
+        assert invoke("run", "--algorithm", "sarsa", "--alpha", alpha, "--seeds", "2", "--episodes", "5", "--out",
+                      str(tmp_path / f"sarsa-{alpha}")).exit_code == 0
+    said = refused(tmp_path, str(tmp_path / "sarsa-0.05"), str(tmp_path / "sarsa-0.5"))
+    assert "method sarsa-decay, environment MountainCar-v0, seed 0 again" in said
+
+
+def test_evaluations_against_training_episodes_on_one_environment_are_refused(tmp_path: Path) -> None:
+    monitor(tmp_path / "runs" / "a2c" / "CartPole-v1" / "0" / "0.monitor.csv", np.ones(5), np.full(5, 10))
+    evaluations = tmp_path / "runs" / "ppo" / "CartPole-v1" / "0" / "evaluations.npz"
+    evaluations.parent.mkdir(parents=True)
+    np.savez(evaluations, timesteps=np.array([10, 20, 30]), results=np.ones((3, 2)))
+    said = refused(tmp_path, str(tmp_path / "runs"))
+    assert "RL Zoo evaluations on CartPole-v1, where" in said
+    assert "Monitor episodes" in said
+
+
+def test_a_tensorboard_run_whose_steps_restart_is_refused(tmp_path: Path) -> None:
+    pytest.importorskip("tensorboard")
+    from tensorboard.summary import Writer
+
+    directory = tmp_path / "runs" / "ppo" / "CartPole-v1" / "0"
+    writer = Writer(str(directory))
+    for step, value in ((100, 1.0), (200, 2.0), (50, 1.5), (150, 2.5)):  # a resumed run appended to the first
+        writer.add_scalar("charts/episodic_return", value, step=step)
+    writer.close()
+    said = refused(tmp_path, str(tmp_path / "runs"))
+    assert "its steps go back from 200 to 50" in said
+
+
+@pytest.mark.parametrize(("rows", "said"), [
+    ([("a", "e", 0, 10, float("inf"))], "is inf; expected finite values"),
+    ([("a", "e", 0, 1e19, 1.0)], "a step of 1e+19; expected whole numbers from 0 to"),
+    ([("a", "e", 0, 10.5, 1.0)], "a step of 10.5"),
+    ([("a", "e", 0, -1, 1.0)], "a step of -1"),
+])
+def test_values_and_steps_no_run_can_hold_are_refused(tmp_path: Path, rows: list, said: str) -> None:
+    rows = [*rows, ("b", "e", 0, 10, 1.0), ("a", "e", 0, 20, 1.0), ("b", "e", 0, 20, 1.0)]
+    assert said in refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)))
+
+
+def test_an_infinite_return_in_a_monitor_file_is_refused_naming_it(tmp_path: Path) -> None:
+    path = monitor(tmp_path / "runs" / "a" / "e" / "0" / "0.monitor.csv", np.array([1.0, np.inf]), np.array([5, 5]))
+    monitor(tmp_path / "runs" / "b" / "e" / "0" / "0.monitor.csv", np.array([1.0, 2.0]), np.array([5, 5]))
+    said = refused(tmp_path, str(tmp_path / "runs"))
+    assert str(path) in said
+    assert "not a finite number" in said
+
+
+def test_runs_that_never_overlap_are_refused_even_cut_to_the_shortest(tmp_path: Path) -> None:
+    rows = [("a", "e", 0, step, 1.0) for step in (10, 20, 30)] + [("b", "e", 0, step, 2.0) for step in (40, 50)]
+    said = refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)), "--cut-to-shortest")
+    assert "share no steps" in said
+
+
+def test_a_method_alone_is_refused(tmp_path: Path) -> None:
+    rows = [("a", "e", seed, step, 1.0) for seed in (0, 1) for step in (10, 20)]
+    assert "a alone on e" in refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)))
