@@ -19,6 +19,7 @@ from rlcompare.experiment.outside import (
     read_runs,
     read_tidy,
     read_zoo_evaluations,
+    run_files,
 )
 
 RULE = "{method}/{env}/seed_{seed}/*"
@@ -129,12 +130,35 @@ def test_a_file_that_is_not_what_its_name_says_is_one_message_naming_it(tmp_path
     assert "\n" not in str(refused.value)
 
 
-def test_two_files_of_one_run_are_refused(tmp_path):
-    first = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "0.monitor.csv", [1.0], [5])
-    second = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "1.monitor.csv", [1.0], [5])
+def test_one_runs_monitor_files_in_one_directory_are_merged_by_wall_time(tmp_path):
+    """A vectorised environment's files (0.monitor.csv, 1.monitor.csv) are one run, as Stable-Baselines3's
+    ``load_results`` reads them: every episode in the order of its wall time (t after each file's t_start), at the
+    steps of all episodes up to it. By hand: 0's episodes end at 1.7e9 + 0, 0.01; 1's at 1.7e9 + 0.005, 0.015."""
+    run = tmp_path / "ppo" / "CartPole-v1" / "seed_0"
+    first = write_monitor(run / "0.monitor.csv", [1.0, 3.0], [5, 7])
+    second = run / "1.monitor.csv"
+    second.write_text("#" + json.dumps({"t_start": 1.7e9 + 0.005}) + "\nr,l,t\n2.0,6,0.0\n4.0,8,0.01\n")
+    frame = read_runs([first, second], tmp_path, grouping(RULE))
+    assert frame["value"].tolist() == [1.0, 2.0, 3.0, 4.0]
+    assert frame["step"].tolist() == [5, 11, 18, 26]
+    assert frame["source"].nunique() == 1
+    assert "2 files" in frame["source"].iloc[0]
+
+
+def test_sb3s_plain_monitor_csv_is_read(tmp_path):
+    path = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "monitor.csv", [1.0, 2.0], [5, 6])
+    root, files = run_files([tmp_path])
+    assert files == [path.resolve()]
+    assert read_runs(files, root, grouping(RULE))["step"].tolist() == [5, 11]
+
+
+def test_one_run_in_two_directories_is_refused_naming_both(tmp_path):
+    first = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "a" / "0.monitor.csv", [1.0], [5])
+    second = write_monitor(tmp_path / "ppo" / "CartPole-v1" / "seed_0" / "b" / "0.monitor.csv", [1.0], [5])
     with pytest.raises(OutsideRunError, match="again") as refused:
-        read_runs([first, second], tmp_path, grouping(RULE))
+        read_runs([first, second], tmp_path, grouping("{method}/{env}/{seed}/*/*"))
     assert str(first) in str(refused.value)
+    assert str(second) in str(refused.value)
 
 
 def test_an_evaluations_archive_without_its_arrays_is_refused(tmp_path):

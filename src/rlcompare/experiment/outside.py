@@ -85,13 +85,29 @@ def grouping(rule: str) -> Grouping:
 def read_monitor(path: Path) -> pd.DataFrame:
     """``(step, value)`` of a Stable-Baselines3 ``Monitor`` file: each episode's return at the environment steps
     up to its end."""
+    return read_monitors([path])
+
+
+def read_monitors(paths: list[Path]) -> pd.DataFrame:
+    """``(step, value)`` of one run's Monitor files (one a vectorised environment, in one directory), as
+    Stable-Baselines3's ``load_results`` and ``ts2xy`` read them: every file's episodes in the order of their wall
+    time (each file's ``t`` from its ``t_start``), each at the environment steps of all the episodes up to it."""
+    episodes = pd.concat([monitor_episodes(path) for path in paths], ignore_index=True)
+    episodes = episodes.sort_values("t", kind="stable")
+    return pd.DataFrame({"step": np.cumsum(episodes["l"].to_numpy(np.int64)),
+                         "value": episodes["r"].to_numpy(np.float64)})
+
+
+def monitor_episodes(path: Path) -> pd.DataFrame:
+    """A Monitor file's episodes: return ``r``, length ``l`` and wall time ``t`` (from its header's ``t_start``),
+    each checked."""
     try:
         with open(path, encoding="utf-8") as file:
             first = file.readline()
             if not first.startswith("#"):
                 raise OutsideRunError(f"{path}: not a Stable-Baselines3 Monitor file; expected a first line "
                                       "'#{...}' of JSON, then the columns r,l,t")
-            json.loads(first[1:])
+            header = json.loads(first[1:])
             episodes = pd.read_csv(file)
     except (json.JSONDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise OutsideRunError(f"{path}: not a Stable-Baselines3 Monitor file ({error}); expected a first line "
@@ -106,7 +122,9 @@ def read_monitor(path: Path) -> pd.DataFrame:
     if not (np.isfinite(lengths).all() and np.isfinite(returns).all()) or (lengths <= 0).any():
         raise OutsideRunError(f"{path}: a row whose r or l is not a finite number (or l not positive); expected a "
                               "return and a length per episode")
-    return pd.DataFrame({"step": np.cumsum(lengths.astype(np.int64)), "value": returns})
+    start = header.get("t_start", 0.0) if isinstance(header, dict) else 0.0
+    times = pd.to_numeric(episodes["t"], errors="coerce").to_numpy(np.float64) + float(start or 0.0)
+    return pd.DataFrame({"r": returns, "l": lengths.astype(np.int64), "t": times})
 
 
 def read_zoo_evaluations(path: Path) -> pd.DataFrame:
@@ -224,7 +242,7 @@ def read_tensorboard(path: Path, tag: str | None = None) -> pd.DataFrame:
 
 def reader_of(path: Path) -> Callable[..., pd.DataFrame] | None:
     """The reader of a run's file, by its name: a Monitor file, RL Zoo's evaluations or a TensorBoard event file."""
-    if path.name.endswith(".monitor.csv"):
+    if path.name.endswith("monitor.csv"):  # monitor.csv, and 0.monitor.csv, 1.monitor.csv ... of one run
         return read_monitor
     if path.name == "evaluations.npz":
         return read_zoo_evaluations
@@ -285,6 +303,7 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
     frames: list[pd.DataFrame] = []
     ordered = sorted(Path(p) for p in paths)
     events = read_in_parallel([p for p in ordered if reader_of(p) is read_tensorboard], tag)
+    monitors = one_runs_monitors([p for p in ordered if reader_of(p) is read_monitor], root, rule)
     for path in ordered:
         if path.is_dir():  # one of rlcompare's own run directories: its training episodes, under its own name
             results = load_run(path)
@@ -298,17 +317,40 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
         if reader is None:
             raise OutsideRunError(f"{path}: not a run rlcompare reads; expected *.monitor.csv, evaluations.npz, a "
                                   f"TensorBoard events file, or a tidy .csv or .parquet of {', '.join(TIDY)}")
-        labels = rule.of(path, root)
-        read = events[path] if reader is read_tensorboard else reader(path).assign(kind=KINDS[reader])
+        labels, source = rule.of(path, root), str(path)
+        if reader is read_monitor:
+            if path not in monitors:
+                continue  # read with the first of its run's files
+            read, source = read_monitors(monitors[path]), monitor_source(monitors[path])
+        elif reader is read_tensorboard:
+            read = events[path]
+        else:
+            read = reader(path)
         if read.empty:
             raise OutsideRunError(f"{path}: no points; expected at least one")
-        frames.append(read.assign(**labels, source=str(path)))
+        kind = {"kind": KINDS[reader]} if reader in KINDS else {}  # a TensorBoard file's names its tag
+        frames.append(read.assign(**kind, **labels, source=source))
     if not frames:
         raise OutsideRunError(f"{root}: no run found; expected *.monitor.csv, evaluations.npz or a tidy table")
     frame = pd.concat(frames, ignore_index=True)[[*TIDY, "source", "kind"]]
     one_source_a_run(frame)
     one_kind_an_environment(frame)
     return frame
+
+
+def one_runs_monitors(paths: list[Path], root: Path, rule: Grouping) -> dict[Path, list[Path]]:
+    """Monitor files by run: those of one method, environment and seed in one directory (a vectorised
+    environment's, ``0.monitor.csv``, ``1.monitor.csv`` ...) are one run, keyed by its first file."""
+    runs: dict[tuple[Path, tuple[str, ...]], list[Path]] = {}
+    for path in paths:
+        labels = rule.of(path, root)
+        runs.setdefault((path.parent, tuple(labels[name] for name in FIELDS)), []).append(path)
+    return {files[0]: files for files in runs.values()}
+
+
+def monitor_source(files: list[Path]) -> str:
+    """A run's Monitor files as the table of what was read names them: the file, or its directory's several."""
+    return str(files[0]) if len(files) == 1 else f"{files[0].parent}{os.sep}*monitor.csv ({len(files)} files)"
 
 
 def one_source_a_run(frame: pd.DataFrame) -> None:
