@@ -193,3 +193,24 @@ def test_two_environments_are_pooled_as_rliable_does(tmp_path):
     page = html.unescape((tmp_path / "out" / "report.html").read_text())
     assert "Across environments" in page
     assert "worst method's mean (0)" in page
+    # the same directory again for one environment: the earlier comparison's aggregates and figures go with it
+    before = {p.name for p in (tmp_path / "out" / "figures").iterdir()}
+    one = invoke("compare", str(runs / "dqn" / "CartPole-v1"), str(runs / "ppo" / "CartPole-v1"), "--group",
+                 "{method}/{env}/{seed}/*", "--out", str(tmp_path / "out"), columns=300)
+    assert one.exit_code == 0, one.output
+    assert not (tmp_path / "out" / "tables" / "aggregates.csv").exists()
+    after = {p.name for p in (tmp_path / "out" / "figures").iterdir()}
+    assert after < before
+
+
+def test_force_writes_beside_a_users_files_and_leaves_them(runs, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("keep me")
+    refused = invoke("compare", str(runs), "--out", str(out), columns=300)
+    assert refused.exit_code == 2
+    assert "--force" in refused.output
+    forced = invoke("compare", str(runs), "--out", str(out), "--force", columns=300)
+    assert forced.exit_code == 0, forced.output
+    assert (out / "mine.txt").read_text() == "keep me"
+    assert (out / "report.html").exists()

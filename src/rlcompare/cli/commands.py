@@ -222,7 +222,7 @@ def compare(
         root, files = run_files(paths)
         frame = read_runs(files, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
-        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest)
+        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest, force=force)
     except OutsideRunError as error:
         fail(str(error))
     print_report(shown)

@@ -275,13 +275,21 @@ def pairing_table(frame: pd.DataFrame) -> pd.DataFrame:
             .agg(points=("step", "size"), first_step=("step", "min"), last_step=("step", "max")).reset_index())
 
 
-def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False) -> Report:
-    """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out``; ``cut``: runs that end apart
-    are compared on the steps all of them reached (:func:`checked`)."""
+EARLIER = ("figures/*", "tables/*", "report.html")
+"""What an earlier comparison wrote into the directory: removed (the files rlcompare listed there, nothing else)
+before a new one is written, so that none of its aggregates or figures passes for the new comparison's."""
+
+
+def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False,
+           force: bool = False) -> Report:
+    """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out`` (``force``: beside a user's
+    files there); ``cut``: runs that end apart are compared on the steps all of them reached (:func:`checked`)."""
     checked(frame, cut, paired)
     found, read = curves(frame), numbers(frame)
     comparisons = compared(read, paired, margin)
-    with store.output_directory(out, COMPARISON):
+    with store.output_directory(out, COMPARISON, force=force):
+        for pattern in EARLIER:
+            store.remove_outputs(out, pattern)
         labelled = judged(comparisons)
         table = verdicts(labelled)
         files = {"verdicts": write_table(table, out / "tables", "verdicts"),
