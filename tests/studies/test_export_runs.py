@@ -91,3 +91,17 @@ def test_a_second_run_of_the_same_name_is_refused_and_the_first_runs_files_stay(
     assert str((runs / "sarsa").resolve()) in refused.output
     assert "Traceback" not in refused.output
     assert digests(out) == before
+
+
+def test_an_interrupted_exports_scratch_is_not_read_and_the_next_export_removes_it(runs, tmp_path):
+    pytest.importorskip("tensorboard")
+    out = tmp_path / "tb"
+    for algorithm in ("q_learning", "sarsa"):
+        assert invoke("export", str(runs / algorithm), "--to", "tensorboard", "--out", str(out)).exit_code == 0
+    scratch = out / ".export-killed"  # as a process killed while writing leaves it
+    scratch.mkdir()
+    (scratch / "events.out.tfevents.1.killed").write_bytes(b"half a file")
+    result = invoke("compare", str(out), "--cut-to-shortest", "--out", str(tmp_path / "compared"), columns=300)
+    assert result.exit_code == 0, result.output
+    assert invoke("export", str(runs / "sarsa"), "--to", "tensorboard", "--out", str(out)).exit_code == 0
+    assert not scratch.exists()

@@ -251,6 +251,12 @@ def reader_of(path: Path) -> Callable[..., pd.DataFrame] | None:
     return None
 
 
+def hidden(relative: Path) -> bool:
+    """Whether a path below a directory given lies in a hidden directory (``.git``, an interrupted export's
+    scratch): not searched for runs."""
+    return any(part.startswith(".") for part in relative.parts[:-1])
+
+
 def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
     """The files ``paths`` name: each file itself, each directory's run files (:func:`reader_of`) below it; and the
     root their grouping rule reads paths from (the directory given, or the deepest one common to all)."""
@@ -260,7 +266,8 @@ def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
         if path.is_dir() and store.owner_of(path) == store.RUN:
             files.append(path)
         elif path.is_dir():
-            files += sorted(f for f in path.rglob("*") if (f.is_file() and reader_of(f) is not None)
+            found = (f for f in path.rglob("*") if not hidden(f.relative_to(path)))
+            files += sorted(f for f in found if (f.is_file() and reader_of(f) is not None)
                             or (f.name == store.MARKER_FILE and store.owner_of(f.parent) == store.RUN))
             files = [f.parent if f.name == store.MARKER_FILE else f for f in files]
         elif path.is_file():
@@ -425,18 +432,25 @@ def tensorboard_directory(method: str, env: str, seed: object) -> str:
     return "/".join(str(part).replace("/", "_") for part in (method, env, seed))
 
 
+SCRATCH = ".export-"
+"""The prefix of the directory an export writes each event file in before moving it into place."""
+
+
 def write_tensorboard(frame: pd.DataFrame, out: Path) -> list[Path]:
     """Each run of a tidy table as a TensorBoard event file written by TensorBoard's own writer, under
     :data:`EXPORT_TAG`, in ``out / {method}/{env}/{seed}``; each written beside and moved into place once whole,
     and entered in ``out``'s list of outputs first (:func:`rlcompare.experiment.store.enter_outputs`)."""
+    import shutil
     import tempfile
 
     from tensorboard.summary import Writer
 
+    for stale in out.glob(f"{SCRATCH}*"):  # what an interrupted export left: its own scratch, in its own directory
+        shutil.rmtree(stale, ignore_errors=True)
     written = []
     for (method, env, seed), run in frame.groupby(["method", "env", "seed"], sort=True):
         target = out / tensorboard_directory(str(method), str(env), seed)
-        with tempfile.TemporaryDirectory(dir=out, prefix=".export-") as scratch:
+        with tempfile.TemporaryDirectory(dir=out, prefix=SCRATCH) as scratch:
             writer = Writer(scratch)
             for step, value in zip(run["step"], run["value"], strict=True):
                 writer.add_scalar(EXPORT_TAG, float(value), step=int(step))
