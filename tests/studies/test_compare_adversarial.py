@@ -70,13 +70,19 @@ def test_long_episodes_weigh_no_more_than_short_ones(tmp_path: Path) -> None:
 
 def test_ties_at_a_cap_get_the_exact_p_and_holm_over_both_metrics(tmp_path: Path) -> None:
     """4 seeds a side, A at the cap of 500 on every seed, B at 100, 200, 300 and 400: the exact rank-sum p is
-    2 / C(8, 4) = 0.0286 (scipy's normal approximation said 0.021), and Holm over the two metrics doubles it to
-    0.057: not resolved. The answer says this design cannot decide, and that 5 seeds a side could."""
+    2 / C(8, 4) = 0.0286 (scipy's normal approximation said 0.021). With both metrics declared, Holm doubles it to
+    0.057: not resolved, and the answer says this design cannot decide, and that 5 seeds a side could. With the
+    primary metric alone, 0.0286 passes 0.05: capped better."""
     rows = [(method, "CartPole-v1", seed, step, value)
             for method, levels in (("capped", [500.0] * 4), ("other", [100.0, 200.0, 300.0, 400.0]))
             for seed, value in enumerate(levels) for step in (100, 200, 300)]
     path = tidy(tmp_path / "runs.csv", rows)
-    result = invoke("compare", str(path), "--out", str(tmp_path / "out"), columns=400)
+    primary = invoke("compare", str(path), "--out", str(tmp_path / "primary"), columns=400)
+    assert primary.exit_code == 0, primary.output
+    alone = pd.read_csv(tmp_path / "primary" / "tables" / "verdicts.csv")
+    assert alone["p (Holm)"].tolist() == pytest.approx([2 / 70])
+    assert alone["verdict"].tolist() == ["capped better"]
+    result = invoke("compare", str(path), "--metric", "final,auc", "--out", str(tmp_path / "out"), columns=400)
     assert result.exit_code == 0, result.output
     verdicts = pd.read_csv(tmp_path / "out" / "tables" / "verdicts.csv")
     assert verdicts["p (Holm)"].tolist() == pytest.approx([4 / 70, 4 / 70])
@@ -154,6 +160,13 @@ def test_runs_that_never_overlap_are_refused_even_cut_to_the_shortest(tmp_path: 
     rows = [("a", "e", 0, step, 1.0) for step in (10, 20, 30)] + [("b", "e", 0, step, 2.0) for step in (40, 50)]
     said = refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)), "--cut-to-shortest")
     assert "share no steps" in said
+
+
+def test_an_unknown_metric_is_one_line_naming_the_option(tmp_path: Path) -> None:
+    rows = [(m, "e", 0, step, 1.0) for m in ("a", "b") for step in (10, 20)]
+    said = refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)), "--metric", "final,median")
+    assert "'--metric'" in said
+    assert "final, auc" in said
 
 
 def test_a_method_alone_is_refused(tmp_path: Path) -> None:

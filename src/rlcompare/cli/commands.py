@@ -19,6 +19,7 @@ from rlcompare.cli.config_options import ALGORITHM_HELP, config_options
 from rlcompare.cli.console import (
     ConsoleUI,
     announce_compiling,
+    bad_option,
     check_out,
     console,
     done_line,
@@ -202,6 +203,11 @@ def compare(
     margin: Annotated[float | None, typer.Option(help="The difference that counts as none, in the values' units, "
                                                       "declared before reading the report; without it no "
                                                       "comparison is called equivalent.", min=0.0)] = None,
+    metric: Annotated[str, typer.Option(help="The metrics compared, declared before reading the report, comma-"
+                                             "separated: final (the mean of the points in the last tenth of the "
+                                             "steps) and auc (the mean over all the steps of the value in force); "
+                                             "each one more doubles the family the tests are corrected over.")
+                      ] = "final",
     out: Annotated[str | None, typer.Option(help="Directory to write the report into (new, empty, or one compare "
                                                  "wrote). Default: runs/compare.", show_default=False)] = None,
     force: Force = False,
@@ -209,6 +215,8 @@ def compare(
     """Verdicts and a report for runs other libraries made: what each file was taken as is printed first."""
     from rlcompare.experiment.outside import OutsideRunError, grouping, read_runs, run_files
     from rlcompare.studies import compare_runs
+    from rlcompare.studies.interface import listed
+    from rlcompare.validation import ConfigError
 
     out_dir = out_path(out, Path("runs/compare"))
     check_out(out_dir, compare_runs.COMPARISON, force)
@@ -219,10 +227,15 @@ def compare(
     if margin is not None and margin <= 0:
         raise typer.BadParameter(f"{margin:g}; allowed: a positive number", param_hint="'--margin'")
     try:
+        metrics = listed("metric", metric, tuple(compare_runs.METRICS))
+    except ConfigError as error:
+        raise bad_option(error) from None
+    try:
         root, files = run_files(paths)
         frame = read_runs(files, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
-        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest, force=force)
+        shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest, force=force,
+                                    metrics=metrics)
     except OutsideRunError as error:
         fail(str(error))
     print_report(shown)

@@ -44,6 +44,8 @@ SHORTEST_SHARE = 0.9
 """A run that ends before this share of its environment's longest run is refused: not one budget."""
 METRICS = {"final": "mean of the points in the final tenth of the steps",
            "auc": "mean over all the steps of the value in force (area under the curve)"}
+PRIMARY = ("final",)
+"""The metric compared unless the user declares others (``--metric``): each one more doubles the family."""
 COMPARISON = store.Owner("comparison")
 """What ``rlcompare compare`` writes its directory as."""
 
@@ -181,12 +183,13 @@ class Comparison:
     b: str
 
 
-def compared(found: list[Numbers], paired: bool, margin: float | None) -> dict[Comparison, Paired]:
-    """Each pair of methods on each environment, on each metric; seeds matched by label where ``paired``."""
+def compared(found: list[Numbers], paired: bool, margin: float | None, metrics: tuple[str, ...] = PRIMARY
+             ) -> dict[Comparison, Paired]:
+    """Each pair of methods on each environment, on each of ``metrics``; seeds matched by label where ``paired``."""
     result = {}
     for env in found:
         for a, b in combinations(sorted(env.values), 2):
-            for metric in METRICS:
+            for metric in metrics:
                 x, y = env.values[a][metric], env.values[b][metric]
                 if paired:
                     y = y[[env.seeds[b].index(seed) for seed in env.seeds[a]]]
@@ -281,12 +284,12 @@ before a new one is written, so that none of its aggregates or figures passes fo
 
 
 def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False,
-           force: bool = False) -> Report:
+           force: bool = False, metrics: tuple[str, ...] = PRIMARY) -> Report:
     """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out`` (``force``: beside a user's
     files there); ``cut``: runs that end apart are compared on the steps all of them reached (:func:`checked`)."""
     checked(frame, cut, paired)
     found, read = curves(frame), numbers(frame)
-    comparisons = compared(read, paired, margin)
+    comparisons = compared(read, paired, margin, metrics)
     with store.output_directory(out, COMPARISON, force=force):
         for pattern in EARLIER:
             store.remove_outputs(out, pattern)
@@ -307,7 +310,9 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
                 f"Each run's own points (episodes or evaluations) over its environment's common range, from the step "
                 f"where every run has begun to where the shortest ends ({ranges})"
                 + (" (--cut-to-shortest: runs that ended apart are cut to it)" if cut else "") + ". Metrics: "
-                + "; ".join(f"{name}, the {words}" for name, words in METRICS.items())
+                + "; ".join(f"{name}, the {METRICS[name]}" for name in metrics)
+                + (" (declared with --metric)" if metrics != PRIMARY else " (the primary metric; --metric adds the "
+                   "area, each metric one more test of every comparison)")
                 + ". " + ("Seeds paired by their labels (--paired): the user says they share randomness." if paired
                           else "Seeds compared as independent samples: runs of different libraries share no "
                                "randomness (--paired where they do).")
