@@ -172,3 +172,18 @@ def test_an_unknown_metric_is_one_line_naming_the_option(tmp_path: Path) -> None
 def test_a_method_alone_is_refused(tmp_path: Path) -> None:
     rows = [("a", "e", seed, step, 1.0) for seed in (0, 1) for step in (10, 20)]
     assert "a alone on e" in refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)))
+
+
+@pytest.mark.parametrize("given", ["CartPole-v1=500:0", "CartPole-v1=low:high", "=0:1", "CartPole-v1"])
+def test_reference_scores_that_are_not_a_range_are_one_line_naming_the_option(tmp_path: Path, given: str) -> None:
+    rows = [(m, "CartPole-v1", 0, step, 1.0) for m in ("a", "b") for step in (10, 20)]
+    said = refused(tmp_path, str(tidy(tmp_path / "runs.csv", rows)), "--scores", given)
+    assert "'--scores'" in said
+    assert "ENV=LOW:HIGH" in said
+
+
+def test_an_atari_games_published_scores_are_its_references() -> None:
+    """Breakout's published random and human scores (1.7 and 30.5), by each of its spellings."""
+    names = ["ALE/Breakout-v5", "BreakoutNoFrameskip-v4", "Breakout-Atari", "CartPole-v1"]
+    found = compare_runs.reference_scores(names, {"CartPole-v1": (0.0, 500.0)})
+    assert found == {**dict.fromkeys(names[:3], (1.7, 30.5)), "CartPole-v1": (0.0, 500.0)}

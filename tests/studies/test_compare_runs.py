@@ -179,20 +179,33 @@ def test_tensorboard_files_in_cleanrls_layout_become_a_report(tmp_path):
 
 
 @pytest.mark.slow("bootstraps rliable's aggregates over two environments")
-def test_two_environments_are_pooled_as_rliable_does(tmp_path):
+def test_two_environments_are_pooled_as_rliable_does_on_their_reference_scores(tmp_path):
+    """Without reference scores, nothing is pooled (a scale of the methods' own means moves with the methods
+    present); with --scores, each environment is normalised by them: a method's mean normalised score over the
+    environments is computed here by hand."""
     runs = write_runs(tmp_path / "runs")
     for method in LEVELS:  # the same runs again as a second environment
         for seed_dir in (runs / method / "CartPole-v1").iterdir():
             target = runs / method / "Acrobot-v1" / seed_dir.name
             target.mkdir(parents=True)
             (target / "0.monitor.csv").write_text((seed_dir / "0.monitor.csv").read_text())
-    result = invoke("compare", str(runs), "--out", str(tmp_path / "out"), columns=300)
+    unscaled = invoke("compare", str(runs), "--out", str(tmp_path / "unscaled"), columns=300)
+    assert unscaled.exit_code == 0, unscaled.output
+    assert not (tmp_path / "unscaled" / "tables" / "aggregates.csv").exists()
+    assert "each with reference scores (--scores" in html.unescape((tmp_path / "unscaled" / "report.html").read_text())
+    result = invoke("compare", str(runs), "--scores", "CartPole-v1=0:500", "--scores", "Acrobot-v1=0:250", "--out",
+                    str(tmp_path / "out"), columns=300)
     assert result.exit_code == 0, result.output
     intervals = pd.read_csv(tmp_path / "out" / "tables" / "aggregates.csv")
     assert set(intervals.iloc[:, 0]) == {"dqn", "ppo"}
+    frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
+    finals = {n.env: n.values["ppo"]["final"] for n in compare_runs.numbers(frame)}
+    by_hand = np.mean([finals["CartPole-v1"] / 500, finals["Acrobot-v1"] / 250])
+    mean = intervals.loc[intervals["method"] == "ppo", "mean [95% CI]"].iloc[0]
+    assert float(str(mean).split()[0]) == pytest.approx(by_hand, abs=0.005)
     page = html.unescape((tmp_path / "out" / "report.html").read_text())
     assert "Across environments" in page
-    assert "worst method's mean (0)" in page
+    assert "Acrobot-v1: 0 to 250; CartPole-v1: 0 to 500" in page
     # the same directory again for one environment: the earlier comparison's aggregates and figures go with it
     before = {p.name for p in (tmp_path / "out" / "figures").iterdir()}
     one = invoke("compare", str(runs / "dqn" / "CartPole-v1"), str(runs / "ppo" / "CartPole-v1"), "--group",

@@ -208,6 +208,11 @@ def compare(
                                              "steps) and auc (the mean over all the steps of the value in force); "
                                              "each one more doubles the family the tests are corrected over.")
                       ] = "final",
+    scores: Annotated[list[str] | None, typer.Option(help="An environment's reference scores, ENV=LOW:HIGH (a "
+                                                          "random policy's and an expert's, say), that the "
+                                                          "aggregates across environments normalise by; repeat the "
+                                                          "option. An Atari game's published random and human "
+                                                          "scores are known.")] = None,
     out: Annotated[str | None, typer.Option(help="Directory to write the report into (new, empty, or one compare "
                                                  "wrote). Default: runs/compare.", show_default=False)] = None,
     force: Force = False,
@@ -228,6 +233,7 @@ def compare(
         raise typer.BadParameter(f"{margin:g}; allowed: a positive number", param_hint="'--margin'")
     try:
         metrics = listed("metric", metric, tuple(compare_runs.METRICS))
+        references = compare_runs.parse_scores(scores or [])
     except ConfigError as error:
         raise bad_option(error) from None
     try:
@@ -235,7 +241,7 @@ def compare(
         frame = read_runs(files, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
         shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest, force=force,
-                                    metrics=metrics)
+                                    metrics=metrics, scores=references)
     except OutsideRunError as error:
         fail(str(error))
     print_report(shown)

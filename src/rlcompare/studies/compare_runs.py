@@ -16,7 +16,8 @@ equivalence is made.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+import re
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
@@ -31,10 +32,11 @@ from rlcompare.report.aggregate_plots import Aggregates, across_section, draw_ag
 from rlcompare.report.findings import gap_and_interval
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.report.plots import plot_return_curves
-from rlcompare.stats.aggregates import by_method, score_scales
+from rlcompare.stats.aggregates import by_method
 from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
 from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, reach
 from rlcompare.studies.interface import Report
+from rlcompare.validation import ConfigError
 
 GRID_POINTS = 200
 """Points of each environment's common grid of steps."""
@@ -244,13 +246,54 @@ def design_sentence(found: dict[Comparison, tuple[Judged, str]], paired: bool) -
             + ("." if reached.can_decide else f" (with {reached.needed} {side} it can)."))
 
 
-def across(found: list[Curves], read: list[Numbers], figures: Path, tables: Path
-           ) -> tuple[Aggregates | None, dict[str, str]]:
-    """rliable's aggregates of the final-window numbers over two or more environments that two or more methods ran
-    (each environment normalised between its worst method's mean, 0, and its best's, 1: a relative scale, with no
-    published reference for runs of any library), drawn and written; none otherwise."""
+ATARI_NAME = re.compile(r"(?:ALE/)?(?P<title>[A-Za-z]+?)(?:NoFrameskip|Deterministic)?(?:-v\d+|-Atari)")
+"""An Atari game's name as Gymnasium, its older ``NoFrameskip`` spellings and rlcompare spell it."""
+
+
+def parse_scores(given: list[str]) -> dict[str, tuple[float, float]]:
+    """``ENV=LOW:HIGH`` options as ``{env: (low, high)}``; a :class:`~rlcompare.validation.ConfigError` naming
+    ``scores`` for one that is not two finite numbers, the low below the high, or an environment given twice."""
+    found: dict[str, tuple[float, float]] = {}
+    for text in given:
+        env, _, pair = text.rpartition("=")
+        low, _, high = pair.partition(":")
+        try:
+            bounds = (float(low), float(high))
+        except ValueError:
+            bounds = (np.nan, np.nan)
+        if not env or env in found or not np.isfinite(bounds).all() or bounds[0] >= bounds[1]:
+            raise ConfigError("scores", text, "ENV=LOW:HIGH, two finite numbers, the low below the high, once an "
+                                              "environment")
+        found[env] = bounds
+    return found
+
+
+def reference_scores(envs: list[str], given: Mapping[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Each environment's ``(low, high)`` reference scores where one is known: given by the user (``--scores``),
+    else an Atari game's published random and human scores (:mod:`rlcompare.envs.atari.scores`)."""
+    from rlcompare.envs.atari.scores import GAMES
+
+    found = {}
+    for env in envs:
+        atari = ATARI_NAME.fullmatch(env)
+        if env in given:
+            found[env] = given[env]
+        elif atari is not None and atari["title"] in GAMES:
+            game = GAMES[atari["title"]]
+            found[env] = (game.random, game.human)
+    return found
+
+
+def across(found: list[Curves], read: list[Numbers], references: Mapping[str, tuple[float, float]], figures: Path,
+           tables: Path) -> tuple[Aggregates | None, dict[str, str]]:
+    """rliable's aggregates of the final-window numbers over two or more environments that two or more methods ran,
+    each normalised between its reference scores (``references``: low 0, high 1), drawn and written; none where an
+    environment has no reference: a scale made of the methods' own means moves when a method is added or left out,
+    so no aggregate is drawn on one."""
     finals = {n.env: {m: v["final"] for m, v in n.values.items()} for n in read}
-    scales = score_scales(finals)
+    if any(env not in references for env in finals):
+        return None, {}
+    scales = {env: (low, high - low) for env, (low, high) in references.items() if env in finals}
     scores = by_method(finals, scales)
     if len(next(iter(scores.values()), [])) < 2 or len(scores) < 2:
         return None, {}
@@ -284,7 +327,8 @@ before a new one is written, so that none of its aggregates or figures passes fo
 
 
 def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False,
-           force: bool = False, metrics: tuple[str, ...] = PRIMARY) -> Report:
+           force: bool = False, metrics: tuple[str, ...] = PRIMARY,
+           scores: Mapping[str, tuple[float, float]] | None = None) -> Report:
     """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out`` (``force``: beside a user's
     files there); ``cut``: runs that end apart are compared on the steps all of them reached (:func:`checked`)."""
     checked(frame, cut, paired)
@@ -301,7 +345,8 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
         figures = [(save_figure(curves_figure(c), out / "figures" / f"curves-{i}.png"),
                     f"{c.env}: each method's mean over seeds on the common grid, 95% band")
                    for i, c in enumerate(found)]
-        aggregates, aggregate_files = across(found, read, out / "figures", out / "tables")
+        references = reference_scores([n.env for n in read], scores or {})
+        aggregates, aggregate_files = across(found, read, references, out / "figures", out / "tables")
         files |= aggregate_files
         ranges = "; ".join(f"{n.env}: steps {n.start:,.0f} to {n.end:,.0f}" for n in read)
         sections = [
@@ -323,11 +368,16 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
             across_section(
                 "Across environments",
                 "The final-window numbers pooled over the environments as rliable does (Agarwal et al. 2021): each "
-                "environment normalised between its worst method's mean (0) and its best's (1), a relative scale "
-                "for runs with no published reference; interval estimates, the probability of improvement, "
-                "performance profiles and sample-efficiency curves, with 95% stratified bootstrap intervals.",
+                "environment normalised between its reference scores, 0 and 1 ("
+                + "; ".join(f"{env}: {low:g} to {high:g}" for env, (low, high) in references.items())
+                + "; --scores, or an Atari game's published random and human scores); interval estimates, the "
+                "probability of improvement, performance profiles and sample-efficiency curves, with 95% stratified "
+                "bootstrap intervals.",
                 aggregates, files, "Interval estimates",
-                "Across environments: needs two or more environments that two or more methods ran."),
+                "Across environments: needs two or more environments that two or more methods ran, each with "
+                "reference scores (--scores ENV=LOW:HIGH, or an Atari game's published random and human scores). "
+                "A scale made of the methods' own means would move when a method is added or left out, so none is "
+                "drawn on one; each environment's comparisons are in the verdict table."),
             Section("Curves", figures=figures),
         ]
         page = write_report(out / "report.html", "Runs compared", sections, [])
