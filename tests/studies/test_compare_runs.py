@@ -192,7 +192,8 @@ def test_two_environments_are_pooled_as_rliable_does_on_their_reference_scores(t
     unscaled = invoke("compare", str(runs), "--out", str(tmp_path / "unscaled"), columns=300)
     assert unscaled.exit_code == 0, unscaled.output
     assert not (tmp_path / "unscaled" / "tables" / "aggregates.csv").exists()
-    assert "each with reference scores (--scores" in html.unescape((tmp_path / "unscaled" / "report.html").read_text())
+    assert "Not pooled: no reference scores for Acrobot-v1, CartPole-v1 (--scores" in html.unescape(
+        (tmp_path / "unscaled" / "report.html").read_text())
     result = invoke("compare", str(runs), "--scores", "CartPole-v1=0:500", "--scores", "Acrobot-v1=0:250", "--out",
                     str(tmp_path / "out"), columns=300)
     assert result.exit_code == 0, result.output
@@ -206,6 +207,12 @@ def test_two_environments_are_pooled_as_rliable_does_on_their_reference_scores(t
     page = html.unescape((tmp_path / "out" / "report.html").read_text())
     assert "Across environments" in page
     assert "Acrobot-v1: 0 to 250; CartPole-v1: 0 to 500" in page
+    (runs / "dqn" / "Acrobot-v1" / "4" / "0.monitor.csv").unlink()  # dqn: 4 seeds on one, 5 on the other
+    uneven = invoke("compare", str(runs), "--scores", "CartPole-v1=0:500", "--scores", "Acrobot-v1=0:250", "--out",
+                    str(tmp_path / "uneven"), columns=300)
+    assert uneven.exit_code == 0, uneven.output
+    assert "Acrobot-v1: dqn 4, ppo 5; CartPole-v1: dqn 5, ppo 5" in html.unescape(
+        (tmp_path / "uneven" / "report.html").read_text())
     # the same directory again for one environment: the earlier comparison's aggregates and figures go with it
     before = {p.name for p in (tmp_path / "out" / "figures").iterdir()}
     one = invoke("compare", str(runs / "dqn" / "CartPole-v1"), str(runs / "ppo" / "CartPole-v1"), "--group",

@@ -285,24 +285,32 @@ def reference_scores(envs: list[str], given: Mapping[str, tuple[float, float]]) 
 
 
 def across(found: list[Curves], read: list[Numbers], references: Mapping[str, tuple[float, float]], figures: Path,
-           tables: Path) -> tuple[Aggregates | None, dict[str, str]]:
+           tables: Path) -> tuple[Aggregates | None, dict[str, str], str]:
     """rliable's aggregates of the final-window numbers over two or more environments that two or more methods ran,
-    each normalised between its reference scores (``references``: low 0, high 1), drawn and written; none where an
-    environment has no reference: a scale made of the methods' own means moves when a method is added or left out,
-    so no aggregate is drawn on one."""
+    each normalised between its reference scores (``references``: low 0, high 1), drawn and written; or none, and
+    why: an environment without reference scores (a scale made of the methods' own means moves when a method is
+    added or left out), or no two methods that ran every environment on as many seeds each (the stratified
+    bootstrap's)."""
     finals = {n.env: {m: v["final"] for m, v in n.values.items()} for n in read}
-    if any(env not in references for env in finals):
-        return None, {}
+    if len(finals) < 2:
+        return None, {}, "one environment: nothing to pool."
+    unscaled = [env for env in finals if env not in references]
+    if unscaled:
+        return None, {}, (f"no reference scores for {', '.join(unscaled)} (--scores ENV=LOW:HIGH; an Atari game's "
+                          "published random and human scores are known). A scale made of the methods' own means "
+                          "would move when a method is added or left out, so none is drawn on one.")
     scales = {env: (low, high - low) for env, (low, high) in references.items() if env in finals}
     scores = by_method(finals, scales)
-    if len(next(iter(scores.values()), [])) < 2 or len(scores) < 2:
-        return None, {}
+    if len(scores) < 2:
+        return None, {}, ("no two methods ran every environment on as many seeds on each, as the stratified "
+                          "bootstrap needs: " + "; ".join(f"{env}: " + ", ".join(
+                              f"{m} {len(v)}" for m, v in methods.items()) for env, methods in finals.items()) + ".")
     curves = by_method({c.env: c.values for c in found}, scales)
     drawn = draw_aggregates(scores, figures, tasks="environments", curves={m: curves[m] for m in scores},
                             x=np.linspace(0.0, 1.0, GRID_POINTS),
                             curve_xlabel="share of each environment's common steps")
     return drawn, {name: write_table(frame, tables, name) for name, frame in (
-        ("aggregates", drawn.intervals), ("improvement", drawn.improvements))}
+        ("aggregates", drawn.intervals), ("improvement", drawn.improvements))}, ""
 
 
 def curves_figure(curve: Curves) -> Figure:
@@ -346,7 +354,7 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
                     f"{c.env}: each method's mean over seeds on the common grid, 95% band")
                    for i, c in enumerate(found)]
         references = reference_scores([n.env for n in read], scores or {})
-        aggregates, aggregate_files = across(found, read, references, out / "figures", out / "tables")
+        aggregates, aggregate_files, why_not = across(found, read, references, out / "figures", out / "tables")
         files |= aggregate_files
         ranges = "; ".join(f"{n.env}: steps {n.start:,.0f} to {n.end:,.0f}" for n in read)
         sections = [
@@ -373,11 +381,8 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
                 + "; --scores, or an Atari game's published random and human scores); interval estimates, the "
                 "probability of improvement, performance profiles and sample-efficiency curves, with 95% stratified "
                 "bootstrap intervals.",
-                aggregates, files, "Interval estimates",
-                "Across environments: needs two or more environments that two or more methods ran, each with "
-                "reference scores (--scores ENV=LOW:HIGH, or an Atari game's published random and human scores). "
-                "A scale made of the methods' own means would move when a method is added or left out, so none is "
-                "drawn on one; each environment's comparisons are in the verdict table."),
+                aggregates, files, "Interval estimates", f"Not pooled: {why_not} Each environment's comparisons "
+                "are in the verdict table."),
             Section("Curves", figures=figures),
         ]
         page = write_report(out / "report.html", "Runs compared", sections, [])
