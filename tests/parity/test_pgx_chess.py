@@ -566,6 +566,19 @@ def test_pgx_ends_a_game_at_its_512th_ply():
 
 
 @pytest.mark.slow(ROOT)
+@pytest.mark.parametrize(("fen", "moves"), [
+    ("8/8/8/4k3/8/8/R7/4K3 w - - 100 80", ""),  # fifty moves: python-chess leaves the draw to a claim
+    (chess.STARTING_FEN, "g1f3 g8f6 f3g1 f6g8 g1f3 g8f6 f3g1 f6g8 g1f3"),  # a threefold repetition: the same
+])
+def test_a_game_pgx_ended_and_the_rules_go_on_with_is_rebuilt_with_the_rules_moves(fen, moves):
+    board = _played(moves, fen) if moves else chess.Board(fen)
+    state = cb.state_of(board)
+    assert not bool(state.terminated)
+    assert cb.legal_moves(state) == {m.uci() for m in board.legal_moves}
+    assert cb.fen_of(state).split()[:4] == board.fen(en_passant="fen").split()[:4]
+
+
+@pytest.mark.slow(ROOT)
 def test_pgx_keeps_at_most_200_moves_before_its_check_filter():
     """A position with 218 legal moves: pgx lists 200 of them (its pseudo-legal moves are cut at 200), all
     legal."""

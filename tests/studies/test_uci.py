@@ -74,6 +74,32 @@ def test_load_agent_of_a_chess_run_moves_on_python_chess_boards(chess_run):
         board.push(move)
 
 
+ENDED_BY_PGX = {
+    "fifty moves, not claimed": ("8/8/8/4k3/8/8/R7/4K3 w - - 100 80", ""),
+    "a threefold repetition, not claimed": (chess.STARTING_FEN, "g1f3 g8f6 f3g1 f6g8 g1f3 g8f6 f3g1 f6g8 g1f3"),
+}
+"""Positions where pgx has ended the game by its own count and python-chess's rules go on: the agent once masked
+with pgx's all-True mask and answered ``bestmove 0000`` or an illegal move."""
+
+
+@pytest.mark.slow("trains a network at chess")
+@pytest.mark.parametrize("case", list(ENDED_BY_PGX))
+def test_the_network_moves_by_the_rules_where_pgx_has_ended_the_game(chess_run, case):
+    fen, moves = ENDED_BY_PGX[case]
+    board = chess.Board(fen)
+    for move in moves.split():
+        board.push_uci(move)
+    assert not board.is_game_over()
+    move = load_agent(chess_run).move(board)
+    assert move in board.legal_moves
+    command = f"position fen {fen}" + (f" moves {moves}" if moves else "")
+    result = invoke("uci", str(chess_run), input=f"{command}\ngo\nquit\n", columns=300)
+    assert result.exit_code == 0, result.output
+    best = [line for line in result.output.splitlines() if line.startswith("bestmove")]
+    assert len(best) == 1
+    assert chess.Move.from_uci(best[0].split()[1]) in board.legal_moves
+
+
 @pytest.mark.slow("trains a network at chess")
 def test_uci_refuses_a_run_that_is_not_chess_in_one_line(tmp_path, chess_run):
     result = invoke("uci", str(tmp_path / "missing"), columns=300)

@@ -54,8 +54,8 @@ class BoardAgent:
         self.params = params
         self._seen: tuple[str, list[chess.Move], Any] | None = None
         """The root, the moves and pgx's state of the last board it moved on."""
-        self._choose = jax.jit(lambda params, state: act(params, game.observe(state)[None],
-                                                         game.legal(state)[None])[0])
+        self._choose = jax.jit(lambda params, state: act(params, game.observe(state)[None],  # the rules' moves
+                                                         state._x.legal_action_mask[None])[0])
 
     @classmethod
     def of(cls, results: DeepResults, seed: int, stage: str = "final") -> BoardAgent:
@@ -89,6 +89,8 @@ class BoardAgent:
             state = seen[2]
             for move in moves[len(seen[1]):]:
                 state = step(state, action_of(state, move))
+            if bool(state.terminated):  # pgx ended the game by its own count: rebuilt as state_of rebuilds it
+                state = state_of(board)
         self._seen = (board.root().fen(), list(moves), state)
         return state
 
