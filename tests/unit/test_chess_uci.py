@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from rlcompare.players.basic import RandomPlayer
 from rlcompare.players.games import play_game
 from rlcompare.players.stockfish import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
-from rlcompare.players.uci import serve
+from rlcompare.players.uci import Deferred, Session, serve
 
 AFTER_E4 = chess.Board("rnbqkbnr/pppppppp/8/8/4P3/8/PPPP1PPP/RNBQKBNR b KQkq - 0 1")
 MATED = "rnb1kbnr/pppp1ppp/8/4p3/6Pq/5P2/PPPPP2P/RNBQKBNR w KQkq - 1 3"
@@ -88,6 +88,30 @@ def test_uci_names_the_engine_and_ends_with_uciok():
 
 def test_isready_answers_readyok_each_time():
     assert talk(["isready", "isready"]) == ["readyok", "readyok"]
+
+
+def test_a_deferred_player_is_made_at_isready_not_before_uci_is_answered():
+    """A network is loaded and compiled when the GUI asks isready (one move on the start position), so that uciok
+    comes at once; a player that cannot be made is said so, and readyok still comes."""
+    made = []
+
+    def make() -> Recorder:
+        made.append(len(made))
+        return Recorder()
+
+    session = Session(Deferred("network", make), "network")
+    assert session.handle("uci")[-1] == "uciok"
+    assert made == []
+    assert session.handle("isready") == ["readyok"]
+    assert made == [0]
+    session.handle("position startpos moves e2e4")
+    assert session.handle("go")[-1].startswith("bestmove ")
+    assert made == [0]
+    broken = Deferred("broken", lambda: (_ for _ in ()).throw(OSError("no such run")))
+    answers = talk(["isready", "go"], broken, name="broken")
+    assert answers[0].startswith("info string broken could not be made ready: OSError('no such run')")
+    assert answers[1] == "readyok"
+    assert answers[-1] == "bestmove 0000"
 
 
 def test_position_startpos_with_moves_is_the_board_the_player_sees():
@@ -204,26 +228,32 @@ def test_a_malformed_or_null_move_in_position_is_said_too():
         assert f"'{bad}' not played" in infos(answers)[0]
 
 
-def test_a_bad_fen_keeps_the_position_there_was():
+def test_a_bad_fen_leaves_no_position_and_the_next_go_answers_the_null_move():
+    """Once the engine kept the position before a bad FEN, and the next go answered for a board the GUI no longer
+    showed."""
     recorder = Recorder()
     answers = talk(["position startpos moves e2e4", "position fen this is not a fen", "go"], recorder)
-    assert recorder.boards == [AFTER_E4.fen()]
+    assert recorder.boards == []
     assert infos(answers)[0].startswith("info string bad FEN 'this is not a fen'")
-    assert infos(answers)[1] == f"info string position kept: {AFTER_E4.fen()}"
+    assert infos(answers)[1] == "info string no position until the next one that can be set"
+    assert answers[-1] == "bestmove 0000"
 
 
 def test_an_impossible_position_is_refused():
     recorder = Recorder()
-    answers = talk(["position fen 8/8/8/8/8/8/8/8 w - - 0 1", "go"], recorder)
+    answers = talk(["position fen 8/8/8/8/8/8/8/8 w - - 0 1", "go", "position startpos", "go"], recorder)
     assert "no white king" in infos(answers)[0]
     assert recorder.boards == [chess.STARTING_FEN]
+    assert answers.count("bestmove 0000") == 1
 
 
 def test_position_without_startpos_or_fen_or_with_stray_tokens():
     answers = talk(["position", "position e2e4", "position startpos e2e4", "isready"])
     assert [line.split(":")[0] for line in answers] == [
-        "info string position needs startpos or fen, got ''", "info string position kept",
-        "info string position needs startpos or fen, got 'e2e4'", "info string position kept",
+        "info string position needs startpos or fen, got ''",
+        "info string no position until the next one that can be set",
+        "info string position needs startpos or fen, got 'e2e4'",
+        "info string no position until the next one that can be set",
         "info string ignored 'e2e4' after startpos", "readyok"]
 
 

@@ -311,19 +311,29 @@ def uci(
     import sys
 
     from rlcompare.experiment.engines import load_agent
-    from rlcompare.players.uci import serve
+    from rlcompare.players.uci import Deferred, serve
 
     if not run_dir.is_dir():
         raise typer.BadParameter(f"{run_dir} is not a directory; allowed: a run directory of a network trained at "
                                  "chess", param_hint="'RUN_DIR'")
-    try:
-        player = load_agent(run_dir, seed, stage)
-    except KeyError as error:  # a stage the run lacks
-        raise typer.BadParameter(f"{run_dir}: {error.args[0]}", param_hint="'--stage'") from None
-    if not hasattr(player, "move"):
-        raise typer.BadParameter(f"{run_dir} holds a run of {player.config.env}; allowed: a run of a network trained "
-                                 "at chess", param_hint="'RUN_DIR'")
-    serve(player, sys.stdin, sys.stdout)
+    config = store.read_json(run_dir / "config.json") if (run_dir / "config.json").is_file() else {}
+    env, seeds = config.get("env"), config.get("seeds") or []
+    if env != "chess" or config.get("engine", "deep") != "deep" or not seeds:
+        raise typer.BadParameter(f"{run_dir} holds a run of {env or 'nothing rlcompare reads'}; allowed: a run of a "
+                                 "network trained at chess", param_hint="'RUN_DIR'")
+    if stage not in NETWORK_STAGES:
+        raise typer.BadParameter(f"got {stage!r}; allowed: {', '.join(NETWORK_STAGES)}", param_hint="'--stage'")
+    if seed is not None and seed not in seeds:
+        raise typer.BadParameter(f"got {seed}; allowed: one of the run's seeds ({', '.join(map(str, seeds))})",
+                                 param_hint="'--seed'")
+    chosen = seeds[0] if seed is None else seed
+    name = f"rlcompare {config.get('algorithm')}-chess seed {chosen} {stage}"  # the agent's own name, unloaded
+    serve(Deferred(name, lambda: load_agent(run_dir, chosen, stage)), sys.stdin, sys.stdout)
+
+
+NETWORK_STAGES = ("early", "middle", "final")
+"""The stages of learning a deep run keeps (:data:`rlcompare.deep.rollout.STAGES` and ``final``), named here so that
+``uci`` checks its options without importing JAX."""
 
 
 def _run_report(run_dir: Path) -> None:

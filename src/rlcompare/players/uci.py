@@ -10,8 +10,9 @@ until ``stop`` or ``ponderhit`` as the protocol asks. Malformed input never ends
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TextIO
+from typing import Any, TextIO
 
 import chess
 
@@ -65,6 +66,29 @@ def parse_position(tokens: list[str]) -> tuple[chess.Board | None, list[str]]:
     return board, problems
 
 
+class Deferred:
+    """A player made on first use, so that an engine answers ``uci`` at once and loads (and compiles) its network
+    when asked ``isready``, as the protocol means: a GUI waits for ``readyok``, not for ``uciok``. A player that
+    cannot be made fails each move (:meth:`Session.best_move` answers with an ``info string``)."""
+
+    def __init__(self, name: str, make: Callable[[], Any]) -> None:
+        self.name = name
+        self._make = make
+        self._player: Any = None
+
+    def ready(self) -> None:
+        """Make the player, and play one move on the start position, so that a network is compiled before the
+        first ``go``."""
+        if self._player is None:
+            self._player = self._make()
+            self._player.move(chess.Board())
+
+    def move(self, board: chess.Board) -> chess.Move:
+        self.ready()
+        move: chess.Move = self._player.move(board)
+        return move
+
+
 @dataclass
 class Session:
     """One engine's state between commands: the player, its name, the position, and a move held by ``go
@@ -72,7 +96,7 @@ class Session:
 
     player: ChessPlayer
     name: str
-    board: chess.Board = field(default_factory=chess.Board)
+    board: chess.Board | None = field(default_factory=chess.Board)
     held: str | None = None
     done: bool = False
 
@@ -91,15 +115,18 @@ class Session:
         if word == "uci":
             return [f"id name {self.name}", f"id author {AUTHOR}", "uciok"]
         if word == "isready":
+            try:
+                getattr(self.player, "ready", lambda: None)()
+            except Exception as error:  # the moves will say so too; readyok keeps the GUI's protocol going
+                return [info(f"{self.name} could not be made ready: {error!r}"), "readyok"]
             return ["readyok"]
         if word == "ucinewgame":
             self.board, self.held = chess.Board(), None
             return []
-        if word == "position":
-            board, problems = parse_position(arguments)
-            if board is None:
-                problems.append(f"position kept: {self.board.fen()}")
-            self.board = board or self.board
+        if word == "position":  # a position that cannot be set leaves none: the next go answers 0000, not stale
+            self.board, problems = parse_position(arguments)
+            if self.board is None:
+                problems.append("no position until the next one that can be set")
             return [info(problem) for problem in problems]
         if word == "go":  # a move still held is dropped: the GUI has moved on without it
             answer = self.best_move(search_moves(arguments))
@@ -116,6 +143,8 @@ class Session:
         """``bestmove`` of the player on the current board (``0000`` where there is no legal move, or where the
         player fails or plays an illegal move, with an ``info string`` saying so). Where ``go searchmoves`` named
         legal moves and the player chose another, the first of them."""
+        if self.board is None:
+            return [info("no position: the last could not be set"), "bestmove 0000"]
         allowed = [move for move in sorted_moves(self.board) if move.uci() in searched]
         if not any(self.board.legal_moves):
             return ["bestmove 0000"]
