@@ -196,6 +196,18 @@ COUNT = Integer(1)
 
 
 SEEDS_ALLOWED = "distinct integers in [0, 2**63), at least one"
+MAX_SEEDS = 1_000_000
+"""The most seeds a command takes: twenty times the largest design here (Figure 6.3's 50,000 runs). Refused when
+the options are read, before anything is built for each seed (a count past it once overflowed, or ran for minutes
+checking seeds one at a time)."""
+SEED_COUNT = Integer(1, MAX_SEEDS)
+
+
+def check_seed_range(count: Any, first: Any, count_name: str = "seeds", first_name: str = "first_seed") -> None:
+    """The seeds ``first`` to ``first + count - 1``: ``count`` within :data:`SEED_COUNT` and every seed below
+    2**63, else a :class:`ConfigError` naming the option at fault."""
+    check(count_name, count, SEED_COUNT)
+    check(first_name, first, Integer(0, 2**63 - count))
 
 
 def is_seeds(value: Any) -> bool:

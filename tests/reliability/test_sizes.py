@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from helpers import command_line
+from helpers import command_line, invoke
 
 from rlcompare import machine
 from rlcompare.deep import train
@@ -58,3 +58,24 @@ def test_an_array_past_memory_is_refused_after_tracing_and_before_compiling(monk
     with pytest.raises(ConfigError, match=r"^vmap_width: got 1; allowed: a training that fits in memory"):
         train.check_sizes(config)
     assert train.compiled_program.cache_info().misses == compiled_before
+
+
+@pytest.mark.parametrize("command", [["run"], ["reproduce"], ["reproduce", "chess-endgames"], ["reproduce", "chess"],
+                                     ["reproduce", "atari"], ["reproduce", "minatar"], ["reproduce", "sensitivity"]])
+@pytest.mark.parametrize("seeds", ["99999999999999999999", "20000000"])
+def test_a_count_of_seeds_past_any_design_is_refused_as_it_is_read(command: list[str], seeds: str,
+                                                                   tmp_path: Path) -> None:
+    """Once an OverflowError traceback (20 digits), or minutes of checking seeds one at a time (20 million)."""
+    out = tmp_path / "out"
+    result = invoke(*command, "--seeds", seeds, "--out", str(out), columns=300)
+    assert result.exit_code == 2, result.output
+    assert "'--seeds'" in result.output
+    assert "[1, 1000000]" in result.output
+    assert not out.exists()
+
+
+def test_seeds_that_would_pass_two_to_the_63_name_the_first_seed(tmp_path: Path) -> None:
+    result = invoke("run", "--seeds", "3", "--first-seed", str(2**63 - 1), "--out", str(tmp_path / "out"),
+                    columns=300)
+    assert result.exit_code == 2
+    assert "'--first-seed'" in result.output

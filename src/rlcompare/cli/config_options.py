@@ -14,7 +14,7 @@ import typer
 from rlcompare.algorithms.registry import METHODS
 from rlcompare.cli.console import bad_option, option_flag, with_signature
 from rlcompare.tabular.config import DEFAULT_STAGES, ExperimentConfig, field_docs
-from rlcompare.validation import ConfigError
+from rlcompare.validation import ConfigError, check_seed_range
 
 _DEFAULT_SEEDS = len(ExperimentConfig.seeds)
 
@@ -37,10 +37,10 @@ def _config(**values: Any) -> ExperimentConfig:
 
 
 def _seeds(count: int, first: int) -> tuple[int, ...]:
-    if count < 1:
-        raise typer.BadParameter(f"got {count}; allowed: an integer >= 1", param_hint="'--seeds'")
-    if first < 0:
-        raise typer.BadParameter(f"got {first}; allowed: an integer >= 0", param_hint="'--first-seed'")
+    try:
+        check_seed_range(count, first)
+    except ConfigError as error:
+        raise bad_option(error) from None
     return tuple(range(first, first + count))
 
 

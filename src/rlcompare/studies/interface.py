@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rlcompare.validation import ConfigError, Integer, check, plain_fields
+from rlcompare.validation import ConfigError, Integer, check, check_seed_range, plain_fields
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -45,6 +45,9 @@ class Options:
             minimum, value = item.metadata.get("minimum"), getattr(self, item.name)
             if minimum is not None and value is not None:
                 check(item.name, value, Integer(minimum))
+        seeds = getattr(self, "seeds", None)
+        if isinstance(seeds, int):  # every study's count of seeds, read before any is built
+            check_seed_range(seeds, getattr(self, "first_seed", 0))
         self.check()
 
     def check(self) -> None:
