@@ -187,3 +187,16 @@ def test_an_atari_games_published_scores_are_its_references() -> None:
     names = ["ALE/Breakout-v5", "BreakoutNoFrameskip-v4", "Breakout-Atari", "CartPole-v1"]
     found = compare_runs.reference_scores(names, {"CartPole-v1": (0.0, 500.0)})
     assert found == {**dict.fromkeys(names[:3], (1.7, 30.5)), "CartPole-v1": (0.0, 500.0)}
+
+
+def test_runs_reached_through_a_link_out_of_the_tree_are_read_below_the_directory_given(tmp_path: Path) -> None:
+    """Monitor files linked from the directory given to files elsewhere: once ``ValueError ... is not in the
+    subpath``, a traceback; the rule reads the path as given."""
+    for method in ("a", "b"):
+        target = monitor(tmp_path / "elsewhere" / f"{method}.monitor.csv", np.ones(4), np.full(4, 5))
+        link = tmp_path / "given" / method / "e" / "0" / "0.monitor.csv"
+        link.parent.mkdir(parents=True)
+        link.symlink_to(target)
+    result = invoke("compare", str(tmp_path / "given"), "--out", str(tmp_path / "out"), columns=300)
+    assert result.exit_code == 0, result.output
+    assert "Traceback" not in result.output

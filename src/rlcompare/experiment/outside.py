@@ -56,7 +56,10 @@ class Grouping:
 
     def of(self, path: Path, root: Path) -> dict[str, str]:
         """``{method, env, seed}`` of ``path``; an :class:`OutsideRunError` where the rule does not match it."""
-        relative = path.relative_to(root).as_posix()
+        try:
+            relative = path.relative_to(root).as_posix()
+        except ValueError:
+            raise OutsideRunError(f"{path}: not below {root}; expected the files of the directories given") from None
         found = self.pattern.fullmatch(relative)
         if found is None:
             raise OutsideRunError(f"{path}: its path {relative!r} does not match the grouping rule {self.rule!r}")
@@ -277,8 +280,8 @@ def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
     if not files:
         raise OutsideRunError(f"{', '.join(map(str, given))}: no run found; expected *.monitor.csv, evaluations.npz "
                               "or a tidy table")
-    bases = [p if p.is_dir() else p.parent for p in given]
-    return Path(os.path.commonpath([str(b.resolve()) for b in bases])), [f.resolve() for f in files]
+    bases = [p if p.is_dir() else p.parent for p in given]  # absolute, not resolved: a link stays below its root
+    return Path(os.path.commonpath([str(b.absolute()) for b in bases])), [f.absolute() for f in files]
 
 
 PARALLEL_FROM = 16
