@@ -117,7 +117,8 @@ def test_no_episode_ends_better_by_losing_the_piece(rewards: str) -> None:
 
 def test_a_bad_endgame_name_is_one_message_naming_the_field() -> None:
     for name, allowed in (("KBK", "KRK, KQK"), ("KRK:defender=smart", "optimal, random or mixed-P"),
-                          ("KRK:starts=easy", "won, hard or a FEN"), ("KRK:colour=black", "KEY defender")):
+                          ("KRK:starts=easy", "won, hard or a FEN"), ("KRK:colour=black", "KEY defender"),
+                          ("KRK:starts=hard,starts=won", "each once")):  # once trained with the last value
         with pytest.raises(ConfigError, match=allowed) as caught:
             ExperimentConfig(env=name)
         assert "env" in str(caught.value).split(":")[0]

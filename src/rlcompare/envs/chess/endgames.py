@@ -73,8 +73,9 @@ def parse(name: str) -> Options:
     given: dict[str, str] = {}
     for part in filter(None, rest.split(",")):
         key, equals, value = part.partition("=")
-        if not equals or key not in Options._fields[1:]:
-            raise ConfigError("env", name, f"{endgame}:KEY=VALUE,... with KEY defender, starts, symmetries or rewards")
+        if not equals or key not in Options._fields[1:] or key in given:
+            raise ConfigError("env", name, f"{endgame}:KEY=VALUE,... with KEY defender, starts, symmetries or rewards, "
+                                           "each once")
         given[key] = value.strip()
     defender = given.get("defender", "optimal")
     if defender not in ("optimal", "random") and not _is_share(defender.removeprefix("mixed-"), defender):
