@@ -7,20 +7,26 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from click.testing import Result
 from helpers import digests, invoke
 
 
 @pytest.mark.slow("runs two rlcompare processes on one directory")
+def paper(out: Path, seeds: int, *options: str) -> Result:
+    """The paper's study of ``seeds`` seeds x 20 episodes into ``out`` (a design too small to decide, asked for)."""
+    return invoke("reproduce", "--allow-undecidable", "--seeds", str(seeds), "--episodes", "20", "--no-videos",
+                  "--out", str(out), *options)
+
+
 def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    first = invoke("reproduce", "--allow-undecidable", "--seeds", "3", "--episodes", "20", "--no-videos", "--out",
-                   str(out))
+    first = paper(out, 3)
     assert first.exit_code == 0, first.output
     before = digests(out)
-    refused = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "20", "--no-videos", "--out",
-                     str(out))
+    refused = paper(out, 2)
     assert refused.exit_code == 2
-    lines = refused.output.strip().splitlines()
+    design, *lines = refused.output.strip().splitlines()
+    assert design.startswith("This design cannot decide")
     assert len(lines) == 1
     assert "holds finished runs made with other settings" in lines[0]
     assert "seeds 0-2 there, 0, 1 asked" in lines[0]
@@ -28,12 +34,10 @@ def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp
     assert "another --out" in lines[0]
     assert "Traceback" not in refused.output
     assert digests(out) == before
-    again = invoke("reproduce", "--allow-undecidable", "--seeds", "3", "--episodes", "20", "--no-videos", "--out",
-                   str(out))
+    again = paper(out, 3)
     assert again.exit_code == 0, again.output  # the same settings resume: every run loaded
     assert again.output.count("loaded (already complete)") == 9
-    replaced = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "20", "--no-videos", "--out",
-                      str(out), "--force")
+    replaced = paper(out, 2, "--force")
     assert replaced.exit_code == 0, replaced.output
     assert digests(out) != before
 

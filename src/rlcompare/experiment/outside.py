@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from functools import partial
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -367,7 +367,8 @@ def one_source_a_run(frame: pd.DataFrame) -> None:
     """Refuse a run (method, environment, seed) read from two sources, naming both: the same runs given twice, or
     two runs given one name, would be merged into one."""
     sources = frame.groupby(list(FIELDS), sort=True)["source"].unique()
-    for (method, env, seed), found in sources.items():
+    for key, found in sources.items():
+        method, env, seed = cast(tuple[str, str, str], key)  # a MultiIndex's key: one value per field
         if len(found) > 1:
             raise OutsideRunError(f"{found[1]}: method {method}, environment {env}, seed {seed} again (also "
                                   f"{found[0]}); expected one source a run (name runs apart with --group, or give "

@@ -88,6 +88,10 @@ class Deferred:
         move: chess.Move = self._player.move(board)
         return move
 
+    def close(self) -> None:
+        if self._player is not None:
+            self._player.close()
+
 
 @dataclass
 class Session:

@@ -17,7 +17,7 @@ equivalence is made.
 from __future__ import annotations
 
 import re
-from collections.abc import Hashable, Mapping
+from collections.abc import Hashable, Iterator, Mapping
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
@@ -103,13 +103,19 @@ def checked(frame: pd.DataFrame, cut: bool = False, paired: bool = False) -> Non
                                       f"same seeds ({', '.join(sorted(every))})")
 
 
-def curves(frame: pd.DataFrame) -> list[Curves]:
-    """Every environment's runs interpolated onto its common grid of steps."""
-    found = []
+def environments(frame: pd.DataFrame) -> Iterator[tuple[str, dict[tuple[str, str, str], pd.DataFrame], float, float]]:
+    """Each environment, its runs (:func:`runs_of`) and their common range: from the step where every run has begun
+    to the step where the shortest has ended."""
     for env, rows in frame.groupby("env", sort=True):
         runs = runs_of(rows)
-        start = max(run["step"].iloc[0] for run in runs.values())
-        end = min(run["step"].iloc[-1] for run in runs.values())
+        yield (str(env), runs, float(max(run["step"].iloc[0] for run in runs.values())),
+               float(min(run["step"].iloc[-1] for run in runs.values())))
+
+
+def curves(frame: pd.DataFrame) -> list[Curves]:
+    """Every environment's runs interpolated onto its common grid of steps (for the pictures)."""
+    found = []
+    for env, runs, start, end in environments(frame):
         grid = np.linspace(start, end, GRID_POINTS)
         values: dict[str, list[np.ndarray]] = {}
         seeds: dict[str, list[str]] = {}
@@ -117,7 +123,7 @@ def curves(frame: pd.DataFrame) -> list[Curves]:
             values.setdefault(method, []).append(np.interp(grid, run["step"].to_numpy(np.float64),
                                                            run["value"].to_numpy(np.float64)))
             seeds.setdefault(method, []).append(str(seed))
-        found.append(Curves(str(env), grid, {m: np.stack(v) for m, v in values.items()},
+        found.append(Curves(env, grid, {m: np.stack(v) for m, v in values.items()},
                             {m: tuple(s) for m, s in seeds.items()}))
     return found
 
@@ -156,10 +162,7 @@ class Numbers:
 def numbers(frame: pd.DataFrame) -> list[Numbers]:
     """Every environment's runs read over their common range: the final window's mean and the held mean."""
     found = []
-    for env, rows in frame.groupby("env", sort=True):
-        runs = runs_of(rows)
-        start = max(run["step"].iloc[0] for run in runs.values())
-        end = min(run["step"].iloc[-1] for run in runs.values())
+    for env, runs, start, end in environments(frame):
         low = end - FINAL_WINDOW * (end - start)
         values: dict[str, dict[str, list[float]]] = {}
         seeds: dict[str, list[str]] = {}
@@ -169,7 +172,7 @@ def numbers(frame: pd.DataFrame) -> list[Numbers]:
             mine["final"].append(window_mean(steps, points, low, end))
             mine["auc"].append(held_mean(steps, points, start, end))
             seeds.setdefault(method, []).append(str(seed))
-        found.append(Numbers(str(env), float(start), float(end),
+        found.append(Numbers(env, start, end,
                              {m: {k: np.asarray(v) for k, v in by.items()} for m, by in values.items()},
                              {m: tuple(s) for m, s in seeds.items()}))
     return found
