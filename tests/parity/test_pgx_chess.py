@@ -572,7 +572,8 @@ def test_pgx_ends_a_game_at_its_512th_ply():
 ])
 def test_a_game_pgx_ended_and_the_rules_go_on_with_is_rebuilt_with_the_rules_moves(fen, moves):
     board = _played(moves, fen) if moves else chess.Board(fen)
-    state = cb.state_of(board)
+    assert bool(cb.state_of(board).terminated)  # pgx's own replay ends it
+    state = cb.state_of(board, rules_decide=True)
     assert not bool(state.terminated)
     assert cb.legal_moves(state) == {m.uci() for m in board.legal_moves}
     assert cb.fen_of(state).split()[:4] == board.fen(en_passant="fen").split()[:4]

@@ -104,7 +104,7 @@ def test_uci_refuses_a_network_of_gardners_game_in_one_line(study):
     result = invoke("uci", str(out / "pqn_q_lambda-gardner_chess"), columns=300)
     assert result.exit_code != 0
     said = " ".join(result.output.split())
-    assert "only a network trained at chess plays on python-chess boards" in said
+    assert "holds a run of gardner_chess; allowed: a run of a network trained at chess" in said
     assert "Traceback" not in result.output
 
 

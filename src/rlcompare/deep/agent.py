@@ -84,13 +84,13 @@ class BoardAgent:
 
         seen, moves = self._seen, board.move_stack
         if seen is None or seen[0] != board.root().fen() or moves[:len(seen[1])] != seen[1]:
-            state = state_of(board)
+            state = state_of(board, rules_decide=True)
         else:
             state = seen[2]
             for move in moves[len(seen[1]):]:
                 state = step(state, action_of(state, move))
             if bool(state.terminated):  # pgx ended the game by its own count: rebuilt as state_of rebuilds it
-                state = state_of(board)
+                state = state_of(board, rules_decide=True)
         self._seen = (board.root().fen(), list(moves), state)
         return state
 

@@ -201,14 +201,16 @@ def _root_state(root: chess.Board, order: jax.Array) -> State:
     return _jitted_rooted()(_game_state(root), order)
 
 
-def state_of(board: chess.Board, white_player: int = 0) -> State:
+def state_of(board: chess.Board, white_player: int = 0, *, rules_decide: bool = False) -> State:
     """pgx's state after ``board``'s moves, replayed from ``board.root()`` through pgx's jitted step: from the
     standard start by ``env.init``, from any other root as ``pgx.experimental.chess.from_fen`` makes it (its
     history empty); ``white_player`` (0 or 1) is pgx's player who plays White (``env.init`` draws it from its key,
-    ``from_fen`` makes it 0). python-chess's rules decide: where pgx has ended a game by its own count (fifty moves
-    or a threefold repetition, which python-chess leaves to a claim, or its 512-ply cap) and python-chess plays on,
-    the state is rebuilt from the position itself (:func:`rerooted`). A board pgx cannot hold (Chess960, a variant),
-    a move pgx holds illegal, or a move after python-chess's game has ended is a ``ValueError``."""
+    ``from_fen`` makes it 0). Plies count from the root, whatever its FEN's move number says: pgx ends a game at its
+    512th. Where ``rules_decide`` (a player choosing a move), python-chess's rules decide: where pgx has ended a game
+    by its own count (fifty moves or a threefold repetition, which python-chess leaves to a claim, or its 512-ply
+    cap) and python-chess plays on, the state is rebuilt from the position itself (:func:`rerooted`); else the
+    state is pgx's own, ended where pgx ends it. A board pgx cannot hold (Chess960, a variant), a move pgx holds
+    illegal, or a move after the game has ended is a ``ValueError``."""
     if board.chess960 or type(board).uci_variant != chess.Board.uci_variant:
         raise ValueError(f"pgx plays standard chess only, not {type(board).uci_variant} (chess960={board.chess960})")
     if white_player not in (0, 1):
@@ -218,16 +220,17 @@ def state_of(board: chess.Board, white_player: int = 0) -> State:
     with jax.enable_x64(False):
         state = _root_state(replay, order)
     for ply, move in enumerate(board.move_stack):
-        if replay.is_game_over():
+        ended = bool(jax.device_get(state.terminated))
+        if ended and rules_decide and not replay.is_game_over():
+            state, ended = rerooted(replay, order), False
+        if ended or replay.is_game_over():
             raise ValueError(f"the game has ended before the move {move.uci()} (ply {ply + 1} from the root)")
-        if bool(jax.device_get(state.terminated)):
-            state = rerooted(replay, order)
         action = action_of(state, move)
         if not bool(jax.device_get(state._x.legal_action_mask)[action]):
             raise ValueError(f"pgx holds the move {move.uci()} illegal (ply {ply + 1} from the root)")
         state = step(state, action)
         replay.push(move)
-    if bool(jax.device_get(state.terminated)) and not replay.is_game_over():
+    if rules_decide and bool(jax.device_get(state.terminated)) and not replay.is_game_over():
         state = rerooted(replay, order)
     return state
 
