@@ -63,7 +63,13 @@ def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path
     text = log.read_text()
     assert "Ctrl-C again abandons them" in text
     assert "Traceback" not in text
-    assert len(finished_runs(out)) == 3, text  # the one in flight kept, the other never started
+    flying = text.split("Ctrl-C: finishing the trainings in flight (")[1].split(")")[0].split(", ")
+    # the one in flight kept and nothing started after it; on a loaded machine the Ctrl-C is sometimes handled only
+    # once the first training is done and the second under way, and then both are kept, rightly
+    first, second = "pqn_q_lambda-CartPole-v1", "dqn-CartPole-v1"
+    expected = {first} if flying == [first] else {first, second}
+    assert flying in ([first], [second]), text
+    assert set(finished_runs(out)) - {"tabular-sarsa-CartPole-v1", "tabular-q_learning-CartPole-v1"} == expected, text
 
 
 def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Path) -> None:
