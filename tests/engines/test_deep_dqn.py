@@ -174,3 +174,11 @@ def test_bad_values_name_their_field(field: str, value: object) -> None:
 def test_make_train_checks_rounds() -> None:
     with pytest.raises(ConfigError, match="rounds"):
         dqn.make_train(dqn_config.DQNConfig(), CARTPOLE, rounds=0, eval_episodes=1)
+
+
+def test_a_training_that_never_takes_a_gradient_step_is_refused_naming_total_steps() -> None:
+    """Atari 100k's budget with the zoo's learning_starts of 100,000: DQN once filled its buffer and learnt nothing."""
+    with pytest.raises(ConfigError, match="more than learning_starts") as refused:
+        dqn_config.DQNConfig(total_steps=100_000, learning_starts=100_000)
+    assert refused.value.field_name == "total_steps"
+    assert dqn_config.DQNConfig(total_steps=100_001, learning_starts=100_000).total_steps == 100_001

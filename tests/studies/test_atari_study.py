@@ -108,6 +108,7 @@ def test_a_finished_study_is_loaded_not_trained_again(study):
     (["--games", "atari6"], "--games"),
     (["--budget", "1m"], "--budget"),
     (["--methods", "pqn_q_lambda,a2c"], "--methods"),
+    (["--budget", "100k", "--methods", "dqn"], "--steps"),  # learning_starts 100,000: not one gradient step
 ])
 def test_bad_input_is_one_message_naming_the_option(tmp_path, arguments, named):
     result = invoke(*TINY, *arguments, "--out", str(tmp_path / "x"), columns=300)

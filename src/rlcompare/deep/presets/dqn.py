@@ -88,6 +88,9 @@ class DQNConfig:
         check_fields(self, RULES)
         require(self.buffer_size >= self.n_envs, "buffer_size", self.buffer_size,
                 f"an integer >= n_envs ({self.n_envs})")
+        require(self.total_steps > self.learning_starts, "total_steps", self.total_steps,
+                f"more than learning_starts ({self.learning_starts:,}): a training that never takes a gradient step "
+                "learns nothing")
 
     def updates_per_round(self, rounds: int) -> int:
         """Updates in each of ``rounds`` rounds: the fewest whose steps reach ``total_steps`` (SB3 too ends on a
