@@ -2,6 +2,7 @@
 
 A study's runner (named by its record in :mod:`rlcompare.studies.registry`) offers two calls:
 
+    study_plan(options) -> StudyPlan                 what it would train and whether it can decide (--plan)
     run(out, options, ui, *, study, force) -> runs     train what ``out`` lacks, load what it holds
     report(out, ui, *, runs=None, videos=True) -> Report   tables, figures and report.html, without training
 

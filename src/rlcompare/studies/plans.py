@@ -2,10 +2,10 @@
 study): what it trains, the families of tests its report will make, and whether each can decide at all on these
 seeds (:mod:`rlcompare.stats.design`), as a preregistration would state them.
 
-A study's runner offers ``plan(options) -> StudyPlan`` beside ``run`` and ``report``
-(:mod:`rlcompare.studies.interface`). It builds its configurations as ``run`` does, and counts its families with
-the functions its report uses, so that the plan and the report cannot disagree. Nothing heavy is imported and no
-file is written.
+A study's runner offers ``study_plan(options) -> StudyPlan`` beside ``run`` and ``report``
+(:mod:`rlcompare.studies.interface`). It builds its configurations as ``run`` does (importing what they need:
+JAX for the deep studies), and counts its families with the functions its report uses, so that the plan and the
+report cannot disagree. Nothing is trained or compiled, and no file is written.
 """
 
 from __future__ import annotations
@@ -14,26 +14,24 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from rlcompare.stats.design import INTERVAL, RANK_SUM, T_TEST, Reach, Test, reach
+from rlcompare.stats.design import INTERVAL, T_TEST, Reach, Test, reach
 
 
 @dataclass(frozen=True)
 class Question:
-    """A family of tests the report will make: what they ask, the test, the seeds on each side and the family's
-    size under Holm's correction (1: not corrected). A ``headline`` question is the one the study is for: a design
-    that cannot decide it cannot decide."""
+    """A family of tests the report will make: what they ask, the test, the seeds (paired, or on each side) and the
+    family's size under Holm's correction (1: not corrected). A ``headline`` question is the one the study is for: a
+    design that cannot decide it cannot decide."""
 
     asks: str
     test: Test
     seeds: int
     family: int = 1
     headline: bool = True
-    other_seeds: int | None = None
-    """The other side's seeds, for the rank-sum test (independent samples); None: as many as ``seeds``."""
 
     @property
     def reach(self) -> Reach:
-        return reach(self.test, self.seeds, self.family, other_seeds=self.other_seeds)
+        return reach(self.test, self.seeds, self.family)
 
     def reads(self) -> str:
         """How far the test can go: its smallest p against the level it must pass."""
@@ -42,13 +40,12 @@ class Question:
             what = "a t test" if self.test == T_TEST else "a 95% bootstrap interval"
             return (f"{what} on {self.seeds} seeds {'can' if found.can_decide else 'cannot'} exclude no difference "
                     f"(it needs {found.needed} seeds or more)")
-        sides = f"{self.seeds} and {self.other_seeds}" if self.test == RANK_SUM and self.other_seeds else str(
-            self.seeds)
         level = (f"the {found.level:.2g} Holm asks over {self.family} tests" if self.family > 1 else
                  f"the level {found.level:.2g}")
+        test = f"the {self.test} test on {self.seeds} seeds"
         if found.can_decide:
-            return f"the {self.test} test on {sides} seeds can give a p of {found.smallest_p:.2g}, at or below {level}"
-        return f"the {self.test} test on {sides} seeds cannot give a p below {found.smallest_p:.2g}, above {level}"
+            return f"{test} can give a p of {found.smallest_p:.2g}, at or below {level}"
+        return f"{test} cannot give a p below {found.smallest_p:.2g}, above {level}"
 
 
 @dataclass(frozen=True)
