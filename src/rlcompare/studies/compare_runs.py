@@ -74,33 +74,31 @@ def checked(frame: pd.DataFrame, cut: bool = False, paired: bool = False) -> Non
     environment's longest (another budget, unless ``cut``: the comparison is then on the steps every run reached,
     and there must be some); and, where ``paired``, a seed one method of an environment has and another lacks
     (seeds matched by label; independent samples need no common labels)."""
-    runs = runs_of(frame)
-    for env, rows in frame.groupby("env", sort=True):
-        methods = sorted(set(rows["method"]))
+    for env, runs, start, end in environments(frame):
+        first = next(iter(runs.values()))["source"].iloc[0]
+        methods = sorted({method for _, method, _ in runs})
         if len(methods) < 2:
-            raise OutsideRunError(f"{rows['source'].iloc[0]}: {methods[0]} alone on {env}; expected two methods or "
-                                  "more on an environment to compare")
-        ends = {key: run["step"].iloc[-1] for key, run in runs.items() if key[0] == env}
+            raise OutsideRunError(f"{first}: {methods[0]} alone on {env}; expected two methods or more on an "
+                                  "environment to compare")
+        ends = {key: run["step"].iloc[-1] for key, run in runs.items()}
         longest = max(ends.values())
-        for key, end in ends.items():
-            if end < SHORTEST_SHARE * longest and not cut:
-                source = runs[key]["source"].iloc[0]
-                raise OutsideRunError(f"{source}: {key[1]} seed {key[2]} on {env} ends at step {end:,}; expected runs "
-                                      f"of one budget (the longest ends at {longest:,}), or --cut-to-shortest")
-        start = max(run["step"].iloc[0] for key, run in runs.items() if key[0] == env)
-        if start >= min(ends.values()):
-            raise OutsideRunError(f"{rows['source'].iloc[0]}: the runs on {env} share no steps (one begins at "
-                                  f"{start:,}, one ends at {min(ends.values()):,}); expected runs that overlap")
+        for key, last in ends.items():
+            if last < SHORTEST_SHARE * longest and not cut:
+                raise OutsideRunError(f"{runs[key]['source'].iloc[0]}: {key[1]} seed {key[2]} on {env} ends at step "
+                                      f"{last:,}; expected runs of one budget (the longest ends at {longest:,}), or "
+                                      "--cut-to-shortest")
+        if start >= end:
+            raise OutsideRunError(f"{first}: the runs on {env} share no steps (one begins at {start:,.0f}, one ends at "
+                                  f"{end:,.0f}); expected runs that overlap")
         if not paired:
             continue
-        seeds = {str(method): set(group.astype(str)) for method, group in rows.groupby("method")["seed"]}
+        seeds = {method: {seed for _, m, seed in runs if m == method} for method in methods}
         every = set().union(*seeds.values())
         for method, have in seeds.items():
             if have != every:
-                missing = sorted(every - have)
-                raise OutsideRunError(f"{sorted(set(rows.loc[rows['method'] == method, 'source']))[0]}: {method} on "
-                                      f"{env} lacks seed {', '.join(missing)}; expected every method to have the "
-                                      f"same seeds ({', '.join(sorted(every))})")
+                source = min(runs[env, method, seed]["source"].iloc[0] for seed in have)
+                raise OutsideRunError(f"{source}: {method} on {env} lacks seed {', '.join(sorted(every - have))}; "
+                                      f"expected every method to have the same seeds ({', '.join(sorted(every))})")
 
 
 def environments(frame: pd.DataFrame) -> Iterator[tuple[str, dict[tuple[str, str, str], pd.DataFrame], float, float]]:
