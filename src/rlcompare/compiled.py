@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import numba
 
+from rlcompare import machine
+
 if TYPE_CHECKING:
     from numba.core.typing.templates import Signature
 
@@ -61,15 +63,11 @@ def numba_settings() -> dict[str, Any]:
     return vars(numba.config)
 
 
-def _root() -> Path:
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare"
-
-
 def use_source_keyed_cache() -> None:
     """Point numba's cache at this version's directory (no file is touched)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
-    numba_settings()["CACHE_DIR"] = str(_root() / f"numba-{source_digest(Path(__file__).parent)}")
+    numba_settings()["CACHE_DIR"] = str(machine.cache_root() / f"numba-{source_digest(Path(__file__).parent)}")
 
 
 @overload

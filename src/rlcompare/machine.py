@@ -6,6 +6,7 @@ import functools
 import os
 import platform
 from importlib import metadata
+from pathlib import Path
 
 FALLBACK_MEMORY = 16 * 2**30
 """Physical memory assumed where the machine does not say."""
@@ -19,6 +20,12 @@ def physical_memory() -> int:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):
         return FALLBACK_MEMORY
+
+
+def cache_root() -> Path:
+    """rlcompare's directory for what it keeps between runs on this machine (compiled code, the pace of its
+    trainings): ``$XDG_CACHE_HOME/rlcompare``, else ``~/.cache/rlcompare``."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare"
 
 
 def gib(size: int) -> str:

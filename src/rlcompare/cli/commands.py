@@ -136,9 +136,10 @@ def sweep(
     out_dir = out_path(out, Path("runs") / "sweeps" / plan.name)
     check_out(out_dir, store.SWEEP, force)
     if show_plan:
+        from rlcompare import pace
         from rlcompare.studies.plans import sweep_plan
 
-        for line in sweep_plan(plan).lines():
+        for line in sweep_plan(plan).lines(pace.stored()):
             console.print(line, highlight=False, soft_wrap=True)
         return
     finished, ran = run_trials(

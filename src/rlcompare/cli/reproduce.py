@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, get_type_hints
 
 import typer
 
+from rlcompare import pace
 from rlcompare.cli.app_help import SUMMARIES, PlainCommand, PlainGroup
 from rlcompare.cli.console import (
     ConsoleUI,
@@ -112,14 +114,15 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     options = study_options(study, values)
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
-    plan = study_plan(study, runner, options)
+    plan, paces, report_pace = study_plan(study, runner, options), pace.stored(), f"report {study.name}"
     if show_plan:
-        for line in plan.lines():
+        for line in plan.lines(paces, report_pace):
             console.print(line, highlight=False, soft_wrap=True)
         return
     if plan.undecidable and not allow_undecidable:
         fail(f"{plan.first_line()} Run it anyway with --allow-undecidable.")
     console.print(plan.first_line(), highlight=False)
+    console.print(plan.time_line(paces, report_pace), highlight=False)
     announce_compiling()
     # one hold of the directory's lock for the training and the report, so no other process writes in between
     with store.output_directory(out, store.Owner("study", study.name), force=force):
@@ -127,7 +130,11 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
             runs = runner.run(out, options, ConsoleUI(), study=study.name, force=force)
         except ConfigError as error:
             raise bad_option(error) from None
-        print_report(runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True)))
+        started = time.perf_counter()
+        report = runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True))
+        pace.record(report_pace, wall_seconds=time.perf_counter() - started, compile_seconds=0, seeds=1, amount=1,
+                    unit="report")
+        print_report(report)
 
 
 def study_command(study: Study) -> Callable[..., None]:

@@ -14,8 +14,9 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Callable
-from pathlib import Path
 from typing import ParamSpec, TypeVar
+
+from rlcompare import machine
 
 INSTALL_HINT = "the deep engine needs JAX, flax and optax: pip install -e '.[deep]'"
 
@@ -51,6 +52,6 @@ def use_compilation_cache() -> None:
     # a setting is an attribute of jax.config, which JAX's types do not declare
     if os.environ.get("JAX_COMPILATION_CACHE_DIR") or jax.config.jax_compilation_cache_dir:  # type: ignore[attr-defined]
         return
-    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rlcompare" / "jax"
+    cache = machine.cache_root() / "jax"
     jax.config.update("jax_compilation_cache_dir", str(cache))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)

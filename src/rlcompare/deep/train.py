@@ -15,7 +15,7 @@ import jax
 import numpy as np
 import pandas as pd
 
-from rlcompare import machine
+from rlcompare import machine, pace
 from rlcompare.deep import float64, rollout, use_compilation_cache
 from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.envs import is_batched, jax_env, playing
@@ -187,6 +187,8 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
     done = output.finished.done  # (seeds, rounds, updates per round, steps per update, environments)
     steps_per_round = int(np.prod(done.shape[2:]))
     steps = steps_per_round * done.shape[1]
+    pace.record(pace.key("deep", config.env, config.name), wall_seconds=wall, compile_seconds=compile_seconds,
+                seeds=len(config.seeds), amount=steps, unit="environment steps")
     meta = {
         "study": study, "name": config.name, "engine": "deep", "seeds": list(config.seeds),
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "command": sys.argv,

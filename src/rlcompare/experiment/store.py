@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from rlcompare.experiment.atomic import FILE_MODE, atomic_file
+from rlcompare.atomic import FILE_MODE, atomic_file
 from rlcompare.experiment.paths import StoreError as StoreError  # the error of every store function
 from rlcompare.experiment.paths import inside, is_inner_path, matches
 from rlcompare.formatting import cut, quote

@@ -35,7 +35,7 @@ from rlcompare.stats.design import GATE, SIGNED_RANK
 from rlcompare.stats.metrics import returns_per_seed
 from rlcompare.stats.significance import has_learnt
 from rlcompare.studies.interface import UI, Advance
-from rlcompare.studies.plans import Question, StudyPlan, Training
+from rlcompare.studies.plans import Question, StudyPlan, deep_training, episodic
 from rlcompare.studies.seed_blocks import Backend, trained_on
 from rlcompare.tabular.config import ExperimentConfig
 from rlcompare.tabular.results import Results
@@ -167,8 +167,7 @@ def paired_plan(study: PairedStudy, plan: Plan, unit: str = "environment steps",
     the pair, one family under Holm's correction, and where the study has references the learning gate on each
     method, not corrected."""
     seeds = len(plan.seeds)
-    trainings = (*(Training(name, len(c.seeds), c.episodes, "episodes") for name, c in plan.beside.items()),
-                 *(Training(name, len(c.seeds), c.steps_trained, unit) for name, c in plan.configs().items()))
+    trainings = (*episodic(plan.beside), *(deep_training(name, c, unit) for name, c in plan.configs().items()))
     questions = []
     family = study.family(plan)
     if family:

@@ -14,7 +14,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from rlcompare import pace
+from rlcompare.pace import Pace
 from rlcompare.stats.design import INTERVAL, T_TEST, Reach, Test, reach
+
+
+def duration(seconds: float) -> str:
+    """A planned time as a person says it: ``40 s``, ``12 min``, ``3.5 h``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 90 * 60 else f"{seconds / 3600:.1f} h"
 
 
 @dataclass(frozen=True)
@@ -51,18 +60,39 @@ class Question:
 @dataclass(frozen=True)
 class Training:
     """One configuration as it will train: its run's name, its seeds, and how long each seed trains, in whole
-    batches (what runs, not what was asked)."""
+    batches (what runs, not what was asked); where its pace is kept (:func:`rlcompare.pace.key`) and the threads
+    its seeds are spread over."""
 
     name: str
     seeds: int
     amount: int
     unit: str
     """``episodes``, ``environment steps``, ``agent steps`` or ``plies``."""
+    pace_key: str = ""
+    threads: int = 1
+
+    def seconds(self, paces: Mapping[str, Pace]) -> float | None:
+        """Its time on this machine from the pace kept for it; None where none is kept."""
+        found = paces.get(self.pace_key)
+        return None if found is None else found.seconds(self.seeds, self.amount, self.threads)
+
+
+def tabular_training(name: str, config: Any) -> Training:
+    """A tabular configuration (:class:`~rlcompare.tabular.config.ExperimentConfig`) as a training of so many
+    episodes, its seeds spread over this machine's cores."""
+    seeds = len(config.seeds)
+    return Training(name, seeds, config.episodes, "episodes", pace.key("tabular", config.env, config.name),
+                    pace.threads_for(seeds))
+
+
+def deep_training(name: str, config: Any, unit: str = "environment steps") -> Training:
+    """A deep configuration (:class:`~rlcompare.deep.config.DeepConfig`) as a training of the steps it runs."""
+    return Training(name, len(config.seeds), config.steps_trained, unit, pace.key("deep", config.env, config.name))
 
 
 def episodic(configs: Mapping[str, Any]) -> tuple[Training, ...]:
     """Tabular configurations by run name, as trainings of so many episodes."""
-    return tuple(Training(name, len(config.seeds), config.episodes, "episodes") for name, config in configs.items())
+    return tuple(tabular_training(name, config) for name, config in configs.items())
 
 
 def sweep_plan(sweep: Any) -> StudyPlan:
@@ -73,9 +103,8 @@ def sweep_plan(sweep: Any) -> StudyPlan:
     def named(config: Any) -> str:
         return ", ".join(f"{key}={swept_value(config, key)}" for key in sweep.swept) or config.name
 
-    deep = sweep.engine == "deep"
-    return StudyPlan(tuple(Training(named(c), len(sweep.seeds), c.steps_trained if deep else c.episodes,
-                                    "environment steps" if deep else "episodes") for c in sweep.configs))
+    training = deep_training if sweep.engine == "deep" else tabular_training
+    return StudyPlan(tuple(training(named(c), c) for c in sweep.configs))
 
 
 @dataclass(frozen=True)
@@ -112,9 +141,31 @@ class StudyPlan:
         reasons = "; ".join(f"{q.asks}: {q.reads()}" for q in self.undecidable)
         return f"This design cannot decide {reasons}; with --seeds {self.seeds_needed} it can."
 
-    def lines(self) -> list[str]:
-        """The whole plan: the first line, every training, every family of tests."""
-        lines = [self.first_line(), "", f"Trainings ({len(self.trainings)}):"]
+    def time_line(self, paces: Mapping[str, Pace], report: str = "") -> str:
+        """How long it will take on this machine, from the pace each training (and the report, kept under
+        ``report``) last ran at here, and which trainings have no pace kept."""
+        times = [t.seconds(paces) for t in self.trainings]
+        unknown = [t.name for t, seconds in zip(self.trainings, times, strict=True) if seconds is None]
+        known = [seconds for seconds in times if seconds is not None]
+        if report in paces:
+            known.append(paces[report].seconds(1, 1, 1))
+        if not known:
+            return (f"Time: not known yet; no training of this design has run on this machine (each keeps its pace "
+                    f"in {pace.pace_file()} as it runs).")
+        newest = max(paces[key].measured for key in (*(t.pace_key for t in self.trainings), report) if key in paces)
+        line = (f"Time: about {duration(sum(known))} on this machine, from the pace of its trainings measured here "
+                f"(newest {newest}; trainings already finished in the output directory are loaded instead)")
+        if unknown:
+            line += f"; not counted, never run here: {', '.join(unknown)}"
+        return line + "."
+
+    def lines(self, paces: Mapping[str, Pace] | None = None, report: str = "") -> list[str]:
+        """The whole plan: the first line, its time where ``paces`` are given, every training, every family of
+        tests."""
+        lines = [self.first_line()]
+        if paces is not None:
+            lines.append(self.time_line(paces, report))
+        lines += ["", f"Trainings ({len(self.trainings)}):"]
         lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]
         if self.questions:
             lines += ["", "Tests, each family under Holm's correction:"]

@@ -12,7 +12,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from rlcompare import compiled, machine
+from rlcompare import compiled, machine, pace
 from rlcompare.algorithms.registry import rule_for
 from rlcompare.algorithms.schedules import constant_epsilon, linear_decay_epsilon
 from rlcompare.envs import gymnasium_env
@@ -83,6 +83,9 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
         started = time.perf_counter()
         engine.train_chunks(rule, settings, env, features, state, epsilons, chunks, records, progress)
         wall = time.perf_counter() - started
+    threads = min(numba.get_num_threads(), len(config.seeds))
+    pace.record(pace.key("tabular", config.env, config.name), wall_seconds=wall, compile_seconds=compile_seconds,
+                seeds=len(config.seeds), amount=config.episodes, unit="episodes", threads=threads)
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
     meta["timings"]["compile_seconds"] = compile_seconds

@@ -1,0 +1,81 @@
+"""How fast each training ran on this machine, kept so that a plan can say how long a study will take before it
+trains (``rlcompare reproduce STUDY --plan``).
+
+Every training that finishes enters its pace here (:func:`record`): the seconds one seed took per unit it trained
+(an episode, an environment step), on one thread, and the seconds its compile (or the load of its compiled code)
+took, under a key naming its engine, environment and configuration (:func:`key`). They are kept in
+``pace.json`` in rlcompare's cache directory (:func:`rlcompare.machine.cache_root`), the newest measurement of a key
+replacing the one before. A training whose key holds no pace has no estimate: a plan says so, and how many.
+
+A pace is a measurement of one training; another number of episodes (whose lengths change as an agent learns) or
+another load on the machine makes the next one differ. An estimate is for planning, not a promise.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from dataclasses import asdict, dataclass
+from datetime import date
+from pathlib import Path
+
+from rlcompare import machine
+from rlcompare.atomic import atomic_file
+
+PACE_FILE = "pace.json"
+
+
+@dataclass(frozen=True)
+class Pace:
+    """One training's measured pace: seconds per seed and unit on one thread, and its compile's seconds."""
+
+    seconds_per_unit: float
+    compile_seconds: float
+    unit: str
+    measured: str
+    """The day it was measured (ISO)."""
+
+    def seconds(self, seeds: int, amount: int, threads: int) -> float:
+        """The time ``seeds`` seeds of ``amount`` units each take with ``threads`` threads, compile included."""
+        return self.compile_seconds + self.seconds_per_unit * seeds * amount / max(1, min(threads, seeds))
+
+
+def key(engine: str, env: str, name: str) -> str:
+    """What a pace is kept under: ``tabular MountainCar-v0 q_learning-decay``."""
+    return f"{engine} {env} {name}"
+
+
+def pace_file() -> Path:
+    return machine.cache_root() / PACE_FILE
+
+
+def threads_for(seeds: int) -> int:
+    """The threads a tabular training spreads ``seeds`` over on this machine (one per core, at most one a seed)."""
+    return max(1, min(seeds, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+                      or 1))
+
+
+def stored() -> dict[str, Pace]:
+    """Every pace kept on this machine; none where the file is missing or unreadable (nothing depends on it)."""
+    try:
+        entries = json.loads(pace_file().read_text())
+        return {name: Pace(**entry) for name, entry in entries.items()}
+    except (OSError, ValueError, TypeError):
+        return {}
+
+
+def record(name: str, *, wall_seconds: float, compile_seconds: float, seeds: int, amount: int, unit: str,
+           threads: int = 1) -> None:
+    """Keep the pace of a training that ran ``seeds`` seeds of ``amount`` units each in ``wall_seconds`` on
+    ``threads`` threads. Where the cache cannot be written (a read-only home) nothing is kept: a pace is never
+    worth failing a training for. Two processes recording at once may each keep only their own entry."""
+    if seeds < 1 or amount < 1 or wall_seconds <= 0:
+        return
+    pace = Pace(wall_seconds * max(1, min(threads, seeds)) / (seeds * amount), compile_seconds, unit,
+                date.today().isoformat())
+    entries = {name: asdict(kept) for name, kept in stored().items()} | {name: asdict(pace)}
+    with contextlib.suppress(OSError):
+        pace_file().parent.mkdir(parents=True, exist_ok=True)
+        with atomic_file(pace_file(), "w") as handle:
+            json.dump(entries, handle, indent=1, sort_keys=True)
