@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from helpers import invoke
+from scipy import stats
 
 from rlcompare.experiment.outside import grouping, read_runs
 from rlcompare.studies import compare_runs
@@ -200,3 +201,27 @@ def test_runs_reached_through_a_link_out_of_the_tree_are_read_below_the_director
     result = invoke("compare", str(tmp_path / "given"), "--out", str(tmp_path / "out"), columns=300)
     assert result.exit_code == 0, result.output
     assert "Traceback" not in result.output
+
+
+def test_the_plan_states_the_family_its_reach_and_each_detectable_difference_and_writes_nothing(
+        tmp_path: Path) -> None:
+    """3 seeds of A (1, 2, 3) against 5 of B (2, 4, 6, 8, 10), each run constant: the pooled spread is
+    sqrt((2 * 1 + 4 * 10) / 6) = sqrt(7); Mann-Whitney's smallest p is 2 / C(8, 3) = 0.0357, under 0.05 alone and
+    over the 0.025 Holm asks of two tests (a declared margin adds the equivalence test)."""
+    values = {"A": [1, 2, 3], "B": [2, 4, 6, 8, 10]}
+    rows = [(method, "E", seed, step, float(value)) for method, runs in values.items()
+            for seed, value in enumerate(runs) for step in range(0, 101, 10)]
+    table = tidy(tmp_path / "runs.csv", rows)
+    out = tmp_path / "out"
+    alone = invoke("compare", str(table), "--plan", "--out", str(out), columns=400)
+    assert alone.exit_code == 0, alone.output
+    assert "This design can decide each pair of methods on each environment (1 comparisons)" in alone.output
+    assert "the rank-sum test on 3 and 5 seeds can give a p of 0.036, at or below the level 0.05" in alone.output
+    by_hand = (stats.t.ppf(0.975, 6) + stats.t.ppf(0.8, 6)) * np.sqrt(7) * np.sqrt((1 / 3 + 1 / 5) * np.pi / 3)
+    assert f"E, A against B (final): {by_hand:.4g}" in alone.output
+    with_margin = invoke("compare", str(table), "--plan", "--margin", "1", "--out", str(out), columns=400)
+    assert with_margin.exit_code == 0, with_margin.output
+    assert "This design cannot decide" in with_margin.output
+    assert "above the 0.025 Holm asks over 2 tests" in with_margin.output
+    assert "E, A against B (final): none (these seeds cannot pass the level)" in with_margin.output
+    assert not out.exists()

@@ -14,6 +14,7 @@ from rlcompare.stats.design import (
     RANK_SUM,
     SIGNED_RANK,
     can_pass,
+    detectable_difference,
     reach,
     seeds_needed,
     smallest_p,
@@ -82,3 +83,36 @@ def test_a_design_that_cannot_decide_says_so_and_how_many_seeds_can():
                                    "Holm asks over 40 tests: this design cannot decide; with 11 seeds it can.")
     assert reach(SIGNED_RANK, 11, family=40).can_decide
     assert reach(GATE, 5).sentence().endswith("this design can decide.")
+
+
+def test_the_detectable_difference_is_the_t_tests_over_the_rank_tests_efficiency_by_hand():
+    # rank-sum, 10 seeds a side, spread 1, one test: t quantiles on 18 degrees of freedom
+    by_hand = (stats.t.ppf(0.975, 18) + stats.t.ppf(0.8, 18)) * math.sqrt(0.2 / (3 / math.pi))
+    assert detectable_difference(RANK_SUM, 1.0, 10) == pytest.approx(by_hand, rel=1e-12)
+    assert by_hand == pytest.approx(1.3560, abs=1e-4)
+    # twice the spread, twice the difference; the gate is one-sided; Holm's level over 10 tests is 0.005
+    assert detectable_difference(RANK_SUM, 2.0, 10) == pytest.approx(2 * by_hand)
+    gate = (stats.t.ppf(0.95, 9) + stats.t.ppf(0.8, 9)) * math.sqrt(0.1 * math.pi / 3)
+    assert detectable_difference(GATE, 1.0, 10) == pytest.approx(gate)
+    holm = (stats.t.ppf(1 - 0.0025, 19) + stats.t.ppf(0.8, 19)) * math.sqrt(0.05 * math.pi / 3)
+    assert detectable_difference(SIGNED_RANK, 1.0, 20, family=10) == pytest.approx(holm)
+    # a design that cannot pass detects nothing, however large
+    assert detectable_difference(SIGNED_RANK, 1.0, 4) == math.inf
+    assert detectable_difference(SIGNED_RANK, 1.0, 9, family=100) == math.inf
+
+
+@pytest.mark.slow("simulates 4,000 exact rank tests")
+@pytest.mark.parametrize(("test", "seeds", "family"), [(RANK_SUM, 12, 1), (SIGNED_RANK, 20, 10)])
+def test_the_detectable_difference_is_found_about_four_times_in_five_by_scipys_exact_tests(test, seeds, family):
+    rng = np.random.default_rng(7)
+    spread, level = 2.0, 0.05 / family
+    shift = detectable_difference(test, spread, seeds, family)
+    found = 0
+    for _ in range(2000):
+        if test == RANK_SUM:
+            p = stats.mannwhitneyu(rng.normal(shift, spread, seeds), rng.normal(0, spread, seeds),
+                                   method="exact").pvalue
+        else:
+            p = stats.wilcoxon(rng.normal(shift, spread, seeds), method="exact").pvalue
+        found += p <= level
+    assert 0.74 <= found / 2000 <= 0.86

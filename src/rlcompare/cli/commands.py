@@ -217,6 +217,9 @@ def compare(
     out: Annotated[str | None, typer.Option(help="Directory to write the report into (new, empty, or one compare "
                                                  "wrote). Default: runs/compare.", show_default=False)] = None,
     force: Force = False,
+    plan: Annotated[bool, typer.Option("--plan", help="Print the design the report would test (the family, whether "
+                                                      "these seeds can decide, the difference each comparison can "
+                                                      "detect) and stop: nothing is tested or written.")] = False,
 ) -> None:
     """Verdicts and a report for runs other libraries made: what each file was taken as is printed first."""
     from rlcompare.experiment.outside import OutsideRunError, grouping, read_runs, run_files
@@ -241,6 +244,10 @@ def compare(
         root, files = run_files(paths)
         frame = read_runs(files, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
+        if plan:
+            for line in compare_runs.plan(frame, paired=paired, margin=margin, cut=cut_to_shortest, metrics=metrics):
+                console.print(line, highlight=False, soft_wrap=True)
+            return
         shown = compare_runs.report(out_dir, frame, paired=paired, margin=margin, cut=cut_to_shortest, force=force,
                                     metrics=metrics, scores=references)
     except OutsideRunError as error:

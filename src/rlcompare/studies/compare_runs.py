@@ -34,8 +34,9 @@ from rlcompare.report.page import Section, save_figure, write_report, write_tabl
 from rlcompare.report.plots import plot_return_curves
 from rlcompare.stats.aggregates import by_method
 from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
-from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, reach
+from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, detectable_difference, reach
 from rlcompare.studies.interface import Report
+from rlcompare.studies.plans import Question, StudyPlan
 from rlcompare.validation import ConfigError
 
 GRID_POINTS = 200
@@ -245,6 +246,44 @@ def design_sentence(found: dict[Comparison, tuple[Judged, str]], paired: bool) -
     return (f"With {seeds} {side} the test cannot give a p below {reached.smallest_p:.3g}; Holm asks "
             f"{reached.level:.3g} of the smallest over the {family} tests: this design {verb} decide"
             + ("." if reached.can_decide else f" (with {reached.needed} {side} it can)."))
+
+
+def spread(x: np.ndarray, y: np.ndarray, paired: bool) -> float:
+    """The standard deviation a test of ``x`` against ``y`` meets: of the paired differences, or pooled over the two
+    sides; NaN with too few seeds to say."""
+    if paired:
+        return float(np.std(x - y, ddof=1)) if len(x) > 1 else np.nan
+    freedom = len(x) + len(y) - 2
+    if freedom < 1:
+        return np.nan
+    return float(np.sqrt(((len(x) - 1) * np.var(x, ddof=1 if len(x) > 1 else 0)
+                          + (len(y) - 1) * np.var(y, ddof=1 if len(y) > 1 else 0)) / freedom))
+
+
+def plan(frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool = False,
+         metrics: tuple[str, ...] = PRIMARY) -> list[str]:
+    """``compare --plan``: the design the report would test, read from the runs without testing them: the family,
+    whether the fewest seeds can decide in it, and each comparison's difference detectable at 80% power from its
+    seeds' spread (:func:`~rlcompare.stats.design.detectable_difference`), in the values' units."""
+    checked(frame, cut, paired)
+    test = SIGNED_RANK if paired else RANK_SUM
+    rows = [(env, a, b, metric, env.values[a][metric], env.values[b][metric])
+            for env in numbers(frame) for a, b in combinations(sorted(env.values), 2) for metric in metrics]
+    family = len(rows) * (1 if margin is None else 2)
+    fewest = min(rows, key=lambda row: (min(len(row[4]), len(row[5])), max(len(row[4]), len(row[5]))))
+    seeds, other = sorted((len(fewest[4]), len(fewest[5])))
+    tests = f"{len(rows)} comparisons" + (", each a direction and an equivalence test" if margin is not None else "")
+    question = Question(f"each pair of methods on each environment ({tests})", test, seeds, family,
+                        other_seeds=None if paired else other)
+    lines = StudyPlan((), (question,)).lines()
+    lines += ["", "Detectable at 80% power at Holm's strictest level, from these runs' spread (the values' units):"]
+    for env, a, b, metric, x, y in rows:
+        if paired:
+            y = y[[env.seeds[b].index(seed) for seed in env.seeds[a]]]
+        found = detectable_difference(test, spread(x, y, paired), len(x), family, None if paired else len(y))
+        lines.append(f"  {env.env}, {a} against {b} ({metric}): " + (
+            f"{found:.4g}" if np.isfinite(found) else "none (these seeds cannot pass the level)"))
+    return lines
 
 
 ATARI_NAME = re.compile(r"(?:ALE/)?(?P<title>[A-Za-z]+?)(?:NoFrameskip|Deterministic)?(?:-v\d+|-Atari)")

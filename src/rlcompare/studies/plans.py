@@ -16,7 +16,7 @@ from typing import Any
 
 from rlcompare import pace
 from rlcompare.pace import Pace
-from rlcompare.stats.design import INTERVAL, T_TEST, Reach, Test, reach
+from rlcompare.stats.design import INTERVAL, RANK_SUM, T_TEST, Reach, Test, reach
 
 
 def duration(seconds: float) -> str:
@@ -37,10 +37,12 @@ class Question:
     seeds: int
     family: int = 1
     headline: bool = True
+    other_seeds: int | None = None
+    """Seeds on the other side of a rank-sum test, where they differ from ``seeds``."""
 
     @property
     def reach(self) -> Reach:
-        return reach(self.test, self.seeds, self.family)
+        return reach(self.test, self.seeds, self.family, other_seeds=self.other_seeds)
 
     def reads(self) -> str:
         """How far the test can go: its smallest p against the level it must pass."""
@@ -51,7 +53,9 @@ class Question:
                     f"(it needs {found.needed} seeds or more)")
         level = (f"the {found.level:.2g} Holm asks over {self.family} tests" if self.family > 1 else
                  f"the level {found.level:.2g}")
-        test = f"the {self.test} test on {self.seeds} seeds"
+        seeds = (f"{self.seeds} and {self.other_seeds} seeds" if self.other_seeds not in (None, self.seeds) else
+                 f"{self.seeds} seeds{' a side' if self.test == RANK_SUM else ''}")
+        test = f"the {self.test} test on {seeds}"
         if found.can_decide:
             return f"{test} can give a p of {found.smallest_p:.2g}, at or below {level}"
         return f"{test} cannot give a p below {found.smallest_p:.2g}, above {level}"
@@ -165,8 +169,9 @@ class StudyPlan:
         lines = [self.first_line()]
         if paces is not None:
             lines.append(self.time_line(paces, report))
-        lines += ["", f"Trainings ({len(self.trainings)}):"]
-        lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]
+        if self.trainings:
+            lines += ["", f"Trainings ({len(self.trainings)}):"]
+            lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]
         if self.questions:
             lines += ["", "Tests, each family under Holm's correction:"]
             lines += [f"  {'(headline) ' if q.headline else ''}{q.asks}: {q.reads()}" for q in self.questions]
