@@ -3,7 +3,7 @@ trains (``rlcompare reproduce STUDY --plan``).
 
 Every training that finishes enters its pace here (:func:`record`): the seconds one seed took per unit it trained
 (an episode, an environment step), on one thread, and the seconds its compile (or the load of its compiled code)
-took, under a key naming its engine, environment and configuration (:func:`key`). They are kept in
+took, under a key naming its engine, environment, configuration and settings (:func:`key`). They are kept in
 ``pace.json`` in rlcompare's cache directory (:func:`rlcompare.machine.cache_root`), the newest measurement of a key
 replacing the one before. A training whose key holds no pace has no estimate: a plan says so, and how many.
 
@@ -14,16 +14,20 @@ another load on the machine makes the next one differ. An estimate is for planni
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 from dataclasses import asdict, dataclass
 from datetime import date
 from pathlib import Path
+from typing import Any
 
 from rlcompare import machine
 from rlcompare.atomic import atomic_file
 
 PACE_FILE = "pace.json"
+AMOUNTS = ("seeds", "episodes", "total_steps")
+"""What a training's settings say of how much it trains, not how: left out of its pace's key."""
 
 
 @dataclass(frozen=True)
@@ -41,9 +45,19 @@ class Pace:
         return self.compile_seconds + self.seconds_per_unit * seeds * amount / max(1, min(threads, seeds))
 
 
-def key(engine: str, env: str, name: str) -> str:
-    """What a pace is kept under: ``tabular MountainCar-v0 q_learning-decay``."""
-    return f"{engine} {env} {name}"
+def key(engine: str, config: Any) -> str:
+    """What the pace of a training of ``config`` (either engine's configuration) is kept under: its engine,
+    environment and name, and a digest of its settings but its amounts (seeds, episodes, total steps), which a
+    pace is divided by: ``tabular MountainCar-v0 q_learning-decay 3f2a...``."""
+    settings = json.dumps(without_amounts(config.to_dict()), sort_keys=True, default=str)
+    return f"{engine} {config.env} {config.name} {hashlib.sha256(settings.encode()).hexdigest()[:12]}"
+
+
+def without_amounts(settings: Any) -> Any:
+    """``settings`` with the keys of :data:`AMOUNTS` left out at every depth."""
+    if isinstance(settings, dict):
+        return {name: without_amounts(value) for name, value in settings.items() if name not in AMOUNTS}
+    return settings
 
 
 def pace_file() -> Path:

@@ -180,7 +180,7 @@ def test_a_report_deletes_only_the_figures_it_wrote(study_copy: Path) -> None:
     (study_copy / "figures" / "mine.png").write_bytes(b"my figure")
     shutil.rmtree(study_copy / "random")  # its figure is now stale, and rlcompare's to delete
     result = invoke("report", str(study_copy), "--no-videos")
-    assert result.exit_code == 1, result.output  # the missing run is named
+    assert result.exit_code == 2, result.output  # the missing run is named
     assert (study_copy / "figures" / "mine.png").read_bytes() == b"my figure"
     assert not (study_copy / "figures" / "fig3-random.png").exists()
     assert (study_copy / "figures" / "fig4-q_learning-constant.png").is_file()
@@ -271,7 +271,7 @@ def test_another_configurations_files_in_a_run_directory_are_refused_and_retrain
     output = " ".join(result.output.split())  # the console wraps long paths where it likes
     assert "sarsa-decay" in output
     assert "does not belong to this run" in output
-    assert result.exit_code == 1  # the rest is reported; what is missing is named
+    assert result.exit_code == 2  # the rest is reported; what is missing is named
     again = {r.config.name: reused for r, reused in reproduce(study_copy, paper_configs(
         (0, 1), episodes=60, eval_every=30, eval_episodes=2))}
     assert [name for name, reused in again.items() if not reused] == ["sarsa-decay"]

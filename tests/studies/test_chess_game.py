@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -82,6 +84,34 @@ def test_a_ladder_of_other_runs_is_refused_naming_it(study, tmp_path):
             load_ladder(out, "gardner_chess", runs)
     finally:
         marker.write_text(saved)
+
+
+@pytest.mark.slow("trains, rates and reports a chess study")
+@pytest.mark.parametrize("damage", ["rewritten", "truncated", "run removed"])
+def test_a_study_whose_own_files_changed_or_whose_run_is_gone_is_reported_as_such(study, tmp_path, damage):
+    """The ladder's games rewritten as a valid file in which Q(λ) wins every game, or cut short; or a run directory
+    removed: the report names it, exits 2, and shows no ladder rated from what is there."""
+    out = tmp_path / "study"
+    shutil.copytree(study[0], out)
+    games_file = out / LADDER / "gardner_chess" / "games.parquet"
+    if damage == "rewritten":
+        games = pd.read_parquet(games_file)
+        games["score"] = np.where(games["white"] == "Q(λ)", 1.0, np.where(games["black"] == "Q(λ)", 0.0,
+                                                                          games["score"]))
+        games.to_parquet(games_file, index=False)
+    elif damage == "truncated":
+        games_file.write_bytes(games_file.read_bytes()[:100])
+    else:
+        shutil.rmtree(out / "pqn_q_lambda-gardner_chess")
+    result = invoke("report", str(out), "--no-videos", columns=300)
+    said = " ".join(result.output.split())
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert "The ladder, strongest first" not in said
+    if damage == "run removed":
+        assert "pqn_q_lambda-gardner_chess: the study trained this run (members.json)" in said
+    else:
+        assert "games.parquet: does not belong to this study" in said
 
 
 @pytest.mark.parametrize(("arguments", "named"), [

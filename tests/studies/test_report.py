@@ -242,7 +242,7 @@ def test_report_on_damaged_runs_names_what_is_missing_and_builds_the_rest(study_
     (study_copy / "q_learning-constant" / rundir.QTABLES_FILE).write_bytes(b"not a zip file")
     shutil.rmtree(study_copy / "random")
     result = invoke("report", str(study_copy), "--no-videos")
-    assert result.exit_code == 1
+    assert result.exit_code == 2
     assert "sarsa-decay" in result.output
     assert "episodes.parquet" in result.output
     assert "q_learning-constant" in result.output

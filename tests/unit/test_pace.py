@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -68,10 +69,26 @@ def test_a_plan_adds_the_kept_paces_and_names_the_trainings_that_never_ran_here(
     assert line.startswith(f"Time: about {duration(151)} on this machine")
     assert duration(151) == "3 min"
     assert "newest 2026-03-04" in line
-    assert line.endswith("not counted, never run here: c.")
+    assert line.endswith("not counted, never run here with these settings: c.")
     assert plan.time_line({}, "report s").startswith("Time: not known yet")
     assert "not counted" not in StudyPlan(trainings[:2]).time_line(paces)
     assert [duration(s) for s in (40, 89.4, 600, 5400, 12600)] == ["40 s", "89 s", "10 min", "1.5 h", "3.5 h"]
+
+
+def test_a_paces_key_leaves_out_how_much_is_trained_and_keeps_how() -> None:
+    config = ExperimentConfig(algorithm="sarsa", seeds=(0, 1, 2), episodes=20)
+    assert pace.key("tabular", config) == pace.key("tabular", replace(config, seeds=(5,), episodes=900))
+    assert pace.key("tabular", config) != pace.key("tabular", replace(config, alpha=0.5))
+    assert pace.without_amounts({"a": 1, "seeds": [1], "resolved": {"total_steps": 9, "lr": 2}}) == {
+        "a": 1, "resolved": {"lr": 2}}
+
+
+def test_trainings_finished_already_are_not_counted() -> None:
+    trainings = (Training("a", 1, 10, "episodes", "k"), Training("b", 1, 10, "episodes", "k"))
+    paces = {"k": pace.Pace(1.0, 0.0, "episodes", "2026-01-01")}
+    assert StudyPlan(trainings).time_line(paces, finished=["a"]) == (
+        "Time: about 10 s on this machine, from the pace of its trainings measured here (newest 2026-01-01); "
+        "1 training finished already, read and not counted.")
 
 
 @pytest.mark.slow("trains a tabular configuration")
@@ -80,7 +97,7 @@ def test_a_training_keeps_its_pace_where_its_plan_looks(cache: Path) -> None:
     results = train(config)
     training = tabular_training(config.name, config)
     kept = pace.stored()[training.pace_key]
-    assert training.pace_key == "tabular MountainCar-v0 sarsa-decay"
+    assert training.pace_key.startswith("tabular MountainCar-v0 sarsa-decay ")
     timings = results.meta["timings"]
     threads = timings["threads"]
     assert kept.seconds_per_unit == pytest.approx(timings["wall_seconds"] * threads / (3 * 20))

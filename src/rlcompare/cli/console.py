@@ -258,7 +258,8 @@ def measurement_lines(what: str) -> Iterator[Callable[[str], None]]:
 
 
 def print_report(report: Report) -> None:
-    """A report's sentences, what it could not build, and where it is; exit code 1 when something is missing."""
+    """A report's sentences, what it could not build, and where it is; exit code 2 when something is missing or
+    damaged (what the user's files hold, as for any input refused)."""
     for line in report.lines:
         console.print(Text(f"  {line}"), highlight=False)
     for problem in report.problems:
@@ -266,7 +267,7 @@ def print_report(report: Report) -> None:
     timings = ", ".join(f"{part} {seconds:.1f} s" for part, seconds in report.seconds.items())
     console.print(f"Report: {report.path}" + (f"  ({timings})" if timings else ""))
     if report.problems:
-        raise typer.Exit(1)
+        raise typer.Exit(2)
 
 
 class ConsoleUI(UI):

@@ -28,7 +28,7 @@ from rlcompare.cli.console import (
     print_report,
     with_signature,
 )
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.studies.interface import Options
 from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
@@ -115,14 +115,15 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
     plan, paces, report_pace = study_plan(study, runner, options), pace.stored(), f"report {study.name}"
+    finished = [t.name for t in plan.trainings if (out / t.name / rundir.META_FILE).is_file()]
     if show_plan:
-        for line in plan.lines(paces, report_pace):
+        for line in plan.lines(paces, report_pace, finished):
             console.print(line, highlight=False, soft_wrap=True)
         return
     if plan.undecidable and not allow_undecidable:
         fail(f"{plan.first_line()} Run it anyway with --allow-undecidable.")
     console.print(plan.first_line(), highlight=False)
-    console.print(plan.time_line(paces, report_pace), highlight=False)
+    console.print(plan.time_line(paces, report_pace, finished), highlight=False)
     announce_compiling()
     # one hold of the directory's lock for the training and the report, so no other process writes in between
     with store.output_directory(out, store.Owner("study", study.name), force=force):

@@ -187,7 +187,7 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
     done = output.finished.done  # (seeds, rounds, updates per round, steps per update, environments)
     steps_per_round = int(np.prod(done.shape[2:]))
     steps = steps_per_round * done.shape[1]
-    pace.record(pace.key("deep", config.env, config.name), wall_seconds=wall, compile_seconds=compile_seconds,
+    pace.record(pace.key("deep", config), wall_seconds=wall, compile_seconds=compile_seconds,
                 seeds=len(config.seeds), amount=steps, unit="environment steps")
     meta = {
         "study": study, "name": config.name, "engine": "deep", "seeds": list(config.seeds),

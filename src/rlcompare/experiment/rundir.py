@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+from collections.abc import Collection
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
 
@@ -102,13 +103,21 @@ def verify_run(run_dir: Path, expected_config: dict[str, Any] | None, content_fi
         raise StoreError(f"{run_dir / META_FILE}: no record of the run's contents (not written by this version of "
                          "rlcompare, or damaged); run it again")
     for name in content_files:
-        recorded = files[name] if isinstance(files[name], dict) else {}
-        if (run_dir / name).stat().st_size != recorded.get("bytes") or _record_of(run_dir / name) != recorded:
-            raise StoreError(f"{run_dir / name}: does not belong to this run (its size or checksum differs from "
-                             f"what {META_FILE} recorded when the run was written); run it again")
+        check_recorded(run_dir / name, files[name], run_dir / META_FILE)
     if expected_config is not None and store.read_json(run_dir / CONFIG_FILE) != expected_config:
         raise StoreError(f"{run_dir / CONFIG_FILE}: another configuration than the one asked for")
     return meta
+
+
+def check_recorded(path: Path, recorded: Any, record_file: Path, whose: str = "run") -> None:
+    """A :class:`StoreError` naming ``path`` where it is missing or its size or checksum differs from ``recorded``
+    (what ``record_file`` entered when the ``whose`` was written)."""
+    if not path.is_file():
+        raise StoreError(f"{path}: missing; {record_file} records it")
+    if not isinstance(recorded, dict) or path.stat().st_size != recorded.get("bytes") or (
+            _record_of(path) != recorded):
+        raise StoreError(f"{path}: does not belong to this {whose} (its size or checksum differs from what "
+                         f"{record_file.name} recorded when the {whose} was written); run it again")
 
 
 def _record_of(path: Path) -> dict[str, Any]:
@@ -236,3 +245,63 @@ def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buffer = io.BytesIO()
     np.savez_compressed(buffer, allow_pickle=False, **arrays)
     return buffer.getvalue()
+
+
+# --- a study's record of its members ------------------------------------------------------------------------------
+
+MEMBERS_FILE = "members.json"
+"""A study directory's record: each run it trained or loaded, by name, with the checksum of its ``meta.json``
+(which holds the checksums of the run's other files), and the study's own files with theirs."""
+
+
+def enter_members(study_dir: Path, runs: list[str], files: dict[str, bytes] | None = None) -> None:
+    """Enter ``runs`` (run directories of ``study_dir``, finished) and ``files`` (the study's own files, just
+    written: name relative to ``study_dir`` -> bytes) in the study's record, beside what it recorded before."""
+    study_dir = Path(study_dir)
+    record = members_of(study_dir)
+    record["runs"].update({name: _record_of(study_dir / name / META_FILE) for name in runs})
+    record["files"].update({name: file_record(data) for name, data in (files or {}).items()})
+    store.write_json_atomic(study_dir / MEMBERS_FILE, record)
+
+
+def members_of(study_dir: Path) -> dict[str, dict[str, Any]]:
+    """What the study recorded (empty where it has no record yet: a study of an earlier version)."""
+    path = Path(study_dir) / MEMBERS_FILE
+    data = store.read_json(path) if path.is_file() else {}
+    if not isinstance(data, dict) or not all(isinstance(data.get(key, {}), dict) for key in ("runs", "files")):
+        raise StoreError(f"{path}: not a study's record rlcompare wrote")
+    return {"runs": dict(data.get("runs", {})), "files": dict(data.get("files", {}))}
+
+
+def missing_members(study_dir: Path, reported: Collection[str] = ()) -> list[str]:
+    """A line for each run the study recorded that is gone or was replaced since (its ``meta.json`` not the one
+    recorded), but those of ``reported`` (runs a report has named already): a report names them and reads nothing
+    as if they were there."""
+    study_dir = Path(study_dir)
+    try:
+        runs = members_of(study_dir)["runs"]
+    except StoreError as error:
+        return [str(error)]
+    problems = []
+    for name, recorded in sorted(runs.items()):
+        if name in reported:
+            continue
+        meta = study_dir / name / META_FILE
+        if not (study_dir / name).is_dir():
+            problems.append(f"{name}: the study trained this run ({MEMBERS_FILE}) and {study_dir / name} is gone; "
+                            "run the study's command again to train it")
+        elif not meta.is_file() or _record_of(meta) != recorded:
+            problems.append(f"{name}: not the run the study trained ({meta} differs from what {MEMBERS_FILE} "
+                            "recorded); run the study's command again")
+    return problems
+
+
+def read_member_file(study_dir: Path, name: str) -> bytes:
+    """One of the study's own files, verified against its record: a :class:`StoreError` naming it where it is
+    missing, changed, or never recorded."""
+    path, record_file = Path(study_dir) / name, Path(study_dir) / MEMBERS_FILE
+    recorded = members_of(Path(study_dir))["files"].get(name)
+    if recorded is None:
+        raise StoreError(f"{path}: not recorded in {record_file}; run the study's command again")
+    check_recorded(path, recorded, record_file, "study")
+    return path.read_bytes()

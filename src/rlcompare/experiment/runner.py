@@ -142,4 +142,6 @@ def run_or_load(
             for name, config in configs.items():
                 pending[pool.submit(one, name, config)] = name
             for future in as_completed(pending):
-                yield future.result()
+                name, results, reused = future.result()
+                rundir.enter_members(Path(out), [name])
+                yield name, results, reused

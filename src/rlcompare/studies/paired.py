@@ -26,7 +26,7 @@ from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.envs import jax_env
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import evaluate
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.backends import make_backend
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
@@ -238,7 +238,7 @@ def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], li
     """The finished runs of a study directory, deep and tabular, and what is missing or broken."""
     deep: dict[str, DeepResults] = {}
     tabular: dict[str, Results] = {}
-    problems = []
+    problems, failed = [], []
     for run_dir in sorted(p for p in Path(out).iterdir() if p.is_dir() and store.owner_of(p) == store.RUN):
         try:
             results = load_run(run_dir)
@@ -248,7 +248,8 @@ def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], li
                 deep[run_dir.name] = results
         except (store.StoreError, ValueError) as error:
             problems.append(str(error))
-    return deep, tabular, problems
+            failed.append(run_dir.name)
+    return deep, tabular, problems + rundir.missing_members(Path(out), failed)
 
 
 def eval_curves(results: DeepResults) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ report cannot disagree. Nothing is trained or compiled, and no file is written.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -85,13 +85,13 @@ def tabular_training(name: str, config: Any) -> Training:
     """A tabular configuration (:class:`~rlcompare.tabular.config.ExperimentConfig`) as a training of so many
     episodes, its seeds spread over this machine's cores."""
     seeds = len(config.seeds)
-    return Training(name, seeds, config.episodes, "episodes", pace.key("tabular", config.env, config.name),
+    return Training(name, seeds, config.episodes, "episodes", pace.key("tabular", config),
                     pace.threads_for(seeds))
 
 
 def deep_training(name: str, config: Any, unit: str = "environment steps") -> Training:
     """A deep configuration (:class:`~rlcompare.deep.config.DeepConfig`) as a training of the steps it runs."""
-    return Training(name, len(config.seeds), config.steps_trained, unit, pace.key("deep", config.env, config.name))
+    return Training(name, len(config.seeds), config.steps_trained, unit, pace.key("deep", config))
 
 
 def episodic(configs: Mapping[str, Any]) -> tuple[Training, ...]:
@@ -145,30 +145,35 @@ class StudyPlan:
         reasons = "; ".join(f"{q.asks}: {q.reads()}" for q in self.undecidable)
         return f"This design cannot decide {reasons}; with --seeds {self.seeds_needed} it can."
 
-    def time_line(self, paces: Mapping[str, Pace], report: str = "") -> str:
+    def time_line(self, paces: Mapping[str, Pace], report: str = "", finished: Collection[str] = ()) -> str:
         """How long it will take on this machine, from the pace each training (and the report, kept under
-        ``report``) last ran at here, and which trainings have no pace kept."""
-        times = [t.seconds(paces) for t in self.trainings]
-        unknown = [t.name for t, seconds in zip(self.trainings, times, strict=True) if seconds is None]
+        ``report``) last ran at here; the trainings ``finished`` already are read, not trained, and not counted,
+        and those with no pace kept are named."""
+        waiting = [t for t in self.trainings if t.name not in finished]
+        times = [t.seconds(paces) for t in waiting]
+        unknown = [t.name for t, seconds in zip(waiting, times, strict=True) if seconds is None]
         known = [seconds for seconds in times if seconds is not None]
         if report in paces:
             known.append(paces[report].seconds(1, 1, 1))
+        done = (f"; {len(finished)} training{'s' * (len(finished) != 1)} finished already, read and not counted"
+                if finished else "")
         if not known:
             return (f"Time: not known yet; no training of this design has run on this machine (each keeps its pace "
-                    f"in {pace.pace_file()} as it runs).")
-        newest = max(paces[key].measured for key in (*(t.pace_key for t in self.trainings), report) if key in paces)
+                    f"in {pace.pace_file()} as it runs){done}.")
+        newest = max(paces[key].measured for key in (*(t.pace_key for t in waiting), report) if key in paces)
         line = (f"Time: about {duration(sum(known))} on this machine, from the pace of its trainings measured here "
-                f"(newest {newest}; trainings already finished in the output directory are loaded instead)")
+                f"(newest {newest}){done}")
         if unknown:
-            line += f"; not counted, never run here: {', '.join(unknown)}"
+            line += f"; not counted, never run here with these settings: {', '.join(unknown)}"
         return line + "."
 
-    def lines(self, paces: Mapping[str, Pace] | None = None, report: str = "") -> list[str]:
-        """The whole plan: the first line, its time where ``paces`` are given, every training, every family of
-        tests."""
+    def lines(self, paces: Mapping[str, Pace] | None = None, report: str = "", finished: Collection[str] = ()
+              ) -> list[str]:
+        """The whole plan: the first line, its time where ``paces`` are given (:meth:`time_line`), every training,
+        every family of tests."""
         lines = [self.first_line()]
         if paces is not None:
-            lines.append(self.time_line(paces, report))
+            lines.append(self.time_line(paces, report, finished))
         if self.trainings:
             lines += ["", f"Trainings ({len(self.trainings)}):"]
             lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]

@@ -52,6 +52,7 @@ def _trained_on(backend: Backend, out: Path, configs: dict[str, DeepConfig], pro
         if stored is not None:
             if progress is not None:
                 progress(config.progress_total)
+            rundir.enter_members(out, [name])
             yield name, stored, True
             continue
         parts = seed_blocks(config)
@@ -67,6 +68,7 @@ def _trained_on(backend: Backend, out: Path, configs: dict[str, DeepConfig], pro
             merged = merge_seeds([part for part in parts if part is not None])
             with store.output_directory(out / trial.config_hash, store.RUN):
                 rundir.write_results(out / trial.config_hash, merged)
+            rundir.enter_members(out, [trial.config_hash])
             finished.append((trial.config_hash, merged))
 
     backend.run(trials, save)

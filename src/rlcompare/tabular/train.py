@@ -84,7 +84,7 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
         engine.train_chunks(rule, settings, env, features, state, epsilons, chunks, records, progress)
         wall = time.perf_counter() - started
     threads = min(numba.get_num_threads(), len(config.seeds))
-    pace.record(pace.key("tabular", config.env, config.name), wall_seconds=wall, compile_seconds=compile_seconds,
+    pace.record(pace.key("tabular", config), wall_seconds=wall, compile_seconds=compile_seconds,
                 seeds=len(config.seeds), amount=config.episodes, unit="episodes", threads=threads)
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))

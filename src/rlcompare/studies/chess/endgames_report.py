@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.envs.chess import rules as chess_rules
 from rlcompare.envs.chess.endgames import ENDGAMES, parse
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_run
 from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
@@ -326,7 +326,7 @@ def load(out: Path) -> tuple[dict[str, Results], list[str]]:
             runs[run_dir.name] = load_run(run_dir)
         except (OSError, ValueError, KeyError) as error:  # StoreError included
             problems.append(f"{run_dir.name}: {error}")
-    return runs, problems
+    return runs, problems + rundir.missing_members(out, [problem.split(":")[0] for problem in problems])
 
 
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None = None, videos: bool = True

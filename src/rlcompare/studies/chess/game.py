@@ -12,6 +12,7 @@ intervals. The ladder's games are played once, when the runs are trained, and ke
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 from typing import Any
@@ -24,7 +25,7 @@ from rlcompare.deep.chess.games import chess_game_env
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.results import DeepResults
 from rlcompare.envs.chess.games import GAMES
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.players.stockfish import ELO_1350
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.design import GATE, can_pass, seeds_needed, smallest_p
@@ -53,6 +54,7 @@ STOCKFISH = "stockfish"
 """What the Stockfish rungs' names begin with."""
 LADDER = "ladder"
 """The directory, inside the study's, of each game's ladder: its games and what they were played from."""
+GAMES_FILE = "games.parquet"
 EVAL_ROUNDS, EVAL_EPISODES = 10, 64
 """Each training's evaluations: rounds over the training, and games of the greedy network against the random player
 in each."""
@@ -126,7 +128,9 @@ def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
         games = pd.concat([games, engine_games], ignore_index=True)
         pgn = "\n\n".join(str(record.game) for record in records) + "\n"
         store.write_bytes_atomic(where / "stockfish.pgn", pgn.encode())
-    store.write_atomic(where / "games.parquet", lambda handle: games.to_parquet(handle, index=False))
+    data = games.to_parquet(index=False)
+    store.write_bytes_atomic(where / GAMES_FILE, data)
+    rundir.enter_members(out, [], {ladder_games(options.game): data})
     store.write_json_atomic(marker, {"runs": played_from(deep), "pairs": options.pairs, "game": options.game})
 
 
@@ -139,11 +143,17 @@ def load_ladder(out: Path, env: str, runs: dict[str, DeepResults]) -> pd.DataFra
                                "with the same options to play it")
     if store.read_json(marker).get("runs") != played_from(runs):
         raise store.StoreError(f"{marker}: the ladder was played from other runs than those in {out}")
-    games = pd.read_parquet(where / "games.parquet")
+    games = pd.read_parquet(io.BytesIO(rundir.read_member_file(out, ladder_games(env))))
     missing = set(chess_ladder.COLUMNS) - set(games.columns)
     if missing:
-        raise store.StoreError(f"{where / 'games.parquet'}: not a ladder's games (no {sorted(missing)})")
+        raise store.StoreError(f"{where / GAMES_FILE}: not a ladder's games (no {sorted(missing)})")
     return games
+
+
+def ladder_games(env: str) -> str:
+    """Where a game's ladder keeps its games, relative to the study's directory (recorded with their checksum in
+    its :data:`~rlcompare.experiment.rundir.MEMBERS_FILE`)."""
+    return f"{LADDER}/{env}/{GAMES_FILE}"
 
 
 # --- the report -------------------------------------------------------------------------------------------------
@@ -223,7 +233,11 @@ def _build_report(out: Path, videos: bool) -> Report:
             continue
         judged = found.judged[key]
         env_runs = {name: r for name, r in found.runs.items() if r.config.env == env}
-        games = load_ladder(out, env, env_runs)
+        try:
+            games = load_ladder(out, env, env_runs)
+        except store.StoreError as error:  # the verdicts stand; nothing is rated from games not the study's
+            problems.append(f"{game}: the ladder is not rated: {error}")
+            continue
         anchor = anchor_of(games)
         ratings = bootstrap_ratings(games_of(games), *anchor, seed=0)
         table = ladder_table(games, ratings)

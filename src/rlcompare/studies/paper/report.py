@@ -83,7 +83,8 @@ def load_study(study_dir: Path) -> tuple[dict[str, Results], list[str]]:
             loaded[name] = load_run(run_dir)
         except (store.StoreError, ValueError, KeyError) as error:
             problems.append(f"{name}: {error}")
-    return loaded, problems
+    named = [problem.split(":")[0] for problem in problems]
+    return loaded, problems + (rundir.missing_members(Path(study_dir), named) if Path(study_dir).is_dir() else [])
 
 
 def build_report(study_dir: Path, *, videos: bool = True, video_seed: int | None = None,

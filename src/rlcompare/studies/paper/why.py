@@ -32,7 +32,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_run
 from rlcompare.formatting import NO_DATA, number
 from rlcompare.report.findings import BEHAVIOUR_AND_GREEDY, SCHEDULE_TEXT, amount, more_or_less
@@ -266,7 +266,7 @@ def load_why(out: Path) -> tuple[dict[str, Results], list[str]]:
             runs[name] = load_run(Path(out) / name)
         except (OSError, ValueError, KeyError) as error:  # StoreError included
             problems.append(f"{name}: {error}")
-    return runs, problems
+    return runs, problems + rundir.missing_members(Path(out), [problem.split(":")[0] for problem in problems])
 
 
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Results] | None = None, videos: bool = True
