@@ -4,6 +4,7 @@ plays python-chess boards, and the study answers from a fresh directory, resumes
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import chess
@@ -159,6 +160,11 @@ def test_the_study_answers_resumes_and_its_agent_plays_python_chess_boards(tmp_p
     assert again.exit_code == 0
     assert again.output.count("loaded (already complete)") == 6  # four configurations and the order ablation
     assert (out / "tables" / "verdicts.csv").read_text() == verdicts
+    shutil.rmtree(out / "KQK-random-sarsa-constant")  # a study with a run gone is not reported as whole
+    missing = invoke("report", str(out), "--no-videos", columns=300)
+    assert missing.exit_code == 2, missing.output
+    assert "KQK-random-sarsa-constant: the study trained this run (members.json)" in " ".join(missing.output.split())
+    assert "Traceback" not in missing.output
     agent = rlcompare.load_agent(out / "KQK-random-q_learning-decay", seed=1)
     board = chess.Board("8/8/8/3k4/8/8/8/KQ6 w - - 0 1")
     assert agent.move(board) in board.legal_moves
