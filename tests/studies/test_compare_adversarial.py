@@ -225,3 +225,18 @@ def test_the_plan_states_the_family_its_reach_and_each_detectable_difference_and
     assert "above the 0.025 Holm asks over 2 tests" in with_margin.output
     assert "E, A against B (final): none (these seeds cannot pass the level)" in with_margin.output
     assert not out.exists()
+
+
+def test_a_report_is_replaced_by_one_of_the_same_runs_and_never_by_another_comparisons(tmp_path: Path) -> None:
+    rows = [(method, "E", seed, step, float(value + seed)) for method, value in (("A", 1), ("B", 5))
+            for seed in range(4) for step in range(0, 101, 10)]
+    table, out = tidy(tmp_path / "runs.csv", rows), tmp_path / "out"
+    assert invoke("compare", str(table), "--out", str(out)).exit_code == 0
+    margin = invoke("compare", str(table), "--margin", "1", "--out", str(out), columns=400)
+    assert margin.exit_code == 0, margin.output  # the same runs, another margin: the report is replaced
+    assert "Margin of no difference, declared on the command line: ±1" in (out / "report.html").read_text()
+    other = tidy(tmp_path / "other.csv", [(m, e, s, t, v + 1) for m, e, s, t, v in rows])
+    refused = invoke("compare", str(other), "--out", str(out), columns=400)
+    assert refused.exit_code == 2
+    assert f"{out}: holds the comparison of other runs (methods A, B; environments E)" in refused.output
+    assert "Margin of no difference, declared on the command line: ±1" in (out / "report.html").read_text()

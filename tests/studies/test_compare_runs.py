@@ -213,10 +213,18 @@ def test_two_environments_are_pooled_as_rliable_does_on_their_reference_scores(t
     assert uneven.exit_code == 0, uneven.output
     assert "Acrobot-v1: dqn 4, ppo 5; CartPole-v1: dqn 5, ppo 5" in html.unescape(
         (tmp_path / "uneven" / "report.html").read_text())
-    # the same directory again for one environment: the earlier comparison's aggregates and figures go with it
+    # the same directory again for other runs (one environment): refused without a word of --force, the earlier
+    # report kept; with it, the earlier comparison's aggregates and figures go
     before = {p.name for p in (tmp_path / "out" / "figures").iterdir()}
-    one = invoke("compare", str(runs / "dqn" / "CartPole-v1"), str(runs / "ppo" / "CartPole-v1"), "--group",
-                 "{method}/{env}/{seed}/*", "--out", str(tmp_path / "out"), columns=300)
+    page = (tmp_path / "out" / "report.html").read_bytes()
+    one_env = (str(runs / "dqn" / "CartPole-v1"), str(runs / "ppo" / "CartPole-v1"), "--group",
+               "{method}/{env}/{seed}/*", "--out", str(tmp_path / "out"))
+    refused = invoke("compare", *one_env, columns=300)
+    assert refused.exit_code == 2, refused.output
+    assert "holds the comparison of other runs (methods dqn, ppo; environments Acrobot-v1, CartPole-v1)" in " ".join(
+        refused.output.split())
+    assert (tmp_path / "out" / "report.html").read_bytes() == page
+    one = invoke("compare", *one_env, "--force", columns=300)
     assert one.exit_code == 0, one.output
     assert not (tmp_path / "out" / "tables" / "aggregates.csv").exists()
     after = {p.name for p in (tmp_path / "out" / "figures").iterdir()}

@@ -16,11 +16,13 @@ equivalence is made.
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections.abc import Hashable, Iterator, Mapping
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -28,6 +30,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.experiment import store
 from rlcompare.experiment.outside import OutsideRunError
+from rlcompare.formatting import cut as cut_text
 from rlcompare.report.aggregate_plots import Aggregates, across_section, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
 from rlcompare.report.page import Section, save_figure, write_report, write_table
@@ -369,6 +372,34 @@ def pairing_table(frame: pd.DataFrame) -> pd.DataFrame:
             .agg(points=("step", "size"), first_step=("step", "min"), last_step=("step", "max")).reset_index())
 
 
+COMPARED_FILE = "compared.json"
+"""What a comparison's directory compared: a digest of the runs' points, and their methods and environments."""
+
+
+def what_was_compared(frame: pd.DataFrame) -> dict[str, Any]:
+    """The runs of a comparison: a digest of every point read (method, environment, seed, step, value), and the
+    methods and environments by name."""
+    points = frame[["method", "env", "seed", "step", "value"]].sort_values(["method", "env", "seed", "step"])
+    digest = hashlib.sha256(pd.util.hash_pandas_object(points, index=False).to_numpy().tobytes()).hexdigest()
+    return {"points": digest, "methods": sorted(frame["method"].unique().tolist()),
+            "environments": sorted(frame["env"].unique().tolist())}
+
+
+def refuse_another_comparison(out: Path, compared_runs: dict[str, Any]) -> None:
+    """A :class:`~rlcompare.experiment.store.StoreError` where ``out`` holds the report of other runs: a report is
+    replaced by one of the same runs (another margin, another metric), never by another comparison's without
+    ``--force``."""
+    path = out / COMPARED_FILE
+    if not path.is_file():
+        return
+    earlier = store.read_json(path)
+    if not isinstance(earlier, dict) or earlier.get("points") == compared_runs["points"]:
+        return
+    what = "; ".join(f"{key} {', '.join(map(str, earlier.get(key, [])))}" for key in ("methods", "environments"))
+    raise store.StoreError(f"{out}: holds the comparison of other runs ({cut_text(what, 200)}); choose another "
+                           "--out, or --force to replace it")
+
+
 EARLIER = ("figures/*", "tables/*", "report.html")
 """What an earlier comparison wrote into the directory: removed (the files rlcompare listed there, nothing else)
 before a new one is written, so that none of its aggregates or figures passes for the new comparison's."""
@@ -383,8 +414,12 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
     found, read = curves(frame), numbers(frame)
     comparisons = compared(read, paired, margin, metrics)
     with store.output_directory(out, COMPARISON, force=force):
+        compared_runs = what_was_compared(frame)
+        if not force:
+            refuse_another_comparison(out, compared_runs)
         for pattern in EARLIER:
             store.remove_outputs(out, pattern)
+        store.write_json_atomic(out / COMPARED_FILE, compared_runs)
         labelled = judged(comparisons)
         table = verdicts(labelled)
         files = {"verdicts": write_table(table, out / "tables", "verdicts"),
