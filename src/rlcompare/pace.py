@@ -14,6 +14,7 @@ another load on the machine makes the next one differ. An estimate is for planni
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import os
@@ -49,14 +50,18 @@ def key(engine: str, config: Any) -> str:
     """What the pace of a training of ``config`` (either engine's configuration) is kept under: its engine,
     environment and name, and a digest of its settings but its amounts (seeds, episodes, total steps), which a
     pace is divided by: ``tabular MountainCar-v0 q_learning-decay 3f2a...``."""
-    settings = json.dumps(without_amounts(config.to_dict()), sort_keys=True, default=str)
+    settings = json.dumps(settings_of(config), sort_keys=True, default=str)
     return f"{engine} {config.env} {config.name} {hashlib.sha256(settings.encode()).hexdigest()[:12]}"
 
 
-def without_amounts(settings: Any) -> Any:
-    """``settings`` with the keys of :data:`AMOUNTS` left out at every depth."""
-    if isinstance(settings, dict):
-        return {name: without_amounts(value) for name, value in settings.items() if name not in AMOUNTS}
+def settings_of(config: Any) -> dict[str, Any]:
+    """A configuration's fields but its amounts (:data:`AMOUNTS`), and a deep one's resolved hyperparameters but its
+    total steps (read without copying its seeds: a plan of a million is read in a blink)."""
+    settings = {item.name: getattr(config, item.name) for item in dataclasses.fields(config)
+                if item.name not in AMOUNTS}
+    if hasattr(config, "method_config"):
+        resolved = dataclasses.asdict(config.method_config())
+        settings["resolved"] = {name: value for name, value in resolved.items() if name not in AMOUNTS}
     return settings
 
 

@@ -63,10 +63,16 @@ def is_number(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not is_flag(value) and math.isfinite(value)
 
 
+PLAIN_TYPES = (int, float, str)
+"""Python's own scalars: what :func:`plain` returns as they are (``bool`` is not ``int`` to ``type``)."""
+
+
 def plain(value: Any) -> Any:
     """A NumPy scalar as the Python value it holds (what ``config.json`` and a config's hash read), a tuple's too;
     anything else as it is."""
     if isinstance(value, tuple):
+        if all(type(item) in PLAIN_TYPES for item in value):  # a million seeds in a blink
+            return value
         return tuple(map(plain, value))
     return value.item() if _is_numpy(value) else value
 

@@ -116,3 +116,10 @@ def test_the_detectable_difference_is_found_about_four_times_in_five_by_scipys_e
             p = stats.wilcoxon(rng.normal(shift, spread, seeds), method="exact").pvalue
         found += p <= level
     assert 0.74 <= found / 2000 <= 0.86
+
+
+@pytest.mark.parametrize("test", [SIGNED_RANK, GATE, RANK_SUM])
+def test_the_smallest_p_of_a_million_seeds_is_zero_not_an_overflow(test):
+    assert smallest_p(test, 1_000_000) == 0.0
+    assert smallest_p(test, 1_000_000, 3 if test == RANK_SUM else None) >= 0.0
+    assert reach(test, 1_000_000, family=80).can_decide

@@ -58,10 +58,11 @@ def smallest_p(test: Test, seeds: int, other_seeds: int | None = None) -> float:
     if test in (T_TEST, INTERVAL):
         return 0.0 if seeds >= 2 else 1.0
     if test == SIGNED_RANK:
-        return min(1.0, 2.0 / 2.0**seeds)
+        return min(1.0, 2.0**(1 - seeds))
     if test == GATE:
-        return 1.0 / 2.0**seeds
-    return min(1.0, 2.0 / math.comb(seeds + (seeds if other_seeds is None else other_seeds), seeds))
+        return 2.0**-seeds
+    orders = math.comb(seeds + (seeds if other_seeds is None else other_seeds), seeds)
+    return min(1.0, 2.0 / orders) if orders.bit_length() < 1000 else 0.0  # past a float's range: 0
 
 
 def strictest_level(family: int, level: float = ALPHA) -> float:

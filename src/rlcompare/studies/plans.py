@@ -153,18 +153,21 @@ class StudyPlan:
         times = [t.seconds(paces) for t in waiting]
         unknown = [t.name for t, seconds in zip(waiting, times, strict=True) if seconds is None]
         known = [seconds for seconds in times if seconds is not None]
-        if report in paces:
-            known.append(paces[report].seconds(1, 1, 1))
         done = (f"; {len(finished)} training{'s' * (len(finished) != 1)} finished already, read and not counted"
                 if finished else "")
-        if not known:
+        if waiting and not known:
             return (f"Time: not known yet; no training of this design has run on this machine (each keeps its pace "
                     f"in {pace.pace_file()} as it runs){done}.")
+        if report in paces:
+            known.append(paces[report].seconds(1, 1, 1))
+        if not known:
+            return f"Time: not known yet{done}."
         newest = max(paces[key].measured for key in (*(t.pace_key for t in waiting), report) if key in paces)
         line = (f"Time: about {duration(sum(known))} on this machine, from the pace of its trainings measured here "
                 f"(newest {newest}){done}")
         if unknown:
-            line += f"; not counted, never run here with these settings: {', '.join(unknown)}"
+            more = f" and {len(unknown) - 3} more" if len(unknown) > 3 else ""
+            line += f"; not counted, never run here with these settings: {', '.join(unknown[:3])}{more}"
         return line + "."
 
     def lines(self, paces: Mapping[str, Pace] | None = None, report: str = "", finished: Collection[str] = ()

@@ -139,10 +139,11 @@ class ExperimentConfig:
     """Named stages of learning, as shares of the episodes, at which the Q-table is kept."""
 
     def __post_init__(self) -> None:
-        for item in dataclasses.fields(self):  # NumPy's scalars as the Python values they hold
-            object.__setattr__(self, item.name, plain(getattr(self, item.name)))
+        for item in dataclasses.fields(self):  # NumPy's scalars as the Python values they hold (seeds below)
+            if item.name != "seeds":
+                object.__setattr__(self, item.name, plain(getattr(self, item.name)))
         try:
-            object.__setattr__(self, "seeds", tuple(_as_int(s) for s in self.seeds))
+            object.__setattr__(self, "seeds", _plain_seeds(tuple(self.seeds)))
         except (TypeError, ValueError):
             raise ConfigError("seeds", self.seeds, "a list of distinct integers >= 0") from None
         try:
@@ -265,6 +266,19 @@ def _plain(text: str) -> str:
     return " ".join(re.sub(r"(:\w+:)?`+([^`]+)`+", r"\2", text).split())
 
 
+@functools.lru_cache(maxsize=4)
+def _plain_seeds(seeds: tuple[Any, ...]) -> tuple[int, ...]:
+    """Seeds as Python integers (a :class:`ValueError` for one that is not an integer); the configurations of a
+    study share one tuple, read once however many seeds it holds."""
+    return tuple(s if type(s) is int else _as_int(s) for s in seeds)
+
+
+@functools.lru_cache(maxsize=4)
+def _seeds_checked(seeds: tuple[int, ...]) -> tuple[bool, bool]:
+    """Whether every seed is in [0, 2**63), and whether they are distinct (read once for a study's tuple)."""
+    return all(0 <= s < 2**63 for s in seeds), len(set(seeds)) == len(seeds)
+
+
 def _as_int(value: Any) -> int:
     if not is_integer(value):
         raise ValueError(value)
@@ -312,8 +326,9 @@ def _check_counts(c: ExperimentConfig) -> None:
         rule = Integer(0, MAX_COUNT)
         require(rule.holds(getattr(c, name)), name, getattr(c, name), f"{rule.allowed} ({meaning})")
     require(len(c.seeds) >= 1, "seeds", c.seeds, "at least one seed")
-    require(all(0 <= s < 2**63 for s in c.seeds), "seeds", c.seeds, "integers in [0, 2**63)")
-    require(len(set(c.seeds)) == len(c.seeds), "seeds", c.seeds, "distinct integers")
+    in_range, distinct = _seeds_checked(c.seeds)
+    require(in_range, "seeds", c.seeds, "integers in [0, 2**63)")
+    require(distinct, "seeds", c.seeds, "distinct integers")
 
 
 def _check_stages(c: ExperimentConfig) -> None:
