@@ -25,8 +25,9 @@ def test_a_study_with_other_seeds_is_refused_naming_them_and_nothing_changes(tmp
     before = digests(out)
     refused = paper(out, 2)
     assert refused.exit_code == 2
-    design, *lines = refused.output.strip().splitlines()
+    design, time, *lines = refused.output.strip().splitlines()
     assert design.startswith("This design cannot decide")
+    assert time.startswith("Time: about ")  # the same settings as the first's, whose pace it kept
     assert len(lines) == 1
     assert "holds finished runs made with other settings" in lines[0]
     assert "seeds 0-2 there, 0, 1 asked" in lines[0]
@@ -123,3 +124,20 @@ def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_
     report = invoke("report", str(out))
     assert report.exit_code == 0, report.output
     assert "(q_learning-decay, 40 seeds)" in report.output
+
+
+def test_a_run_whose_configuration_was_edited_is_damaged_and_trained_again_not_another_runs(tmp_path: Path) -> None:
+    """alpha 0.5 edited to 0.25 in config.json by hand: the run was made with 0.5 and is damaged (its checksum is not
+    meta.json's); the same command says so and trains it again, never that it was made with 0.25."""
+    out = tmp_path / "run"
+    command = ("run", "--episodes", "5", "--seeds", "2", "--alpha", "0.5", "--out", str(out))
+    assert invoke(*command).exit_code == 0
+    config = out / "config.json"
+    config.write_text(config.read_text().replace('"alpha": 0.5,', '"alpha": 0.25,'))
+    again = invoke(*command, columns=300)
+    assert again.exit_code == 0, again.output
+    said = " ".join(again.output.split())
+    assert "A damaged run, trained again:" in said
+    assert "config.json: does not belong to this run" in said
+    assert "other settings" not in said
+    assert '"alpha": 0.5,' in config.read_text()

@@ -75,7 +75,7 @@ def run(
     force: Force = False,
 ) -> None:
     """Train one configuration over many seeds and write its run directory."""
-    from rlcompare.experiment.runner import refuse_replacing
+    from rlcompare.experiment.runner import damage_of, refuse_replacing
     from rlcompare.experiment.runner import run as run_experiment
     from rlcompare.studies.paper.study import summary
 
@@ -87,6 +87,9 @@ def run(
     with store.output_directory(out_dir, store.RUN, force=force), progress_bars() as progress:
         if not force:
             refuse_replacing(out_dir, {"": config})
+        damaged = damage_of(out_dir, config)
+        if damaged:
+            console.print(Text(f"A damaged run, trained again: {damaged}", style="yellow"), highlight=False)
         task = progress.add_task(progress_label(config), total=config.episodes)
         results = run_experiment(config, out=out_dir, progress=lambda n: progress.advance(task, n))
     console.print(done_line(config.name, results, reused=False), highlight=False)

@@ -30,12 +30,16 @@ def run(config: Any, *, out: Path | None = None, study: str = "", progress: Call
 
 def changed_settings(run_dir: Path, config: Any) -> str:
     """How the finished run in ``run_dir`` was made differently from ``config``: ``seeds 0-29 there, 0-9 asked``
-    for each setting that differs (the first three); empty where it holds no finished run, or one of ``config``."""
+    for each setting that differs (the first three); empty where it holds no finished run, or one of ``config``, or
+    a damaged one (a ``config.json`` that is not the one its ``meta.json`` recorded: it is trained again)."""
     if not (run_dir / rundir.META_FILE).is_file():
         return ""
     try:
+        meta = store.read_json(run_dir / rundir.META_FILE)
+        files = meta.get("contents", {}).get("files", {}) if isinstance(meta, dict) else {}
+        rundir.check_recorded(run_dir / rundir.CONFIG_FILE, files.get(rundir.CONFIG_FILE), run_dir / rundir.META_FILE)
         stored = store.read_json(run_dir / rundir.CONFIG_FILE)
-    except store.StoreError:
+    except (store.StoreError, AttributeError):
         return ""
     asked = json.loads(json.dumps(config.to_dict()))
     if not isinstance(stored, dict) or stored == asked:
@@ -43,6 +47,19 @@ def changed_settings(run_dir: Path, config: Any) -> str:
     differing = [key for key in sorted(set(stored) | set(asked)) if stored.get(key) != asked.get(key)]
     shown = [f"{key} {_setting(stored.get(key))} there, {_setting(asked.get(key))} asked" for key in differing[:3]]
     return ", ".join(shown) + (f" and {len(differing) - 3} more" if len(differing) > 3 else "")
+
+
+def damage_of(run_dir: Path, config: Any) -> str:
+    """Why the finished run in ``run_dir`` is damaged (a file whose size or checksum is not what its ``meta.json``
+    recorded), as :func:`~rlcompare.experiment.rundir.verify_run` says it; empty where it holds no finished run or
+    an intact one."""
+    if not (run_dir / rundir.META_FILE).is_file():
+        return ""
+    try:
+        rundir.verify_run(run_dir, None, rundir.files_of(engines.front(config).Results))
+    except store.StoreError as error:
+        return str(error).removesuffix("; run it again")
+    return ""
 
 
 def _setting(value: Any) -> str:
