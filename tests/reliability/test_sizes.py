@@ -79,3 +79,38 @@ def test_seeds_that_would_pass_two_to_the_63_name_the_first_seed(tmp_path: Path)
                     columns=300)
     assert result.exit_code == 2
     assert "'--first-seed'" in result.output
+
+
+def test_seeds_past_memory_are_refused_by_the_plan_naming_seeds_before_anything_trains(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """chess-endgames with 2,000 seeds was killed by the kernel at 18 GB, its weights never counted; each seed's
+    training is small, so the seeds are named, with how many fit (on a machine said to have 4 GiB)."""
+    from rlcompare.studies.plans import tabular_training
+    from rlcompare.tabular.config import ExperimentConfig
+    from rlcompare.tabular.memory import records_bytes, run_bytes, training_bytes
+
+    monkeypatch.setattr(machine, "physical_memory", lambda: 4 * 2**30)
+    out = tmp_path / "study"
+    result = invoke("reproduce", "chess-endgames", "--allow-undecidable", "--seeds", "2000", "--episodes", "10",
+                    "--out", str(out), columns=400)
+    assert result.exit_code == 2, result.output
+    assert "'--seeds': got 2000; allowed: at most " in result.output
+    assert "seeds, whose training fits in memory" in result.output
+    assert "Traceback" not in result.output
+    assert not out.exists()
+    # one seed's weights and second estimates count beside its records: 2 x 48 states x 4 actions x 8 bytes, and
+    # its 6 random streams of 4 words
+    config = ExperimentConfig(env="CliffWalking-v1", seeds=(0, 1), episodes=10, eval_every=0)
+    one = ExperimentConfig(env="CliffWalking-v1", seeds=(0,), episodes=10, eval_every=0)
+    assert run_bytes(config) == training_bytes(one) == records_bytes(one) + 2 * 48 * 4 * 8 + 6 * 4 * 8
+    with pytest.raises(ConfigError, match="^bins: got 1; allowed: a run whose records fit"):  # names its own count
+        monkeypatch.setattr(machine, "physical_memory", lambda: 2**10)
+        tabular_training("x", one)
+
+
+def test_a_paper_study_of_too_many_seeds_names_seeds_not_bins(tmp_path: Path) -> None:
+    result = invoke("reproduce", "--allow-undecidable", "--seeds", "200000", "--plan", "--out",
+                    str(tmp_path / "study"), columns=400)
+    assert result.exit_code == 2
+    assert "'--seeds': got 200000; allowed: at most 89,478 seeds of 400 features x 3 actions" in result.output
+    assert "--bins" not in result.output

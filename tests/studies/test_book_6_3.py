@@ -14,7 +14,7 @@ import pytest
 from helpers import invoke
 from scipy import stats
 
-from rlcompare.experiment import store
+from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_if_complete
 from rlcompare.stats.intervals import mean_interval
 from rlcompare.studies.book import figure_6_3 as book_6_3
@@ -49,7 +49,7 @@ def test_the_study_at_a_tiny_size_through_the_command_line(tmp_path: Path) -> No
     assert result.exit_code == 0, result.output
     names = sorted(book_6_3.configs((0,)))
     assert sorted(p.name for p in out.iterdir()) == sorted([*names, "figures", "tables", "report.html",
-                                                            *store.OWN_FILES])
+                                                            rundir.MEMBERS_FILE, *store.OWN_FILES])
     for name in names:
         assert sorted(p.name for p in (out / name).iterdir()) == sorted(book_6_3.RUN_FILES + store.OWN_FILES)
         config = json.loads((out / name / "config.json").read_text())

@@ -81,9 +81,14 @@ class Training:
         return None if found is None else found.seconds(self.seeds, self.amount, self.threads)
 
 
-def tabular_training(name: str, config: Any) -> Training:
+def tabular_training(name: str, config: Any, memory_checked: bool = True) -> Training:
     """A tabular configuration (:class:`~rlcompare.tabular.config.ExperimentConfig`) as a training of so many
-    episodes, its seeds spread over this machine's cores."""
+    episodes, its seeds spread over this machine's cores; one that would not fit in memory refused now, before
+    anything trains (``memory_checked``: where the engine trains it whole, not a study in blocks of seeds)."""
+    if memory_checked:
+        from rlcompare.tabular.memory import check_memory
+
+        check_memory(config)
     seeds = len(config.seeds)
     return Training(name, seeds, config.episodes, "episodes", pace.key("tabular", config),
                     pace.threads_for(seeds))
@@ -94,9 +99,9 @@ def deep_training(name: str, config: Any, unit: str = "environment steps") -> Tr
     return Training(name, len(config.seeds), config.steps_trained, unit, pace.key("deep", config))
 
 
-def episodic(configs: Mapping[str, Any]) -> tuple[Training, ...]:
-    """Tabular configurations by run name, as trainings of so many episodes."""
-    return tuple(tabular_training(name, config) for name, config in configs.items())
+def episodic(configs: Mapping[str, Any], memory_checked: bool = True) -> tuple[Training, ...]:
+    """Tabular configurations by run name, as trainings of so many episodes (:func:`tabular_training`)."""
+    return tuple(tabular_training(name, config, memory_checked) for name, config in configs.items())
 
 
 def sweep_plan(sweep: Any) -> StudyPlan:

@@ -362,7 +362,12 @@ def _check_grid(c: ExperimentConfig) -> None:
                                                for lo, hi in c.bounds), "bounds", c.bounds,
                  f"{dims} pairs of finite numbers (low, high) with low < high, one per observation dimension")
     features = feature_count_of(c)
-    needed = features * env.n_actions * len(c.seeds) * (2 + len(c.stages)) * 8
+    per_seed = features * env.n_actions * (2 + len(c.stages)) * 8
+    needed = per_seed * len(c.seeds)
+    if needed > MAX_WEIGHT_BYTES and per_seed < MAX_WEIGHT_BYTES / 100:  # the seeds' number is what is too large
+        raise ConfigError("seeds", len(c.seeds), f"at most {MAX_WEIGHT_BYTES // per_seed:,} seeds of {features:,} "
+                          f"features x {env.n_actions} actions, whose weights and snapshots fit in "
+                          f"{MAX_WEIGHT_BYTES / 2**30:g} GiB (they need {needed / 2**30:.1f} GiB)")
     require(needed <= MAX_WEIGHT_BYTES, "bins" if c.features == "grid" else "tiles", c.bins if c.features == "grid"
              else c.tiles, f"a layout whose {features:,} features x {env.n_actions} actions x {len(c.seeds)} seeds "
              f"fit in {MAX_WEIGHT_BYTES / 2**30:g} GiB with their snapshots (they need {needed / 2**30:.1f} GiB)")

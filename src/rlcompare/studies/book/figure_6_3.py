@@ -30,7 +30,6 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.algorithms.registry import label as method_label
-from rlcompare.envs.features import feature_count
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.runner import run
 from rlcompare.formatting import cut, number
@@ -42,8 +41,7 @@ from rlcompare.stats.verdicts import Claim, judge, margin_text
 from rlcompare.studies.margins import margin
 from rlcompare.studies.plans import Question
 from rlcompare.tabular.config import ExperimentConfig
-from rlcompare.tabular.memory import records_bytes
-from rlcompare.tabular.state import STREAMS
+from rlcompare.tabular.memory import run_bytes
 
 ENV = "CliffWalking-v1"
 METHODS = ("sarsa", "expected_sarsa", "q_learning")
@@ -158,15 +156,6 @@ class PhaseRuns:
         if runs["seed"].tolist() != list(config.seeds) or seeds != list(config.seeds):
             raise store.StoreError(f"{run_dir}: the runs stored are not those of {rundir.CONFIG_FILE}")
         return cls(config, runs, q_tables, meta)
-
-
-def run_bytes(config: ExperimentConfig) -> int:
-    """Bytes one run of ``config`` takes while it trains: its records (:func:`records_bytes`: returns, lengths and
-    endings per episode, Q-tables at the stages, visits), its weights and second estimates, and its streams."""
-    one = dataclasses.replace(config, seeds=config.seeds[:1])
-    weights = feature_count(config.environment, config.features, config.grid_bins, config.tilings, config.tiles,
-                            config.hash_size) * config.environment.n_actions * 8
-    return records_bytes(one) + 2 * weights + STREAMS * 4 * 8
 
 
 def block_runs(config: ExperimentConfig) -> int:

@@ -80,7 +80,7 @@ class BookStudy:
     def study_plan(self, options: Seeded) -> StudyPlan:
         """What the study trains and the tests its report makes."""
         configs = self.configs_of(options)
-        return StudyPlan(episodic(configs), self.questions(configs))
+        return StudyPlan(episodic(configs, memory_checked=self.train is None), self.questions(configs))
 
     def run(self, out: Path, options: Seeded, ui: UI, *, study: str, force: bool = False) -> dict[str, Any]:
         """Each configuration into ``out / name``, or loaded when already complete there."""
