@@ -103,8 +103,8 @@ def test_seeds_past_memory_are_refused_by_the_plan_naming_seeds_before_anything_
     config = ExperimentConfig(env="CliffWalking-v1", seeds=(0, 1), episodes=10, eval_every=0)
     one = ExperimentConfig(env="CliffWalking-v1", seeds=(0,), episodes=10, eval_every=0)
     assert run_bytes(config) == training_bytes(one) == records_bytes(one) + 2 * 48 * 4 * 8 + 6 * 4 * 8
-    with pytest.raises(ConfigError, match="^bins: got 1; allowed: a run whose records fit"):  # names its own count
-        monkeypatch.setattr(machine, "physical_memory", lambda: 2**10)
+    monkeypatch.setattr(machine, "physical_memory", lambda: 2**10)
+    with pytest.raises(ConfigError, match=r"^bins: got 1; allowed: a run whose records fit"):  # its own count
         tabular_training("x", one)
 
 
