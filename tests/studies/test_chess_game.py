@@ -112,6 +112,11 @@ def test_a_study_whose_own_files_changed_or_whose_run_is_gone_is_reported_as_suc
         assert "pqn_q_lambda-gardner_chess: the study trained this run (members.json)" in said
     else:
         assert "games.parquet: does not belong to this study" in said
+        again = invoke(*TINY, "--no-videos", "--out", str(out), columns=300)  # the same command plays it again
+        assert again.exit_code == 0, again.output
+        assert "The ladder, strongest first" in " ".join(again.output.split())
+        pd.testing.assert_frame_equal(pd.read_parquet(games_file), pd.read_parquet(
+            study[0] / LADDER / "gardner_chess" / "games.parquet"))
 
 
 @pytest.mark.parametrize(("arguments", "named"), [

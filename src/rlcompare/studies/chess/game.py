@@ -114,12 +114,16 @@ def played_from(runs: dict[str, DeepResults]) -> dict[str, str]:
 
 def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
     """The game's ladder, written once for its runs (kept where ``ladder.json`` says it was played from the same
-    runs)."""
+    runs and its games are the ones the study recorded; played again where they are missing or changed)."""
     deep = {name: r for name, r in runs.items() if isinstance(r, DeepResults) and r.config.env == options.game}
     where = out / LADDER / options.game
     marker = where / "ladder.json"
     if marker.exists() and store.read_json(marker).get("runs") == played_from(deep):
-        return
+        try:
+            rundir.read_member_file(out, ladder_games(options.game))
+            return
+        except store.StoreError:
+            pass
     game = chess_game_env(options.game)
     learners = learners_of(deep, options.game)
     games = chess_ladder.pgx_games(game, learners, options.pairs)
