@@ -29,7 +29,7 @@ def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
              "q_learning-decay-before_update", "q_learning-constant-before_update", "sarsa-decay-after_update",
              "sarsa-constant-after_update"]  # the paper's five, then the order ablation
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html",
-                                                                 drawn.LEDGER, *store.OWN_FILES])
+                                                                 drawn.LEDGER, rundir.MEMBERS_FILE, *store.OWN_FILES])
     for name in names:
         assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
         assert name in result.output
