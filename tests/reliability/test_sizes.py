@@ -114,3 +114,28 @@ def test_a_paper_study_of_too_many_seeds_names_seeds_not_bins(tmp_path: Path) ->
     assert result.exit_code == 2
     assert "'--seeds': got 200000; allowed: at most 89,478 seeds of 400 features x 3 actions" in result.output
     assert "--bins" not in result.output
+
+
+@pytest.mark.parametrize("algorithm", ["pqn_q_lambda", "ppo", "dqn"])
+def test_too_few_steps_name_the_same_least_whatever_was_given(algorithm: str) -> None:
+    """``--steps 1`` said the least was one rollout (4,096), and ``--steps 4096`` then asked for ten (one per
+    evaluation round): each now names the fewest steps that train in every round, the bound the method's own checks
+    imply, found by halving and checked here on both sides."""
+    from rlcompare.deep.methods import hyperparameters
+
+    config = DeepConfig(algorithm=algorithm, env="CartPole-v1", seeds=(0,))
+    least = config.least_total_steps()
+    assert least is not None
+    resolved = hyperparameters(algorithm, "CartPole-v1", "default", {"total_steps": least})
+    assert resolved.steps_trained(config.eval_rounds) > 0
+    if algorithm == "pqn_q_lambda":
+        assert least == config.eval_rounds * resolved.n_envs * resolved.n_steps
+    messages = set()
+    for steps in (1, least - 1):
+        with pytest.raises(ConfigError) as caught:
+            DeepConfig(algorithm=algorithm, env="CartPole-v1", seeds=(0,), hyperparameters={"total_steps": steps})
+        assert caught.value.field_name == "total_steps"
+        messages.add(caught.value.allowed.split(" (")[0])
+    assert messages == {f"at least {least:,}, the fewest that train in each of the {config.eval_rounds} evaluation "
+                        "rounds"}
+    DeepConfig(algorithm=algorithm, env="CartPole-v1", seeds=(0,), hyperparameters={"total_steps": least})

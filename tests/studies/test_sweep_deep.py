@@ -141,8 +141,9 @@ def test_a_hyperparameter_wrong_only_with_other_values_names_the_combination() -
     """4096 steps are 2 rollouts: enough for 2 evaluation rounds, not for 3."""
     text = ('[sweep]\nengine = "deep"\n[fixed]\nhyperparameters.total_steps = 4096\n'
             '[grid]\neval_rounds = [2, 3]\n')
-    assert _problems(text) == ["fixed.hyperparameters.total_steps: got 4096; allowed: at least 3 rollouts of n_envs x "
-                               "n_steps = 2048 steps (with eval_rounds = 3)"]
+    assert _problems(text) == ["fixed.hyperparameters.total_steps: got 4096; allowed: at least 6,144, the fewest that "
+                               "train in each of the 3 evaluation rounds (at least 3 rollouts of n_envs x n_steps = "
+                               "2048 steps) (with eval_rounds = 3)"]
 
 
 def test_a_hyperparameter_set_to_its_preset_value_is_the_same_configuration() -> None:

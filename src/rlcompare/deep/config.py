@@ -16,7 +16,7 @@ from rlcompare import machine
 from rlcompare.deep import pqn
 from rlcompare.deep.envs import Environment, is_batched, is_game, jax_env
 from rlcompare.deep.methods import DEEP_METHODS, deep_method, hyperparameters
-from rlcompare.validation import COUNT, SEEDS_ALLOWED, check_fields, is_seeds, plain, require
+from rlcompare.validation import COUNT, SEEDS_ALLOWED, ConfigError, check_fields, is_seeds, plain, require
 
 FINISHED_BYTES_PER_STEP = 10
 """Bytes every method records per environment step: :class:`~rlcompare.deep.rollout.Finished`'s ``done``,
@@ -66,10 +66,42 @@ class DeepConfig:
                 "legal-move masks is PQN's alone here")
         require(isinstance(self.hyperparameters, dict), "hyperparameters", self.hyperparameters,
                 "a table of field names and values")
-        method_config = self.method_config()
+        try:
+            method_config = self.method_config()
+            make_train = deep_method(self.algorithm).module.make_train  # builds closures only: cheap
+            make_train(method_config, self.environment, self.eval_rounds, self.eval_episodes)  # validates
+        except ConfigError as error:
+            least = self.least_total_steps() if error.field_name == "total_steps" else None
+            if least is None or not isinstance(error.value, int) or error.value >= least:
+                raise
+            raise ConfigError("total_steps", error.value, f"at least {least:,}, the fewest that train in each of the "
+                              f"{self.eval_rounds} evaluation rounds ({error.allowed})") from None
         self._check_records_fit(method_config.total_steps)
-        make_train = deep_method(self.algorithm).module.make_train  # builds closures only: cheap
-        make_train(method_config, self.environment, self.eval_rounds, self.eval_episodes)  # validates
+
+    def least_total_steps(self) -> int | None:
+        """The fewest ``total_steps`` this configuration trains with, every other setting as it is: at least one
+        update in each evaluation round (the method's own bounds are all lower bounds, so the answer is found by
+        halving); None where no number up to 2**40 does, another setting being at fault."""
+        def trains(steps: int) -> bool:
+            try:
+                config = hyperparameters(self.algorithm, self.env, self.preset,
+                                         {**self.hyperparameters, "total_steps": steps})
+                deep_method(self.algorithm).module.make_train(config, self.environment, self.eval_rounds,
+                                                              self.eval_episodes)
+                return bool(config.steps_trained(self.eval_rounds) > 0)
+            except ConfigError:
+                return False
+
+        high = 1
+        while not trains(high):
+            high *= 2
+            if high > 2**40:
+                return None
+        low = high // 2 + 1
+        while low < high:
+            middle = (low + high) // 2
+            low, high = (low, middle) if trains(middle) else (middle + 1, high)
+        return high
 
     def _check_records_fit(self, total_steps: int) -> None:
         """Refuse, before anything is traced or compiled, a ``total_steps`` whose per-step records alone (in Python
