@@ -88,9 +88,10 @@ def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_lin
 
 @pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_writer(tmp_path: Path) -> None:
-    """A real second process: ``report`` of a run directory ``run`` is still writing, and a second ``run`` into it,
-    are refused in one line naming the writer (before, ``report`` failed on the files not yet there); the writer
-    finishes untouched, and its directory then reads as any other."""
+    """A real second process: ``report`` and ``uci`` of a run directory ``run`` is still writing, and a second
+    ``run`` into it, are refused in one line naming the writer (before, ``report`` failed on the files not yet
+    there, and ``uci`` said the directory held nothing it reads); the writer finishes untouched, and its directory
+    then reads as any other."""
     import os
     import subprocess
     import sys
@@ -108,8 +109,10 @@ def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_
         while time.monotonic() < deadline and first.poll() is None and not (
                 lock.exists() and lock.read_text().strip() == str(first.pid)):
             time.sleep(0.05)  # the writer holds the lock
-        others = [subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-                  for args in ([sys.executable, "-m", "rlcompare.cli", "report", str(out)], command)]
+        others = [subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   text=True, env=env)
+                  for args in ([sys.executable, "-m", "rlcompare.cli", "report", str(out)],
+                               [sys.executable, "-m", "rlcompare.cli", "uci", str(out)], command)]
         answers = [other.communicate(timeout=120)[1] for other in others]
         first_out, first_err = first.communicate(timeout=300)
     finally:

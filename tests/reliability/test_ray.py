@@ -24,6 +24,7 @@ from rlcompare.tabular.state import Records
 
 pytest.importorskip("ray")
 
+from helpers import invoke
 from ray_cluster import LOOPBACK, loopback_cluster, start_node, wait_for_nodes
 
 pytestmark = pytest.mark.slow("starts a Ray cluster on loopback")
@@ -199,3 +200,17 @@ def _listening_outside_loopback(pids: set[int]) -> list[str]:
                         shown = f"[{address}]" if address.version == 6 else str(address)
                         found.append(f"{shown}:{int(port, 16)} ({table}, pid {owners[inode]})")
     return found
+
+
+@pytest.mark.parametrize(("command", "here"), [
+    (["reproduce", "minatar", "--allow-undecidable", "--address"], "leave out --address to train here"),
+    (["sweep", str(Path(__file__).parents[2] / "examples" / "sweep.toml"), "--backend", "ray", "--address"],
+     "use --backend local"),
+])
+def test_a_cluster_that_cannot_be_reached_says_how_this_command_trains_here(command, here, tmp_path):
+    """``reproduce atari --address`` suggested ``--backend local``, an option studies lack."""
+    result = invoke(*command, "127.0.0.1:1", "--out", str(tmp_path / "out"), columns=400)
+    assert result.exit_code == 2, result.output
+    assert "no Ray cluster at '127.0.0.1:1'" in result.output
+    assert result.output.rstrip().endswith(f"start one with 'ray start --head', or {here}")
+    assert "Traceback" not in result.output

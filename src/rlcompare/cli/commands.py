@@ -327,6 +327,7 @@ def uci(
     if not run_dir.is_dir():
         raise typer.BadParameter(f"{run_dir} is not a directory; allowed: a run directory of a network trained at "
                                  "chess", param_hint="'RUN_DIR'")
+    store.refuse_while_written(run_dir)  # a run being trained names its writer, as report does
     config = store.read_json(run_dir / "config.json") if (run_dir / "config.json").is_file() else {}
     env, seeds = config.get("env"), config.get("seeds") or []
     if env != "chess" or config.get("engine", "deep") != "deep" or not seeds:

@@ -106,19 +106,21 @@ class RayBackend:
     """Times Ray runs a task again when its worker or node dies."""
     num_cpus: int | None = None
     """CPUs of the new local Ray instance started where ``address`` is None; None: every core."""
+    here: str = "use --backend local"
+    """How the command that made this backend trains on this machine instead, for a refusal to say."""
 
     def connect(self) -> None:
         """Join the cluster, or fail with a :class:`BackendError` saying why."""
         ray = _import_ray()
         if ray.is_initialized():
             return
-        _check_reachable(self.address)
+        _check_reachable(self.address, self.here)
         try:
             ray.init(address=self.address, num_cpus=self.num_cpus, logging_level="ERROR", log_to_driver=False,
                      configure_logging=False)
         except Exception as error:  # no cluster there, a refused token, a version mismatch
             raise BackendError(f"cannot use the Ray cluster at {self.address!r} ({error}); start one with "
-                               "'ray start --head', or use --backend local") from None
+                               f"'ray start --head', or {self.here}") from None
 
     def cpus(self) -> int:
         """CPUs of the cluster, once connected."""
@@ -140,8 +142,9 @@ class RayBackend:
             raise
 
 
-def _check_reachable(address: str | None) -> None:
-    """Fail at once on a HOST:PORT where nothing listens (Ray itself would retry for a minute or more)."""
+def _check_reachable(address: str | None, here: str) -> None:
+    """Fail at once on a HOST:PORT where nothing listens (Ray itself would retry for a minute or more), saying how
+    to train ``here`` instead."""
     if not address or address == "auto" or "://" in address:
         return
     host, _, port = address.rpartition(":")
@@ -149,8 +152,8 @@ def _check_reachable(address: str | None) -> None:
         with socket.create_connection((host or "127.0.0.1", int(port)), timeout=2):
             pass
     except (OSError, ValueError) as error:
-        raise BackendError(f"no Ray cluster at {address!r} ({error}); start one with 'ray start --head', or use "
-                           "--backend local") from None
+        raise BackendError(f"no Ray cluster at {address!r} ({error}); start one with 'ray start --head', or "
+                           f"{here}") from None
 
 
 def ray_installed() -> bool:

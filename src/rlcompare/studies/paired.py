@@ -27,7 +27,7 @@ from rlcompare.deep.envs import jax_env
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import evaluate
 from rlcompare.experiment import rundir, store
-from rlcompare.experiment.backends import make_backend
+from rlcompare.experiment.backends import RayBackend
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.runner import run_or_load
 from rlcompare.stats.compare import Paired
@@ -214,7 +214,7 @@ def cluster(address: str | None) -> Backend | None:
     written; None (this machine) without an address."""
     if address is None:
         return None
-    backend = make_backend("ray", address=address)
+    backend = RayBackend(address, here="leave out --address to train here")
     backend.connect()
     return backend
 
