@@ -239,6 +239,20 @@ def test_a_bad_fen_leaves_no_position_and_the_next_go_answers_the_null_move():
     assert answers[-1] == "bestmove 0000"
 
 
+@pytest.mark.parametrize("counters", ["0 99999999999999999999", "99999999999999999999 1", "0 2147483648"])
+def test_move_counters_past_32_bits_are_refused_at_position_not_at_go(counters):
+    """A FEN with counters of 20 digits was accepted, then go answered with an internal OverflowError."""
+    recorder = Recorder()
+    answers = talk([f"position fen 8/8/8/4k3/8/8/R7/4K3 w - - {counters}", "go"], recorder)
+    assert infos(answers)[0] == (f"info string bad FEN '8/8/8/4k3/8/8/R7/4K3 w - - {counters}': a move counter "
+                                 "above 2,147,483,647")
+    assert recorder.boards == []
+    assert answers[-1] == "bestmove 0000"
+    assert not any("Error" in line for line in answers)
+    kept = talk(["position fen 8/8/8/4k3/8/8/R7/4K3 w - - 0 2147483647", "go"], Recorder())
+    assert kept[-1] != "bestmove 0000"
+
+
 def test_an_impossible_position_is_refused():
     recorder = Recorder()
     answers = talk(["position fen 8/8/8/8/8/8/8/8 w - - 0 1", "go", "position startpos", "go"], recorder)

@@ -37,6 +37,10 @@ def status_words(board: chess.Board) -> str:
     return ", ".join((flag.name or "").lower().replace("_", " ") for flag in chess.Status if flag & status)
 
 
+MAX_COUNTER = 2**31 - 1
+"""The largest halfmove clock or move number a position may give: pgx keeps them in 32 bits."""
+
+
 def parse_position(tokens: list[str]) -> tuple[chess.Board | None, list[str]]:
     """The board ``position`` names (``startpos`` or ``fen <FEN>``, then ``moves ...``), or None, and the problems
     met; moves are played up to the first that cannot be, as Stockfish does."""
@@ -52,6 +56,8 @@ def parse_position(tokens: list[str]) -> tuple[chess.Board | None, list[str]]:
             return None, [f"bad FEN {' '.join(setup)!r}: {error}"]
         if not board.is_valid():
             return None, [f"invalid position {board.fen()!r}: {status_words(board)}"]
+        if max(board.halfmove_clock, board.fullmove_number) > MAX_COUNTER:
+            return None, [f"bad FEN {' '.join(setup)!r}: a move counter above {MAX_COUNTER:,}"]
         problems = []
     else:
         return None, [f"position needs startpos or fen, got {' '.join(tokens)!r}"]
