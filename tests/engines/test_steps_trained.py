@@ -35,3 +35,16 @@ def test_atari_100k_trains_81920_steps_in_ten_rounds() -> None:
     rounds run: 20 x 4,096."""
     preset = dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], total_steps=100_000)
     assert preset.steps_trained(10) == 81_920
+
+
+def test_a_studys_start_names_the_steps_that_train_and_the_number_given_where_they_differ() -> None:
+    """``reproduce atari --steps 40960`` said "40,960 steps" at its start and trained 32,768."""
+    from rlcompare.studies.paired import Plan
+
+    plan = Plan(seeds=(0,), methods=("pqn_q_lambda", "ppo"), envs={"CartPole-v1": "CartPole-v1"}, steps=45_000,
+                workers=1)
+    trained = sorted({c.steps_trained for c in plan.configs().values()})
+    assert trained == [40_960]  # PQN's 4,096-step rollouts and PPO's 2,048, ten rounds each: whole batches
+    assert plan.steps_text() == "40,960 steps (45,000 given; whole batches)"
+    exact = dataclasses.replace(plan, steps=40_960, methods=("pqn_q_lambda",))
+    assert exact.steps_text() == "40,960 steps"

@@ -153,6 +153,14 @@ class Plan:
     beside: dict[str, ExperimentConfig] = field(default_factory=dict)
     """The other engine's configurations, by run name."""
 
+    def steps_text(self) -> str:
+        """The steps each training runs (whole batches), and the number given where that is another:
+        ``32,768 steps (40,960 given; whole batches)``."""
+        trained = sorted({config.steps_trained for config in self.configs().values()})
+        text = " to ".join(f"{steps:,}" for steps in dict.fromkeys((trained[0], trained[-1]))) + " steps"
+        return text + (f" ({self.steps:,} given; whole batches)" if self.steps is not None and trained != [self.steps]
+                       else "")
+
     def configs(self) -> dict[str, DeepConfig]:
         """Each method on each environment with its preset for it."""
         overrides = {} if self.steps is None else {"total_steps": self.steps}

@@ -137,7 +137,7 @@ def run(out: Path, options: AtariOptions, ui: UI, *, study: str = STUDY, force: 
     backend = cluster(options.address)
     where = f"on Ray at {options.address}" if backend else "on this machine, one after another"
     ui.say(f"Atari 2600, {atari.PROTOCOL.summary}: {len(plan.configs())} trainings x {len(plan.seeds)} seeds x "
-           f"{plan.steps:,} steps (budget '{options.budget}': {BUDGETS[options.budget].takes}) {where}.")
+           f"{plan.steps_text()} (budget '{options.budget}': {BUDGETS[options.budget].takes}) {where}.")
     return train(out, STUDY, plan, ui, force=force, backend=backend)
 
 

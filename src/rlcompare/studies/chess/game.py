@@ -95,7 +95,7 @@ def run(out: Path, options: ChessOptions, ui: UI, *, study: str = STUDY, force: 
     backend = cluster(options.address)
     where = f"on Ray at {options.address}" if backend else "on this machine"
     ui.say(f"{game_title(options.game)}: {len(plan.configs())} trainings x {len(plan.seeds)} seeds x "
-           f"{plan.steps:,} steps of self-play {where}.")
+           f"{plan.steps_text()} of self-play {where}.")
     runs = train(out, study, plan, ui, force=force, backend=backend)
     with ui.working("Playing the rating ladder"):
         play_ladder(Path(out), runs, options)

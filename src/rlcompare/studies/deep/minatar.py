@@ -142,7 +142,7 @@ def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force
     backend = cluster(options.address)
     where = f"on Ray at {options.address}" if backend else "on this machine"
     ui.say(f"MinAtar, {minatar.PROTOCOLS[options.protocol].summary}: {len(plan.configs())} trainings x "
-           f"{len(plan.seeds)} seeds x {plan.steps:,} steps (budget '{options.budget}') {where}; each compiles its "
+           f"{len(plan.seeds)} seeds x {plan.steps_text()} (budget '{options.budget}') {where}; each compiles its "
            "program first.")
     return train(out, STUDY, plan, ui, force=force, backend=backend)
 
