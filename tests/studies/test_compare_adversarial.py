@@ -14,7 +14,7 @@ import pytest
 from helpers import invoke
 from scipy import stats
 
-from rlcompare.experiment.outside import grouping, read_runs
+from rlcompare.experiment.outside import grouping, read_runs, run_files
 from rlcompare.studies import compare_runs
 
 RULE = "{method}/{env}/{seed}/*"
@@ -31,6 +31,10 @@ def monitor(path: Path, returns: np.ndarray, lengths: np.ndarray) -> Path:
 def tidy(path: Path, rows: list[tuple[str, str, int, float, float]]) -> Path:
     pd.DataFrame(rows, columns=["method", "env", "seed", "step", "value"]).to_csv(path, index=False)
     return path
+
+
+def pairing_of(frame: pd.DataFrame) -> set[tuple[str, str]]:
+    return {(str(m), str(s)) for m, s in zip(frame["method"], frame["seed"], strict=True)}
 
 
 def refused(tmp_path: Path, *args: str) -> str:
@@ -201,6 +205,22 @@ def test_runs_reached_through_a_link_out_of_the_tree_are_read_below_the_director
     result = invoke("compare", str(tmp_path / "given"), "--out", str(tmp_path / "out"), columns=300)
     assert result.exit_code == 0, result.output
     assert "Traceback" not in result.output
+
+
+def test_a_linked_directory_of_runs_is_read_as_a_directory_and_a_link_back_up_ends(tmp_path: Path) -> None:
+    """``given/b`` links to a directory of runs kept elsewhere (once: "no run found", without a word of the link);
+    ``given/b/e/loop`` links back up to ``given``, which is read once, not forever."""
+    for method in ("a", "b"):
+        place = tmp_path / ("given" if method == "a" else "elsewhere") / (method if method == "a" else "")
+        for seed in range(2):
+            monitor(place / "e" / str(seed) / "0.monitor.csv", np.full(4, 1.0 + seed), np.full(4, 5))
+    (tmp_path / "given" / "b").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    (tmp_path / "elsewhere" / "e" / "loop").symlink_to(tmp_path / "given", target_is_directory=True)
+    root, files = run_files([tmp_path / "given"])
+    assert root == tmp_path / "given"
+    assert sorted(f.relative_to(root).as_posix() for f in files) == [
+        f"{m}/e/{s}/0.monitor.csv" for m in ("a", "b") for s in range(2)]
+    assert pairing_of(read_runs(files, root, grouping(RULE))) == {("a", "0"), ("a", "1"), ("b", "0"), ("b", "1")}
 
 
 def test_the_plan_states_the_family_its_reach_and_each_detectable_difference_and_writes_nothing(

@@ -22,7 +22,7 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import partial
@@ -260,6 +260,19 @@ def hidden(relative: Path) -> bool:
     return any(part.startswith(".") for part in relative.parts[:-1])
 
 
+def walked(root: Path) -> Iterator[Path]:
+    """Every entry below ``root``, by its path below it; a link to a directory is followed as a directory (runs kept
+    elsewhere and linked in), each real directory once, so a link back up ends there instead of looping."""
+    seen: set[str] = set()
+    for directory, subdirectories, names in os.walk(root, followlinks=True):
+        real = os.path.realpath(directory)
+        if real in seen:
+            subdirectories[:] = []
+            continue
+        seen.add(real)
+        yield from (Path(directory) / name for name in (*subdirectories, *names))
+
+
 def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
     """The files ``paths`` name: each file itself, each directory's run files (:func:`reader_of`) below it; and the
     root their grouping rule reads paths from (the directory given, or the deepest one common to all)."""
@@ -269,7 +282,7 @@ def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
         if path.is_dir() and store.owner_of(path) == store.RUN:
             files.append(path)
         elif path.is_dir():
-            found = (f for f in path.rglob("*") if not hidden(f.relative_to(path)))
+            found = (f for f in walked(path) if not hidden(f.relative_to(path)))
             files += sorted(f for f in found if (f.is_file() and reader_of(f) is not None)
                             or (f.name == store.MARKER_FILE and store.owner_of(f.parent) == store.RUN))
             files = [f.parent if f.name == store.MARKER_FILE else f for f in files]
