@@ -111,6 +111,28 @@ def test_uci_refuses_a_run_that_is_not_chess_in_one_line(tmp_path, chess_run):
     assert result.exit_code == 2
     assert "late" in result.output
     assert "Traceback" not in result.output
+    result = invoke("uci", str(tmp_path / "copy"), "--seed", "5", columns=300)  # once named --stage
+    assert result.exit_code == 2
+    assert "'--seed'" in result.output
+    assert "got 5; allowed: one of the run's seeds" in result.output
+    mountain_car = tmp_path / "mountain_car"
+    assert invoke("run", "--episodes", "5", "--seeds", "1", "--out", str(mountain_car)).exit_code == 0
+    result = invoke("uci", str(mountain_car), columns=300)  # once an AttributeError
+    assert result.exit_code == 2
+    assert "holds a run of MountainCar-v0; allowed: a run of a network trained at chess" in result.output
+    assert "Traceback" not in result.output
+
+
+@pytest.mark.slow("trains a network at chess")
+def test_a_game_drawn_by_an_automatic_rule_is_answered_with_a_legal_move_as_stockfish_answers(chess_run):
+    """K v K with the halfmove clock at 200 (drawn twice over: dead position, 75 moves): once an internal ValueError
+    as the info line. Stockfish answers such a position with a move, and so does the engine: any legal one."""
+    fen = "8/8/8/4k3/8/8/8/4K3 w - - 200 150"
+    result = invoke("uci", str(chess_run), input=f"position fen {fen}\ngo\nquit\n", columns=300)
+    assert result.exit_code == 0, result.output
+    assert "Error" not in result.output
+    assert result.output.splitlines()[-1].split()[0] == "bestmove"
+    assert chess.Move.from_uci(result.output.splitlines()[-1].split()[1]) in chess.Board(fen).legal_moves
 
 
 @pytest.mark.slow("trains a network at chess and plays it against Stockfish")
