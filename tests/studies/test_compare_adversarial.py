@@ -15,7 +15,7 @@ from helpers import invoke
 from scipy import stats
 
 from rlcompare.experiment.outside import grouping, read_runs, run_files
-from rlcompare.studies import compare_runs
+from rlcompare.studies import compare_numbers, compare_runs
 
 RULE = "{method}/{env}/{seed}/*"
 
@@ -59,7 +59,7 @@ def test_long_episodes_weigh_no_more_than_short_ones(tmp_path: Path) -> None:
         steady = np.full(600, 250)
         monitor(tmp_path / "runs" / "steady" / "CartPole-v1" / str(seed) / "0.monitor.csv", steady, steady)
     frame = read_runs(sorted((tmp_path / "runs").rglob("*.monitor.csv")), tmp_path / "runs", grouping(RULE))
-    (read,) = compare_runs.numbers(frame)
+    (read,) = compare_numbers.numbers(frame)
     low = read.end - 0.1 * (read.end - read.start)
     for seed, label in enumerate(read.seeds["bimodal"]):
         run = frame[(frame["method"] == "bimodal") & (frame["seed"] == label)]

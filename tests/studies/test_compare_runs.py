@@ -16,7 +16,7 @@ from helpers import invoke
 from scipy import stats
 
 from rlcompare.experiment.outside import grouping, read_runs
-from rlcompare.studies import compare_runs
+from rlcompare.studies import compare_numbers
 
 SEEDS = 5
 LEVELS = {"ppo": 200.0, "dqn": 120.0}
@@ -47,7 +47,7 @@ def test_the_final_window_and_the_area_are_each_runs_own_points_by_hand(runs):
     """The final window: the mean of the episodes that end in the last tenth of the common range; the area: each
     episode's return held from its end to the next one's, averaged over the range."""
     frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
-    (read,) = compare_runs.numbers(frame)
+    (read,) = compare_numbers.numbers(frame)
     ends = frame.groupby(["method", "seed"])["step"].agg(["min", "max"])
     assert (read.start, read.end) == (ends["min"].max(), ends["max"].min())
     one = frame[(frame["method"] == "dqn") & (frame["seed"] == "3")]
@@ -60,7 +60,7 @@ def test_the_final_window_and_the_area_are_each_runs_own_points_by_hand(runs):
     seed = read.seeds["dqn"].index("3")
     assert read.values["dqn"]["final"][seed] == pytest.approx(final)
     assert read.values["dqn"]["auc"][seed] == pytest.approx(held)
-    (curve,) = compare_runs.curves(frame)  # the pictures' grid: interpolated
+    (curve,) = compare_numbers.curves(frame)  # the pictures' grid: interpolated
     np.testing.assert_array_equal(curve.values["dqn"][curve.seeds["dqn"].index("3")],
                                   np.interp(curve.steps, steps, values))
 
@@ -74,7 +74,7 @@ def test_compare_turns_monitor_files_into_a_report_with_independent_seeds(runs, 
     assert table["metric"].tolist() == ["final"]  # the primary metric alone, unless --metric declares more
     assert (table["verdict"] == "ppo better").all()
     frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
-    finals = compare_runs.numbers(frame)[0].values
+    finals = compare_numbers.numbers(frame)[0].values
     p = stats.mannwhitneyu(finals["dqn"]["final"], finals["ppo"]["final"], alternative="two-sided").pvalue
     assert table["p (Holm)"].iloc[0] == pytest.approx(p)  # a family of one
     assert p == pytest.approx(2 / math.comb(2 * SEEDS, SEEDS))
@@ -200,7 +200,7 @@ def test_two_environments_are_pooled_as_rliable_does_on_their_reference_scores(t
     intervals = pd.read_csv(tmp_path / "out" / "tables" / "aggregates.csv")
     assert set(intervals.iloc[:, 0]) == {"dqn", "ppo"}
     frame = read_runs(sorted(runs.rglob("*.monitor.csv")), runs, grouping("{method}/{env}/{seed}/*"))
-    finals = {n.env: n.values["ppo"]["final"] for n in compare_runs.numbers(frame)}
+    finals = {n.env: n.values["ppo"]["final"] for n in compare_numbers.numbers(frame)}
     by_hand = np.mean([finals["CartPole-v1"] / 500, finals["Acrobot-v1"] / 250])
     mean = intervals.loc[intervals["method"] == "ppo", "mean [95% CI]"].iloc[0]
     assert float(str(mean).split()[0]) == pytest.approx(by_hand, abs=0.005)

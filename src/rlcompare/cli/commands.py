@@ -227,6 +227,7 @@ def compare(
     """Verdicts and a report for runs other libraries made: what each file was taken as is printed first."""
     from rlcompare.experiment.outside import OutsideRunError, grouping, read_runs, run_files
     from rlcompare.studies import compare_runs
+    from rlcompare.studies.compare_numbers import METRICS
     from rlcompare.studies.interface import listed
     from rlcompare.validation import ConfigError
 
@@ -239,7 +240,7 @@ def compare(
     if margin is not None and margin <= 0:
         raise typer.BadParameter(f"{margin:g}; allowed: a positive number", param_hint="'--margin'")
     try:
-        metrics = listed("metric", metric, tuple(compare_runs.METRICS))
+        metrics = listed("metric", metric, tuple(METRICS))
         references = compare_runs.parse_scores(scores or [])
     except ConfigError as error:
         raise bad_option(error) from None
