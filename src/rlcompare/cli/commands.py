@@ -275,13 +275,8 @@ def export(
     """Write a run's training episodes (each return at the environment steps up to its end, as Stable-Baselines3's
     Monitor records them) where other tools read them."""
     from rlcompare.experiment.engines import load_run
-    from rlcompare.experiment.outside import (
-        claim_label,
-        episodes_table,
-        run_label,
-        tensorboard_directory,
-        write_tensorboard,
-    )
+    from rlcompare.experiment.export import claim_label, tensorboard_directory, write_tensorboard
+    from rlcompare.experiment.outside import episodes_table, run_label
 
     if to not in ("csv", "tensorboard"):
         raise typer.BadParameter(f"{to!r}; allowed: csv, tensorboard", param_hint="'--to'")

@@ -399,11 +399,7 @@ def one_kind_an_environment(frame: pd.DataFrame) -> None:
                                   "an environment (give one kind, or --tag)")
 
 
-# --- the other way: rlcompare's runs where other tools read them ----------------------------------------------
-
-EXPORT_TAG = "charts/episodic_return"
-"""The tag an exported run's episode returns carry in TensorBoard: CleanRL's, which :data:`TAGS` reads first."""
-
+# --- rlcompare's own runs, as the tidy table ---------------------------------------------------------------
 
 def episodes_table(results: Any, method: str | None = None) -> pd.DataFrame:
     """A run's training episodes as the tidy table (:data:`TIDY`): each episode's return at the environment steps
@@ -424,58 +420,3 @@ def run_label(results: Any) -> str:
     its configuration's name (``sarsa-decay``; a deep run's algorithm), not its algorithm alone, so that runs of one
     algorithm under two settings stay apart or are refused as one."""
     return str(results.config.name).removesuffix(f"-{results.config.env}")  # the deep engine's names end in it
-
-
-EXPORTS = "exports.json"
-"""The file of an export directory that says which run each label's files came from."""
-
-
-def claim_label(out: Path, label: str, run_dir: Path) -> None:
-    """Enter ``run_dir`` as the run whose files are exported under ``label`` in ``out`` (in :data:`EXPORTS`); an
-    :class:`~rlcompare.experiment.store.StoreError` where another run holds the label there: exporting this one
-    would replace its files."""
-    ledger = out / EXPORTS
-    claimed = store.read_json(ledger) if ledger.exists() else {}
-    source = str(Path(run_dir).resolve())
-    if claimed.get(label, source) != source:
-        raise store.StoreError(f"{out}: its {label} files were exported from {claimed[label]}, another run of the same "
-                               f"name; export {run_dir} into another --out")
-    store.enter_outputs(ledger)
-    store.write_json_atomic(ledger, {**claimed, label: source})
-
-
-def tensorboard_directory(method: str, env: str, seed: object) -> str:
-    """``{method}/{env}/{seed}``, the layout :func:`grouping`'s default rule reads (a ``/`` in a name as ``_``)."""
-    return "/".join(str(part).replace("/", "_") for part in (method, env, seed))
-
-
-SCRATCH = ".export-"
-"""The prefix of the directory an export writes each event file in before moving it into place."""
-
-
-def write_tensorboard(frame: pd.DataFrame, out: Path) -> list[Path]:
-    """Each run of a tidy table as a TensorBoard event file written by TensorBoard's own writer, under
-    :data:`EXPORT_TAG`, in ``out / {method}/{env}/{seed}``; each written beside and moved into place once whole,
-    and entered in ``out``'s list of outputs first (:func:`rlcompare.experiment.store.enter_outputs`)."""
-    import shutil
-    import tempfile
-
-    from tensorboard.summary import Writer
-
-    for stale in out.glob(f"{SCRATCH}*"):  # what an interrupted export left: its own scratch, in its own directory
-        shutil.rmtree(stale, ignore_errors=True)
-    written = []
-    for (method, env, seed), run in frame.groupby(["method", "env", "seed"], sort=True):
-        target = out / tensorboard_directory(str(method), str(env), seed)
-        with tempfile.TemporaryDirectory(dir=out, prefix=SCRATCH) as scratch:
-            writer = Writer(scratch)
-            for step, value in zip(run["step"], run["value"], strict=True):
-                writer.add_scalar(EXPORT_TAG, float(value), step=int(step))
-            writer.close()
-            (made,) = Path(scratch).glob("events.out.tfevents.*")
-            final = target / made.name
-            store.enter_outputs(final)
-            target.mkdir(parents=True, exist_ok=True)
-            os.replace(made, final)
-        written.append(final)
-    return written
