@@ -27,8 +27,9 @@ from rlcompare import machine
 from rlcompare.atomic import atomic_file
 
 PACE_FILE = "pace.json"
-AMOUNTS = ("seeds", "episodes", "total_steps")
-"""What a training's settings say of how much it trains, not how: left out of its pace's key."""
+AMOUNTS = ("seeds", "episodes", "total_steps", "eval_every")
+"""What a training's settings say of how much it trains, not how: left out of its pace's key (the studies evaluate
+a fixed number of times, so the episodes between evaluations grow with the episodes)."""
 
 
 @dataclass(frozen=True)
@@ -57,12 +58,17 @@ def key(engine: str, config: Any) -> str:
 def settings_of(config: Any) -> dict[str, Any]:
     """A configuration's fields but its amounts (:data:`AMOUNTS`), and a deep one's resolved hyperparameters but its
     total steps (read without copying its seeds: a plan of a million is read in a blink)."""
-    settings = {item.name: getattr(config, item.name) for item in dataclasses.fields(config)
-                if item.name not in AMOUNTS}
+    settings = {item.name: getattr(config, item.name) for item in dataclasses.fields(config)}
     if hasattr(config, "method_config"):
-        resolved = dataclasses.asdict(config.method_config())
-        settings["resolved"] = {name: value for name, value in resolved.items() if name not in AMOUNTS}
-    return settings
+        settings["resolved"] = dataclasses.asdict(config.method_config())
+    return without_amounts(settings)
+
+
+def without_amounts(settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` without the keys of :data:`AMOUNTS`, in tables within it too (a deep configuration's
+    hyperparameters)."""
+    return {name: without_amounts(value) if isinstance(value, dict) else value for name, value in settings.items()
+            if name not in AMOUNTS}
 
 
 def pace_file() -> Path:

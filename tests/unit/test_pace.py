@@ -79,7 +79,9 @@ def test_a_paces_key_leaves_out_how_much_is_trained_and_keeps_how() -> None:
     config = ExperimentConfig(algorithm="sarsa", seeds=(0, 1, 2), episodes=20)
     assert pace.key("tabular", config) == pace.key("tabular", replace(config, seeds=(5,), episodes=900))
     assert pace.key("tabular", config) != pace.key("tabular", replace(config, alpha=0.5))
-    assert {"seeds", "episodes"}.isdisjoint(pace.settings_of(config))
+    assert {"seeds", "episodes", "eval_every"}.isdisjoint(pace.settings_of(config))
+    assert pace.without_amounts({"a": 1, "hyperparameters": {"total_steps": 9, "lr": 2}}) == {
+        "a": 1, "hyperparameters": {"lr": 2}}
     assert pace.settings_of(config)["alpha"] == config.alpha
 
 
