@@ -67,12 +67,13 @@ def test_a_plan_adds_the_kept_paces_and_names_the_trainings_that_never_ran_here(
     # a: 1 + 0.5 * 400 / 2 = 101; b: 0.2 * 100 = 20; the report 30: 151 s
     line = plan.time_line(paces, "report s")
     assert line.startswith(f"Time: about {duration(151)} on this machine")
-    assert duration(151) == "3 min"
+    assert duration(151) == "2.5 min"
     assert "newest 2026-03-04" in line
     assert line.endswith("not counted, never run here with these settings: c.")
     assert plan.time_line({}, "report s").startswith("Time: not known yet")
     assert "not counted" not in StudyPlan(trainings[:2]).time_line(paces)
-    assert [duration(s) for s in (40, 89.4, 600, 5400, 12600)] == ["40 s", "89 s", "10 min", "1.5 h", "3.5 h"]
+    assert [duration(s) for s in (40, 89.4, 108, 600, 5400, 12600)] == ["40 s", "89 s", "1.8 min", "10 min", "1.5 h",
+                                                                      "3.5 h"]
 
 
 def test_a_paces_key_leaves_out_how_much_is_trained_and_keeps_how() -> None:
@@ -83,6 +84,14 @@ def test_a_paces_key_leaves_out_how_much_is_trained_and_keeps_how() -> None:
     assert pace.without_amounts({"a": 1, "hyperparameters": {"total_steps": 9, "lr": 2}}) == {
         "a": 1, "hyperparameters": {"lr": 2}}
     assert pace.settings_of(config)["alpha"] == config.alpha
+
+
+def test_trainings_run_two_at_once_take_half_their_sum() -> None:
+    trainings = tuple(Training(name, 1, 10, "episodes", "k") for name in "abc")
+    paces = {"k": pace.Pace(1.0, 2.0, "episodes", "2026-01-01")}
+    # three trainings of 2 + 10 s, two at once: 36 / 2; one training alone is not sped up
+    assert StudyPlan(trainings, workers=2).time_line(paces).startswith("Time: about 18 s")
+    assert StudyPlan(trainings[:1], workers=2).time_line(paces).startswith("Time: about 12 s")
 
 
 def test_trainings_finished_already_are_not_counted() -> None:

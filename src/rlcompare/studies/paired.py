@@ -185,7 +185,7 @@ def paired_plan(study: PairedStudy, plan: Plan, unit: str = "environment steps",
     if study.references:
         questions.append(Question("whether each method has learnt each game (above the random policy, one-sided)",
                                   GATE, seeds))
-    return StudyPlan(trainings, tuple(questions), plumbing)
+    return StudyPlan(trainings, tuple(questions), plumbing, workers=plan.workers)
 
 
 def checked(plan: Plan) -> Plan:

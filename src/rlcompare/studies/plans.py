@@ -20,9 +20,11 @@ from rlcompare.stats.design import INTERVAL, RANK_SUM, T_TEST, Reach, Test, reac
 
 
 def duration(seconds: float) -> str:
-    """A planned time as a person says it: ``40 s``, ``12 min``, ``3.5 h``."""
+    """A planned time as a person says it: ``40 s``, ``2.5 min``, ``12 min``, ``3.5 h``."""
     if seconds < 90:
         return f"{seconds:.0f} s"
+    if seconds < 10 * 60:
+        return f"{seconds / 60:.1f} min"
     return f"{seconds / 60:.0f} min" if seconds < 90 * 60 else f"{seconds / 3600:.1f} h"
 
 
@@ -125,6 +127,8 @@ class StudyPlan:
     plumbing: str = ""
     """Why this design is a plumbing check (it checks the pipeline, not the question); empty where it asks its
     question."""
+    workers: int = 1
+    """Trainings run at once on this machine (each one's pace was measured so, beside the others)."""
 
     @property
     def undecidable(self) -> tuple[Question, ...]:
@@ -152,12 +156,13 @@ class StudyPlan:
 
     def time_line(self, paces: Mapping[str, Pace], report: str = "", finished: Collection[str] = ()) -> str:
         """How long it will take on this machine, from the pace each training (and the report, kept under
-        ``report``) last ran at here; the trainings ``finished`` already are read, not trained, and not counted,
-        and those with no pace kept are named."""
+        ``report``) last ran at here, :attr:`workers` trainings at once; the trainings ``finished`` already are
+        read, not trained, and not counted, and those with no pace kept are named."""
         waiting = [t for t in self.trainings if t.name not in finished]
         times = [t.seconds(paces) for t in waiting]
         unknown = [t.name for t, seconds in zip(waiting, times, strict=True) if seconds is None]
-        known = [seconds for seconds in times if seconds is not None]
+        at_once = max(1, min(self.workers, len(waiting)))
+        known = [seconds / at_once for seconds in times if seconds is not None]
         done = (f"; {len(finished)} training{'s' * (len(finished) != 1)} finished already, read and not counted"
                 if finished else "")
         if waiting and not known:
