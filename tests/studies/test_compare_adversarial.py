@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 from helpers import invoke
-from scipy import stats
 
 from rlcompare.experiment.outside import grouping, read_runs, run_files
+from rlcompare.stats import power
 from rlcompare.studies import compare_numbers, compare_runs
 
 RULE = "{method}/{env}/{seed}/*"
@@ -237,7 +237,7 @@ def test_the_plan_states_the_family_its_reach_and_each_detectable_difference_and
     assert alone.exit_code == 0, alone.output
     assert "This design can decide each pair of methods on each environment (1 comparisons)" in alone.output
     assert "the rank-sum test on 3 and 5 seeds can give a p of 0.036, at or below the level 0.05" in alone.output
-    by_hand = (stats.t.ppf(0.975, 6) + stats.t.ppf(0.8, 6)) * np.sqrt(7) * np.sqrt((1 / 3 + 1 / 5) * np.pi / 3)
+    by_hand = power.detectable_difference(np.sqrt(7), 3, 0.05, other_seeds=5) / np.sqrt(3 / np.pi)
     assert f"E, A against B (final): {by_hand:.4g}" in alone.output
     with_margin = invoke("compare", str(table), "--plan", "--margin", "1", "--out", str(out), columns=400)
     assert with_margin.exit_code == 0, with_margin.output

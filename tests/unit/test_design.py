@@ -85,17 +85,25 @@ def test_a_design_that_cannot_decide_says_so_and_how_many_seeds_can():
     assert reach(GATE, 5).sentence().endswith("this design can decide.")
 
 
+def t_power(shift: float, freedom: int, level: float, one_sided: bool = False) -> float:
+    """The t test's power at a standardised shift, from scipy's noncentral t (both tails where two-sided)."""
+    critical = stats.t.ppf(1 - (level if one_sided else level / 2), freedom)
+    return float(stats.nct.sf(critical, freedom, shift) + (0 if one_sided else stats.nct.cdf(-critical, freedom,
+                                                                                             shift)))
+
+
 def test_the_detectable_difference_is_the_t_tests_over_the_rank_tests_efficiency_by_hand():
-    # rank-sum, 10 seeds a side, spread 1, one test: t quantiles on 18 degrees of freedom
-    by_hand = (stats.t.ppf(0.975, 18) + stats.t.ppf(0.8, 18)) * math.sqrt(0.2 / (3 / math.pi))
-    assert detectable_difference(RANK_SUM, 1.0, 10) == pytest.approx(by_hand, rel=1e-12)
-    assert by_hand == pytest.approx(1.3560, abs=1e-4)
-    # twice the spread, twice the difference; the gate is one-sided; Holm's level over 10 tests is 0.005
-    assert detectable_difference(RANK_SUM, 2.0, 10) == pytest.approx(2 * by_hand)
-    gate = (stats.t.ppf(0.95, 9) + stats.t.ppf(0.8, 9)) * math.sqrt(0.1 * math.pi / 3)
-    assert detectable_difference(GATE, 1.0, 10) == pytest.approx(gate)
-    holm = (stats.t.ppf(1 - 0.0025, 19) + stats.t.ppf(0.8, 19)) * math.sqrt(0.05 * math.pi / 3)
-    assert detectable_difference(SIGNED_RANK, 1.0, 20, family=10) == pytest.approx(holm)
+    efficiency = math.sqrt(3 / math.pi)
+    # rank-sum, 10 seeds a side, spread 1, one test: the t test's power at d * sqrt(3/pi) / sqrt(1/10 + 1/10) is 0.8
+    found = detectable_difference(RANK_SUM, 1.0, 10)
+    assert t_power(found * efficiency / math.sqrt(0.2), 18, 0.05) == pytest.approx(0.8, abs=1e-9)
+    assert found == pytest.approx(1.3559, abs=1e-4)
+    assert detectable_difference(RANK_SUM, 2.0, 10) == pytest.approx(2 * found)  # twice the spread, twice
+    # the gate is one-sided at 0.05; Holm's level over 10 tests is 0.005
+    gate = detectable_difference(GATE, 1.0, 10)
+    assert t_power(gate * efficiency * math.sqrt(10), 9, 0.05, one_sided=True) == pytest.approx(0.8, abs=1e-9)
+    holm = detectable_difference(SIGNED_RANK, 1.0, 20, family=10)
+    assert t_power(holm * efficiency * math.sqrt(20), 19, 0.005) == pytest.approx(0.8, abs=1e-9)
     # a design that cannot pass detects nothing, however large
     assert detectable_difference(SIGNED_RANK, 1.0, 4) == math.inf
     assert detectable_difference(SIGNED_RANK, 1.0, 9, family=100) == math.inf

@@ -19,11 +19,11 @@ of ``k`` p-values with ``level / k``: a test whose smallest p is above ``level /
 (``docs/why.md``, "Decidable by design").
 
 Where the spread of the seeds' numbers is known, :func:`detectable_difference` gives the difference the test finds
-with 80% power at that strictest level: the t test's (Student's quantiles on the seeds' degrees of freedom), divided
-by the square root of the rank tests' asymptotic relative efficiency against it on normal data, 3/π (Lehmann,
+with 80% power at that strictest level: the t test's (exact, on the noncentral t), divided by the square root of
+the rank tests' asymptotic relative efficiency against it on normal data, 3/π (Lehmann,
 *Nonparametrics*, 1975, §2.4). It is a planning figure. Simulated on normal data against scipy's exact tests
 (``tests/unit/test_design.py``) its power is within a few points of 80% from about 10 seeds on; near the fewest
-seeds that can decide at all the exact test's steps cost power (62% at 9 pairs over 10 tests).
+seeds that can decide at all the exact test's steps cost power (64% at 9 pairs over 10 tests).
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from __future__ import annotations
 import math
 from typing import Literal, NamedTuple
 
-from scipy import stats
-
+from rlcompare.stats import power as power_of_t
+from rlcompare.stats.power import POWER
 from rlcompare.stats.significance import ALPHA
 
 Test = Literal["signed-rank", "signed-rank, one-sided", "rank-sum", "t", "interval"]
@@ -42,8 +42,6 @@ RANK_SUM: Test = "rank-sum"
 T_TEST: Test = "t"
 INTERVAL: Test = "interval"
 """A 95% bootstrap interval that excludes 0, read without a p-value (the why study's decomposition)."""
-POWER = 0.8
-"""The power a detectable difference is found with."""
 RANK_EFFICIENCY = 3 / math.pi
 """The Wilcoxon tests' asymptotic relative efficiency against the t test on normal data."""
 LARGEST_SEEDS = 10_000
@@ -124,15 +122,13 @@ def detectable_difference(test: Test, spread: float, seeds: int, family: int = 1
                           level: float = ALPHA, power: float = POWER) -> float:
     """The difference of means ``test`` detects with probability ``power`` at Holm's strictest level over ``family``
     tests, where the seeds' numbers spread with standard deviation ``spread`` (of each side's numbers for the
-    rank-sum test, of the paired differences for the signed-rank tests): ``(t(1 - a) + t(power)) * spread *
-    sqrt((1/n + 1/m, or 1/n) / efficiency)``, ``a`` the level's two-sided half (one-sided for the gate), Student's
-    quantiles on ``n + m - 2`` or ``n - 1`` degrees of freedom. Infinite where the test cannot pass at all on these
-    seeds (:func:`can_pass`)."""
-    if not can_pass(test, seeds, family, level, other_seeds) or not math.isfinite(spread) or seeds < 2:
+    rank-sum test, of the paired differences for the signed-rank tests): the t test's, exact on the noncentral t
+    (:func:`rlcompare.stats.power.detectable_difference`), over the square root of the rank tests' efficiency 3/π.
+    Infinite where the test cannot pass at all on these seeds (:func:`can_pass`)."""
+    if not can_pass(test, seeds, family, level, other_seeds) or not math.isfinite(spread):
         return math.inf
-    strictest = strictest_level(family, level)
-    other = seeds if other_seeds is None else other_seeds
-    sides, freedom = (1 / seeds + 1 / other, seeds + other - 2) if test == RANK_SUM else (1 / seeds, seeds - 1)
-    quantiles = stats.t.ppf(1 - (strictest if test == GATE else strictest / 2), freedom) + stats.t.ppf(power, freedom)
+    other = (seeds if other_seeds is None else other_seeds) if test == RANK_SUM else None
+    found = power_of_t.detectable_difference(spread, seeds, strictest_level(family, level), power,
+                                             other_seeds=other, one_sided=test == GATE)
     efficiency = 1.0 if test in (T_TEST, INTERVAL) else RANK_EFFICIENCY
-    return float(quantiles * spread * math.sqrt(sides / efficiency))
+    return math.inf if math.isnan(found) else found / math.sqrt(efficiency)

@@ -15,23 +15,27 @@ POWER = 0.8
 """The chance of detection the power columns are read at (Cohen 1988's convention)."""
 
 
-def detectable_difference(spread: float, seeds: int, level: float = ALPHA, power: float = POWER) -> float:
+def detectable_difference(spread: float, seeds: int, level: float = ALPHA, power: float = POWER, *,
+                          other_seeds: int | None = None, one_sided: bool = False) -> float:
     """The smallest true mean difference a two-sided paired t test at ``level`` finds with probability ``power``
-    over ``seeds`` paired seeds whose differences have standard deviation ``spread`` (exact: the noncentral t).
-    NaN with fewer than two seeds; 0 where the spread is 0."""
-    if seeds < 2 or not math.isfinite(spread):
+    over ``seeds`` paired seeds whose differences have standard deviation ``spread`` (exact: the noncentral t);
+    with ``other_seeds``, the two-sample t test of ``seeds`` against ``other_seeds`` independent seeds, each side
+    of spread ``spread``; ``one_sided``: the test of one direction at ``level``. NaN with too few seeds to test;
+    0 where the spread is 0."""
+    df = seeds - 1 if other_seeds is None else seeds + other_seeds - 2
+    if seeds < 1 or df < 1 or not math.isfinite(spread):
         return math.nan
     if spread == 0:
         return 0.0
-    df = seeds - 1
-    critical = stats.t.ppf(1 - level / 2, df)
+    scale = math.sqrt(1 / seeds + (0 if other_seeds is None else 1 / other_seeds))
+    critical = stats.t.ppf(1 - (level if one_sided else level / 2), df)
 
     def shortfall(effect: float) -> float:
-        shift = effect * math.sqrt(seeds)
-        wrong_side = stats.nct.cdf(-critical, df, shift)  # negligible; scipy gives NaN far out in the tail
+        shift = effect / scale
+        wrong_side = 0.0 if one_sided else stats.nct.cdf(-critical, df, shift)  # scipy's NaN far in the tail
         return stats.nct.sf(critical, df, shift) + (wrong_side if math.isfinite(wrong_side) else 0.0) - power
 
-    rough = (critical + stats.t.ppf(power, df)) / math.sqrt(seeds)  # the normal approximation's answer
+    rough = (critical + stats.t.ppf(power, df)) * scale  # the normal approximation's answer
     return float(optimize.brentq(shortfall, 0.0, 2.0 * rough)) * spread
 
 
