@@ -92,8 +92,9 @@ class MinAtarOptions(Seeded):
     signed-rank test cannot decide 3 games and the overall row, a direction and an equivalence test each, under
     Holm: --plan says so)."""
     budget: str = "short"
-    """short (3 games, 250,000 steps: under 20 minutes on 2 CPU cores), paper (every game, the MinAtar paper's
-    5 M frames) or pqn (every game, purejaxql's 10 M steps)."""
+    """short (3 games, 250,000 steps: 24 minutes measured on 2 CPU cores with 8 seeds, more with the default 9),
+    paper (every game, the MinAtar paper's 5 M frames) or pqn (every game, purejaxql's 10 M steps); --plan gives
+    this machine's time once its trainings have run here."""
     games: str | None = None
     """Comma-separated games (asterix, breakout, freeway, seaquest, space_invaders). Default: the budget's."""
     protocol: str = "minatar"
@@ -140,7 +141,7 @@ class AtariOptions(Seeded):
     budget: str = "smoke"
     """smoke (Breakout, 32,768 steps: the whole pipeline in about 10 minutes on 2 CPU cores), 100k (Atari 100k's 26
     games, 100,000 steps), 10m (Atari-5, 10 M steps = 40 M frames) or 200m (Atari-5, purejaxql's 200 M frames);
-    docs/atari.md says what each takes."""
+    docs/atari.md says what each takes, and --plan this machine's time once its trainings have run here."""
     games: str | None = None
     """A set of games (atari5, atari100k, breakout-pong, atari57, breakout) or comma-separated titles as Gymnasium
     spells them (Breakout, Pong, Qbert, ...). Default: the budget's."""
@@ -204,7 +205,7 @@ class ChessOptions(Seeded):
     """gardner_chess (Gardner's 5 x 5 minichess, the CPU's game) or chess."""
     budget: str = "cpu"
     """cpu (500,000 plies per training: about 25 minutes on 2 CPU cores with the default seeds) or gpu (10 M plies;
-    docs/chess-game.md says what each takes)."""
+    docs/chess-game.md says what each takes; --plan this machine's time once its trainings have run here)."""
     steps: int | None = option(None, minimum=1)
     """Environment steps (plies) of every training, in place of the budget's."""
     methods: str = "pqn_sarsa_lambda,pqn_q_lambda"
