@@ -74,3 +74,30 @@ def test_a_pattern_matches_within_one_directory_level() -> None:
     assert not matches("figures/x.png/../../victim.png", "figures/*")
     assert [is_inner_path(p) for p in ("a/b.png", "a/../b", "/a", "", "a//b", ".", 3)] == [
         True, False, False, False, False, False, False]
+
+
+def test_a_studys_record_names_runs_gone_or_replaced_and_a_damaged_record_is_begun_again(tmp_path: Path) -> None:
+    """members.json by hand: two runs entered with their meta.json's checksum; one replaced, one removed; the record
+    itself damaged (named, never a traceback), then begun again by the next run entered."""
+    from rlcompare.experiment import rundir
+
+    study_dir = tmp_path / "study"
+    store.claim(study_dir, store.Owner("study", "x"))
+    for name in ("a", "b"):
+        (study_dir / name).mkdir()
+        (study_dir / name / rundir.META_FILE).write_text(f'{{"name": "{name}"}}')
+    rundir.enter_members(study_dir, ["a", "b"])
+    assert rundir.missing_members(study_dir) == []
+    (study_dir / "a" / rundir.META_FILE).write_text('{"name": "a", "trained": "again"}')
+    shutil.rmtree(study_dir / "b")
+    found = rundir.missing_members(study_dir)
+    assert [line.split(":")[0] for line in found] == ["a", "b"]
+    assert "not the run the study trained" in found[0]
+    assert "is gone" in found[1]
+    assert rundir.missing_members(study_dir, reported=["a"]) == found[1:]
+    (study_dir / rundir.MEMBERS_FILE).write_text('{"runs": [1]}')
+    assert rundir.missing_members(study_dir) == [
+        f"{study_dir / rundir.MEMBERS_FILE}: not a study's record rlcompare wrote"]
+    rundir.enter_members(study_dir, ["a"])
+    assert rundir.missing_members(study_dir) == []
+    assert json.loads((study_dir / rundir.MEMBERS_FILE).read_text())["runs"].keys() == {"a"}

@@ -258,7 +258,10 @@ def enter_members(study_dir: Path, runs: list[str], files: dict[str, bytes] | No
     """Enter ``runs`` (run directories of ``study_dir``, finished) and ``files`` (the study's own files, just
     written: name relative to ``study_dir`` -> bytes) in the study's record, beside what it recorded before."""
     study_dir = Path(study_dir)
-    record = members_of(study_dir)
+    try:
+        record = members_of(study_dir)
+    except StoreError:  # its own record, damaged: begun again from the runs entered now
+        record = {"runs": {}, "files": {}}
     record["runs"].update({name: _record_of(study_dir / name / META_FILE) for name in runs})
     record["files"].update({name: file_record(data) for name, data in (files or {}).items()})
     store.write_json_atomic(study_dir / MEMBERS_FILE, record)
