@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rlcompare import pace
+from rlcompare.machine import gib
 from rlcompare.pace import Pace
 from rlcompare.stats.design import INTERVAL, RANK_SUM, T_TEST, Reach, Test, reach
 
@@ -76,6 +77,8 @@ class Training:
     """``episodes``, ``environment steps``, ``agent steps`` or ``plies``."""
     pace_key: str = ""
     threads: int = 1
+    memory: int = 0
+    """Bytes it holds while it trains, where known before it runs (a tabular training's records and weights)."""
 
     def seconds(self, paces: Mapping[str, Pace]) -> float | None:
         """Its time on this machine from the pace kept for it; None where none is kept."""
@@ -87,13 +90,13 @@ def tabular_training(name: str, config: Any, memory_checked: bool = True) -> Tra
     """A tabular configuration (:class:`~rlcompare.tabular.config.ExperimentConfig`) as a training of so many
     episodes, its seeds spread over this machine's cores; one that would not fit in memory refused now, before
     anything trains (``memory_checked``: where the engine trains it whole, not a study in blocks of seeds)."""
-    if memory_checked:
-        from rlcompare.tabular.memory import check_memory
+    from rlcompare.tabular.memory import check_memory, training_bytes
 
+    if memory_checked:
         check_memory(config)
     seeds = len(config.seeds)
     return Training(name, seeds, config.episodes, "episodes", pace.key("tabular", config),
-                    pace.threads_for(seeds))
+                    pace.threads_for(seeds), training_bytes(config))
 
 
 def deep_training(name: str, config: Any, unit: str = "environment steps") -> Training:
@@ -190,6 +193,11 @@ class StudyPlan:
         if self.trainings:
             lines += ["", f"Trainings ({len(self.trainings)}):"]
             lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]
+            largest = max(self.trainings, key=lambda t: t.memory)
+            if largest.memory:
+                held = gib(largest.memory) if largest.memory >= 2**30 else f"{largest.memory / 2**20:,.1f} MiB"
+                lines.append(f"Memory: the largest training known before it runs holds {held} "
+                             f"({largest.name}); a network's is measured once it compiles")
         if self.questions:
             lines += ["", "Tests, each family under Holm's correction:"]
             lines += [f"  {'(headline) ' if q.headline else ''}{q.asks}: {q.reads()}" for q in self.questions]
