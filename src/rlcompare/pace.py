@@ -14,11 +14,10 @@ another load on the machine makes the next one differ. An estimate is for planni
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -58,9 +57,9 @@ def key(engine: str, config: Any) -> str:
 def settings_of(config: Any) -> dict[str, Any]:
     """A configuration's fields but its amounts (:data:`AMOUNTS`), and a deep one's resolved hyperparameters but its
     total steps (read without copying its seeds: a plan of a million is read in a blink)."""
-    settings = {item.name: getattr(config, item.name) for item in dataclasses.fields(config)}
+    settings = {item.name: getattr(config, item.name) for item in fields(config)}
     if hasattr(config, "method_config"):
-        settings["resolved"] = dataclasses.asdict(config.method_config())
+        settings["resolved"] = asdict(config.method_config())
     return without_amounts(settings)
 
 
