@@ -10,8 +10,9 @@ import pytest
 from click.testing import Result
 from helpers import digests, invoke
 
+pytestmark = pytest.mark.slow("trains studies and runs into directories it then asks again")
 
-@pytest.mark.slow("runs two rlcompare processes on one directory")
+
 def paper(out: Path, seeds: int, *options: str) -> Result:
     """The paper's study of ``seeds`` seeds x 20 episodes into ``out`` (a design too small to decide, asked for)."""
     return invoke("reproduce", "--allow-undecidable", "--seeds", str(seeds), "--episodes", "20", "--no-videos",
@@ -86,7 +87,6 @@ def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_lin
     assert "Report:" in first_out
 
 
-@pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_writer(tmp_path: Path) -> None:
     """A real second process: ``report`` and ``uci`` of a run directory ``run`` is still writing, and a second
     ``run`` into it, are refused in one line naming the writer (before, ``report`` failed on the files not yet

@@ -102,6 +102,7 @@ def test_plan_prints_the_design_and_writes_nothing(tmp_path: Path) -> None:
     assert not out.exists()
 
 
+@pytest.mark.slow("trains a small paper study")
 def test_an_undecidable_design_is_refused_unless_asked_for(tmp_path: Path) -> None:
     out = tmp_path / "study"
     refused = invoke("reproduce", "--seeds", "3", "--episodes", "5", "--no-videos", "--out", str(out))

@@ -59,8 +59,10 @@ def smallest_p(test: Test, seeds: int, other_seeds: int | None = None) -> float:
         return min(1.0, 2.0**(1 - seeds))
     if test == GATE:
         return 2.0**-seeds
-    orders = math.comb(seeds + (seeds if other_seeds is None else other_seeds), seeds)
-    return min(1.0, 2.0 / orders) if orders.bit_length() < 1000 else 0.0  # past a float's range: 0
+    total = seeds + (seeds if other_seeds is None else other_seeds)
+    if math.lgamma(total + 1) - math.lgamma(seeds + 1) - math.lgamma(total - seeds + 1) > 700:
+        return 0.0  # 2 / C(n + m, n) below a float's range (and C itself slow to compute for a million seeds)
+    return min(1.0, 2.0 / math.comb(total, seeds))
 
 
 def strictest_level(family: int, level: float = ALPHA) -> float:
