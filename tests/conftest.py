@@ -15,6 +15,16 @@ import pytest
 from rlcompare import ExperimentConfig
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """The paces of the suite's tiny trainings kept in a file of its own, never in the user's cache, where they
+    would make every plan's time a tiny training's (:mod:`rlcompare.pace`)."""
+    import os
+    import tempfile
+
+    if "RLCOMPARE_PACE_FILE" not in os.environ:
+        os.environ["RLCOMPARE_PACE_FILE"] = str(Path(tempfile.mkdtemp(prefix="rlcompare-pace-")) / "pace.json")
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--fast", action="store_true", help="leave out the tests marked slow (half a second or more)")
 

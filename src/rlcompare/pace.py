@@ -71,7 +71,9 @@ def without_amounts(settings: dict[str, Any]) -> dict[str, Any]:
 
 
 def pace_file() -> Path:
-    return machine.cache_root() / PACE_FILE
+    """``pace.json`` in rlcompare's cache directory, or the file ``RLCOMPARE_PACE_FILE`` names (the test suite keeps
+    its tiny trainings' paces apart from a user's that way)."""
+    return Path(os.environ.get("RLCOMPARE_PACE_FILE") or machine.cache_root() / PACE_FILE)
 
 
 def threads_for(seeds: int) -> int:

@@ -19,8 +19,9 @@ from rlcompare.tabular.train import train
 
 @pytest.fixture
 def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """A cache directory of the test's own (numba's was chosen at import and stays where it was)."""
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    """A pace file of the test's own, where rlcompare's cache directory keeps it."""
+    monkeypatch.delenv("RLCOMPARE_PACE_FILE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # numba's was chosen at import and stays where it was
     return tmp_path / "rlcompare" / pace.PACE_FILE
 
 
@@ -36,6 +37,13 @@ def test_a_pace_is_kept_per_seed_unit_and_thread_and_read_back(cache: Path) -> N
     pace.record("tabular X a", wall_seconds=2.0, compile_seconds=0.5, seeds=1, amount=4, unit="episodes")
     assert pace.stored()["tabular X a"].seconds_per_unit == 0.5  # the newest measurement replaces the older
     assert json.loads(cache.read_text()).keys() == {"tabular X a"}
+
+
+def test_the_suite_keeps_its_paces_apart_from_the_users(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    assert "rlcompare-pace-" in os.environ["RLCOMPARE_PACE_FILE"]  # tests/conftest.py
+    monkeypatch.setenv("RLCOMPARE_PACE_FILE", str(tmp_path / "mine.json"))
+    pace.record("k", wall_seconds=1.0, compile_seconds=0.0, seeds=1, amount=1, unit="episodes")
+    assert json.loads((tmp_path / "mine.json").read_text()).keys() == {"k"}
 
 
 def test_nothing_is_kept_of_an_empty_training_and_a_damaged_or_unwritable_file_costs_nothing(cache: Path) -> None:
