@@ -19,10 +19,13 @@ def pytest_configure(config: pytest.Config) -> None:
     """The paces of the suite's tiny trainings kept in a file of its own, never in the user's cache, where they
     would make every plan's time a tiny training's (:mod:`rlcompare.pace`)."""
     import os
+    import shutil
     import tempfile
 
     if "RLCOMPARE_PACE_FILE" not in os.environ:
-        os.environ["RLCOMPARE_PACE_FILE"] = str(Path(tempfile.mkdtemp(prefix="rlcompare-pace-")) / "pace.json")
+        made = Path(tempfile.mkdtemp(prefix="rlcompare-pace-"))
+        os.environ["RLCOMPARE_PACE_FILE"] = str(made / "pace.json")
+        config.add_cleanup(lambda: shutil.rmtree(made, ignore_errors=True))
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
