@@ -11,16 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rlcompare.experiment.outside import (
-    TIDY,
-    OutsideRunError,
-    grouping,
-    read_monitor,
-    read_runs,
-    read_tidy,
-    read_zoo_evaluations,
-    run_files,
-)
+from rlcompare.experiment.formats import TIDY, OutsideRunError, read_monitor, read_tidy, read_zoo_evaluations
+from rlcompare.experiment.outside import grouping, read_runs, run_files
 
 RULE = "{method}/{env}/seed_{seed}/*"
 
@@ -220,7 +212,7 @@ def test_a_file_named_as_events_that_is_not_is_one_message(tmp_path):
 @pytest.mark.slow("starts a pool of processes")
 def test_many_tensorboard_files_read_in_processes_equal_them_read_here(tmp_path, monkeypatch):
     pytest.importorskip("tensorboard")
-    from rlcompare.experiment import outside
+    from rlcompare.experiment import formats
 
     for seed in range(4):
         write_events(tmp_path / f"CartPole-v1__ppo__{seed}__0", "charts/episodic_return", np.arange(50) * 10,
@@ -228,6 +220,6 @@ def test_many_tensorboard_files_read_in_processes_equal_them_read_here(tmp_path,
     files = sorted(tmp_path.rglob("events.out.tfevents.*"))
     rule = grouping("{env}__{method}__{seed}__*/*")
     here = read_runs(files, tmp_path, rule)
-    monkeypatch.setattr(outside, "PARALLEL_FROM", 2)
-    monkeypatch.setattr(outside.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(formats, "PARALLEL_FROM", 2)
+    monkeypatch.setattr(formats.os, "cpu_count", lambda: 2)
     pd.testing.assert_frame_equal(read_runs(files, tmp_path, rule), here)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, ParamSpec
+from typing import Annotated, ParamSpec
 
 import typer
 from rich.text import Text
@@ -27,19 +27,16 @@ from rlcompare.cli.console import (
     one_line_errors,
     out_path,
     plural,
-    print_bench,
     print_error,
     print_frame,
     print_report,
     progress_bars,
 )
+from rlcompare.cli.reports import bench_report, run_report, sweep_report
 from rlcompare.cli.reproduce import FORCE_HELP, reproduce_app
 from rlcompare.experiment import store
 from rlcompare.studies.registry import STUDIES
 from rlcompare.tabular.config import ExperimentConfig
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["ALGORITHM_HELP", "app"]
 
@@ -151,7 +148,7 @@ def sweep(
                                              force=force))
     console.print(f"{ran} trials run, {finished} already finished")
     if report_:
-        _sweep_report(out_dir, tuple(group_by or ()))
+        sweep_report(out_dir, tuple(group_by or ()))
 
 
 @command("report")
@@ -174,11 +171,11 @@ def report(
         raise typer.BadParameter(f"{study_dir} is not a directory; allowed: {allowed}", param_hint="'STUDY_DIR'")
     owner = store.owner_of(study_dir)
     if owner == store.SWEEP:
-        _sweep_report(study_dir, tuple(group_by or ()))
+        sweep_report(study_dir, tuple(group_by or ()))
     elif owner == store.RUN:
-        _run_report(study_dir)
+        run_report(study_dir)
     elif owner == store.BENCH:
-        _bench_report(study_dir)
+        bench_report(study_dir)
     elif owner is not None and owner.kind == "study" and owner.name in STUDIES:
         print_report(load_runner(STUDIES[owner.name]).report(study_dir, ConsoleUI(), videos=videos))
     else:
@@ -225,7 +222,8 @@ def compare(
                                                       "detect) and stop: nothing is tested or written.")] = False,
 ) -> None:
     """Verdicts and a report for runs other libraries made: what each file was taken as is printed first."""
-    from rlcompare.experiment.outside import OutsideRunError, grouping, read_runs, run_files
+    from rlcompare.experiment.formats import OutsideRunError
+    from rlcompare.experiment.outside import grouping, read_runs, run_files
     from rlcompare.studies import compare_runs
     from rlcompare.studies.compare_numbers import METRICS
     from rlcompare.studies.interface import listed
@@ -342,72 +340,3 @@ def uci(
 NETWORK_STAGES = ("early", "middle", "final")
 """The stages of learning a deep run keeps (:data:`rlcompare.deep.rollout.STAGES` and ``final``), named here so that
 ``uci`` checks its options without importing JAX."""
-
-
-def _run_report(run_dir: Path) -> None:
-    """One run directory: its results over seeds, checked on load; and the study it is a configuration of."""
-    from rlcompare.experiment.engines import load_run
-
-    store.refuse_while_written(run_dir)
-    with console.status(f"Loading {run_dir}"):
-        results = load_run(run_dir)
-        shown = run_summary(results)
-    print_frame(*shown)
-    console.print(f"Run directory: {run_dir} ({results.config.name}, {plural(len(results.seeds), 'seed')})",
-                  highlight=False)
-    try:
-        parent = store.owner_of(run_dir.resolve().parent)
-    except store.StoreError:
-        parent = None
-    if parent is not None and parent.kind == "study":
-        console.print(f"It is one configuration of {parent}: 'rlcompare report {run_dir.resolve().parent}' builds "
-                      "that study's report.", highlight=False)
-
-
-def _bench_report(directory: Path) -> None:
-    """A benchmark's directory: the tables of each file ``bench`` wrote there, as it printed them, with when and
-    where they were measured."""
-    from rlcompare.bench.tables import BENCH_FILES, read_bench_document
-
-    listed = store.listed_outputs(directory)
-    for name in BENCH_FILES:
-        if name in listed and (directory / name).is_file():
-            said, tables = read_bench_document(directory / name)
-            console.print(said, highlight=False)
-            for table in tables:
-                print_bench(table)
-
-
-def run_summary(results: Any) -> tuple[pd.DataFrame, str, str]:
-    """A run's table: its mean behaviour and greedy return over seeds with 95% intervals, as ``run`` prints
-    (a deep run: the greedy return of its last evaluation round)."""
-    from rlcompare.studies.paper.study import summary
-    from rlcompare.tabular.results import Results
-
-    if isinstance(results, Results):
-        return summary([results], paper=False)
-    import numpy as np
-
-    from rlcompare.stats.metrics import returns_per_seed
-    from rlcompare.studies.measures import table_ii
-
-    seeds = list(results.seeds)
-    training = results.episodes.groupby("seed", sort=False)["return"]
-    rounds = results.evaluations.groupby(["seed", "round"])["return"].mean().unstack("round").loc[seeds]
-    metrics = returns_per_seed(tuple(seeds), [training.get_group(seed).to_numpy() for seed in seeds],
-                               rounds.to_numpy())
-    frame = table_ii({results.config.name: metrics.assign(greedy_success=np.nan)}, {})
-    return (frame[["configuration", "behaviour mean", "greedy mean"]],
-            "Mean return over seeds [95% bootstrap interval]",
-            "behaviour: ε-greedy return averaged over all training episodes; greedy: return of the final network's "
-            "greedy policy")
-
-
-def _sweep_report(root: Path, group_by: tuple[str, ...]) -> None:
-    from rlcompare.studies.sweep_report import build_sweep_report
-
-    with console.status("Building the sweep's report"):
-        path, problems = build_sweep_report(root, group_by)
-    for problem in problems:
-        console.print(Text("Warning: ", style="yellow") + Text(problem), highlight=False)
-    console.print(f"Report: {path}")

@@ -14,7 +14,7 @@ from rlcompare.experiment import store
 
 EXPORT_TAG = "charts/episodic_return"
 """The tag an exported run's episode returns carry in TensorBoard: CleanRL's, which ``compare`` reads first
-(:data:`~rlcompare.experiment.outside.TAGS`)."""
+(:data:`~rlcompare.experiment.formats.TAGS`)."""
 
 
 EXPORTS = "exports.json"

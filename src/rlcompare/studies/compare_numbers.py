@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from rlcompare.experiment.outside import OutsideRunError
+from rlcompare.experiment.formats import OutsideRunError
 
 GRID_POINTS = 200
 """Points of each environment's common grid of steps."""
