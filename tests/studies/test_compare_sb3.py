@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 from helpers import invoke
 
+from rlcompare.bench.deep import unlogged
 from rlcompare.experiment.outside import grouping, read_runs, run_files
 
 sb3 = pytest.importorskip("stable_baselines3")
@@ -30,6 +31,7 @@ def train(method: str, seed: int, root: Path) -> None:
     env = Monitor(gym.make("CartPole-v1"), str(monitor_dir / "0"))
     model = (sb3.PPO("MlpPolicy", env, n_steps=256, batch_size=64, seed=seed, device="cpu") if method == "ppo"
              else sb3.DQN("MlpPolicy", env, learning_starts=256, train_freq=4, seed=seed, device="cpu"))
+    unlogged(model)  # else SB3 leaves a directory of its logger's in the system's temporary directory
     callback = EvalCallback(Monitor(gym.make("CartPole-v1")), eval_freq=256, n_eval_episodes=3,
                             log_path=str(eval_dir), verbose=0)
     model.learn(total_timesteps=STEPS, callback=callback)
@@ -37,15 +39,30 @@ def train(method: str, seed: int, root: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def trained(tmp_path_factory):
+    """The runs' directory, and what their trainings left in the system's temporary directory (a fresh one)."""
+    import tempfile
+
     import torch
 
     torch.set_num_threads(1)
     root = tmp_path_factory.mktemp("sb3")
-    for method in ("ppo", "dqn"):
-        for seed in range(SEEDS):
-            train(method, seed, root)
-    return root
+    system_temporary = tmp_path_factory.mktemp("system-temporary")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(tempfile, "tempdir", str(system_temporary))
+        for method in ("ppo", "dqn"):
+            for seed in range(SEEDS):
+                train(method, seed, root)
+    return root, sorted(p.name for p in system_temporary.iterdir())
+
+
+@pytest.fixture(scope="module")
+def runs(trained):
+    return trained[0]
+
+
+def test_the_trainings_leave_no_logger_directory_in_the_system_temporary_directory(trained):
+    assert [name for name in trained[1] if name.startswith("SB3-")] == []  # torch's own compile cache may be there
 
 
 @pytest.mark.parametrize("kind", ["monitor", "eval"])

@@ -114,6 +114,15 @@ def sb3_model(row: DeepRow, env_id: str = ENV, seed: int = 0) -> Any:
                    policy_kwargs={"net_arch": list(c.hidden)})
 
 
+def unlogged(model: Any) -> Any:
+    """``model`` with a logger that writes nothing: left to itself, Stable-Baselines3 makes a directory
+    ``SB3-<time>`` in the system's temporary directory at every ``learn``, and leaves it there."""
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
+
 def torch_threads(threads: int) -> contextlib.AbstractContextManager[None]:
     """torch's intra-op threads set to ``threads`` inside, as they were after."""
     import torch
@@ -130,7 +139,7 @@ def sb3_steps_per_second(row: DeepRow, steps: int, model: Any = None) -> SB3Timi
     """Stable-Baselines3's steps per second over ``steps`` steps, after a warm-up past ``learning_starts`` and a
     probe of :data:`SB3_PROBE_STEPS` steps on each of :data:`TORCH_THREADS`, on the faster; ``model`` (default:
     :func:`sb3_model`) has the row's settings."""
-    model = sb3_model(row) if model is None else model
+    model = unlogged(sb3_model(row) if model is None else model)
     model.learn(total_timesteps=getattr(row.config, "learning_starts", 0) + 2 * getattr(row.config, "train_freq", 1)
                 + getattr(row.config, "n_envs", 1) * getattr(row.config, "n_steps", 0))
 
@@ -215,7 +224,7 @@ def sb3_seconds_to_score(row: DeepRow, seed: int) -> float:
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.monitor import Monitor
 
-    model = sb3_model(row, SCORE_ENV, seed)
+    model = unlogged(sb3_model(row, SCORE_ENV, seed))
     every = row.config.total_steps // SCORE_ROUNDS
     evaluation_env: Any = Monitor(gym.make(SCORE_ENV))
 
