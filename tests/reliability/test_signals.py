@@ -19,7 +19,7 @@ pytestmark = pytest.mark.slow("sends signals to rlcompare processes that train o
 
 DEEP = ["reproduce", "deep", "--allow-undecidable", "--steps", "300000", "--seeds", "2", "--envs", "CartPole-v1",
         "--methods",
-        "pqn_q_lambda,dqn", "--workers", "1"]
+        "pqn_q_lambda,pqn_sarsa_lambda", "--workers", "1"]
 
 
 SAYS_SO = 30
@@ -52,7 +52,7 @@ def in_flight(study: Path) -> bool:
     return len(list(study.glob("*/.rlcompare.json"))) > 2
 
 
-FIRST, SECOND = "pqn_q_lambda-CartPole-v1", "dqn-CartPole-v1"
+FIRST, SECOND = "pqn_q_lambda-CartPole-v1", "pqn_sarsa_lambda-CartPole-v1"
 """The two deep trainings of :data:`DEEP`, one after the other (``--workers 1``)."""
 
 
