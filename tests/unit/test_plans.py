@@ -128,3 +128,24 @@ def test_a_sweeps_plan_lists_each_configuration_by_its_swept_values_and_writes_n
     assert "algorithm=q_learning, schedule=decay, env=MountainCar-v0, alpha=0.05: 10 seeds x 1,000 episodes" in (
         result.output)
     assert not out.exists()
+
+
+@pytest.mark.slow("imports JAX with the MinAtar study")
+def test_minatar_trains_the_pair_by_default_and_its_ablations_when_asked() -> None:
+    pytest.importorskip("jax")
+    from rlcompare.deep.methods import DEEP_METHODS
+    from rlcompare.studies.deep import minatar
+    from rlcompare.studies.registry import MinAtarOptions
+    from rlcompare.validation import ConfigError
+
+    def methods(spec: str | None = None) -> tuple[str, ...]:
+        options = MinAtarOptions() if spec is None else MinAtarOptions(methods=spec)
+        return minatar.plan_of(options).methods
+
+    assert methods() == ("pqn_sarsa_lambda", "pqn_q_lambda")
+    assert methods("ablations") == ("pqn_sarsa_lambda", "pqn_q_lambda", "pqn_watkins_q_lambda", "pqn_sarsa",
+                                    "pqn_q_learning")
+    assert methods("all") == tuple(DEEP_METHODS)
+    assert methods("dqn, ppo") == ("dqn", "ppo")
+    with pytest.raises(ConfigError, match="'all', 'ablations' or a comma-separated list"):
+        methods("ablationz")

@@ -69,13 +69,19 @@ class Seeded(Options):
         return tuple(range(self.first_seed, self.first_seed + self.seeds))
 
 
-def listed(field_name: str, spec: str | None, allowed: tuple[str, ...], *, every: str = "") -> tuple[str, ...]:
-    """A comma-separated choice among ``allowed``; ``None`` (or ``every``, where given): all of them."""
+def listed(field_name: str, spec: str | None, allowed: tuple[str, ...], *, every: str = "",
+           groups: dict[str, tuple[str, ...]] | None = None) -> tuple[str, ...]:
+    """A comma-separated choice among ``allowed``; ``None`` (or ``every``, where given): all of them; a name of
+    ``groups``: its members."""
+    groups = groups or {}
     if spec is None or (every and spec.strip() == every):
         return allowed
+    if spec.strip() in groups:
+        return groups[spec.strip()]
     chosen = tuple(name.strip() for name in spec.split(",") if name.strip())
     if not chosen or any(name not in allowed for name in chosen):
-        prefix = f"'{every}' or " if every else ""
+        named = ", ".join(f"'{name}'" for name in (every, *groups) if name)
+        prefix = f"{named} or " if named else ""
         raise ConfigError(field_name, spec, f"{prefix}a comma-separated list of {', '.join(allowed)}")
     return chosen
 

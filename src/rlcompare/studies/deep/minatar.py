@@ -81,7 +81,9 @@ PAIR_DIFFERS_IN = (
     "never cuts its trace on an exploratory action, so at λ = {lam:g} it differs from SARSA(λ) only in the "
     "{share:g}-weighted bootstrap (max against the action taken): it is not off-policy learning of Q* in full. "
     "Watkins's Q(λ) (the trace cut after an exploratory action, Sutton and Barto 12.10) and the pair at λ = 0 (the "
-    "one-step targets alone) stand beside it in every table, to separate the target from the traces.")
+    "one-step targets alone) separate the target from the traces: {ablations}.")
+ABLATIONS = ("pqn_sarsa_lambda", "pqn_q_lambda", "pqn_watkins_q_lambda", "pqn_sarsa", "pqn_q_learning")
+"""``--methods ablations``: the pair, Watkins's Q(λ) and the pair at λ = 0."""
 PAIR_LAMBDA = 0.65
 """λ of the pair's MinAtar preset (purejaxql's)."""
 SCHEDULES = (
@@ -124,7 +126,7 @@ def plan_of(options: MinAtarOptions) -> Plan:
     :class:`~rlcompare.validation.ConfigError` naming the option."""
     default_games, default_steps = BUDGETS[options.budget]
     games = listed("games", options.games, tuple(minatar.GAMES)) if options.games else default_games
-    methods = listed("methods", options.methods, tuple(DEEP_METHODS), every="all")
+    methods = listed("methods", options.methods, tuple(DEEP_METHODS), every="all", groups={"ablations": ABLATIONS})
     envs = {game: minatar.GAMES[game].name(options.protocol) for game in games}
     return checked(Plan(options.seed_range, methods, envs, options.steps or default_steps,
                         options.workers or DEFAULT_WORKERS, eval_rounds=10, eval_episodes=8))
@@ -282,7 +284,9 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
             f"the games learnt; random 0, the reference 1). p-values Holm-adjusted over the games and the overall "
             f"row; with {seeds} seeds the signed-rank test cannot give a p below "
             f"{number(smallest_p(SIGNED_RANK, seeds))}.",
-            PAIR_DIFFERS_IN.format(lam=PAIR_LAMBDA, share=round(1 - PAIR_LAMBDA, 2)),
+            PAIR_DIFFERS_IN.format(lam=PAIR_LAMBDA, share=round(1 - PAIR_LAMBDA, 2), ablations=(
+                "they stand beside it in every table" if set(ABLATIONS) <= {r.config.algorithm for r in runs.values()}
+                else "'--methods ablations' sets them beside it in every table")),
             SCHEDULES], [("Verdicts", found.verdicts, files["verdicts"])]),
         Section("The same question on tables and on classic control", [SAME_QUESTION, *elsewhere.paragraphs],
                 [(same_question.CAPTION, elsewhere.table, files["same_question"])]),
