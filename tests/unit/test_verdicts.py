@@ -249,6 +249,42 @@ def test_judge_table_has_the_stable_columns():
         assert name in table.columns
 
 
+def _detectable_by_noncentral_t(spread: float, seeds: int, level: float) -> float:
+    """The mean difference a two-sided one-sample t test at ``level`` finds four times in five, from scipy's
+    noncentral t, over the square root of the signed-rank test's efficiency 3/π: the design's reference."""
+    from scipy import optimize
+
+    critical = stats.t.ppf(1 - level / 2, seeds - 1)
+
+    def power(shift: float) -> float:
+        centre = shift / spread * np.sqrt(seeds)
+        return stats.nct.sf(critical, seeds - 1, centre) + stats.nct.cdf(-critical, seeds - 1, centre) - 0.8
+
+    return optimize.brentq(power, 1e-9 * spread, 2.5 * spread) / np.sqrt(3 / np.pi)  # (nct is NaN far out)
+
+
+def test_each_verdict_shows_the_smallest_p_and_the_difference_its_seeds_could_detect():
+    """Seven seeds: the signed-rank test's floor is 2/2^7 = 1/64 and, over a family of two with data (the third
+    claim has none), Holm's first level 0.025 is above it; six seeds' floor 1/32 is not, so nothing is
+    detectable."""
+    differences = np.array([3.0, -1.0, 4.0, 1.0, 5.0, 9.0, 2.0])
+    both = _metrics(400.0 + differences, [400.0] * 7, "convergence_episode")
+    table = judge([FASTER, SIMILAR, paper_claim("none", "decay", "convergence_episode")], both | _metrics(
+        [np.nan] * 7, [np.nan] * 7, "convergence_episode", schedule="decay"), episodes=1000)
+    faster, similar, none = (table.iloc[i] for i in range(3))
+    assert faster["smallest p"] == 1 / 64
+    assert faster["detectable (80% power)"] == pytest.approx(
+        _detectable_by_noncentral_t(np.std(differences, ddof=1), 7, 0.05 / 2), rel=1e-6)
+    assert similar["smallest p"] == 0.0  # a t test has no floor; its power is the note's
+    assert np.isnan(similar["detectable (80% power)"])
+    assert np.isnan(none["smallest p"])
+    assert np.isnan(none["detectable (80% power)"])
+    six = judge([FASTER, SIMILAR], _metrics(400.0 + differences[:6], [400.0] * 6, "convergence_episode"),
+                episodes=1000).iloc[0]
+    assert six["smallest p"] == 1 / 32
+    assert six["detectable (80% power)"] == np.inf
+
+
 def test_every_seed_censored_is_no_data_never_contradicted():
     nothing = _metrics([np.nan] * 3, [np.nan] * 3, "convergence_episode")
     table = judge([FOUR, FASTER, SIMILAR], nothing, episodes=600)

@@ -20,6 +20,7 @@ import pandas as pd
 
 from rlcompare.formatting import number
 from rlcompare.stats.compare import compare_paired
+from rlcompare.stats.design import SIGNED_RANK, T_TEST, Test, detectable_difference, smallest_p
 from rlcompare.stats.intervals import Estimate, paired_difference, probability_of_improvement
 from rlcompare.stats.power import provable_margin
 from rlcompare.stats.significance import (
@@ -95,6 +96,8 @@ class _Outcome(NamedTuple):
     (:func:`censored_at_worst`); None where nothing was censored."""
     power: str = ""
     """For a margin: that the seeds are too few to prove it (:func:`underpowered`), else empty."""
+    design: tuple[Test, int, float] = (T_TEST, 0, math.nan)
+    """The test's kind, its seeds and the spread of the numbers it reads (:func:`power_columns`)."""
 
 
 def _configurations(claim: Claim) -> list[str]:
@@ -214,24 +217,44 @@ def _test(claim: Claim, metrics: dict[str, pd.DataFrame], episodes: int, names: 
         return _Outcome(row | {"estimate": paired.difference.format(2),
                                "P(claim holds for a random pair)": better.format(2)},
                         paired.p_value, partial(_direction, paired.difference, sign=claim.sign), bias,
-                        worst_case=censored_at_worst(a - b, 0.0, 0.0, never_a, never_b) if bias else None)
+                        worst_case=censored_at_worst(a - b, 0.0, 0.0, never_a, never_b) if bias else None,
+                        design=(SIGNED_RANK, a.size, _spread(a - b)))
     if claim.kind == "ratio":
         test = ratio_tost(b, a, claim.value, RATIO_FACTOR)
         logs = np.log(b / a)
         return _Outcome(row | {"estimate": test.estimate.format(2)}, test.p, partial(_equivalence, test), bias,
                         worst_case=censored_at_worst(logs, np.log(test.lower), np.log(test.upper), never_b, never_a)
-                        if bias else None, power=underpowered(logs, np.log(RATIO_FACTOR), "on the log scale"))
+                        if bias else None, power=underpowered(logs, np.log(RATIO_FACTOR), "on the log scale"),
+                        design=(T_TEST, a.size, math.nan))
     if claim.kind == "within":
         lower, upper = claim.bounds
         test = tost(a - b, lower, upper)
         return _Outcome(row | {"estimate": test.estimate.format(2)}, test.p, partial(_equivalence, test), bias,
                         worst_case=censored_at_worst(a - b, lower, upper, never_a, never_b)
-                        if bias else None, power=underpowered(a - b, upper) if lower == -upper else "")
+                        if bias else None, power=underpowered(a - b, upper) if lower == -upper else "",
+                        design=(T_TEST, a.size, math.nan))
     values = a if claim.reads == "a" else b
     reference = np.full_like(values, claim.value)
     shift = paired_difference(values, reference)
     return _Outcome(row | {"estimate": shift.format(2)}, rank_test(values, reference, paired=True),
-                    partial(_direction, shift, sign=claim.sign))
+                    partial(_direction, shift, sign=claim.sign), design=(SIGNED_RANK, values.size, _spread(values)))
+
+
+def _spread(values: np.ndarray) -> float:
+    """The standard deviation of the numbers a rank test reads (NaN below two)."""
+    return float(np.std(values, ddof=1)) if values.size > 1 else math.nan
+
+
+def power_columns(outcome: _Outcome, family: int) -> dict[str, float]:
+    """The power a claim's design gave it: the smallest p its test can give on its seeds, and the difference its
+    seeds detect four times in five at Holm's strictest level over ``family`` claims (in the metric's units; NaN
+    for a margin's t tests, whose power the note states, and where the test cannot pass: infinite)."""
+    test, seeds, spread = outcome.design
+    if not math.isfinite(outcome.p):
+        return {"smallest p": math.nan, "detectable (80% power)": math.nan}
+    detectable = (detectable_difference(test, spread, seeds, max(family, 1)) if test == SIGNED_RANK
+                  else math.nan)
+    return {"smallest p": smallest_p(test, seeds), "detectable (80% power)": detectable}
 
 
 def _label(claim: Claim, outcome: _Outcome, p_adjusted: float, holm_factor: float,
@@ -310,7 +333,7 @@ def columns(names: tuple[str, str]) -> list[str]:
     """The columns of :func:`judge`'s table, A's and B's means named ``names``: stable for readers of
     ``verdicts.csv``."""
     return ["claim", "metric", *names, "test", "estimate", "P(claim holds for a random pair)", "p", "p (Holm)",
-            "verdict", "fragile", "censored", "noise floor", "note"]
+            "smallest p", "detectable (80% power)", "verdict", "fragile", "censored", "noise floor", "note"]
 
 
 def judge_by_rule(claims: list[Claim], metrics: dict[str, pd.DataFrame], episodes: int, *,
@@ -339,13 +362,14 @@ def judge_by_rule(claims: list[Claim], metrics: dict[str, pd.DataFrame], episode
                   for i, (c, o) in enumerate(zip(claims, outcomes, strict=True))]
         by_rule[rule] = [label for label, _, _ in _labels(claims, redone, floors)[1]]
     rows = []
+    family = sum(math.isfinite(o.p) for o in outcomes)
     for i, (outcome, p_adjusted, (label, floor_text, note)) in enumerate(zip(outcomes, adjusted, labels,
                                                                              strict=True)):
         under = {rule: by_rule[rule][i] for rule in rule_names} if i in convergence_claims else {}
         fragile = is_fragile([label, *under.values()])
         listing = labels_by_definition(under)
         parts = (note, outcome.power, listing and f"by rule: {listing}")
-        rows.append(outcome.row | {"p": outcome.p, "p (Holm)": p_adjusted,
+        rows.append(outcome.row | power_columns(outcome, family) | {"p": outcome.p, "p (Holm)": p_adjusted,
                                    "verdict": label + (FRAGILE if fragile else ""), "fragile": fragile,
                                    "noise floor": floor_text, "note": "; ".join(part for part in parts if part)})
     table = pd.DataFrame(rows, columns=columns(names))
