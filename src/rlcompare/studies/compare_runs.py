@@ -101,7 +101,8 @@ def verdicts(found: dict[Comparison, tuple[Judged, str]]) -> pd.DataFrame:
 def answer(found: dict[Comparison, tuple[Judged, str]], paired: bool) -> list[str]:
     """The answer in words: each environment's final-window comparisons, and how they were tested."""
     test = ("paired seeds (Wilcoxon signed-rank)" if paired
-            else "seeds as independent samples (Mann-Whitney; the runs share no randomness)")
+            else "seeds as independent samples (Mann-Whitney, exact with ties at their mid-ranks, its normal "
+                 "approximation from some 64 seeds a side on; the runs share no randomness)")
     lines = []
     for key, (j, label) in found.items():
         if key.metric == "final":
@@ -121,8 +122,9 @@ def design_sentence(found: dict[Comparison, tuple[Judged, str]], paired: bool) -
     reached = reach(SIGNED_RANK if paired else RANK_SUM, seeds, max(family, 1))
     side = "pairs" if paired else "seeds a side"
     verb = "can" if reached.can_decide else "cannot"
+    tests = "the one test" if family == 1 else f"the {family} tests"
     return (f"With {seeds} {side} the test cannot give a p below {reached.smallest_p:.3g}; Holm asks "
-            f"{reached.level:.3g} of the smallest over the {family} tests: this design {verb} decide"
+            f"{reached.level:.3g} of the smallest over {tests}: this design {verb} decide"
             + ("." if reached.can_decide else f" (with {reached.needed} {side} it can)."))
 
 
