@@ -260,3 +260,25 @@ def test_a_report_is_replaced_by_one_of_the_same_runs_and_never_by_another_compa
     assert refused.exit_code == 2
     assert f"{out}: holds the comparison of other runs (methods A, B; environments E)" in refused.output
     assert "Margin of no difference, declared on the command line: ±1" in (out / "report.html").read_text()
+
+
+def test_a_tidy_table_given_twice_over_is_refused_and_episodes_that_end_together_pass(tmp_path: Path) -> None:
+    """The rows of seed 0 of A twice (a table appended to itself): every step holds two points, which would have
+    been read as one run; a step that holds two episodes of a vectorised environment (step 20 here) passes."""
+    rows = [(m, "e", s, step, float(s + step)) for m in ("a", "b") for s in range(2) for step in (10, 20, 30)]
+    said = refused(tmp_path, str(tidy(tmp_path / "twice.csv", [*rows, *rows[:3]])))
+    assert "twice.csv: method a, environment e, seed 0 has 2 points at step 10 and at every other step" in said
+    together = tidy(tmp_path / "together.csv", [*rows, ("a", "e", 0, 20, 5.0)])
+    frame = read_runs([together], tmp_path, grouping(RULE))
+    assert len(frame) == 13
+
+
+def test_a_monitor_file_a_resumed_run_was_appended_to_is_refused(tmp_path: Path) -> None:
+    """SB3's Monitor(override_existing=False) appends a resumed run's episodes, their wall times from its own start:
+    t goes back (here from 0.02 s to 0.00 s at the fourth episode), and sorting by it interleaved the two runs."""
+    path = monitor(tmp_path / "runs" / "a" / "e" / "0" / "0.monitor.csv", np.arange(1.0, 4.0), np.full(3, 5))
+    with open(path, "a") as file:
+        file.write("".join(f"{r:.6f},5,{0.01 * i:.2f}\n" for i, r in enumerate((7.0, 8.0))))
+    monitor(tmp_path / "runs" / "b" / "e" / "0" / "0.monitor.csv", np.ones(5), np.full(5, 5))
+    said = refused(tmp_path, str(tmp_path / "runs"))
+    assert f"{path}: its wall time t goes back from 0.02 s to 0 s at episode 4" in said

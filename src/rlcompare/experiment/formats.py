@@ -75,8 +75,14 @@ def monitor_episodes(path: Path) -> pd.DataFrame:
         raise OutsideRunError(f"{path}: a row whose r or l is not a finite number (or l not positive); expected a "
                               "return and a length per episode")
     start = header.get("t_start", 0.0) if isinstance(header, dict) else 0.0
-    times = pd.to_numeric(episodes["t"], errors="coerce").to_numpy(np.float64) + float(start or 0.0)
-    return pd.DataFrame({"r": returns, "l": lengths.astype(np.int64), "t": times})
+    relative = pd.to_numeric(episodes["t"], errors="coerce").to_numpy(np.float64)
+    back = np.flatnonzero(np.diff(relative) < 0)
+    if back.size:
+        raise OutsideRunError(f"{path}: its wall time t goes back from {relative[back[0]]:g} s to "
+                              f"{relative[back[0] + 1]:g} s at episode {back[0] + 2}; expected one run a file (a "
+                              "Monitor with override_existing=False appends a resumed run to the first: give them "
+                              "apart)")
+    return pd.DataFrame({"r": returns, "l": lengths.astype(np.int64), "t": relative + float(start or 0.0)})
 
 
 def read_zoo_evaluations(path: Path) -> pd.DataFrame:

@@ -159,6 +159,7 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
         raise OutsideRunError(f"{root}: no run found; expected *.monitor.csv, evaluations.npz or a tidy table")
     frame = pd.concat(frames, ignore_index=True)[[*TIDY, "source", "kind"]]
     one_source_a_run(frame)
+    one_run_a_label(frame)
     one_kind_an_environment(frame)
     return frame
 
@@ -188,6 +189,19 @@ def one_source_a_run(frame: pd.DataFrame) -> None:
             raise OutsideRunError(f"{found[1]}: method {method}, environment {env}, seed {seed} again (also "
                                   f"{found[0]}); expected one source a run (name runs apart with --group, or give "
                                   "one of them)")
+
+
+def one_run_a_label(frame: pd.DataFrame) -> None:
+    """Refuse a run (method, environment, seed) whose every step holds two points or more, naming its source: the
+    same rows given twice, or two runs under one label, would be interleaved into one. (Some steps holding two
+    points are a vectorised environment's episodes that ended together, and pass.)"""
+    for (method, env, seed), steps in frame.groupby(list(FIELDS), sort=True)["step"]:
+        counts = steps.value_counts()
+        if len(steps) > 1 and (counts > 1).all():
+            source = frame.loc[steps.index[0], "source"]
+            raise OutsideRunError(f"{source}: method {method}, environment {env}, seed {seed} has {counts.iloc[0]} "
+                                  f"points at step {counts.index[0]:,} and at every other step; expected one run a "
+                                  "label (the same rows twice, or two runs under one seed: give them apart)")
 
 
 def one_kind_an_environment(frame: pd.DataFrame) -> None:
