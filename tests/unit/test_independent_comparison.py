@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from rlcompare.stats.compare import compare_independent
-from rlcompare.stats.intervals import independent_difference, paired_difference
+from rlcompare.stats.intervals import independent_difference, paired_difference, probability_of_improvement
 from rlcompare.stats.significance import EXACT_WORK, exact_work, rank_test, welch_tost
 
 RNG = np.random.default_rng(11)
@@ -101,3 +101,36 @@ def test_large_samples_take_the_normal_approximation():
     assert exact_work(80, 90) > EXACT_WORK
     assert rank_test(a, b, paired=False) == pytest.approx(
         stats.mannwhitneyu(a, b, alternative="two-sided", method="asymptotic").pvalue, rel=1e-12)
+
+
+def test_p_of_improvement_keeps_an_interval_when_every_seed_of_a_beats_every_one_of_b():
+    """5 seeds a side, every A above every B: the stratified bootstrap's interval is 1.00 [1.00, 1.00] (no
+    resample can lose a pair). Newcombe's score interval: its upper end 1, its lower end the θ where
+    1 - θ = (z² / 25) θ [1 + 4 (1 - θ) / (2 - θ) + 4 θ / (1 + θ)] (Hanley and McNeil's variance, N* - 1 = 4), solved
+    here apart: 0.643."""
+    from scipy.optimize import brentq
+
+    a, b = np.arange(5.0) + 10.0, np.arange(5.0)
+    assert probability_of_improvement(a, b) == (1.0, 1.0, 1.0)
+    z = stats.norm.ppf(0.975)
+    lowest = brentq(lambda t: 1 - t - z**2 / 25 * t * (1 + 4 * (1 - t) / (2 - t) + 4 * t / (1 + t)), 0.01, 0.99)
+    assert lowest == pytest.approx(0.6427, abs=1e-4)
+    found = compare_independent(a, b).improvement
+    assert (found.value, found.high) == (1.0, 1.0)
+    assert found.low == pytest.approx(lowest, rel=1e-9)
+    mirrored = compare_independent(b, a).improvement
+    assert (mirrored.low, mirrored.value) == (0.0, 0.0)
+    assert mirrored.high == pytest.approx(1 - lowest, rel=1e-9)
+
+
+def test_p_of_improvement_s_interval_on_unequal_sides_solves_newcombes_equation():
+    """3 seeds against 7, 3 + 4 + 6 = 13 of the 21 pairs won: each end θ solves (θ - 13/21)² = z² V(θ), V Hanley and
+    McNeil's variance with N* = 5 on both sides and the 21 pairs below."""
+    a, b = np.array([4.0, 6.0, 9.0]), np.array([1.0, 2.0, 3.0, 5.0, 7.0, 8.0, 10.0])
+    found = compare_independent(a, b).improvement
+    assert found.value == pytest.approx(13 / 21)
+    z = stats.norm.ppf(0.975)
+    for end in (found.low, found.high):
+        variance = end * (1 - end) / 21 * (1 + 4 * (1 - end) / (2 - end) + 4 * end / (1 + end))
+        assert (end - 13 / 21) ** 2 == pytest.approx(z**2 * variance, rel=1e-6)
+    assert found.low < 13 / 21 < found.high

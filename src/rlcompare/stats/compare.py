@@ -18,6 +18,7 @@ from rlcompare.formatting import number
 from rlcompare.stats.intervals import (
     NO_ESTIMATE,
     Estimate,
+    improvement_score_interval,
     independent_difference,
     paired_difference,
     per_seed_values,
@@ -75,7 +76,8 @@ def compare_paired(a: np.ndarray, b: np.ndarray, margin: float | None = None, *,
 
 def compare_independent(a: np.ndarray, b: np.ndarray, margin: float | None = None) -> Paired:
     """A against B on seeds that share no randomness (runs other libraries made): means, the difference of means
-    with its two-sample interval, the Mann-Whitney p-value, the probability of improvement and, where ``margin``
+    with its two-sample interval, the Mann-Whitney p-value, the probability of improvement with Newcombe's score
+    interval (:func:`~rlcompare.stats.intervals.improvement_score_interval`) and, where ``margin``
     is given, Welch's test of equivalence. ``seeds`` and ``spread`` are those of a paired test on as many pairs as
     the smaller side with the two sides' variances summed, so the detectable difference it gives is on the safe side
     of the two-sample test's."""
@@ -83,7 +85,7 @@ def compare_independent(a: np.ndarray, b: np.ndarray, margin: float | None = Non
     finite = bool(np.isfinite(a).all() and np.isfinite(b).all())
     spread = float(np.sqrt(a.var(ddof=1) + b.var(ddof=1))) if min(a.size, b.size) > 1 and finite else np.nan
     return Paired(float(np.mean(a)), float(np.mean(b)), independent_difference(a, b),
-                  rank_test(a, b, paired=False) if finite else np.nan, probability_of_improvement(a, b),
+                  rank_test(a, b, paired=False) if finite else np.nan, improvement_score_interval(a, b),
                   int(min(a.size, b.size)), None if margin is None else welch_tost(a, b, -margin, margin), spread)
 
 

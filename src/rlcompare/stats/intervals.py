@@ -241,3 +241,38 @@ def probability_of_improvement(
     return Estimate(value, low, high)
 
 
+
+
+
+def improvement_score_interval(a: np.ndarray, b: np.ndarray, confidence: float = 0.95) -> Estimate:
+    """P(a seed of ``a`` beats one of ``b``) (ties count half), with Newcombe's score interval (2006, "Confidence
+    intervals for an effect size measure based on the Mann-Whitney statistic. Part 2", Stat. Med. 25, his method 5):
+    the values θ within z standard errors of the estimate, the error taken at θ itself
+    (:func:`newcombe_variance`). Where every seed of ``a`` beats every one of ``b`` its upper end is 1 and its lower
+    end stays below, where a bootstrap of 5 seeds a side shrinks to 1.00 [1.00, 1.00]. Fewer than two seeds on
+    either side gives NaN bounds; a non-finite value gives a NaN estimate."""
+    from scipy.optimize import brentq
+
+    a, b = per_seed_values(a), per_seed_values(b)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return NO_ESTIMATE
+    value = float(improvement_share(a, b))
+    if a.size < 2 or b.size < 2:
+        return Estimate(value, np.nan, np.nan)
+    z = float(stats.norm.ppf(0.5 + confidence / 2))
+
+    def beyond(theta: float) -> float:
+        return (theta - value) ** 2 - z**2 * newcombe_variance(theta, a.size, b.size)
+
+    inner = 1e-9  # at an estimate of 0 or 1 the variance vanishes there too: the other root lies inside
+    low = 0.0 if value == 0.0 else float(brentq(beyond, 0.0, min(value, 1.0 - inner)))
+    high = 1.0 if value == 1.0 else float(brentq(beyond, max(value, inner), 1.0))
+    return Estimate(value, low, high)
+
+
+def newcombe_variance(theta: float, a_size: int, b_size: int) -> float:
+    """The variance of the share of pairs one side wins at its true value ``theta``: Hanley and McNeil's (1982, with
+    their approximations θ / (2 - θ) and 2θ² / (1 + θ)) with each side's size less one taken as N* - 1, N* the mean
+    of the two sizes (Newcombe's method 5)."""
+    middle = (a_size + b_size) / 2
+    return theta * (1 - theta) * (2 * middle - 1 - 3 * (middle - 1) / ((2 - theta) * (1 + theta))) / (a_size * b_size)
