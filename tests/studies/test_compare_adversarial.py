@@ -282,3 +282,22 @@ def test_a_monitor_file_a_resumed_run_was_appended_to_is_refused(tmp_path: Path)
     monitor(tmp_path / "runs" / "b" / "e" / "0" / "0.monitor.csv", np.ones(5), np.full(5, 5))
     said = refused(tmp_path, str(tmp_path / "runs"))
     assert f"{path}: its wall time t goes back from 0.02 s to 0 s at episode 4" in said
+
+
+@pytest.mark.slow("writes the report of two environments")
+def test_aggregates_left_out_for_seed_counts_that_differ_between_environments_say_why(tmp_path: Path) -> None:
+    """A and B on 5 seeds of E1 and 3 of E2, each with reference scores: rliable's matrix of seeds by environments
+    needs one number of seeds a method; the reason said the stratified bootstrap needed it, which it does not."""
+    import html
+
+    rows = [(m, env, s, step, float(s + (m == "A"))) for m in ("A", "B") for env, seeds in (("E1", 5), ("E2", 3))
+            for s in range(seeds) for step in (10, 20)]
+    out = tmp_path / "out"
+    result = invoke("compare", str(tidy(tmp_path / "runs.csv", rows)), "--scores", "E1=0:10", "--scores", "E2=0:10",
+                    "--out", str(out), columns=300)
+    assert result.exit_code == 0, result.output
+    page = " ".join(html.unescape((out / "report.html").read_text()).split())
+    assert ("Not pooled: no two methods ran every environment on one number of seeds. rliable's aggregates read each "
+            "method's seeds by environments as one matrix, with the same seeds on every environment; seeds: E1: A 5, "
+            "B 5; E2: A 3, B 3.") in page
+    assert not (out / "tables" / "aggregates.csv").exists()

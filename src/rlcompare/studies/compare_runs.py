@@ -209,8 +209,8 @@ def across(found: list[Curves], read: list[Numbers], references: Mapping[str, tu
     """rliable's aggregates of the final-window numbers over two or more environments that two or more methods ran,
     each normalised between its reference scores (``references``: low 0, high 1), drawn and written; or none, and
     why: an environment without reference scores (a scale made of the methods' own means moves when a method is
-    added or left out), or no two methods that ran every environment on as many seeds each (the stratified
-    bootstrap's)."""
+    added or left out), or no two methods that ran every environment on one number of seeds (rliable's matrix of
+    seeds by environments)."""
     finals = {n.env: {m: v["final"] for m, v in n.values.items()} for n in read}
     if len(finals) < 2:
         return None, {}, "one environment: nothing to pool."
@@ -222,8 +222,9 @@ def across(found: list[Curves], read: list[Numbers], references: Mapping[str, tu
     scales = {env: (low, high - low) for env, (low, high) in references.items() if env in finals}
     scores = by_method(finals, scales)
     if len(scores) < 2:
-        return None, {}, ("no two methods ran every environment on as many seeds on each, as the stratified "
-                          "bootstrap needs: " + "; ".join(f"{env}: " + ", ".join(
+        return None, {}, ("no two methods ran every environment on one number of seeds. rliable's aggregates "
+                          "read each method's seeds by environments as one matrix, with the same seeds on every "
+                          "environment; seeds: " + "; ".join(f"{env}: " + ", ".join(
                               f"{m} {len(v)}" for m, v in methods.items()) for env, methods in finals.items()) + ".")
     curves = by_method({c.env: c.values for c in found}, scales)
     drawn = draw_aggregates(scores, figures, tasks="environments", curves={m: curves[m] for m in scores},
