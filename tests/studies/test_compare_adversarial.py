@@ -301,3 +301,38 @@ def test_aggregates_left_out_for_seed_counts_that_differ_between_environments_sa
             "method's seeds by environments as one matrix, with the same seeds on every environment; seeds: E1: A 5, "
             "B 5; E2: A 3, B 3.") in page
     assert not (out / "tables" / "aggregates.csv").exists()
+
+
+def rl_zoo_folder(root: Path) -> Path:
+    """RL Zoo's own layout, logs/ALGO/ENV_ID/: a run's Monitor file and its evaluations in one directory. Monitor
+    returns are 100 + the run for PPO and the run for A2C; evaluations 10 + the run and the run."""
+    for algo, offset in (("ppo", 1), ("a2c", 0)):
+        for run in (1, 2, 3):
+            directory = root / algo / f"CartPole-v1_{run}"
+            monitor(directory / "0.monitor.csv", np.full(20, 100.0 * offset + run), np.full(20, 10))
+            np.savez(directory / "evaluations.npz", timesteps=np.array([50, 100, 150, 200]),
+                     results=np.full((4, 2), 10.0 * offset + run))
+    return root
+
+
+@pytest.mark.slow("writes two reports")
+def test_rl_zoos_own_folder_is_read_one_kind_of_file_at_a_time(tmp_path: Path) -> None:
+    """Once refused as 'seed 1 again', with --group for a remedy that could not help. Each kind read alone gives its
+    own means by hand: evaluations A2C 2 against PPO 12, Monitor episodes 2 against 102."""
+    root, rule = rl_zoo_folder(tmp_path / "logs"), "{method}/{env}_{seed}/*"
+    said = refused(tmp_path, str(root), "--group", rule)
+    assert "one kind of file a directory with --files (RL Zoo keeps a run's Monitor files and evaluations" in said
+    for kind, means in (("evaluations", [2.0, 12.0]), ("monitor", [2.0, 102.0])):
+        out = tmp_path / kind
+        result = invoke("compare", str(root), "--group", rule, "--files", kind, "--out", str(out), columns=300)
+        assert result.exit_code == 0, result.output
+        verdicts = pd.read_csv(out / "tables" / "verdicts.csv")
+        assert verdicts[["A mean", "B mean"]].iloc[0].tolist() == pytest.approx(means)
+        kinds = set(pd.read_csv(out / "tables" / "pairing.csv")["kind"])
+        assert kinds == {"RL Zoo evaluations" if kind == "evaluations" else "Monitor episodes"}
+
+
+def test_an_unknown_kind_of_file_is_one_line_naming_the_option(tmp_path: Path) -> None:
+    said = refused(tmp_path, str(rl_zoo_folder(tmp_path / "logs")), "--files", "monitor,csv")
+    assert "'--files'" in said
+    assert "monitor, evaluations, tensorboard" in said

@@ -195,6 +195,12 @@ def compare(
     tag: Annotated[str | None, typer.Option(help="The scalar of TensorBoard event files to read. Default: the first "
                                                  "there of charts/episodic_return (CleanRL), eval/mean_reward, "
                                                  "rollout/ep_rew_mean (Stable-Baselines3).")] = None,
+    files: Annotated[str, typer.Option("--files", help="The kinds of run file the directories given are searched "
+                                                       "for, comma-separated: monitor (*.monitor.csv), evaluations "
+                                                       "(evaluations.npz), tensorboard (events.out.tfevents.*). RL "
+                                                       "Zoo keeps a run's Monitor files and evaluations in one "
+                                                       "directory: read one of them.")
+                 ] = "monitor,evaluations,tensorboard",
     paired: Annotated[bool, typer.Option(help="The seeds share randomness across methods (seed s of each on the "
                                               "same starts): compare them pair by pair. Default: independent.")
                       ] = False,
@@ -222,7 +228,7 @@ def compare(
                                                       "detect) and stop: nothing is tested or written.")] = False,
 ) -> None:
     """Verdicts and a report for runs other libraries made: what each file was taken as is printed first."""
-    from rlcompare.experiment.formats import OutsideRunError
+    from rlcompare.experiment.formats import FILES, OutsideRunError
     from rlcompare.experiment.outside import grouping, read_runs, run_files
     from rlcompare.studies import compare_runs
     from rlcompare.studies.compare_numbers import METRICS
@@ -239,12 +245,13 @@ def compare(
         raise typer.BadParameter(f"{margin:g}; allowed: a positive number", param_hint="'--margin'")
     try:
         metrics = listed("metric", metric, tuple(METRICS))
+        kinds = listed("files", files, tuple(FILES))
         references = compare_runs.parse_scores(scores or [])
     except ConfigError as error:
         raise bad_option(error) from None
     try:
-        root, files = run_files(paths)
-        frame = read_runs(files, root, rule, tag)
+        root, found = run_files(paths, kinds)
+        frame = read_runs(found, root, rule, tag)
         print_frame(compare_runs.pairing_table(frame), f"What each file was taken as (rule {group!r}, below {root})")
         if plan:
             for line in compare_runs.plan(frame, paired=paired, margin=margin, cut=cut_to_shortest, metrics=metrics):

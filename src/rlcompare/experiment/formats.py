@@ -227,3 +227,8 @@ def read_in_parallel(paths: list[Path], tag: str | None) -> dict[Path, pd.DataFr
 
 KINDS = {read_monitor: "Monitor episodes", read_zoo_evaluations: "RL Zoo evaluations"}
 """What each reader's points are, for the table of what was read (a TensorBoard file's kind names its tag)."""
+
+
+FILES = {"monitor": read_monitor, "evaluations": read_zoo_evaluations, "tensorboard": read_tensorboard}
+"""The kinds of run file a directory is searched for, by the names ``compare --files`` gives them: RL Zoo keeps a
+run's Monitor files and its evaluations in one directory, and one of them is read."""

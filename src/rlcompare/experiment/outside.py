@@ -23,6 +23,7 @@ import pandas as pd
 from rlcompare.experiment import store
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.formats import (
+    FILES,
     KINDS,
     TIDY,
     OutsideRunError,
@@ -95,17 +96,19 @@ def walked(root: Path) -> Iterator[Path]:
         yield from (Path(directory) / name for name in (*subdirectories, *names))
 
 
-def run_files(paths: Iterable[Path]) -> tuple[Path, list[Path]]:
-    """The files ``paths`` name: each file itself, each directory's run files (:func:`reader_of`) below it; and the
-    root their grouping rule reads paths from (the directory given, or the deepest one common to all)."""
+def run_files(paths: Iterable[Path], kinds: Iterable[str] = tuple(FILES)) -> tuple[Path, list[Path]]:
+    """The files ``paths`` name: each file itself, each directory's run files below it of ``kinds`` (of
+    :data:`~rlcompare.experiment.formats.FILES`); and the root their grouping rule reads paths from (the directory
+    given, or the deepest one common to all)."""
     files: list[Path] = []
     given = [Path(p) for p in paths]
+    readers = [FILES[kind] for kind in kinds]
     for path in given:
         if path.is_dir() and store.owner_of(path) == store.RUN:
             files.append(path)
         elif path.is_dir():
             found = (f for f in walked(path) if not hidden(f.relative_to(path)))
-            files += sorted(f for f in found if (f.is_file() and reader_of(f) is not None)
+            files += sorted(f for f in found if (f.is_file() and reader_of(f) in readers)
                             or (f.name == store.MARKER_FILE and store.owner_of(f.parent) == store.RUN))
             files = [f.parent if f.name == store.MARKER_FILE else f for f in files]
         elif path.is_file():
@@ -186,9 +189,17 @@ def one_source_a_run(frame: pd.DataFrame) -> None:
     for key, found in sources.items():
         method, env, seed = cast(tuple[str, str, str], key)  # a MultiIndex's key: one value per field
         if len(found) > 1:
+            kinds = frame.loc[frame["source"].isin(found[:2]), "kind"].unique()
+            remedy = ("one kind of file a directory with --files (RL Zoo keeps a run's Monitor files and "
+                      "evaluations together)" if len(kinds) > 1 and same_directory(found[0], found[1])
+                      else "name runs apart with --group, or give one of them")
             raise OutsideRunError(f"{found[1]}: method {method}, environment {env}, seed {seed} again (also "
-                                  f"{found[0]}); expected one source a run (name runs apart with --group, or give "
-                                  "one of them)")
+                                  f"{found[0]}); expected one source a run ({remedy})")
+
+
+def same_directory(first: str, second: str) -> bool:
+    """Whether two sources (files, or a directory's Monitor files) lie in one directory."""
+    return Path(first.split(" (")[0]).parent == Path(second.split(" (")[0]).parent
 
 
 def one_run_a_label(frame: pd.DataFrame) -> None:
