@@ -98,10 +98,19 @@ def test_an_interrupted_exports_scratch_is_not_read_and_the_next_export_removes_
     out = tmp_path / "tb"
     for algorithm in ("q_learning", "sarsa"):
         assert invoke("export", str(runs / algorithm), "--to", "tensorboard", "--out", str(out)).exit_code == 0
-    scratch = out / ".export-killed"  # as a process killed while writing leaves it
+    scratch = out / ".export-killed"  # as a process killed while writing leaves it: marked, then half a file
     scratch.mkdir()
+    (scratch / ".rlcompare-scratch").write_text("an export's scratch")
     (scratch / "events.out.tfevents.1.killed").write_bytes(b"half a file")
+    empty = out / ".export-killed-early"  # killed before its mark
+    empty.mkdir()
+    users = out / ".export-notes"  # a user's, of the same prefix: not proved an export's, so it stays
+    users.mkdir()
+    (users / "notes.txt").write_text("mine")
     result = invoke("compare", str(out), "--cut-to-shortest", "--out", str(tmp_path / "compared"), columns=300)
     assert result.exit_code == 0, result.output
     assert invoke("export", str(runs / "sarsa"), "--to", "tensorboard", "--out", str(out)).exit_code == 0
     assert not scratch.exists()
+    assert not empty.exists()
+    assert (users / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in out.glob(".export-*")) == [".export-notes"]

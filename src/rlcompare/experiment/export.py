@@ -42,31 +42,57 @@ def tensorboard_directory(method: str, env: str, seed: object) -> str:
 
 SCRATCH = ".export-"
 """The prefix of the directory an export writes each event file in before moving it into place."""
+SCRATCH_MARK = ".rlcompare-scratch"
+"""The file an export writes first into its scratch directory: what proves the directory its own."""
+
+
+def new_scratch(out: Path) -> Path:
+    """A scratch directory in ``out``, marked as an export's (:data:`SCRATCH_MARK`) before anything is written in it."""
+    import tempfile
+
+    scratch = Path(tempfile.mkdtemp(dir=out, prefix=SCRATCH))
+    (scratch / SCRATCH_MARK).write_text("an export's scratch: removed by the next export into this directory\n")
+    return scratch
+
+
+def remove_stale_scratch(out: Path) -> list[Path]:
+    """Remove what interrupted exports left in ``out``: each scratch directory that holds :data:`SCRATCH_MARK`, and
+    an empty one (killed before its mark); a directory of the same prefix that is neither stays. The removed."""
+    import shutil
+
+    removed = []
+    for stale in sorted(out.glob(f"{SCRATCH}*")):
+        if stale.is_dir() and not stale.is_symlink() and ((stale / SCRATCH_MARK).is_file() or not any(stale.iterdir())):
+            shutil.rmtree(stale)
+            removed.append(stale)
+    return removed
 
 
 def write_tensorboard(frame: pd.DataFrame, out: Path) -> list[Path]:
     """Each run of a tidy table as a TensorBoard event file written by TensorBoard's own writer, under
-    :data:`EXPORT_TAG`, in ``out / {method}/{env}/{seed}``; each written beside and moved into place once whole,
-    and entered in ``out``'s list of outputs first (:func:`rlcompare.experiment.store.enter_outputs`)."""
+    :data:`EXPORT_TAG`, in ``out / {method}/{env}/{seed}``; each written in a scratch directory of its own
+    (:func:`new_scratch`) and moved into place once whole, and entered in ``out``'s list of outputs first
+    (:func:`rlcompare.experiment.store.enter_outputs`)."""
     import shutil
-    import tempfile
 
     from tensorboard.summary import Writer
 
-    for stale in out.glob(f"{SCRATCH}*"):  # what an interrupted export left: its own scratch, in its own directory
-        shutil.rmtree(stale, ignore_errors=True)
+    remove_stale_scratch(out)
     written = []
     for (method, env, seed), run in frame.groupby(["method", "env", "seed"], sort=True):
         target = out / tensorboard_directory(str(method), str(env), seed)
-        with tempfile.TemporaryDirectory(dir=out, prefix=SCRATCH) as scratch:
-            writer = Writer(scratch)
+        scratch = new_scratch(out)
+        try:
+            writer = Writer(str(scratch))
             for step, value in zip(run["step"], run["value"], strict=True):
                 writer.add_scalar(EXPORT_TAG, float(value), step=int(step))
             writer.close()
-            (made,) = Path(scratch).glob("events.out.tfevents.*")
+            (made,) = scratch.glob("events.out.tfevents.*")
             final = target / made.name
             store.enter_outputs(final)
             target.mkdir(parents=True, exist_ok=True)
             os.replace(made, final)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
         written.append(final)
     return written
