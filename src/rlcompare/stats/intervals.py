@@ -241,9 +241,6 @@ def probability_of_improvement(
     return Estimate(value, low, high)
 
 
-
-
-
 def improvement_score_interval(a: np.ndarray, b: np.ndarray, confidence: float = 0.95) -> Estimate:
     """P(a seed of ``a`` beats one of ``b``) (ties count half), with Newcombe's score interval (2006, "Confidence
     intervals for an effect size measure based on the Mann-Whitney statistic. Part 2", Stat. Med. 25, his method 5):
