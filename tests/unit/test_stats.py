@@ -299,3 +299,21 @@ def test_improvement_share_counts_pairs_to_the_same_bits_as_mid_ranks(monkeypatc
         assert np.array_equal(c, r)
     with_nan = np.array([1.0, np.nan, 3.0])
     assert np.isnan(module.improvement_share(with_nan, np.array([2.0, 2.0])))
+
+
+def test_a_joint_interval_resamples_the_seeds_together_across_quantities():
+    """Two quantities 3 apart on every seed: their difference of means is 3 on every joint resample, so the interval
+    is [3, 3] (resampled apart it would be wide); a concave function of the means is not the mean of its values."""
+    from rlcompare.stats.intervals import joint_interval
+
+    first = np.array([1.0, 5.0, 9.0, 2.0, 7.0])
+    difference = joint_interval(lambda x, y, axis=-1: np.mean(x, axis=axis) - np.mean(y, axis=axis),
+                                (first, first - 3.0))
+    assert (difference.value, difference.low, difference.high) == pytest.approx((3.0, 3.0, 3.0))
+    root = joint_interval(lambda x, axis=-1: np.sqrt(np.mean(x, axis=axis)), (first,))
+    assert root.value == pytest.approx(np.sqrt(4.8))
+    assert root.value != pytest.approx(np.mean(np.sqrt(first)))
+    assert root.low < root.value < root.high
+    with pytest.raises(ValueError, match="the same seeds"):
+        joint_interval(lambda x, y, axis=-1: np.mean(x, axis=axis), (first, first[:3]))
+    assert np.isnan(joint_interval(lambda x, axis=-1: np.mean(x, axis=axis), (np.array([1.0, np.inf]),)).value)

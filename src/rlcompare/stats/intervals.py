@@ -100,6 +100,28 @@ def interval(
     return Estimate(value, low, high)
 
 
+def joint_interval(function: Callable[..., np.ndarray | float], per_seed: tuple[np.ndarray, ...],
+                   confidence: float = 0.95, n_resamples: int = 10_000, seed: int = 0) -> Estimate:
+    """``function(*per_seed, axis=-1)`` of several quantities measured on the same seeds (one array each, in the
+    same order of seeds), with a percentile bootstrap interval that resamples the seeds together across them
+    (Efron and Tibshirani 1993, ch. 13): a statistic of means, such as a score model over games, is taken of the
+    resample's means, not averaged over seeds."""
+    arrays = tuple(per_seed_values(values) for values in per_seed)
+    if not all(np.all(np.isfinite(values)) for values in arrays):
+        return NO_ESTIMATE
+    if len({values.size for values in arrays}) != 1:
+        raise ValueError(f"each quantity needs the same seeds: sizes {[values.size for values in arrays]}")
+    value = float(function(*arrays, axis=-1))
+    if arrays[0].size < 2:
+        return Estimate(value, np.nan, np.nan)
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", stats.DegenerateDataWarning)
+        result = stats.bootstrap(arrays, function,  # type: ignore[call-overload]
+                                 n_resamples=n_resamples, confidence_level=confidence, method="percentile",
+                                 vectorized=True, paired=True, rng=np.random.default_rng(seed))
+    return Estimate(value, float(result.confidence_interval.low), float(result.confidence_interval.high))
+
+
 def mean_interval(per_seed: np.ndarray, confidence: float = 0.95) -> Estimate:
     """The mean over seeds with its Student t interval, for thousands of seeds: there the mean's sampling
     distribution is normal to any precision a table shows, while the bootstrap would resample an array of
