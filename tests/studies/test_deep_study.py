@@ -326,3 +326,38 @@ def test_a_diverged_training_is_no_verdict_and_the_report_names_it(study, tmp_pa
     assert labels[Key("CartPole-v1", metric="greedy_auc")] == DIVERGED
     assert labels[Key("CartPole-v1", "table")] != DIVERGED  # the tabular pair trained apart
     assert any("diverged in 1 of 2 seeds: 1 (from update 7)" in problem for problem in found.problems)
+
+
+@pytest.mark.slow("trains and reports a deep study")
+def test_the_plan_reads_what_each_comparison_could_detect_from_the_previous_runs_spread(study, tmp_path):
+    """With 12 seeds over the 2-seed study's directory: each row's difference detectable at 80% power, from the
+    spread of on - off its report recorded, at Holm's level over the plan's family; a table that is not the
+    study's is named instead of read, and a fresh directory has no such line."""
+    import shutil
+
+    from rlcompare.formatting import number
+    from rlcompare.stats.design import SIGNED_RANK, detectable_difference
+    from rlcompare.studies.deep.study import study_plan
+    from rlcompare.studies.registry import DeepOptions
+
+    out, _ = study
+    arguments = [*TINY[:TINY.index("--seeds")], "--seeds", "12", *TINY[TINY.index("--seeds") + 2:], "--plan"]
+    planned = invoke(*arguments, "--out", str(out), columns=None)
+    assert planned.exit_code == 0, planned.output
+    family = study_plan(DeepOptions(seeds=12, steps=41000, episodes=50, methods="pqn_q_lambda,pqn_sarsa_lambda",
+                                    envs="CartPole-v1")).questions[0].family
+    verdicts = pd.read_csv(out / "tables" / "deep_verdicts.csv")
+    text = " ".join(planned.output.split())
+    assert f"Detectable at 80% power with 12 seeds, in each comparison's own units, from the spread of on - off in " \
+           f"the previous run of 2 seeds ({out / 'tables' / 'deep_verdicts.csv'}):" in text
+    for _, row in verdicts.iterrows():
+        found = detectable_difference(SIGNED_RANK, row["spread of on - off (SD over seeds)"], 12, family)
+        assert f"{row['env']}, {row['engine']}, {row['metric']}: {number(found)}" in text
+    copied = shutil.copytree(out, tmp_path / "copied", ignore=shutil.ignore_patterns(".rlcompare.lock"))
+    (copied / "tables" / "deep_verdicts.csv").write_text(
+        (copied / "tables" / "deep_verdicts.csv").read_text().replace("network", "netwerk", 1))
+    tampered = " ".join(invoke(*arguments, "--out", str(copied), columns=None).output.split())
+    assert "No spread read from the previous run:" in tampered
+    assert "does not belong to this study" in tampered
+    fresh = invoke(*arguments, "--out", str(tmp_path / "fresh"), columns=None)
+    assert "Detectable at 80% power" not in fresh.output

@@ -30,7 +30,7 @@ from rlcompare.cli.console import (
 )
 from rlcompare.experiment import rundir, store
 from rlcompare.studies.interface import Options
-from rlcompare.studies.plans import StudyPlan
+from rlcompare.studies.plans import StudyPlan, with_known_spread
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
 from rlcompare.tabular.config import field_docs
 from rlcompare.validation import ConfigError
@@ -115,6 +115,7 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
     plan, paces, report_pace = study_plan(study, runner, options), pace.stored(), f"report {study.name}"
+    plan = with_known_spread(plan, out, study.name)
     finished = [t.name for t in plan.trainings if (out / t.name / rundir.META_FILE).is_file()]
     if show_plan:
         for line in plan.lines(paces, report_pace, finished):

@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from rlcompare.formatting import number
+from rlcompare.stats.design import SIGNED_RANK, detectable_difference
 from rlcompare.stats.intervals import (
     NO_ESTIMATE,
     Estimate,
@@ -24,7 +25,6 @@ from rlcompare.stats.intervals import (
     per_seed_values,
     probability_of_improvement,
 )
-from rlcompare.stats.power import detectable_difference
 from rlcompare.stats.significance import (
     ALPHA,
     CONTRADICTED,
@@ -131,8 +131,9 @@ class Judged(NamedTuple):
     """Holm-adjusted p of the equivalence (TOST within the margin); NaN where no margin was declared."""
     label: str
     detectable: float
-    """The smallest true difference a paired t test at the family's strictest Holm step (α over the family's
-    size) finds four times in five over these seeds (:func:`~rlcompare.stats.power.detectable_difference`)."""
+    """The smallest true difference the signed-rank test at the family's strictest Holm step (α over the family's
+    size) finds four times in five over these paired seeds, infinite where its smallest p cannot pass that step
+    (:func:`~rlcompare.stats.design.detectable_difference`)."""
 
 
 def judge_family(found: dict[Hashable, Paired], names: tuple[str, str], level: float = ALPHA
@@ -144,12 +145,11 @@ def judge_family(found: dict[Hashable, Paired], names: tuple[str, str], level: f
     directions = [found[k].p_value for k in keys]
     equivalences = [np.nan if (test := found[k].equivalence) is None else test.p_equivalent for k in keys]
     adjusted = holm([*directions, *equivalences])
-    size = int(np.sum(~np.isnan([*directions, *equivalences])))
-    strictest = level / max(size, 1)
+    size = max(int(np.sum(~np.isnan([*directions, *equivalences]))), 1)
     judged = {}
     for i, key in enumerate(keys):
         paired, p, p_equivalence = found[key], adjusted[i], adjusted[len(keys) + i]
         label = comparison_label(paired.difference, p, names, paired.equivalence, level, p_equivalence)
-        judged[key] = Judged(paired, p, p_equivalence, label, detectable_difference(paired.spread, paired.seeds,
-                                                                                    strictest))
+        detectable = detectable_difference(SIGNED_RANK, paired.spread, paired.seeds, size, level=level)
+        judged[key] = Judged(paired, p, p_equivalence, label, detectable)
     return judged

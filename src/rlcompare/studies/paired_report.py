@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 
 from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.results import DeepResults
+from rlcompare.experiment import rundir
 from rlcompare.formatting import number
 from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
@@ -40,6 +41,7 @@ from rlcompare.studies.paired import (
     run_of,
     seconds_per_step,
 )
+from rlcompare.studies.plans import ESTIMATE, SPREAD
 from rlcompare.tabular.results import Results
 
 TARGETS = ("on-policy", "off-policy")
@@ -146,10 +148,11 @@ def verdict_table(study: PairedStudy, compared: Mapping[Key, Judged]) -> pd.Data
     """One row per comparison, with the power its seeds gave it: the smallest p their signed-rank test can give
     (:mod:`rlcompare.stats.design`) and the difference they could detect."""
     return pd.DataFrame([{
-        **study.columns(key), "on - off (mean, 95% CI)": j.paired.difference.format(study.digits),
+        **study.columns(key), ESTIMATE: j.paired.difference.format(study.digits),
         "P(on > off)": j.paired.improvement.format(2), "p (Holm)": j.p, "p equivalent (Holm)": j.p_equivalence,
         "smallest p": number(smallest_p(SIGNED_RANK, j.paired.seeds), 2),
-        "detectable (80% power)": number(j.detectable), "verdict": j.label,
+        "detectable (80% power)": number(j.detectable), "verdict": j.label, SPREAD: j.paired.spread,
+        "seeds": j.paired.seeds,
     } for key, j in compared.items()])
 
 
@@ -220,6 +223,7 @@ def findings(out: Path, study: PairedStudy) -> Findings:
     compared = judged(study, runs, beside, floors, spread)
     verdicts = verdict_table(study, compared)
     written = write_table(verdicts, out / "tables", f"{study.name}_verdicts")
+    rundir.enter_members(out, [], {written: (out / written).read_bytes()})  # read again by the next --plan
     aggregates, files = draw_across(study, spread, out / "tables", out / "figures") if spread else (None, {})
     return Findings(runs, beside, problems, envs, compared, verdicts, spread, aggregates,
                     {"verdicts": written, **files})

@@ -10,14 +10,23 @@ report cannot disagree. Nothing is trained or compiled, and no file is written.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from rlcompare import pace
+from rlcompare.formatting import number
 from rlcompare.machine import gib
 from rlcompare.pace import Pace
-from rlcompare.stats.design import INTERVAL, RANK_SUM, T_TEST, Reach, Test, reach
+from rlcompare.stats.design import INTERVAL, RANK_SUM, SIGNED_RANK, T_TEST, Reach, Test, detectable_difference, reach
+
+SPREAD = "spread of on - off (SD over seeds)"
+"""The column of a paired study's verdict table that the next plan reads its detectable differences from."""
+ESTIMATE = "on - off (mean, 95% CI)"
+"""The first column of a paired study's verdict table after those that name the comparison."""
 
 
 def duration(seconds: float) -> str:
@@ -132,6 +141,8 @@ class StudyPlan:
     question."""
     workers: int = 1
     """Trainings run at once on this machine (each one's pace was measured so, beside the others)."""
+    detectable: tuple[str, ...] = ()
+    """What the headline comparisons could detect, from a spread known before (:func:`with_known_spread`)."""
 
     @property
     def undecidable(self) -> tuple[Question, ...]:
@@ -201,4 +212,42 @@ class StudyPlan:
         if self.questions:
             lines += ["", "Tests, each family under Holm's correction:"]
             lines += [f"  {'(headline) ' if q.headline else ''}{q.asks}: {q.reads()}" for q in self.questions]
+        if self.detectable:
+            lines += ["", *self.detectable]
         return lines
+
+
+def with_known_spread(plan: StudyPlan, out: Path, name: str) -> StudyPlan:
+    """``plan`` with the difference each of its paired comparisons detects at 80% power (Holm's strictest level,
+    these seeds), read from the spread of the paired differences its previous run in ``out`` showed: the verdict
+    table ``tables/<name>_verdicts.csv`` its report wrote, verified against the study's record (a table that is not
+    the study's says so instead). Unchanged where ``out`` holds no such table or the plan makes no paired test."""
+    import io
+
+    import pandas as pd  # here, not for every command's --help
+
+    from rlcompare.experiment import rundir, store
+
+    table = f"tables/{name}_verdicts.csv"
+    question = next((q for q in plan.questions if q.test == SIGNED_RANK and q.headline), None)
+    if question is None or not (Path(out) / table).is_file():
+        return plan
+    try:
+        verdicts = pd.read_csv(io.BytesIO(rundir.read_member_file(Path(out), table)))
+    except (store.StoreError, ValueError) as error:
+        return dataclasses.replace(plan, detectable=(f"No spread read from the previous run: {error}",))
+    if SPREAD not in verdicts.columns or ESTIMATE not in verdicts.columns:
+        return plan
+    naming = list(verdicts.columns[:list(verdicts.columns).index(ESTIMATE)])
+
+    def detectable(spread: float) -> str:
+        found = detectable_difference(SIGNED_RANK, spread, question.seeds, question.family)
+        return "nothing (the design cannot decide)" if math.isinf(found) else number(found)
+
+    rows = [f"  {', '.join(str(row[c]) for c in naming)}: {detectable(float(row[SPREAD]))}"
+            for _, row in verdicts.iterrows() if math.isfinite(float(row[SPREAD]))]
+    seeds = sorted({int(s) for s in verdicts.get("seeds", pd.Series(dtype=int)).dropna()})
+    ran = f" of {'/'.join(map(str, seeds))} seeds" if seeds else ""
+    heading = (f"Detectable at 80% power with {question.seeds} seeds, in each comparison's own units, from the "
+               f"spread of on - off in the previous run{ran} ({Path(out) / table}):")
+    return dataclasses.replace(plan, detectable=(heading, *rows))
