@@ -39,3 +39,19 @@ def test_a_training_too_large_for_the_machine_is_refused_before_it_runs(monkeypa
                                           r"pqn_q_lambda-CartPole-v1 on 1 seeds.*this machine has 0.0 GiB"):
         run(config, out=tmp_path / "run")
     assert not (tmp_path / "run" / rundir.PARAMS_FILE).exists()
+
+
+def test_the_plan_counts_records_and_replay_buffers_before_anything_compiles() -> None:
+    """Records: 2 copies x 10 bytes a step x 3 seeds x the steps trained; a replay buffer (two seeds side by side):
+    per transition two observations of Breakout's 400 boolean cells, an int32 action, a float32 reward and a bool
+    ending, 809 bytes; PQN keeps none."""
+    small = DeepConfig(algorithm="dqn", env="MinAtar/Breakout-v0", seeds=(0, 1, 2), vmap_width=2, eval_rounds=2,
+                       eval_episodes=1, hyperparameters={"total_steps": 2_000, "buffer_size": 1_000,
+                                                         "learning_starts": 100})
+    large = DeepConfig(**{**small.__dict__, "hyperparameters": {**small.hyperparameters, "buffer_size": 50_000}})
+    records = 2 * 10 * 3 * small.steps_trained
+    assert small.memory_before_running() == records + 2 * 1_000 * (2 * OBSERVATION_BYTES + 9)
+    assert large.memory_before_running() - small.memory_before_running() == 2 * 49_000 * 809
+    pqn = DeepConfig(algorithm="pqn_q_lambda", env="MinAtar/Breakout-v0", seeds=(0, 1, 2), eval_rounds=2,
+                     eval_episodes=1)
+    assert pqn.memory_before_running() == 2 * 10 * 3 * pqn.steps_trained

@@ -113,6 +113,25 @@ class DeepConfig:
                 f"a training whose records fit in memory: {len(self.seeds)} seeds x {total_steps:,} steps keep at "
                 f"least {machine.gib(records)}; this machine has {machine.gib(memory)}")
 
+    def memory_before_running(self) -> int:
+        """Bytes this training is known to hold before it is compiled: the records of every step (kept twice,
+        joined over the groups of seeds) and, for a method with a replay buffer, a buffer for each seed trained side
+        by side (its observations' shape and dtype traced from the environment, nothing run). The compiled
+        program's own figure (:func:`rlcompare.deep.train.memory_needed`), checked before the first step, adds its
+        networks and temporaries."""
+        import jax
+
+        from rlcompare.deep.envs import observe_all, reset_all
+        from rlcompare.deep.replay import buffer_bytes
+
+        records = RECORD_COPIES * FINISHED_BYTES_PER_STEP * self.steps_trained * len(self.seeds)
+        capacity = getattr(self.method_config(), "buffer_size", 0)
+        if not capacity:
+            return records
+        env = self.environment
+        observation = jax.eval_shape(lambda key: observe_all(env, reset_all(env, key[None]))[0], jax.random.key(0))
+        return records + min(self.vmap_width, len(self.seeds)) * buffer_bytes(capacity, observation)
+
     def method_config(self) -> Any:
         """The method's own config: preset, fixed settings and overrides, validated."""
         return hyperparameters(self.algorithm, self.env, self.preset, self.hyperparameters)

@@ -45,6 +45,12 @@ def buffer_init(capacity: int, observation_shape: int | tuple[int, ...], dtype: 
     return Buffer(data, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
 
+def buffer_bytes(capacity: int, observation: jax.ShapeDtypeStruct) -> int:
+    """Bytes a buffer of ``capacity`` transitions holds (:func:`buffer_init`): two observations of the shape and
+    dtype of ``observation``, an int32 action, a float32 reward and a bool ending each."""
+    return capacity * (2 * int(observation.size) * int(observation.dtype.itemsize) + 4 + 4 + 1)
+
+
 def buffer_add(buffer: Buffer, batch: Transitions) -> Buffer:
     """``batch`` (at most ``capacity`` rows, cast to the buffer's dtypes) written after the newest, wrapping."""
     capacity, n = buffer.data.actions.shape[0], batch.actions.shape[0]

@@ -110,7 +110,8 @@ def tabular_training(name: str, config: Any, memory_checked: bool = True) -> Tra
 
 def deep_training(name: str, config: Any, unit: str = "environment steps") -> Training:
     """A deep configuration (:class:`~rlcompare.deep.config.DeepConfig`) as a training of the steps it runs."""
-    return Training(name, len(config.seeds), config.steps_trained, unit, pace.key("deep", config))
+    return Training(name, len(config.seeds), config.steps_trained, unit, pace.key("deep", config),
+                    memory=config.memory_before_running())
 
 
 def episodic(configs: Mapping[str, Any], memory_checked: bool = True) -> tuple[Training, ...]:
@@ -207,8 +208,9 @@ class StudyPlan:
             largest = max(self.trainings, key=lambda t: t.memory)
             if largest.memory:
                 held = gib(largest.memory) if largest.memory >= 2**30 else f"{largest.memory / 2**20:,.1f} MiB"
-                lines.append(f"Memory: the largest training known before it runs holds {held} "
-                             f"({largest.name}); a network's is measured once it compiles")
+                lines.append(f"Memory: the largest training known before it runs holds {held} ({largest.name}: "
+                             "its records and any replay buffers; a network's whole figure is checked once it "
+                             "compiles)")
         if self.questions:
             lines += ["", "Tests, each family under Holm's correction:"]
             lines += [f"  {'(headline) ' if q.headline else ''}{q.asks}: {q.reads()}" for q in self.questions]
