@@ -77,27 +77,78 @@ def test_load_agent_of_a_chess_run_moves_on_python_chess_boards(chess_run):
 ENDED_BY_PGX = {
     "fifty moves, not claimed": ("8/8/8/4k3/8/8/R7/4K3 w - - 100 80", ""),
     "a threefold repetition, not claimed": (chess.STARTING_FEN, "g1f3 g8f6 f3g1 f6g8 g1f3 g8f6 f3g1 f6g8 g1f3"),
+    "pgx's 512-ply cap": (chess.STARTING_FEN, "512 random plies"),
 }
 """Positions where pgx has ended the game by its own count and python-chess's rules go on: the agent once masked
-with pgx's all-True mask and answered ``bestmove 0000`` or an illegal move."""
+with pgx's all-True mask and answered ``bestmove 0000`` or an illegal move, or raised at ply 513."""
+
+
+def long_game() -> str:
+    """512 plies of a seeded random game in which neither pgx's fifty-move count nor a threefold repetition comes
+    (seed 50 is the first such of :class:`RandomPlayer`): pgx ends it at its 512-ply cap, python-chess goes on."""
+    from rlcompare.players.basic import RandomPlayer
+
+    board, player = chess.Board(), RandomPlayer(50)
+    while board.ply() < 512:
+        board.push(player.move(board))
+    return " ".join(move.uci() for move in board.move_stack)
+
+
+def ended_by_pgx(case: str) -> tuple[str, str, chess.Board]:
+    """The FEN, the moves and the board of ``case``."""
+    fen, moves = ENDED_BY_PGX[case]
+    moves = long_game() if moves == "512 random plies" else moves
+    board = chess.Board(fen)
+    for move in moves.split():
+        board.push_uci(move)
+    return fen, moves, board
 
 
 @pytest.mark.slow("trains a network at chess")
 @pytest.mark.parametrize("case", list(ENDED_BY_PGX))
 def test_the_network_moves_by_the_rules_where_pgx_has_ended_the_game(chess_run, case):
-    fen, moves = ENDED_BY_PGX[case]
-    board = chess.Board(fen)
-    for move in moves.split():
-        board.push_uci(move)
-    assert not board.is_game_over()
-    move = load_agent(chess_run).move(board)
+    from rlcompare.deep.chess.board import state_of
+
+    fen, moves, board = ended_by_pgx(case)
+    assert not board.is_game_over(claim_draw=False)
+    assert bool(state_of(board).terminated)  # pgx's own replay has ended it, and its mask is all True
+    assert bool(state_of(board).legal_action_mask.all())
+    agent = load_agent(chess_run)
+    move = agent.move(board)
     assert move in board.legal_moves
+    for _ in range(6):  # and on, each ply from the board the last one left
+        board.push(agent.move(board))
+    assert len(board.move_stack) == len(moves.split()) + 6
     command = f"position fen {fen}" + (f" moves {moves}" if moves else "")
     result = invoke("uci", str(chess_run), input=f"{command}\ngo\nquit\n", columns=300)
     assert result.exit_code == 0, result.output
     best = [line for line in result.output.splitlines() if line.startswith("bestmove")]
     assert len(best) == 1
-    assert chess.Move.from_uci(best[0].split()[1]) in board.legal_moves
+    assert chess.Move.from_uci(best[0].split()[1]) in ended_by_pgx(case)[2].legal_moves
+
+
+AFTER_FIVEFOLD = "g1f3 g8f6 f3g1 f6g8 " * 4 + "e2e4"
+"""The knights out and back four times (the start's fifth occurrence: python-chess's automatic fivefold end), then a
+move a GUI may still send: the position after it is not over, but pgx's replay cannot pass the end."""
+
+
+@pytest.mark.slow("trains a network at chess")
+def test_the_network_moves_after_a_game_went_past_an_automatic_end(chess_run):
+    from rlcompare.deep.chess.board import state_of
+
+    board = chess.Board()
+    for move in AFTER_FIVEFOLD.split():
+        assert not board.is_game_over(claim_draw=False) or len(board.move_stack) == 16
+        board.push_uci(move)
+    assert not board.is_game_over(claim_draw=False)
+    with pytest.raises(ValueError, match="the game has ended before the move e2e4"):
+        state_of(board, rules_decide=True)
+    assert load_agent(chess_run).move(board) in board.legal_moves
+    result = invoke("uci", str(chess_run), input=f"position startpos moves {AFTER_FIVEFOLD}\ngo\nquit\n",
+                    columns=300)
+    assert result.exit_code == 0, result.output
+    assert "info string" not in result.output
+    assert chess.Move.from_uci(result.output.splitlines()[-1].split()[1]) in board.legal_moves
 
 
 @pytest.mark.slow("trains a network at chess")

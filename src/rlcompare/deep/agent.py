@@ -47,15 +47,16 @@ class DeepAgent:
 class BoardAgent:
     """A network's greedy move on python-chess boards (:class:`rlcompare.players.basic.ChessPlayer`), chosen on
     pgx's copy of the board (:func:`rlcompare.deep.chess.board.state_of`), which keeps the history pgx's planes
-    show. Chess only: python-chess has no Gardner's minichess."""
+    show, among python-chess's legal moves: the rules' moves decide, never pgx's mask (all True once pgx has ended
+    a game by its own count). ``values`` is the network's ``(params, observations) -> action values``. Chess only:
+    python-chess has no Gardner's minichess."""
 
-    def __init__(self, name: str, game: ChessGameEnv, act: Any, params: Any) -> None:
+    def __init__(self, name: str, game: ChessGameEnv, values: Any, params: Any) -> None:
         self.name = name
         self.params = params
         self._seen: tuple[str, list[chess.Move], Any] | None = None
         """The root, the moves and pgx's state of the last board it moved on."""
-        self._choose = jax.jit(lambda params, state: act(params, game.observe(state)[None],  # the rules' moves
-                                                         state._x.legal_action_mask[None])[0])
+        self._values = jax.jit(lambda params, state: values(params, game.observe(state)[None])[0])
 
     @classmethod
     def of(cls, results: DeepResults, seed: int, stage: str = "final") -> BoardAgent:
@@ -65,37 +66,60 @@ class BoardAgent:
         game = config.environment
         if not isinstance(game, ChessGameEnv) or game.game.board_size != 8:
             raise ValueError(f"a run of {config.env}: only a network trained at chess plays on python-chess boards")
-        act = deep_method(config.algorithm).module.act(config.method_config(), game)
-        return cls(f"rlcompare {config.name} seed {seed} {stage}", game, act,
+        return cls(f"rlcompare {config.name} seed {seed} {stage}", game, action_values(results),
                    results.seed_params(seed, params_template(config), stage))
 
-    @float64
     def move(self, board: chess.Board) -> chess.Move:
         """The network's move for the side to move on ``board``."""
-        from rlcompare.deep.chess.board import move_of
+        return self.evaluate(board)[0]
 
+    @float64
+    def evaluate(self, board: chess.Board) -> tuple[chess.Move, float]:
+        """The network's move for the side to move on ``board`` and its action value (the mover's expected return,
+        -1 lost to +1 won): the first of the best among python-chess's legal moves, by pgx's action order, as the
+        network's greedy policy chooses in pgx. A board with no legal move is a ``ValueError``."""
+        from rlcompare.deep.chess.board import action_of
+
+        moves = list(board.legal_moves)
+        if not moves:
+            raise ValueError(f"no legal move in {board.fen()}")
         state = self._state_of(board)
-        return move_of(state, int(self._choose(self.params, state)))
+        by_action = {action_of(state, move): move for move in moves}
+        actions = np.array(sorted(by_action))
+        values = np.asarray(self._values(self.params, state))[actions]
+        best = int(np.argmax(values))
+        return by_action[int(actions[best])], float(values[best])
 
     def _state_of(self, board: chess.Board) -> Any:
         """pgx's state of ``board``: the last one this agent saw, stepped on by the moves since, where ``board``
-        continues that game; else replayed from its root (:func:`~rlcompare.deep.chess.board.state_of`)."""
-        from rlcompare.deep.chess.board import action_of, state_of, step
+        continues that game and pgx has not ended it on the way; else :func:`~rlcompare.deep.chess.board.player_state`
+        (replayed from its root, rebuilt from the position where pgx ended the game by its own count)."""
+        from rlcompare.deep.chess.board import action_of, player_state, step
 
         seen, moves = self._seen, board.move_stack
-        if seen is None or seen[0] != board.root().fen() or moves[:len(seen[1])] != seen[1]:
-            state = state_of(board, rules_decide=True)
-        else:
+        state = None
+        if seen is not None and seen[0] == board.root().fen() and moves[:len(seen[1])] == seen[1]:
             state = seen[2]
             for move in moves[len(seen[1]):]:
                 state = step(state, action_of(state, move))
-            if bool(state.terminated):  # pgx ended the game by its own count: rebuilt as state_of rebuilds it
-                state = state_of(board, rules_decide=True)
+                if bool(state.terminated):
+                    state = None
+                    break
+        if state is None:
+            state = player_state(board)
         self._seen = (board.root().fen(), list(moves), state)
         return state
 
     def close(self) -> None:
         """Holds nothing."""
+
+
+def action_values(results: DeepResults) -> Any:
+    """The network's ``(params, observations) -> (batch, actions)`` action values: PQN's, the one method that plays
+    games here (its greedy policy is their argmax among the legal moves)."""
+    config = results.config
+    network = deep_method(config.algorithm).module.network(config.method_config(), config.environment)
+    return network.apply
 
 
 def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent | BoardAgent:

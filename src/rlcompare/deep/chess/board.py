@@ -242,3 +242,16 @@ def rerooted(board: chess.Board, order: jax.Array) -> State:
     root.halfmove_clock = min(root.halfmove_clock, 99)
     with jax.enable_x64(False):
         return _root_state(root, order)
+
+
+def player_state(board: chess.Board) -> State:
+    """pgx's state for a player choosing a move on ``board`` (White pgx's player 0): :func:`state_of` with
+    python-chess's rules deciding; where the moves cannot be replayed in pgx (a move after an automatic end of
+    python-chess's, such as a fivefold repetition, which a GUI may still send; a move pgx does not list), the
+    position alone (:func:`rerooted`). A board pgx cannot hold (Chess960, a variant) is a ``ValueError``."""
+    try:
+        return state_of(board, rules_decide=True)
+    except ValueError:
+        if board.chess960 or type(board).uci_variant != chess.Board.uci_variant:
+            raise
+        return rerooted(board, jnp.int32([0, 1]))

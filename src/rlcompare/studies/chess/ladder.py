@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.deep import float64
-from rlcompare.deep.agent import BoardAgent
+from rlcompare.deep.agent import BoardAgent, action_values
 from rlcompare.deep.chess.games import ChessGameEnv
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
@@ -138,11 +138,11 @@ def stockfish_games(game: ChessGameEnv, learners: list[Learner], pairs: int
         for fixed in (RandomPlayer(0), MaterialPlayer(0)):
             records += play_pairs(fixed, weak, pairs)
         for learner in learners:
-            act, params = networks(learner)
+            values, params = action_values(learner.results), networks(learner)[1]
             for index, seed in enumerate(learner.seeds):
                 name = f"{learner.name} #{seed}"
                 seeds[name] = seed
-                player = BoardAgent(name, game, act, seed_params(params, index))
+                player = BoardAgent(name, game, values, seed_params(params, index))
                 for rung in (weak, strong):
                     records += play_pairs(player, rung, pairs)
     return frame(record_rows(records, seeds)), records
