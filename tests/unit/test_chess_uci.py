@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from rlcompare.players.basic import RandomPlayer
 from rlcompare.players.games import play_game
 from rlcompare.players.stockfish import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
-from rlcompare.players.uci import Deferred, Session, serve
+from rlcompare.players.uci import Deferred, Session, centipawns, serve, warm_up_boards
 
 AFTER_E4 = chess.Board("rnbqkbnr/pppppppp/8/8/4P3/8/PPPP1PPP/RNBQKBNR b KQkq - 0 1")
 MATED = "rnb1kbnr/pppp1ppp/8/4p3/6Pq/5P2/PPPPP2P/RNBQKBNR w KQkq - 1 3"
@@ -84,6 +84,41 @@ def infos(answers: list[str]) -> list[str]:
 def test_uci_names_the_engine_and_ends_with_uciok():
     assert talk(["uci"]) == ["id name random", "id author rlcompare", "uciok"]
     assert talk(["uci"], name="ladder random")[0] == "id name ladder random"
+    option = "option name UCI_Variant type combo default chess var chess"
+    assert talk(["uci"], options=[option]) == ["id name random", "id author rlcompare", option, "uciok"]
+
+
+class Valuer(Recorder):
+    """The recorder's move, valued at ``value``."""
+
+    name = "valuer"
+
+    def __init__(self, value: float) -> None:
+        super().__init__()
+        self.value = value
+
+    def evaluate(self, board: chess.Board) -> tuple[chess.Move, float]:
+        return self.move(board), self.value
+
+
+def test_a_player_that_values_its_move_sends_depth_score_and_pv_before_bestmove():
+    assert talk(["go"], Valuer(0.5)) == ["info depth 1 score cp 111 pv a2a3", "bestmove a2a3"]
+    assert talk(["go"], Valuer(-2.0)) == ["info depth 1 score cp -12800 pv a2a3", "bestmove a2a3"]
+    assert talk(["go"], Recorder()) == ["bestmove a2a3"]  # no value, no score
+    deferred = Deferred("network", lambda: Valuer(0.25))
+    assert talk(["isready", "go"], deferred) == ["readyok", "info depth 1 score cp 46 pv a2a3", "bestmove a2a3"]
+
+
+def test_centipawns_map_a_value_by_leela_s_tangent_clipped_to_minus_one_and_one():
+    values = [-1.0, -0.9, -0.5, -0.1, 0.0, 0.1, 0.5, 0.9, 1.0]
+    cps = [centipawns(value) for value in values]
+    assert cps == sorted(cps)
+    assert len(set(cps)) == len(cps)
+    assert cps == [-centipawns(-value) for value in values]
+    assert (centipawns(0.0), centipawns(0.5), centipawns(0.9), centipawns(1.0)) == (0, 111, 671, 12800)
+    assert centipawns(1.7) == centipawns(float("inf")) == 12800
+    assert centipawns(float("-inf")) == -12800
+    assert centipawns(float("nan")) == 0
 
 
 def test_isready_answers_readyok_each_time():
@@ -91,22 +126,25 @@ def test_isready_answers_readyok_each_time():
 
 
 def test_a_deferred_player_is_made_at_isready_not_before_uci_is_answered():
-    """A network is loaded and compiled when the GUI asks isready (one move on the start position), so that uciok
-    comes at once; a player that cannot be made is said so, and readyok still comes."""
-    made = []
+    """A network is loaded and compiled when the GUI asks isready (a move on each warm-up board: the start, a move
+    after it, a FEN's position, a game pgx has ended), so that uciok comes at once; a player that cannot be made is
+    said so, and readyok still comes."""
+    made: list[Recorder] = []
 
     def make() -> Recorder:
-        made.append(len(made))
-        return Recorder()
+        made.append(Recorder())
+        return made[-1]
 
     session = Session(Deferred("network", make), "network")
     assert session.handle("uci")[-1] == "uciok"
     assert made == []
     assert session.handle("isready") == ["readyok"]
-    assert made == [0]
+    assert len(made) == 1
+    assert made[0].boards == [board.fen() for board in warm_up_boards()]
+    assert [len(board.move_stack) for board in warm_up_boards()] == [0, 1, 1, 9]
     session.handle("position startpos moves e2e4")
     assert session.handle("go")[-1].startswith("bestmove ")
-    assert made == [0]
+    assert len(made) == 1
     broken = Deferred("broken", lambda: (_ for _ in ()).throw(OSError("no such run")))
     answers = talk(["isready", "go"], broken, name="broken")
     assert answers[0].startswith("info string broken could not be made ready: OSError('no such run')")

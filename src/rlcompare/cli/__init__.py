@@ -1,7 +1,8 @@
 """The ``rlcompare`` command line: parse, call one library function, print.
 
 ``rlcompare``, ``rlcompare --help`` and ``rlcompare --version`` are answered by :mod:`rlcompare.cli.app_help`, which
-imports nothing heavier than typer, so they start at once; anything else builds the whole app
+imports nothing heavier than typer, so they start at once; ``rlcompare uci ...`` builds that command alone
+(:mod:`rlcompare.cli.uci`), so that a chess program's ``uci`` is answered at once; anything else builds the whole app
 (:mod:`rlcompare.cli.commands`), whose commands take their options from the configuration classes.
 """
 
@@ -21,6 +22,12 @@ def main() -> None:
         from rlcompare.cli.app_help import summary_app
 
         summary_app()()
+    elif sys.argv[1:2] == ["uci"]:  # answered at once: a chess program sends uci as it starts the engine
+        from rlcompare.cli.uci import uci_app
+        from rlcompare.experiment.interrupts import raise_on_sigterm
+
+        raise_on_sigterm()
+        uci_app()()
     else:
         from rlcompare.cli.commands import app
         from rlcompare.experiment.interrupts import raise_on_sigterm

@@ -34,6 +34,7 @@ from rlcompare.cli.console import (
 )
 from rlcompare.cli.reports import bench_report, run_report, sweep_report
 from rlcompare.cli.reproduce import FORCE_HELP, reproduce_app
+from rlcompare.cli.uci import uci
 from rlcompare.experiment import store
 from rlcompare.studies.registry import STUDIES
 from rlcompare.tabular.config import ExperimentConfig
@@ -310,40 +311,4 @@ def export(
                   f"{plural(len(written), 'file')} in {out_dir}", highlight=False)
 
 
-@command("uci")
-def uci(
-    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", help="A run directory of a network trained at chess "
-                                                                   "(rlcompare reproduce chess --game chess).")],
-    seed: Annotated[int | None, typer.Option(help="Which seed's network (default: the run's first).")] = None,
-    stage: Annotated[str, typer.Option(help="Which stage of learning: early, middle or final.")] = "final",
-) -> None:
-    """Serve a network trained at chess as a UCI engine on standard input and output: cutechess-cli, a GUI or
-    python-chess's engine client runs it as 'rlcompare uci RUN_DIR'. Malformed input is answered with an 'info
-    string' line, never a crash."""
-    import sys
-
-    from rlcompare.experiment.engines import load_agent
-    from rlcompare.players.uci import Deferred, serve
-
-    if not run_dir.is_dir():
-        raise typer.BadParameter(f"{run_dir} is not a directory; allowed: a run directory of a network trained at "
-                                 "chess", param_hint="'RUN_DIR'")
-    store.refuse_while_written(run_dir)  # a run being trained names its writer, as report does
-    config = store.read_json(run_dir / "config.json") if (run_dir / "config.json").is_file() else {}
-    env, seeds = config.get("env"), config.get("seeds") or []
-    if env != "chess" or config.get("engine", "deep") != "deep" or not seeds:
-        raise typer.BadParameter(f"{run_dir} holds a run of {env or 'nothing rlcompare reads'}; allowed: a run of a "
-                                 "network trained at chess", param_hint="'RUN_DIR'")
-    if stage not in NETWORK_STAGES:
-        raise typer.BadParameter(f"got {stage!r}; allowed: {', '.join(NETWORK_STAGES)}", param_hint="'--stage'")
-    if seed is not None and seed not in seeds:
-        raise typer.BadParameter(f"got {seed}; allowed: one of the run's seeds ({', '.join(map(str, seeds))})",
-                                 param_hint="'--seed'")
-    chosen = seeds[0] if seed is None else seed
-    name = f"rlcompare {config.get('algorithm')}-chess seed {chosen} {stage}"  # the agent's own name, unloaded
-    serve(Deferred(name, lambda: load_agent(run_dir, chosen, stage)), sys.stdin, sys.stdout)
-
-
-NETWORK_STAGES = ("early", "middle", "final")
-"""The stages of learning a deep run keeps (:data:`rlcompare.deep.rollout.STAGES` and ``final``), named here so that
-``uci`` checks its options without importing JAX."""
+command("uci")(uci)

@@ -3,13 +3,15 @@ tournament manager, python-chess's own client) play against it.
 
 :func:`serve` reads commands a line at a time and answers each, flushing after every answer. The player chooses
 at once, so ``go`` answers ``bestmove`` at once, except ``go infinite`` and ``go ponder``, which hold the move
-until ``stop`` or ``ponderhit`` as the protocol asks. Malformed input never ends the loop: it is answered with
-``info string`` and the loop goes on.
+until ``stop`` or ``ponderhit`` as the protocol asks. A player that values its move (``evaluate(board) -> (move,
+value)``, a network's action value) sends ``info depth 1 score cp ... pv ...`` before it (:func:`centipawns`).
+Malformed input never ends the loop: it is answered with ``info string`` and the loop goes on.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO
@@ -35,6 +37,19 @@ def status_words(board: chess.Board) -> str:
     """What is wrong with an invalid position, in python-chess's words: ``no white king, too many kings``."""
     status = board.status()
     return ", ".join((flag.name or "").lower().replace("_", " ") for flag in chess.Status if flag & status)
+
+
+def centipawns(value: float) -> int:
+    """A network's action value (the mover's expected return: +1 won, 0 drawn, -1 lost) in centipawns, by Leela
+    Chess Zero's former mapping ``111.714640912 * tan(1.5620688421 * q)``, the value clipped to [-1, 1] (NaN: 0):
+    0 at 0, 111 at 0.5, 671 at 0.9, 12,800 at 1."""
+    q = 0.0 if math.isnan(value) else min(1.0, max(-1.0, value))
+    return round(111.714640912 * math.tan(1.5620688421 * q))
+
+
+def score_line(move: chess.Move, value: float | None) -> list[str]:
+    """The ``info`` line that gives ``engine.analyse`` a score and a principal variation (none where no value)."""
+    return [] if value is None else [f"info depth 1 score cp {centipawns(value)} pv {move.uci()}"]
 
 
 MAX_COUNTER = 2**31 - 1
@@ -83,20 +98,49 @@ class Deferred:
         self._player: Any = None
 
     def ready(self) -> None:
-        """Make the player, and play one move on the start position, so that a network is compiled before the
-        first ``go``."""
+        """Make the player, and play on :func:`warm_up_boards`, so that a network's every program is compiled
+        before the first ``go``."""
         if self._player is None:
             self._player = self._make()
-            self._player.move(chess.Board())
+            for board in warm_up_boards():
+                evaluate(self._player, board)
 
     def move(self, board: chess.Board) -> chess.Move:
+        return self.evaluate(board)[0]
+
+    def evaluate(self, board: chess.Board) -> tuple[chess.Move, float | None]:
+        """The player's move and its value (None where the player gives none)."""
         self.ready()
-        move: chess.Move = self._player.move(board)
-        return move
+        return evaluate(self._player, board)
 
     def close(self) -> None:
         if self._player is not None:
             self._player.close()
+
+
+def evaluate(player: Any, board: chess.Board) -> tuple[chess.Move, float | None]:
+    """``player``'s move on ``board`` and its value: ``player.evaluate``'s where it has one, else None."""
+    if hasattr(player, "evaluate"):
+        move, value = player.evaluate(board)
+        return move, value
+    chosen: chess.Move = player.move(board)
+    return chosen, None
+
+
+KNIGHTS_OUT_AND_BACK = ("g1f3", "g8f6", "f3g1", "f6g8")
+
+
+def warm_up_boards() -> list[chess.Board]:
+    """Boards that take a network player through each of its compiled paths: the start, a move played on from it,
+    a FEN's position with a move after it, and a game pgx has ended by its own count (a threefold repetition)."""
+    after_e4 = chess.Board()
+    after_e4.push_uci("e2e4")
+    from_fen = chess.Board("rnbqkbnr/pppppppp/8/8/4P3/8/PPPP1PPP/RNBQKBNR b KQkq - 0 1")
+    from_fen.push_uci("e7e5")
+    repeated = chess.Board()
+    for move in [*KNIGHTS_OUT_AND_BACK, *KNIGHTS_OUT_AND_BACK, "g1f3"]:
+        repeated.push_uci(move)
+    return [chess.Board(), after_e4, from_fen, repeated]
 
 
 @dataclass
@@ -106,6 +150,8 @@ class Session:
 
     player: ChessPlayer
     name: str
+    options: list[str] = field(default_factory=list)
+    """The ``option ...`` lines ``uci`` lists."""
     board: chess.Board | None = field(default_factory=chess.Board)
     held: str | None = None
     done: bool = False
@@ -123,7 +169,7 @@ class Session:
     def command(self, word: str, arguments: list[str]) -> list[str]:
         """The answer to one known command."""
         if word == "uci":
-            return [f"id name {self.name}", f"id author {AUTHOR}", "uciok"]
+            return [f"id name {self.name}", f"id author {AUTHOR}", *self.options, "uciok"]
         if word == "isready":
             try:
                 getattr(self.player, "ready", lambda: None)()
@@ -159,14 +205,14 @@ class Session:
         if not any(self.board.legal_moves):
             return ["bestmove 0000"]
         try:
-            move = self.player.move(self.board.copy())
+            move, value = evaluate(self.player, self.board.copy())
         except Exception as error:
             return [info(f"{self.name} failed: {error!r}"), "bestmove 0000"]
-        if not self.board.is_legal(move):
-            return [info(f"{self.name} chose the illegal move {move.uci()}"), "bestmove 0000"]
+        if not isinstance(move, chess.Move) or not self.board.is_legal(move):
+            return [info(f"{self.name} chose the illegal move {move}"), "bestmove 0000"]
         if allowed and move not in allowed:
             return [info(f"{self.name} chose {move.uci()}, outside searchmoves"), f"bestmove {allowed[0].uci()}"]
-        return [f"bestmove {move.uci()}"]
+        return [*score_line(move, value), f"bestmove {move.uci()}"]
 
 
 def search_moves(arguments: list[str]) -> list[str]:
@@ -177,10 +223,11 @@ def search_moves(arguments: list[str]) -> list[str]:
     return list(itertools.takewhile(lambda token: token not in GO_WORDS, after))
 
 
-def serve(player: ChessPlayer, stdin: TextIO, stdout: TextIO, name: str | None = None) -> None:
+def serve(player: ChessPlayer, stdin: TextIO, stdout: TextIO, name: str | None = None,
+          options: list[str] | None = None) -> None:
     """Answer UCI commands from ``stdin`` on ``stdout`` with ``player``'s moves until ``quit`` or the end of the
-    input. ``name`` is what ``id name`` says (the player's name where None)."""
-    session = Session(player, name or player.name)
+    input. ``name`` is what ``id name`` says (the player's name where None); ``options`` the ``option`` lines."""
+    session = Session(player, name or player.name, options or [])
     for line in iter(stdin.readline, ""):
         answers = session.handle(line)
         if answers:
