@@ -18,6 +18,7 @@ from helpers import invoke
 
 from rlcompare import load_agent
 from rlcompare.players.stockfish import SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
+from rlcompare.players.uci import centipawns
 
 
 def stockfish_or_skip() -> str:
@@ -41,18 +42,51 @@ def chess_run(tmp_path_factory):
     return out
 
 
+def warm_the_compilation_cache(run) -> None:
+    """What any earlier start of ``rlcompare uci`` on this machine leaves: the engine's programs in JAX's persistent
+    cache (a first start compiles them, 8-10 s on a busy two-core machine, near python-chess's 10 s)."""
+    import subprocess
+
+    subprocess.run([sys.executable, "-m", "rlcompare.cli", "uci", str(run)], input="isready\nquit\n", text=True,
+                   capture_output=True, check=True, timeout=300)
+
+
 @pytest.mark.slow("trains a network at chess and plays whole games through python-chess's UCI client")
 def test_python_chess_plays_a_whole_game_against_stockfish_through_rlcompare_uci(chess_run):
+    """python-chess's client with its default timeouts (10 s for uciok; 10 s plus the move's time for each play,
+    the first of which waits for readyok): uci answered at once, the network ready well within the limit, the first
+    go movetime 100 answered at once, and engine.analyse given a score and a principal variation."""
+    import time
+
     stockfish_or_skip()
+    warm_the_compilation_cache(chess_run)
     command = [sys.executable, "-m", "rlcompare.cli", "uci", str(chess_run)]
-    engine = chess.engine.SimpleEngine.popen_uci(command, timeout=120)
+    started = time.perf_counter()
+    engine = chess.engine.SimpleEngine.popen_uci(command)
+    uci_seconds = time.perf_counter() - started
     opponent = StockfishPlayer(SKILL_0)
     try:
-        assert engine.id["name"].startswith("rlcompare pqn_q_lambda-chess")
+        started = time.perf_counter()
+        engine.ping()  # isready: the network loaded and compiled
+        ready_seconds = time.perf_counter() - started
         board = chess.Board()
+        started = time.perf_counter()
+        first = engine.play(board, chess.engine.Limit(time=0.1)).move
+        first_seconds = time.perf_counter() - started
+        print(f"uci answered {uci_seconds:.3f} s after start; readyok after {ready_seconds:.2f} s; first go movetime"
+              f" 100 answered in {first_seconds:.3f} s")
+        assert uci_seconds < 2.0
+        assert first_seconds < 1.0
+        assert engine.id["name"].startswith("rlcompare pqn_q_lambda-chess")
+        assert first in board.legal_moves
+        analysis = engine.analyse(board, chess.engine.Limit(time=0.1))
+        move, value = load_agent(chess_run).evaluate(board)
+        assert analysis["pv"] == [move] == [first]
+        assert analysis["depth"] == 1
+        assert analysis["score"].relative == chess.engine.Cp(centipawns(value))
         while board.outcome(claim_draw=True) is None and board.ply() < 200:
             if board.turn == chess.WHITE:
-                move = engine.play(board, chess.engine.Limit(time=1.0)).move
+                move = engine.play(board, chess.engine.Limit(time=0.1)).move
                 assert move in board.legal_moves
             else:
                 move = opponent.move(board)
@@ -171,6 +205,13 @@ def test_uci_refuses_a_run_that_is_not_chess_in_one_line(tmp_path, chess_run):
     result = invoke("uci", str(mountain_car), columns=300)  # once an AttributeError
     assert result.exit_code == 2
     assert "holds a run of MountainCar-v0; allowed: a run of a network trained at chess" in result.output
+    assert "Traceback" not in result.output
+    endgame = tmp_path / "krk"
+    assert invoke("run", "--env", "KRK:defender=random", "--episodes", "5", "--seeds", "1", "--out",
+                  str(endgame)).exit_code == 0
+    result = invoke("uci", str(endgame), columns=300)  # once 'ChessAgent' object has no attribute 'name'
+    assert result.exit_code == 2
+    assert "a table learnt in the KRK endgame, which plays White's moves in that endgame only" in result.output
     assert "Traceback" not in result.output
 
 
