@@ -114,12 +114,7 @@ def joint_interval(function: Callable[..., np.ndarray | float], per_seed: tuple[
     value = float(function(*arrays, axis=-1))
     if arrays[0].size < 2:
         return Estimate(value, np.nan, np.nan)
-    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
-        warnings.simplefilter("ignore", stats.DegenerateDataWarning)
-        result = stats.bootstrap(arrays, function,  # type: ignore[call-overload]
-                                 n_resamples=n_resamples, confidence_level=confidence, method="percentile",
-                                 vectorized=True, paired=True, rng=np.random.default_rng(seed))
-    return Estimate(value, float(result.confidence_interval.low), float(result.confidence_interval.high))
+    return Estimate(value, *_bootstrap(arrays, function, "percentile", confidence, n_resamples, seed, paired=True))
 
 
 def mean_interval(per_seed: np.ndarray, confidence: float = 0.95) -> Estimate:
@@ -140,8 +135,9 @@ def mean_interval(per_seed: np.ndarray, confidence: float = 0.95) -> Estimate:
 
 
 def _bootstrap(data: tuple[np.ndarray, ...], function: OverSeeds, method: Method,
-               confidence: float, n_resamples: int, seed: int) -> tuple[float, float]:
-    """``scipy.stats.bootstrap`` bounds; BCa that cannot be computed falls back to the percentile interval.
+               confidence: float, n_resamples: int, seed: int, paired: bool = False) -> tuple[float, float]:
+    """``scipy.stats.bootstrap`` bounds (``paired``: the arrays' seeds resampled together); BCa that cannot be
+    computed falls back to the percentile interval.
 
     BCa is undefined when every resampled statistic lies on one side of the estimate (possible with two
     or three seeds and few resamples); scipy then warns and returns NaN, and the warning is silenced here
@@ -155,10 +151,10 @@ def _bootstrap(data: tuple[np.ndarray, ...], function: OverSeeds, method: Method
         # return either (vectorized, as here, it returns the array of the resamples' statistics)
         result = stats.bootstrap(data, function,  # type: ignore[arg-type]
                                  n_resamples=n_resamples, confidence_level=confidence, method=method,
-                                 vectorized=True, paired=False, rng=np.random.default_rng(seed))
+                                 vectorized=True, paired=paired, rng=np.random.default_rng(seed))
     low, high = float(result.confidence_interval.low), float(result.confidence_interval.high)
     if method == "BCa" and (np.isnan(low) or np.isnan(high)):
-        return _bootstrap(data, function, "percentile", confidence, n_resamples, seed)
+        return _bootstrap(data, function, "percentile", confidence, n_resamples, seed, paired)
     return low, high
 
 
@@ -252,15 +248,24 @@ def probability_of_improvement(
     Fewer than two seeds on either side gives NaN bounds; a non-finite value gives a NaN estimate.
     """
     a, b = per_seed_values(a), per_seed_values(b)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-        return NO_ESTIMATE
+    unbounded = _improvement_without_bounds(a, b)
+    if unbounded is not None:
+        return unbounded
     value = float(improvement_share(a, b))
-    if a.size < 2 or b.size < 2:
-        return Estimate(value, np.nan, np.nan)
     if np.all(a == a[0]) and np.all(b == b[0]):
         return Estimate(value, value, value)
     low, high = _bootstrap((a, b), improvement_share, "percentile", confidence, n_resamples, seed)
     return Estimate(value, low, high)
+
+
+def _improvement_without_bounds(a: np.ndarray, b: np.ndarray) -> Estimate | None:
+    """P(A > B) where it has no interval: NaN where a value is not finite, NaN bounds with fewer than two seeds on
+    either side; None where an interval can be drawn."""
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return NO_ESTIMATE
+    if a.size < 2 or b.size < 2:
+        return Estimate(float(improvement_share(a, b)), np.nan, np.nan)
+    return None
 
 
 def improvement_score_interval(a: np.ndarray, b: np.ndarray, confidence: float = 0.95) -> Estimate:
@@ -273,11 +278,10 @@ def improvement_score_interval(a: np.ndarray, b: np.ndarray, confidence: float =
     from scipy.optimize import brentq
 
     a, b = per_seed_values(a), per_seed_values(b)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-        return NO_ESTIMATE
+    unbounded = _improvement_without_bounds(a, b)
+    if unbounded is not None:
+        return unbounded
     value = float(improvement_share(a, b))
-    if a.size < 2 or b.size < 2:
-        return Estimate(value, np.nan, np.nan)
     z = float(stats.norm.ppf(0.5 + confidence / 2))
 
     def beyond(theta: float) -> float:
