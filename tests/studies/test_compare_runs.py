@@ -242,3 +242,31 @@ def test_force_writes_beside_a_users_files_and_leaves_them(runs, tmp_path):
     assert forced.exit_code == 0, forced.output
     assert (out / "mine.txt").read_text() == "keep me"
     assert (out / "report.html").exists()
+
+
+@pytest.mark.slow("compares runs twice through the command line")
+def test_a_wandb_charts_export_gives_the_verdicts_of_the_same_numbers_as_a_tidy_table(tmp_path):
+    """Five seeds of two methods as W&B exports a chart (CleanRL's run names, a gap where a run logged nothing),
+    and the same points as a tidy table."""
+    rng = np.random.default_rng(5)
+    steps = np.arange(1, 41) * 500
+    chart: dict[str, object] = {"Step": steps}
+    rows = []
+    for method, level in (("ppo", 200.0), ("a2c", 120.0)):
+        for seed in range(5):
+            values = level * steps / steps[-1] + rng.normal(0, 10, steps.size)
+            shown = [None if (i + seed) % 7 == 0 else v for i, v in enumerate(values)]
+            name = f"CartPole-v1__{method}__{seed}__17000000{seed}"
+            chart |= {f"{name} - charts/episodic_return": shown, f"{name} - charts/episodic_return__MIN": shown,
+                      f"{name} - charts/episodic_return__MAX": shown}
+            rows += [{"method": method, "env": "CartPole-v1", "seed": seed, "step": s, "value": v}
+                     for s, v in zip(steps, shown, strict=True) if v is not None]
+    pd.DataFrame(chart).to_csv(tmp_path / "chart.csv", index=False)
+    pd.DataFrame(rows).to_csv(tmp_path / "tidy.csv", index=False)
+    from_chart = invoke("compare", str(tmp_path / "chart.csv"), "--group", "{env}__{method}__{seed}__*", "--out",
+                        str(tmp_path / "a"), columns=300)
+    from_table = invoke("compare", str(tmp_path / "tidy.csv"), "--out", str(tmp_path / "b"), columns=300)
+    assert from_chart.exit_code == from_table.exit_code == 0, from_chart.output
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "a" / "tables" / "verdicts.csv"),
+                                  pd.read_csv(tmp_path / "b" / "tables" / "verdicts.csv"))
+    assert "ppo better" in pd.read_csv(tmp_path / "a" / "tables" / "verdicts.csv")["verdict"].tolist()

@@ -223,3 +223,40 @@ def test_many_tensorboard_files_read_in_processes_equal_them_read_here(tmp_path,
     monkeypatch.setattr(formats, "PARALLEL_FROM", 2)
     monkeypatch.setattr(formats.os, "cpu_count", lambda: 2)
     pd.testing.assert_frame_equal(read_runs(files, tmp_path, rule), here)
+
+
+def write_wandb_chart(path: Path, runs: dict[str, list[float | None]], metric: str = "charts/episodic_return",
+                      steps: tuple[int, ...] = (100, 200, 300, 400)) -> Path:
+    """A line chart's CSV as W&B exports it: steps, then per run its values (empty where it logged none) and the
+    line's __MIN and __MAX."""
+    columns: dict[str, list[object]] = {"Step": list(steps)}
+    for name, values in runs.items():
+        shown = ["" if v is None else v for v in values]
+        columns |= {f"{name} - {metric}": shown, f"{name} - {metric}__MIN": shown, f"{name} - {metric}__MAX": shown}
+    pd.DataFrame(columns).to_csv(path, index=False)
+    return path
+
+
+def test_a_wandb_charts_export_reads_each_run_by_its_name_without_its_bounds(tmp_path):
+    runs = {"CartPole-v1__ppo__1__1700": [10.0, 20.0, None, 40.0], "CartPole-v1__a2c__1__1701": [5.0, None, 7.0, 8.0]}
+    chart = write_wandb_chart(tmp_path / "chart.csv", runs)
+    read = read_runs([chart], tmp_path, grouping("{env}__{method}__{seed}__*"))
+    by_hand = pd.DataFrame({"method": ["ppo"] * 3 + ["a2c"] * 3, "env": "CartPole-v1", "seed": "1",
+                            "step": [100, 200, 400, 100, 300, 400], "value": [10.0, 20.0, 40.0, 5.0, 7.0, 8.0]})
+    pd.testing.assert_frame_equal(read[list(TIDY)], by_hand[list(TIDY)], check_dtype=False)
+    assert set(read["kind"]) == {"W&B chart charts/episodic_return"}
+    with pytest.raises(OutsideRunError, match=r"its run 'CartPole-v1__ppo__1__1700' does not match the grouping rule "
+                                              r"'\{method\}/\{env\}/\{seed\}/\*'.*--group"):
+        read_runs([chart], tmp_path, grouping("{method}/{env}/{seed}/*"))
+
+
+def test_a_wandb_chart_of_two_metrics_or_a_run_without_values_is_refused(tmp_path):
+    first = write_wandb_chart(tmp_path / "a.csv", {"x__ppo__1__0": [1.0, 2.0, 3.0, 4.0]})
+    second = pd.read_csv(first).assign(**{"x__a2c__1__0 - eval/return": [1.0, 2.0, 3.0, 4.0]})
+    second.to_csv(tmp_path / "b.csv", index=False)
+    rule = grouping("{env}__{method}__{seed}__*")
+    with pytest.raises(OutsideRunError, match="the metrics charts/episodic_return, eval/return; expected one a chart"):
+        read_runs([tmp_path / "b.csv"], tmp_path, rule)
+    empty = write_wandb_chart(tmp_path / "c.csv", {"x__ppo__1__0": [None] * 4})
+    with pytest.raises(OutsideRunError, match="the run 'x__ppo__1__0' has no value"):
+        read_runs([empty], tmp_path, rule)

@@ -118,6 +118,45 @@ def read_tidy(path: Path) -> pd.DataFrame:
                          "seed": frame["seed"].astype(str), "step": points["step"], "value": points["value"]})
 
 
+WANDB_BOUNDS = ("__MIN", "__MAX")
+"""The suffixes of the columns of a W&B chart's export that hold a smoothed or grouped line's bounds, not a run."""
+
+
+def is_wandb_chart(path: Path) -> bool:
+    """Whether a CSV is a W&B line chart's export: a first column of steps, then ``<run> - <metric>`` columns
+    (with their ``__MIN`` and ``__MAX``), and none of the tidy table's columns."""
+    try:
+        columns = pd.read_csv(path, nrows=0).columns
+    except (OSError, ValueError, pd.errors.EmptyDataError):
+        return False
+    return len(columns) > 1 and not set(TIDY) & set(columns) and all(" - " in str(c) for c in columns[1:])
+
+
+def wandb_chart_runs(path: Path) -> list[tuple[str, str, pd.DataFrame]]:
+    """``(run, metric, points)`` of each run of a W&B line chart's CSV export ("Export panel data": a first column
+    of steps, then a ``<run> - <metric>`` column per run and its ``__MIN`` and ``__MAX``, which are left out): each
+    run's ``(step, value)`` where it has a value, checked as every reader's points are."""
+    try:
+        frame = pd.read_csv(path)
+    except (OSError, ValueError, pd.errors.ParserError) as error:
+        raise OutsideRunError(f"{path}: not a W&B chart's CSV ({error})") from None
+    steps = pd.to_numeric(frame.iloc[:, 0], errors="coerce").to_numpy(np.float64)
+    runs = []
+    for column in frame.columns[1:]:
+        if str(column).endswith(WANDB_BOUNDS):
+            continue
+        name, metric = str(column).rsplit(" - ", 1)
+        values = pd.to_numeric(frame[column], errors="coerce").to_numpy(np.float64)
+        present = ~np.isnan(values)
+        if not present.any():
+            raise OutsideRunError(f"{path}: the run {name!r} has no value of {metric}; expected at least one")
+        runs.append((name, metric, checked_points(path, steps[present], values[present])))
+    metrics = sorted({metric for _, metric, _ in runs})
+    if len(metrics) > 1:
+        raise OutsideRunError(f"{path}: the metrics {', '.join(metrics)}; expected one a chart (export one chart)")
+    return runs
+
+
 LARGEST_STEP = 2**53
 """Steps above this are refused: a float holds every integer up to it, and no training runs so long."""
 

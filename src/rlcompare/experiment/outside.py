@@ -27,12 +27,14 @@ from rlcompare.experiment.formats import (
     KINDS,
     TIDY,
     OutsideRunError,
+    is_wandb_chart,
     read_in_parallel,
     read_monitor,
     read_monitors,
     read_tensorboard,
     read_tidy,
     reader_of,
+    wandb_chart_runs,
 )
 
 FIELDS = ("method", "env", "seed")
@@ -55,6 +57,16 @@ class Grouping:
         found = self.pattern.fullmatch(relative)
         if found is None:
             raise OutsideRunError(f"{path}: its path {relative!r} does not match the grouping rule {self.rule!r}")
+        return found.groupdict()
+
+    def of_name(self, name: str, source: Path) -> dict[str, str]:
+        """``{method, env, seed}`` of a run named ``name`` in ``source`` (a W&B chart's run, its name as the rule's
+        one level: ``{env}__{method}__{seed}__*`` reads CleanRL's ``CartPole-v1__ppo__3__1700000000``)."""
+        found = self.pattern.fullmatch(name)
+        if found is None:
+            raise OutsideRunError(f"{source}: its run {name!r} does not match the grouping rule {self.rule!r}; "
+                                  "expected a rule of the run names, as --group '{env}__{method}__{seed}__*' reads "
+                                  "CleanRL's")
         return found.groupdict()
 
 
@@ -139,6 +151,9 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
                           .assign(source=str(path), kind="rlcompare training episodes"))
             continue
         reader = reader_of(path)
+        if reader is None and path.suffix == ".csv" and is_wandb_chart(path):
+            frames.append(read_wandb_chart(path, rule))
+            continue
         if reader is None and path.suffix in (".csv", ".parquet"):
             frames.append(read_tidy(path).assign(source=str(path), kind="tidy table"))
             continue
@@ -165,6 +180,14 @@ def read_runs(paths: Iterable[Path], root: Path, rule: Grouping, tag: str | None
     one_run_a_label(frame)
     one_kind_an_environment(frame)
     return frame
+
+
+def read_wandb_chart(path: Path, rule: Grouping) -> pd.DataFrame:
+    """A W&B line chart's CSV export (:func:`~rlcompare.experiment.formats.wandb_chart_runs`) as tidy rows, each
+    run's method, environment and seed read from its name by ``rule``."""
+    frames = [points.assign(**rule.of_name(name, path), source=str(path), kind=f"W&B chart {metric}")
+              for name, metric, points in wandb_chart_runs(path)]
+    return pd.concat(frames, ignore_index=True)
 
 
 def one_runs_monitors(paths: list[Path], root: Path, rule: Grouping) -> dict[Path, list[Path]]:
