@@ -140,7 +140,7 @@ def test_a_study_run_once_plans_its_time_from_its_own_pace(cache: Path, tmp_path
 def test_a_plan_names_its_largest_training_known_before_it_runs() -> None:
     small, large = Training("a", 1, 1, "episodes", memory=3 * 2**20), Training("b", 1, 1, "episodes", memory=2**31)
     assert "Memory: the largest training known before it runs holds 3.0 MiB (a: " in StudyPlan((small,)).lines()[-1]
-    assert "holds 2.0 GiB (b)" in StudyPlan((small, large)).lines()[-1]
+    assert "holds 2.0 GiB (b: " in StudyPlan((small, large)).lines()[-1]
     assert not any(line.startswith("Memory") for line in StudyPlan((Training("c", 1, 1, "steps"),)).lines())
     config = ExperimentConfig(env="CliffWalking-v1", seeds=(0, 1), episodes=10, eval_every=0)
     # records: 2 x 10 x 17 + 10 x 8 (returns, lengths, endings; epsilon), snapshots 2 x 3 x 48 x 4 x 8, visits
