@@ -92,7 +92,7 @@ class MinAtarOptions(Seeded):
     signed-rank test cannot decide 3 games and the overall row, a direction and an equivalence test each, under
     Holm: --plan says so)."""
     budget: str = "short"
-    """short (3 games, 250,000 steps: 24 minutes measured on 2 CPU cores with 8 seeds, more with the default 9),
+    """short (3 games, 250,000 steps: 11 minutes measured on 2 CPU cores with the default pair and 9 seeds),
     paper (every game, the MinAtar paper's 5 M frames) or pqn (every game, purejaxql's 10 M steps); --plan gives
     this machine's time once its trainings have run here."""
     games: str | None = None

@@ -63,8 +63,9 @@ BUDGETS = {
     "paper": (tuple(minatar.GAMES), 5_000_000),
     "pqn": (tuple(minatar.GAMES), 10_000_000),
 }
-"""Budget -> (default games, environment steps per training). ``short``: about 37 minutes on 2 CPU cores with 8
-seeds (the default is now 9, the fewest that can decide) and five methods, a short look that says so in its report
+"""Budget -> (default games, environment steps per training). ``short``: 11 minutes on 2 CPU cores with the pair and
+9 seeds, the fewest that can decide (672 s measured; 37 minutes with the ablations at 8), a short look that says so in
+its report
 (at 5 seeds and 400,000 steps every game was already far above random, and no verdict could be reached: see
 :mod:`rlcompare.stats.design`); ``paper``: the MinAtar paper's 5 M frames (a frame is a step: MinAtar skips none);
 ``pqn``: purejaxql's 10 M steps."""
