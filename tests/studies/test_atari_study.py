@@ -62,6 +62,15 @@ def test_the_study_writes_its_runs_and_a_human_normalised_report(study):
         finals = final_returns(load_run(out / name))
         normalised = (finals - 1.7) / (30.5 - 1.7)  # Mnih et al.'s Breakout: random 1.7, human 30.5
         assert shown[method].startswith(f"{normalised.mean():.3f} [")
+        results = load_run(out / name)
+        finished = results.episodes.groupby("seed").size().reindex(list(results.seeds), fill_value=0)
+        machado = summary.set_index("method")["last 100 training episodes, mean"][method]
+        assert summary.set_index("method")["training episodes, fewest a seed"][method] == finished.min()
+        if finished.min() == 0:  # 32,768 steps over 128 game copies: no copy finished a game while training
+            assert pd.isna(machado)  # 'n/a' in the table
+        else:
+            by_seed = results.episodes.groupby("seed")["return"].apply(lambda r: r.to_numpy()[-100:].mean())
+            assert machado.startswith(f"{by_seed.mean():.1f}")
     verdicts = pd.read_csv(out / "tables" / "atari_verdicts.csv")
     assert verdicts["game"].tolist() == ["Breakout"]
     assert "final return at ε = 0.05 per episode" in output
@@ -162,3 +171,15 @@ def test_the_atari5_table_estimates_each_seeds_median_from_its_five_games():
     assert table["method"].tolist() == ["Q(λ), network"]
     assert table.iloc[0, 1].startswith(f"{of_the_means:.3f} [")
     assert atari_study.atari5_table({k: v for k, v in runs.items() if "Qbert" not in k}) is None
+
+
+def test_machados_measure_is_each_seeds_mean_of_its_last_hundred_training_episodes():
+    """Seed 0 finished 150 episodes returning 0, 1, ..., 149: its last 100 average 99.5; seed 1 finished 30 of
+    return 1: all of them, 1.0; seed 2 none: NaN."""
+    from types import SimpleNamespace
+
+    episodes = pd.DataFrame({"seed": [0] * 150 + [1] * 30, "return": [*map(float, range(150)), *[1.0] * 30]})
+    results = SimpleNamespace(seeds=(0, 1, 2), episodes=episodes)
+    found = atari_study.last_training_episodes(results)
+    np.testing.assert_array_equal(found[:2], [99.5, 1.0])
+    assert np.isnan(found[2])

@@ -148,6 +148,18 @@ def human_normalised(results: DeepResults) -> np.ndarray:
     return np.asarray(atari_scores.human_normalised(title(results.config.env), final_returns(results)))
 
 
+MACHADO_EPISODES = 100
+"""Machado et al. (2018, section 5.2)'s measure of a training: the mean return of its last 100 training episodes."""
+
+
+def last_training_episodes(results: DeepResults, count: int = MACHADO_EPISODES) -> np.ndarray:
+    """Each seed's mean return over its last ``count`` training episodes (Machado et al.'s measure, ε-greedy as
+    they were played; all of them where a seed finished fewer, NaN where it finished none)."""
+    by_seed = results.episodes.groupby("seed")["return"]
+    return np.array([by_seed.get_group(seed).to_numpy()[-count:].mean() if seed in by_seed.groups else np.nan
+                     for seed in results.seeds])
+
+
 def cut_episodes(results: DeepResults) -> tuple[int, int]:
     """``(cut, all)``: the evaluation episodes that reached the protocol's 108,000 frames, of all played."""
     cut = ~results.evaluations["terminated"].to_numpy()
@@ -155,15 +167,19 @@ def cut_episodes(results: DeepResults) -> tuple[int, int]:
 
 
 def summary_table(runs: dict[str, DeepResults]) -> pd.DataFrame:
-    """Per game and method: the final return (mean and IQM, 95% intervals), human-normalised, the published
-    random and human scores, and the evaluation episodes cut."""
+    """Per game and method: the final return (mean and IQM, 95% intervals), Machado et al.'s measure (the last 100
+    training episodes, with the fewest training episodes a seed finished), human-normalised, the published random
+    and human scores, and the evaluation episodes cut."""
     rows = []
     for results in runs.values():
         game = atari_scores.GAMES[title(results.config.env)]
         cut, played = cut_episodes(results)
+        finished = results.episodes.groupby("seed").size().reindex(list(results.seeds), fill_value=0)
         rows.append({"game": game.title, "method": DEEP_METHODS[results.config.algorithm].label,
                      "final return, mean": stats.interval(final_returns(results)).format(1),
                      "final return, IQM": stats.interval(final_returns(results), "iqm").format(1),
+                     "last 100 training episodes, mean": stats.interval(last_training_episodes(results)).format(1),
+                     "training episodes, fewest a seed": int(finished.min()),
                      "human-normalised, mean": stats.interval(human_normalised(results)).format(3),
                      "random": game.random, "human": game.human, "seeds": len(results.seeds),
                      "evaluation episodes cut at 108,000 frames": f"{cut} of {played}",
@@ -272,8 +288,10 @@ def _build_report(out: Path, videos: bool) -> Report:
             "the games and the overall row."], [("Verdicts", found.verdicts, files["verdicts"])]),
         Section("Every game", [
             "Final return: each seed's mean over the last evaluation round's episodes; human-normalised against the "
-            "published random and human scores. Episodes that reached 108,000 frames are cut there (the protocol's "
-            "limit) and counted."], [("Summary", summary, files["summary"])]),
+            "published random and human scores. Beside it, Machado et al. (2018)'s measure: each seed's mean over its "
+            f"last {MACHADO_EPISODES} training episodes, played ε-greedily as they were (all of them where a seed "
+            "finished fewer: the fewest a seed finished is given). Episodes that reached 108,000 frames are cut "
+            "there (the protocol's limit) and counted."], [("Summary", summary, files["summary"])]),
         Section("The 57-game median, estimated from Atari-5", [
             "Aitchison, Sweetser and Hutter (2023) estimate the median human-normalised score over the 57 games from "
             "five (Battle Zone, Double Dunk, Name This Game, Phoenix, Q*bert) by a regression on log scores "
