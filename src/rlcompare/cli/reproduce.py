@@ -9,7 +9,7 @@ import inspect
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, get_type_hints
+from typing import TYPE_CHECKING, Annotated, Any, get_type_hints
 
 import typer
 
@@ -30,10 +30,12 @@ from rlcompare.cli.console import (
 )
 from rlcompare.experiment import rundir, store
 from rlcompare.studies.interface import Options
-from rlcompare.studies.plans import StudyPlan, with_known_spread
 from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
 from rlcompare.tabular.config import field_docs
 from rlcompare.validation import ConfigError
+
+if TYPE_CHECKING:  # the design's statistics import scipy: not for every command's --help
+    from rlcompare.studies.plans import StudyPlan
 
 FORCE_HELP = ("Write into OUT even though it holds files rlcompare did not write (they are left as they are: "
               "rlcompare never replaces or deletes a file it did not write), and replace the runs rlcompare wrote "
@@ -109,13 +111,15 @@ def study_plan(study: Study, runner: Any, options: Options) -> StudyPlan:
 def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     """Check the options and the design (``--plan``: print it and stop), then the output directory; train what
     the study's directory lacks, then its report."""
+    from rlcompare.studies import plans
+
     out, force = out_path(values.pop("out"), Path("runs") / study.name), values.pop("force")
     show_plan, allow_undecidable = values.pop("plan"), values.pop("allow_undecidable")
     options = study_options(study, values)
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
     plan, paces, report_pace = study_plan(study, runner, options), pace.stored(), f"report {study.name}"
-    plan = with_known_spread(plan, out, study.name)
+    plan = plans.with_known_spread(plan, out, study.name)
     finished = [t.name for t in plan.trainings if (out / t.name / rundir.META_FILE).is_file()]
     if show_plan:
         for line in plan.lines(paces, report_pace, finished):
