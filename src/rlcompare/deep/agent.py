@@ -117,21 +117,23 @@ class BoardAgent:
 
 
 @float64
+def network_of(results: DeepResults) -> Any:
+    """The run's network (a flax module): PQN's, the one method that plays games here."""
+    config = results.config
+    return deep_method(config.algorithm).module.network(config.method_config(), config.environment)
+
+
 def network_template(results: DeepResults) -> Any:
     """The shape of one seed's parameters of a network that plays a game, from the network's own ``init`` (the
     tree :func:`~rlcompare.deep.train.params_template` traces, without tracing a training: 0.06 s, not 1.5-5 s)."""
-    config = results.config
-    network = deep_method(config.algorithm).module.network(config.method_config(), config.environment)
-    observation = jnp.zeros((1, *config.environment.observation_shape), jnp.float32)
-    return jax.eval_shape(network.init, jax.random.key(0), observation)
+    observation = jnp.zeros((1, *results.config.environment.observation_shape), jnp.float32)
+    return jax.eval_shape(network_of(results).init, jax.random.key(0), observation)
 
 
 def action_values(results: DeepResults) -> Any:
-    """The network's ``(params, observations) -> (batch, actions)`` action values: PQN's, the one method that plays
-    games here (its greedy policy is their argmax among the legal moves)."""
-    config = results.config
-    network = deep_method(config.algorithm).module.network(config.method_config(), config.environment)
-    return network.apply
+    """The network's ``(params, observations) -> (batch, actions)`` action values (its greedy policy is their argmax
+    among the legal moves)."""
+    return network_of(results).apply
 
 
 def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent | BoardAgent:

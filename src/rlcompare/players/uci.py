@@ -150,8 +150,6 @@ class Session:
 
     player: ChessPlayer
     name: str
-    options: list[str] = field(default_factory=list)
-    """The ``option ...`` lines ``uci`` lists."""
     board: chess.Board | None = field(default_factory=chess.Board)
     held: str | None = None
     done: bool = False
@@ -169,7 +167,7 @@ class Session:
     def command(self, word: str, arguments: list[str]) -> list[str]:
         """The answer to one known command."""
         if word == "uci":
-            return [f"id name {self.name}", f"id author {AUTHOR}", *self.options, "uciok"]
+            return [f"id name {self.name}", f"id author {AUTHOR}", "uciok"]
         if word == "isready":
             try:
                 getattr(self.player, "ready", lambda: None)()
@@ -223,11 +221,10 @@ def search_moves(arguments: list[str]) -> list[str]:
     return list(itertools.takewhile(lambda token: token not in GO_WORDS, after))
 
 
-def serve(player: ChessPlayer, stdin: TextIO, stdout: TextIO, name: str | None = None,
-          options: list[str] | None = None) -> None:
+def serve(player: ChessPlayer, stdin: TextIO, stdout: TextIO, name: str | None = None) -> None:
     """Answer UCI commands from ``stdin`` on ``stdout`` with ``player``'s moves until ``quit`` or the end of the
-    input. ``name`` is what ``id name`` says (the player's name where None); ``options`` the ``option`` lines."""
-    session = Session(player, name or player.name, options or [])
+    input. ``name`` is what ``id name`` says (the player's name where None)."""
+    session = Session(player, name or player.name)
     for line in iter(stdin.readline, ""):
         answers = session.handle(line)
         if answers:
