@@ -235,7 +235,7 @@ def test_the_plan_states_the_family_its_reach_and_each_detectable_difference_and
     out = tmp_path / "out"
     alone = invoke("compare", str(table), "--plan", "--out", str(out), columns=400)
     assert alone.exit_code == 0, alone.output
-    assert "This design can decide each pair of methods on each environment (1 comparisons)" in alone.output
+    assert "This design can decide each pair of methods on each environment (one comparison)" in alone.output
     assert "the rank-sum test on 3 and 5 seeds can give a p of 0.036, at or below the level 0.05" in alone.output
     by_hand = power.detectable_difference(np.sqrt(7), 3, 0.05, other_seeds=5) / np.sqrt(3 / np.pi)
     assert f"E, A against B (final): {by_hand:.4g}" in alone.output

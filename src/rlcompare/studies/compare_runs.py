@@ -152,7 +152,9 @@ def plan(frame: pd.DataFrame, *, paired: bool, margin: float | None, cut: bool =
     family = len(rows) * (1 if margin is None else 2)
     fewest = min(rows, key=lambda row: (min(len(row[4]), len(row[5])), max(len(row[4]), len(row[5]))))
     seeds, other = sorted((len(fewest[4]), len(fewest[5])))
-    tests = f"{len(rows)} comparisons" + (", each a direction and an equivalence test" if margin is not None else "")
+    tests = "one comparison" if len(rows) == 1 else f"{len(rows)} comparisons"
+    tests += ("" if margin is None else ", a direction and an equivalence test" if len(rows) == 1
+              else ", each a direction and an equivalence test")
     question = Question(f"each pair of methods on each environment ({tests})", test, seeds, family,
                         other_seeds=None if paired else other)
     lines = StudyPlan((), (question,)).lines()

@@ -180,8 +180,9 @@ def paired_plan(study: PairedStudy, plan: Plan, unit: str = "environment steps",
     family = study.family(plan)
     if family:
         on, off = (study.label(method) for method in PAIR)
-        questions.append(Question(f"{on} against {off} ({family // 2} comparisons, each a direction and an "
-                                  "equivalence test)", SIGNED_RANK, seeds, family))
+        comparisons = "one comparison, a direction" if family == 2 else f"{family // 2} comparisons, each a direction"
+        questions.append(Question(f"{on} against {off} ({comparisons} and an equivalence test)", SIGNED_RANK, seeds,
+                                  family))
     if study.references:
         questions.append(Question("whether each method has learnt each game (above the random policy, one-sided)",
                                   GATE, seeds))
