@@ -12,7 +12,7 @@ import pyarrow.parquet
 import pytest
 from gymnasium_play import gymnasium_returns
 
-from rlcompare import ExperimentConfig, load_agent, run
+from rlcompare import ConfigError, ExperimentConfig, load_agent, run
 from rlcompare.experiment import rundir, store
 from rlcompare.experiment.engines import load_if_complete, load_run
 from rlcompare.studies.paper.study import paper_configs, reproduce
@@ -177,6 +177,33 @@ def test_load_agent_rejects_unknown_seed_and_stage(tmp_path: Path, small_config:
         load_agent(tmp_path / "run", seed=9)
     with pytest.raises(KeyError, match="'late'"):
         load_agent(tmp_path / "run", seed=0, stage="late")
+
+
+def test_an_epsilon_greedy_agent_draws_a_coin_and_an_action_every_step_and_explores_below_epsilon(
+        tmp_path: Path, small_config: ExperimentConfig) -> None:
+    """``load_agent(epsilon=...)`` as an evaluation plays: each step ``u = rng.random()`` then ``a = rng.integers(3)``
+    from ``default_rng(exploration_seed)``; ``a`` where ``u < ε``, else the greedy action."""
+    run(small_config, out=tmp_path / "run")
+    greedy = load_agent(tmp_path / "run", seed=1)
+    assert load_agent(tmp_path / "run", seed=1, epsilon=0.0).__class__ is greedy.__class__
+    observations = [np.array([-0.5 + 0.01 * k, 0.001 * (k % 5 - 2)], np.float32) for k in range(400)]
+    by_hand = np.random.default_rng(11)
+    expected = []
+    for observation in observations:
+        u, a = by_hand.random(), int(by_hand.integers(3))
+        expected.append(a if u < 0.3 else greedy.act(observation))
+    agent = load_agent(tmp_path / "run", seed=1, epsilon=0.3, exploration_seed=11)
+    actions = [agent.act(observation) for observation in observations]
+    assert actions == expected
+    assert actions != [greedy.act(observation) for observation in observations]  # some steps explored
+    always = load_agent(tmp_path / "run", seed=1, epsilon=1.0, exploration_seed=11)
+    coins = np.random.default_rng(11)
+    assert [always.act(o) for o in observations] == [(coins.random(), int(coins.integers(3)))[1] for _ in observations]
+    for bad, field in ((1.5, "epsilon"), (-0.1, "epsilon"), (float("nan"), "epsilon")):
+        with pytest.raises(ConfigError, match=field):
+            load_agent(tmp_path / "run", seed=1, epsilon=bad)
+    with pytest.raises(ConfigError, match="exploration_seed"):
+        load_agent(tmp_path / "run", seed=1, epsilon=0.1, exploration_seed=-1)
 
 
 def test_tile_coded_agent_acts_in_gymnasium_as_in_our_evaluation(tmp_path: Path) -> None:

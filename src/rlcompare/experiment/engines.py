@@ -16,8 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
+import numpy as np
+
 from rlcompare.experiment import rundir, store
-from rlcompare.validation import ConfigError, is_integer
+from rlcompare.validation import UNIT, ConfigError, is_integer
 
 
 class EngineFront(Protocol):
@@ -133,9 +135,12 @@ def load_if_complete(run_dir: Path, config: Any, load: Callable[..., Any] | None
         return None
 
 
-def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final") -> Any:
-    """The greedy agent of ``seed`` (default: the run's first) at ``stage`` of a finished run directory of any
-    engine, ready for ``gymnasium.make`` of the run's environment: ``agent.act(observation) -> action``."""
+def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final", epsilon: float = 0.0,
+               exploration_seed: int = 0) -> Any:
+    """The agent of ``seed`` (default: the run's first) at ``stage`` of a finished run directory of any engine,
+    ready for ``gymnasium.make`` of the run's environment: ``agent.act(observation) -> action``. Greedy where
+    ``epsilon`` is 0; otherwise ε-greedy as an evaluation plays (:class:`EpsilonGreedy`, Mnih et al. 2015's
+    ε = 0.05 on the Atari 2600), its draws from ``exploration_seed``."""
     owner = store.owner_of(Path(run_dir))
     if owner is not None and owner != store.RUN:
         runs = sorted(p.name for p in Path(run_dir).iterdir() if store.owner_of(p) == store.RUN)
@@ -143,11 +148,37 @@ def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final") -> 
                                f"({', '.join(runs) or 'none finished'})")
     if seed is not None and not is_integer(seed):
         raise ConfigError("seed", seed, "an integer, one of the run's seeds")
+    if not UNIT.holds(epsilon):
+        raise ConfigError("epsilon", epsilon, UNIT.allowed)
+    if not is_integer(exploration_seed) or exploration_seed < 0:
+        raise ConfigError("exploration_seed", exploration_seed, "an integer >= 0")
     results = load_run(Path(run_dir))
     try:
-        return front(results.config).agent(results, results.seeds[0] if seed is None else int(seed), stage)
+        greedy = front(results.config).agent(results, results.seeds[0] if seed is None else int(seed), stage)
     except ValueError as error:  # stored arrays that are not the method's (a run of another version)
         raise store.StoreError(f"{Path(run_dir)}: {error}") from None
+    if epsilon == 0:
+        return greedy
+    if not hasattr(greedy, "act"):
+        raise ConfigError("epsilon", epsilon, "0 for an agent that plays chess boards (its move is the greedy one)")
+    return EpsilonGreedy(greedy, float(epsilon), results.config.environment.n_actions,
+                         np.random.default_rng(int(exploration_seed)))
+
+
+@dataclass
+class EpsilonGreedy:
+    """``greedy``'s policy with a uniform random action at probability ``epsilon``. Each step draws ``u`` and then
+    a uniform action from ``rng``, whether it explores or not, and takes that action where ``u < epsilon``: one
+    episode's actions depend on its seed, not on the network's choices (Mnih et al. 2015's ε-greedy evaluation)."""
+
+    greedy: Any
+    epsilon: float
+    n_actions: int
+    rng: np.random.Generator
+
+    def act(self, observation: Any) -> int:
+        explore, random_action = self.rng.random(), int(self.rng.integers(self.n_actions))
+        return random_action if explore < self.epsilon else int(self.greedy.act(observation))
 
 
 if TYPE_CHECKING:  # each front satisfies the contract (checked by the type checker, imported by nothing)

@@ -23,17 +23,13 @@ SCALE = 2
 """Each screen pixel drawn as ``SCALE x SCALE``."""
 
 
-def episode(agent: Any, env: Any, max_steps: int, epsilon: float, seed: int) -> tuple[list[np.ndarray], list[float],
-                                                                                       bool]:
-    """The screens and scores so far of one ε-greedy episode of ``agent`` in ``env``, from ``reset(seed=seed)``;
-    and whether the game ended within ``max_steps``."""
-    rng = np.random.default_rng(seed)
+def episode(agent: Any, env: Any, max_steps: int, seed: int) -> tuple[list[np.ndarray], list[float], bool]:
+    """The screens and scores so far of one episode of ``agent`` in ``env``, from ``reset(seed=seed)``; and
+    whether the game ended within ``max_steps``."""
     observation, _ = env.reset(seed=seed)
     screens, scores = [env.render()], [0.0]
     for _ in range(max_steps):
-        explore, random_action = rng.random(), int(rng.integers(env.action_space.n))
-        action = random_action if explore < epsilon else agent.act(observation)
-        observation, reward, terminated, truncated, _ = env.step(action)
+        observation, reward, terminated, truncated, _ = env.step(agent.act(observation))
         screens.append(env.render())
         scores.append(scores[-1] + float(reward))
         if terminated or truncated:
@@ -47,7 +43,8 @@ def play_stages(run_dir: Path, results: DeepResults, seed: int, max_steps: int =
     Gymnasium's game: its screens ``(stages, steps + 1, 210, 160, 3)``, each episode padded with its last."""
     env = atari.gymnasium_env(results.config.env, render_mode="rgb_array")
     try:
-        episodes = [episode(load_agent(run_dir, seed, stage), env, max_steps, epsilon, EPISODE_SEED)
+        episodes = [episode(load_agent(run_dir, seed, stage, epsilon=epsilon, exploration_seed=EPISODE_SEED), env,
+                            max_steps, EPISODE_SEED)
                     for stage in results.stages]
     finally:
         env.close()
