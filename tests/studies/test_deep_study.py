@@ -182,19 +182,19 @@ def test_the_study_killed_with_sigkill_resumes_to_the_same_numbers(study, tmp_pa
     """``reproduce deep`` killed once one run of a network finished: the same command loads the finished runs,
     trains the rest, and every run equals the uninterrupted study's, episode by episode and parameter by
     parameter; its verdicts are the same bytes. It trains one network at a time, so the second is still compiling
-    or training when the first is seen finished."""
-    import subprocess
-
-    from helpers import ENV, assert_same_runs, finished_runs, kill_when, start
+    or training when the first is seen finished. The killed command runs in a process of its own (SIGKILL is what
+    is tested); the same command resumes in this one (its lock left by a dead process)."""
+    from helpers import assert_same_runs, finished_runs, kill_when, start
 
     killed, log = tmp_path / "killed", tmp_path / "killed.log"
-    command = [sys.executable, "-m", "rlcompare.cli", *TINY, "--workers", "1", "--out", str(killed)]
-    kill_when(start(command, log), lambda: any(name.startswith("pqn") for name in finished_runs(killed)), log)
+    arguments = [*TINY, "--workers", "1", "--out", str(killed)]
+    kill_when(start([sys.executable, "-m", "rlcompare.cli", *arguments], log),
+              lambda: any(name.startswith("pqn") for name in finished_runs(killed)), log)
     finished = finished_runs(killed)
     assert 1 <= len(finished) < 4, finished
-    again = subprocess.run(command, capture_output=True, text=True, check=False, env=ENV, timeout=600)
-    assert again.returncode == 0, again.stderr
-    assert again.stdout.count("loaded") == len(finished)
+    again = invoke(*arguments, columns=300)
+    assert again.exit_code == 0, again.output
+    assert again.output.count("loaded") == len(finished)
     runs = finished_runs(study[0])
     assert finished_runs(killed) == runs
     assert_same_runs(killed, study[0], runs)
@@ -235,13 +235,19 @@ def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_th
     from rlcompare.studies.paired import OVERALL, PAIR, Key, Plan, final_returns, per_seed, run_of, train
     from rlcompare.studies.paired_report import answer, difference_figure, findings, pair_finals
 
+    import shutil
+
     third, out = _third_study(), tmp_path / "third"
     plan = Plan((0, 1), PAIR, {"balance": "CartPole-v1", "swing": "Acrobot-v1"}, 41000, workers=2)
     names = sorted(f"{method}-{name}" for method in PAIR for name in ("balance", "swing"))
-    for reused in (False, True):
+    store.claim(out, store.Owner("study", "third"))
+    for method in PAIR:  # CartPole's trainings are the deep study's configurations: its runs are loaded, not trained
+        shutil.copytree(study[0] / f"{method}-CartPole-v1", out / f"{method}-balance",
+                        ignore=shutil.ignore_patterns(".rlcompare.lock"))
+    for first in (True, False):
         recorded = _Recorded()
         train(out, "third", plan, recorded)
-        assert sorted(recorded.finished) == [(name, reused) for name in names]
+        assert sorted(recorded.finished) == [(name, not (first and name.endswith("swing"))) for name in names]
 
     found = findings(out, third)
     assert found.envs == ["Acrobot-v1", "CartPole-v1"]  # the study's order, not the runs'
@@ -251,7 +257,7 @@ def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_th
     written = pd.read_csv(out / "tables" / "third_verdicts.csv")
     assert written.columns[:3].tolist() == ["task", "engine", "on - off (mean, 95% CI)"]
     assert written["on - off (mean, 95% CI)"].str.match(r"-?\d+\.\d{3} \[").all()
-    # the same runs give the deep study's numbers: CartPole's trainings are its configurations
+    # the same runs give the deep study's numbers (loaded above only where each run's configuration is the plan's)
     deep = pd.read_csv(study[0] / "tables" / "deep_verdicts.csv").set_index("metric")
     cartpole = found.judged[Key("CartPole-v1", metric="greedy_auc")].paired
     assert cartpole.difference.format(1) == deep.loc["area under the greedy curve", "on - off (mean, 95% CI)"]
