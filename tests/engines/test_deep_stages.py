@@ -6,26 +6,29 @@ from __future__ import annotations
 import dataclasses
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
 pytest.importorskip("jax")
 
-from rlcompare.deep import pqn
+from rlcompare.deep import pqn, use_compilation_cache
 from rlcompare.deep.agent import agent
 from rlcompare.deep.classic import CARTPOLE
 from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.results import DeepResults, merge_seeds
 from rlcompare.deep.rollout import STAGES, evaluate, stage_rounds
+from rlcompare.deep.train import compiled_training, seed_keys
 from rlcompare.experiment import rundir
 from rlcompare.experiment.engines import load_run
 from rlcompare.experiment.rundir import write_results
 from rlcompare.experiment.runner import run
 
-ROUNDS, EPISODES, SEEDS = 10, 3, (0, 1)
-CONFIG = pqn.PQNConfig(total_steps=ROUNDS * 2 * 8 * 16, n_envs=8, n_steps=16, n_epochs=1, n_minibatches=2,
-                       hidden=(16,), learning_rate=1e-2, anneal_lr=False, decay_fraction=0.5)
+SEEDS = (0, 1)
+CONFIG = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=SEEDS, vmap_width=2,
+                    hyperparameters={"total_steps": 41000})
+"""The deep study's Q(λ) on CartPole at its tiny size (``tests/studies/test_deep_study.py``): one program, compiled
+once for this module and found in JAX's compilation cache where the study's tests compiled it."""
+ROUNDS, EPISODES = CONFIG.eval_rounds, CONFIG.eval_episodes
 
 
 def test_the_stages_are_the_rounds_at_a_tenth_and_half_of_the_training() -> None:
@@ -37,10 +40,11 @@ def test_the_stages_are_the_rounds_at_a_tenth_and_half_of_the_training() -> None
 
 @pytest.mark.slow("compiles and trains deep programs")
 def test_a_kept_network_plays_its_round_s_evaluation_again() -> None:
-    train = jax.jit(jax.vmap(pqn.make_train(CONFIG, CARTPOLE, ROUNDS, EPISODES)))
-    keys = jnp.stack([jax.random.key(seed) for seed in SEEDS])
-    output = train(keys)
-    act = pqn.act(CONFIG, CARTPOLE)
+    use_compilation_cache()
+    assert stage_rounds(ROUNDS) == (1, 9)
+    keys = seed_keys(SEEDS)
+    output = compiled_training(CONFIG)(keys)  # the program run() trains with
+    act = pqn.act(CONFIG.method_config(), CARTPOLE)
     round_keys = jax.vmap(lambda key: jax.random.split(jax.random.split(key)[1], ROUNDS))(keys)
     returns = np.asarray(output.eval_returns)
     for index, after in enumerate(stage_rounds(ROUNDS)):
@@ -53,11 +57,8 @@ def test_a_kept_network_plays_its_round_s_evaluation_again() -> None:
 
 @pytest.fixture(scope="module")
 def stored(tmp_path_factory: pytest.TempPathFactory) -> tuple[DeepResults, DeepResults]:
-    config = DeepConfig(algorithm="pqn_q_lambda", env="CartPole-v1", seeds=SEEDS, eval_rounds=ROUNDS,
-                        eval_episodes=EPISODES, vmap_width=2,
-                        hyperparameters={"total_steps": CONFIG.total_steps, "n_envs": 8, "n_steps": 16})
     out = tmp_path_factory.mktemp("stages") / "run"
-    results = run(config, out=out)
+    results = run(CONFIG, out=out)
     return results, load_run(out)
 
 

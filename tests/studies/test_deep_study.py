@@ -232,10 +232,10 @@ class _Recorded(UI):
 
 @pytest.mark.slow("trains and reports a deep study")
 def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_the_same_code(study, tmp_path):
+    import shutil
+
     from rlcompare.studies.paired import OVERALL, PAIR, Key, Plan, final_returns, per_seed, run_of, train
     from rlcompare.studies.paired_report import answer, difference_figure, findings, pair_finals
-
-    import shutil
 
     third, out = _third_study(), tmp_path / "third"
     plan = Plan((0, 1), PAIR, {"balance": "CartPole-v1", "swing": "Acrobot-v1"}, 41000, workers=2)
