@@ -8,6 +8,7 @@ import pytest
 pytest.importorskip("jax")
 
 from rlcompare import machine
+from rlcompare.deep import use_compilation_cache
 from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.train import compiled_training, memory_needed
 from rlcompare.experiment import rundir
@@ -20,13 +21,17 @@ OBSERVATION_BYTES = 10 * 10 * 4  # Breakout's four boolean channels
 
 
 def test_a_replay_buffer_counts_while_training_and_longer_training_in_the_records() -> None:
-    small = DeepConfig(algorithm="dqn", env="MinAtar/Breakout-v0", seeds=(0, 1, 2), vmap_width=2, eval_rounds=2,
-                       eval_episodes=1, hyperparameters={"total_steps": 2_000, "buffer_size": 1_000,
-                                                         "learning_starts": 100})
-    large = DeepConfig(**{**small.__dict__, "hyperparameters": {**small.hyperparameters, "buffer_size": 50_000}})
+    """DQN on CartPole with its preset's buffer of 100,000 transitions (``tests/engines/test_golden_deep.py``'s
+    configuration, so JAX's compilation cache holds its program where that file ran) against one of 1,000."""
+    use_compilation_cache()
+    large = DeepConfig(algorithm="dqn", env="CartPole-v1", seeds=(0, 3), vmap_width=2, eval_rounds=2,
+                       eval_episodes=2, hyperparameters={"total_steps": 2048, "learning_starts": 512})
+    small = DeepConfig(**{**large.__dict__, "hyperparameters": {**large.hyperparameters, "buffer_size": 1_000}})
+    assert large.method_config().buffer_size == 100_000
     small_training, small_records = memory_needed(small, compiled_training(small))
     large_training, large_records = memory_needed(large, compiled_training(large))
-    assert large_training - small_training >= 2 * 49_000 * OBSERVATION_BYTES  # two seeds' buffers, side by side
+    cartpole_observation = 4 * 4  # four float32
+    assert large_training - small_training >= 2 * 99_000 * 2 * cartpole_observation  # two seeds' buffers, side by side
     assert large_records == small_records > 0  # the records grow with steps, not with the buffer
 
 
