@@ -12,12 +12,20 @@ jax = pytest.importorskip("jax")
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rlcompare.deep import dqn, replay  # noqa: E402
+from rlcompare.deep import dqn, replay, use_compilation_cache  # noqa: E402
 from rlcompare.deep.classic import CARTPOLE  # noqa: E402
 from rlcompare.deep.presets import dqn as dqn_config  # noqa: E402
 from rlcompare.envs import minatar  # noqa: E402
 from rlcompare.envs.atari import games as atari  # noqa: E402
 from rlcompare.validation import ConfigError  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compilation_cache() -> None:
+    """JAX's persistent compilation cache, as the deep engine's own entry points use it: the programs below compile
+    once on a machine, not in every run of this file."""
+    use_compilation_cache()
+
 
 # --- the target and the loss, by hand ---
 

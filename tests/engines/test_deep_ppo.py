@@ -13,7 +13,7 @@ pytest.importorskip("jax")
 import jax
 import jax.numpy as jnp
 
-from rlcompare.deep import ppo
+from rlcompare.deep import ppo, use_compilation_cache
 from rlcompare.deep.classic import CARTPOLE, MOUNTAIN_CAR
 from rlcompare.deep.envs import jax_env_names
 from rlcompare.deep.presets import ppo as ppo_config
@@ -22,6 +22,13 @@ from rlcompare.envs.chess import games as chess_games
 from rlcompare.validation import ConfigError
 
 F, T = False, True
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compilation_cache() -> None:
+    """JAX's persistent compilation cache, as the deep engine's own entry points use it: the programs below compile
+    once on a machine, not in every run of this file."""
+    use_compilation_cache()
 
 
 def test_gae_by_hand() -> None:

@@ -8,6 +8,7 @@ pytest.importorskip("jax")
 import jax
 import jax.numpy as jnp
 
+from rlcompare.deep import use_compilation_cache
 from rlcompare.deep.classic import CARTPOLE
 from rlcompare.deep.pqn import (
     PQNConfig,
@@ -20,6 +21,14 @@ from rlcompare.deep.pqn import (
 from rlcompare.validation import ConfigError
 
 GAMMA, LAM = 0.9, 0.5
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compilation_cache() -> None:
+    """JAX's persistent compilation cache, as the deep engine's own entry points use it: the programs below compile
+    once on a machine, not in every run of this file."""
+    use_compilation_cache()
+
 
 
 def returns_by_hand(rewards, terminated, truncated, values, gamma=GAMMA, lam=LAM):
