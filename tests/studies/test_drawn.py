@@ -16,12 +16,15 @@ from rlcompare.report import drawn
 from rlcompare.studies.paper.report import build_report
 from rlcompare.studies.paper.study import paper_configs, reproduce
 
+SETTINGS = {"episodes": 60, "max_steps": 40, "eval_every": 20, "eval_episodes": 2}
+"""Short episodes: each video is an episode of the run's limit, drawn and encoded again in most tests here."""
+
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A small paper study (3 seeds x 60 episodes, short episodes), with one report and its videos."""
+    """A small paper study (3 seeds x 60 episodes of at most 40 steps), with one report and its videos."""
     path = tmp_path_factory.mktemp("study")
-    list(reproduce(path, paper_configs((0, 1, 2), episodes=60, max_steps=120, eval_every=20, eval_episodes=2)))
+    list(reproduce(path, paper_configs((0, 1, 2), **SETTINGS)))
     build_report(path, video_workers=1)
     return path
 
@@ -123,8 +126,7 @@ def test_a_retrained_configuration_draws_again_only_what_shows_it(study_copy: Pa
     videos drawn from it, and of no other."""
     before = stamps(study_copy)
     shutil.rmtree(study_copy / "sarsa-decay")
-    config = next(c for c in paper_configs((0, 1, 2), episodes=60, max_steps=120, eval_every=20, eval_episodes=2)
-                  if c.name == "sarsa-decay")
+    config = next(c for c in paper_configs((0, 1, 2), **SETTINGS) if c.name == "sarsa-decay")
     list(reproduce(study_copy, [dataclasses.replace(config, alpha=0.1)]))
     build_report(study_copy, video_workers=1)
     after = stamps(study_copy)
