@@ -13,6 +13,7 @@ Asterix's difficulty ramps to the end.
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -103,18 +104,25 @@ def comparable(fields: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 # --- The draws our port makes from a step's key, served to the reference ---
 
+SPAWN_DRAWS = jax.jit(asterix_spawn_draws)
+
+
 def asterix_draws(key: jax.Array, state: asterix.EnvState) -> Served:
-    draws = asterix_spawn_draws(key)
+    draws = jax.device_get(SPAWN_DRAWS(key))
     n_free = int(np.sum(np.asarray(state.entities)[:, 4] == 0))
     rank = min(int(float(draws.slot_rank) * n_free), n_free - 1)
     return Served(rand=[float(draws.left_to_right), float(draws.gold)], randint=[rank] if n_free else [])
 
 
+@jax.jit
+def freeway_speeds_and_directions(key: jax.Array) -> tuple[jax.Array, jax.Array]:
+    speed_key, direction_key = jax.random.split(key)
+    return jax.random.randint(speed_key, (8,), 1, 6), jax.random.choice(direction_key, jnp.array([-1, 1]), (8,))
+
+
 def freeway_draws(key: jax.Array, state: freeway.EnvState) -> Served:
     """gymnax draws eight speeds and directions at every step and keeps them where the chicken crossed."""
-    speed_key, direction_key = jax.random.split(key)
-    speeds = np.asarray(jax.random.randint(speed_key, (8,), 1, 6))
-    directions = np.asarray(jax.random.choice(direction_key, jnp.array([-1, 1]), (8,)))
+    speeds, directions = (np.asarray(draws) for draws in jax.device_get(freeway_speeds_and_directions(key)))
     return Served(rand=[0.5 + 0.25 * directions], randint=[np.array(speeds)])
 
 
@@ -217,12 +225,25 @@ CASES = {
 }
 
 
-def play_both(game: str, case: Case, seed: int) -> dict[str, int]:
-    """One episode in both, compared at every step; how long it ran, what it scored and what it reached."""
+@functools.cache
+def port_step(game: str) -> Callable:
+    """Our port's step of ``game`` (no time limit), compiled once for all its episodes: ``(key, state, action) ->
+    (state, reward, done, observation)``."""
     port = GYMNAX_CLASSES[game](use_minimal_action_set=False)
     params = port.default_params.replace(max_steps_in_episode=10**9)
-    step = jax.jit(lambda key, state, action: (lambda out: (*out[1:4], port.get_obs(out[1])))(
+    return jax.jit(lambda key, state, action: (lambda out: (*out[1:4], port.get_obs(out[1])))(
         port.step_env(key, state, action, params)))
+
+
+@functools.partial(jax.jit, static_argnums=1)
+def step_keys(base: jax.Array, steps: int) -> jax.Array:
+    """Step ``t``'s key, ``jax.random.fold_in(base, t)``, for every step at once."""
+    return jax.vmap(lambda t: jax.random.fold_in(base, t))(jnp.arange(steps))
+
+
+def play_both(game: str, case: Case, seed: int) -> dict[str, int]:
+    """One episode in both, compared at every step; how long it ran, what it scored and what it reached."""
+    step = port_step(game)
     ref = case.module.Env()
     ref.random = np.random.RandomState(seed)
     ref.reset()
@@ -231,10 +252,10 @@ def play_both(game: str, case: Case, seed: int) -> dict[str, int]:
     ours = as_state(case.state_class, case.fields(ref, 0))
     seen = {"rows_full": 0, "ramp": 0}
     rng = np.random.default_rng(seed)
-    base = jax.random.PRNGKey(seed)
+    keys = np.asarray(step_keys(jax.random.PRNGKey(seed), case.max_steps))
     score = 0
     for t in range(case.max_steps):
-        key = jax.random.fold_in(base, t)
+        key = keys[t]
         action = case.policy(ref, rng)
         served = case.draws(key, ours) if case.draws else None
         if served is not None:
@@ -288,7 +309,8 @@ def test_whole_episodes_equal_the_reference(game: str):
 def test_asterix_spawns_take_a_free_row_uniformly_and_none_when_all_are_taken():
     keys = jax.random.split(jax.random.PRNGKey(0), 4000)
     taken = jnp.zeros((8, 5), jnp.int32).at[jnp.array([0, 2, 5]), 4].set(1)
-    spawned = np.asarray(jax.vmap(asterix_spawn, in_axes=(0, None))(keys, taken))
+    spawn = jax.jit(jax.vmap(asterix_spawn, in_axes=(0, None)))
+    spawned = np.asarray(spawn(keys, taken))
     new_rows = np.argmax(spawned[:, :, 4] != np.asarray(taken)[None, :, 4], axis=1)
     counts = np.bincount(new_rows, minlength=8)
     assert counts[[0, 2, 5]].sum() == 0
@@ -300,7 +322,7 @@ def test_asterix_spawns_take_a_free_row_uniformly_and_none_when_all_are_taken():
     full = jnp.zeros((8, 5), jnp.int32).at[:, 4].set(1)
     assert np.array_equal(np.asarray(asterix_spawn(keys[0], full)), np.asarray(full))
     one_free = full.at[6, 4].set(0)
-    assert np.all(np.asarray(jax.vmap(asterix_spawn, in_axes=(0, None))(keys[:200], one_free))[:, 6, 4] == 1)
+    assert np.all(np.asarray(spawn(keys[:200], one_free))[:, 6, 4] == 1)
 
 
 @pytest.mark.slow("plays whole episodes beside the reference package")
@@ -321,16 +343,28 @@ def test_sticky_actions_repeat_the_last_action_one_step_in_ten():
     state = env.reset(jax.random.PRNGKey(0))
     state = state._replace(last_action=jnp.asarray(3, jnp.int32))
     keys = jax.random.split(jax.random.PRNGKey(2), 5000)
-    stepped = jax.vmap(env.step, in_axes=(None, None, 0))(state, jnp.asarray(1), keys)[0]
+    stepped = jax.jit(jax.vmap(env.step, in_axes=(None, None, 0)))(state, jnp.asarray(1), keys)[0]
     taken = np.asarray(stepped.last_action)
     assert set(np.unique(taken)) == {1, 3}
     assert stats.binomtest(int((taken == 3).sum()), taken.size, 0.1).pvalue > 1e-3
     plain = minatar_env("Breakout-MinAtar")
-    assert set(np.unique(np.asarray(jax.vmap(plain.step, in_axes=(None, None, 0))(
+    assert set(np.unique(np.asarray(jax.jit(jax.vmap(plain.step, in_axes=(None, None, 0)))(
         state, jnp.asarray(2), keys)[0].last_action))) == {3}  # gymnax's protocol: "right" is its third action
 
 
 # --- The protocols ---
+
+def endings(env, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each of ``steps`` steps (action 0, step ``t`` from ``fold_in(PRNGKey(0), t)``) from the reset
+    terminated and whether it truncated, the steps played one after another in one compiled program."""
+
+    def step(state, t):
+        state, _, term, trunc = env.step(state, jnp.asarray(0), jax.random.fold_in(jax.random.PRNGKey(0), t))
+        return state, (jnp.asarray(term), jnp.asarray(trunc))
+
+    _, ended = jax.jit(lambda: jax.lax.scan(step, env.reset(jax.random.PRNGKey(0)), jnp.arange(steps)))()
+    return tuple(np.asarray(flags) for flags in ended)
+
 
 @pytest.mark.slow("plays whole episodes beside the reference package")
 def test_each_protocol_ends_episodes_as_it_says():
@@ -338,13 +372,10 @@ def test_each_protocol_ends_episodes_as_it_says():
     assert params_limit == {"Breakout-MinAtar": 1000, "Freeway-MinAtar": 2500}
     assert minatar_env("MinAtar/Breakout-v0").max_steps is None
     for name, steps, terminated in (("MinAtar/Freeway-v0", 2501, True), ("Freeway-MinAtar", 2500, False)):
-        env = minatar_env(name)
-        step = jax.jit(env.step)
-        state = env.reset(jax.random.PRNGKey(0))
-        for t in range(steps):
-            state, _, term, trunc = step(state, jnp.asarray(0), jax.random.fold_in(jax.random.PRNGKey(0), t))
-            assert not (term or trunc) or t == steps - 1, (name, t)
-        assert (bool(term), bool(trunc)) == (terminated, not terminated), name
+        term, trunc = endings(minatar_env(name), steps)
+        ended = np.flatnonzero(term | trunc)
+        assert ended.tolist() == [steps - 1], (name, ended)
+        assert (bool(term[-1]), bool(trunc[-1])) == (terminated, not terminated), name
 
 
 def test_action_sets_are_the_reference_games_minimal_sets_or_all_six():
