@@ -29,14 +29,16 @@ def test_seeds_side_by_side_train_as_each_alone_across_learning_starts() -> None
     config = dataclasses.replace(dqn_config.MINATAR, buffer_size=64, learning_starts=20, hidden=(8,))
     update = dqn.make_update(config, env)
     with jax.enable_x64(True):
+        alone = jax.jit(update)
+        side_by_side = jax.jit(jax.vmap(update))
         runners = [dqn.init_runner(config, env, jax.random.key(seed)) for seed in (0, 1)]
-        fill = jax.jit(lambda runner, key: jax.lax.scan(update, runner, jax.random.split(key, 25))[0])
-        runners = [fill(runner, jax.random.key(9)) for runner in runners]  # 25 steps, trained from the 21st
+        for index, runner in enumerate(runners):  # 25 steps, trained from the 21st (the program compared below)
+            for key in jax.random.split(jax.random.key(9), 25):
+                runner = alone(runner, key)[0]
+            runners[index] = runner
         runners[0] = runners[0]._replace(steps=jnp.asarray(config.learning_starts - 1, jnp.int64))
         batched = jax.tree.map(lambda *leaves: jnp.stack(leaves), *runners)
         keys = jnp.stack([jax.random.key(3), jax.random.key(4)])
-        alone = jax.jit(update)
-        side_by_side = jax.jit(jax.vmap(update))
         before = [runner.params for runner in runners]
         trained = []
         for _ in range(2):  # one seed trains, then both
