@@ -4,6 +4,13 @@ with nothing written; the same settings resume; ``--force`` replaces."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -55,27 +62,34 @@ def test_a_run_with_other_settings_is_refused_in_its_directory(tmp_path: Path) -
     assert invoke("run", "--seeds", "2", "--episodes", "20", "--out", str(out)).exit_code == 0
 
 
+@contextlib.contextmanager
+def paused(process: subprocess.Popen[str]) -> Iterator[None]:
+    """``process`` stopped (SIGSTOP) for the block and continued after it: mid-way through its writing, its
+    directory's lock held, however long the other processes take to start on a loaded machine."""
+    os.kill(process.pid, signal.SIGSTOP)
+    try:
+        yield
+    finally:
+        os.kill(process.pid, signal.SIGCONT)
+
+
 @pytest.mark.slow("runs two rlcompare processes on one directory")
 def test_report_and_reproduce_while_a_study_is_written_wait_or_refuse_in_one_line(tmp_path: Path) -> None:
     """A real second process: ``report`` and a second ``reproduce`` on a directory a running ``reproduce`` is
     writing are refused in one line naming its process; the first finishes untouched."""
-    import subprocess
-    import sys
-    import time
-
     out = tmp_path / "paper"
     command = [sys.executable, "-m", "rlcompare.cli", "reproduce", "--allow-undecidable", "--seeds", "4",
-               "--episodes", "8000",
-               "--no-videos", "--out", str(out)]
-    env = {**__import__("os").environ, "COLUMNS": "300"}
+               "--episodes", "1000", "--no-videos", "--out", str(out)]
+    env = {**os.environ, "COLUMNS": "300"}
     first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         deadline = time.monotonic() + 120
         while not list(out.glob("*/config.json")) and time.monotonic() < deadline and first.poll() is None:
             time.sleep(0.05)  # training has begun: the directory is locked
-        report = subprocess.run([sys.executable, "-m", "rlcompare.cli", "report", str(out)], capture_output=True,
-                                text=True, check=False, timeout=120, env=env)
-        second = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120, env=env)
+        with paused(first):
+            report = subprocess.run([sys.executable, "-m", "rlcompare.cli", "report", str(out)],
+                                    capture_output=True, text=True, check=False, timeout=120, env=env)
+            second = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120, env=env)
         first_out, first_err = first.communicate(timeout=300)
     finally:
         first.kill()
@@ -92,15 +106,10 @@ def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_
     ``run`` into it, are refused in one line naming the writer (before, ``report`` failed on the files not yet
     there, and ``uci`` said the directory held nothing it reads); the writer finishes untouched, and its directory
     then reads as any other."""
-    import os
-    import subprocess
-    import sys
-    import time
-
     from rlcompare.experiment import store
 
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "rlcompare.cli", "run", "--episodes", "10000", "--seeds", "40", "--out", str(out)]
+    command = [sys.executable, "-m", "rlcompare.cli", "run", "--episodes", "1000", "--seeds", "40", "--out", str(out)]
     env = {**os.environ, "COLUMNS": "300"}
     first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
@@ -109,11 +118,12 @@ def test_report_and_run_on_a_run_directory_being_written_are_refused_naming_its_
         while time.monotonic() < deadline and first.poll() is None and not (
                 lock.exists() and lock.read_text().strip() == str(first.pid)):
             time.sleep(0.05)  # the writer holds the lock
-        others = [subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   text=True, env=env)
-                  for args in ([sys.executable, "-m", "rlcompare.cli", "report", str(out)],
-                               [sys.executable, "-m", "rlcompare.cli", "uci", str(out)], command)]
-        answers = [other.communicate(timeout=120)[1] for other in others]
+        with paused(first):
+            others = [subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                       stderr=subprocess.PIPE, text=True, env=env)
+                      for args in ([sys.executable, "-m", "rlcompare.cli", "report", str(out)],
+                                   [sys.executable, "-m", "rlcompare.cli", "uci", str(out)], command)]
+            answers = [other.communicate(timeout=120)[1] for other in others]
         first_out, first_err = first.communicate(timeout=300)
     finally:
         first.kill()
