@@ -12,6 +12,7 @@ import hashlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -220,7 +221,7 @@ def test_another_study_into_a_study_directory_is_refused(study_copy: Path) -> No
 @pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_a_second_sweep_into_a_store_in_use_stops_and_the_first_runs_each_trial_once(tmp_path: Path) -> None:
     sweep_file = tmp_path / "s.toml"
-    sweep_file.write_text(SWEEP.replace("seeds = 2", "seeds = 6").replace("episodes = 20", "episodes = 20000"))
+    sweep_file.write_text(SWEEP.replace("seeds = 2", "seeds = 6").replace("episodes = 20", "episodes = 2000"))
     out = tmp_path / "store"
     command = [sys.executable, "-m", "rlcompare.cli", "sweep", str(sweep_file), "--out", str(out), "--workers", "1",
                "--no-report"]
@@ -229,7 +230,11 @@ def test_a_second_sweep_into_a_store_in_use_stops_and_the_first_runs_each_trial_
         deadline = time.monotonic() + 120
         while not (out / MANIFEST_FILE).is_file() and time.monotonic() < deadline and first.poll() is None:
             time.sleep(0.05)
-        second = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
+        os.kill(first.pid, signal.SIGSTOP)  # mid-sweep, its lock held, however long the second takes to start
+        try:
+            second = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
+        finally:
+            os.kill(first.pid, signal.SIGCONT)
         first_out, first_err = first.communicate(timeout=300)
     finally:
         first.kill()
@@ -456,15 +461,15 @@ def test_a_full_disk_is_one_clear_error(command: str, study: Path, tmp_path: Pat
 
 @pytest.mark.slow("trains studies into directories it damages, fills or shares")
 def test_a_disk_that_fills_mid_study_keeps_the_finished_runs_and_resumes_once_there_is_room(tmp_path: Path) -> None:
-    """``reproduce why`` on a file system with room for a few of its 12 runs: one clear line when a run cannot be
-    written, every run written before it kept and whole; with room again, the same command loads those, trains
-    the rest, and writes the tables of an uninterrupted study byte for byte."""
+    """``reproduce why`` on a file system with room for a few of its 12 runs (each about 180 kB): one clear line
+    when a run cannot be written, every run written before it kept and whole; with room again, the same command
+    loads those, trains the rest, and writes the tables of an uninterrupted study byte for byte."""
     from helpers import assert_same_runs, finished_runs
 
-    why = ["reproduce", "why", "--allow-undecidable", "--seeds", "6", "--episodes", "5000"]
+    why = ["reproduce", "why", "--allow-undecidable", "--seeds", "6", "--episodes", "1000"]
     reference = tmp_path / "reference"
     assert invoke(*why, "--out", str(reference)).exit_code == 0
-    with small_filesystem(tmp_path / "fs", "1500k") as fs:
+    with small_filesystem(tmp_path / "fs", "900k") as fs:
         full = invoke(*why, "--out", str(fs / "why"))
         one_clear_line(full)
         assert "no space left" in full.output.lower()
