@@ -20,31 +20,38 @@ from rlcompare.report import drawn
 from rlcompare.tabular.config import field_docs
 
 
-@pytest.mark.slow("trains studies through the command line")
-def test_reproduce_writes_every_promised_file(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """The paper's study of 2 seeds x 100 episodes, made by ``reproduce``: its directory and what it said."""
+    out = tmp_path_factory.mktemp("reproduce") / "paper"
     result = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "100", "--no-videos", "--out",
-                    str(tmp_path))
+                    str(out))
     assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+@pytest.mark.slow("trains studies through the command line")
+def test_reproduce_writes_every_promised_file(reproduced: tuple[Path, str]) -> None:
+    out, output = reproduced
     names = ["random", "q_learning-decay", "q_learning-constant", "sarsa-decay", "sarsa-constant",
              "q_learning-decay-before_update", "q_learning-constant-before_update", "sarsa-decay-after_update",
              "sarsa-constant-after_update"]  # the paper's five, then the order ablation
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "figures", "tables", "report.html",
-                                                                 drawn.LEDGER, rundir.MEMBERS_FILE, *store.OWN_FILES])
+    assert sorted(p.name for p in out.iterdir()) == sorted([*names, "figures", "tables", "report.html",
+                                                            drawn.LEDGER, rundir.MEMBERS_FILE, *store.OWN_FILES])
     for name in names:
-        assert sorted(p.name for p in (tmp_path / name).iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
-        assert name in result.output
-    loaded = load_run(tmp_path / "sarsa-constant")
+        assert sorted(p.name for p in (out / name).iterdir()) == sorted(rundir.RUN_FILES + store.OWN_FILES)
+        assert name in output
+    loaded = load_run(out / "sarsa-constant")
     assert (loaded.config.seeds, loaded.config.episodes, loaded.config.epsilon) == ((0, 1), 100, 0.5)
     assert loaded.meta["study"] == "paper"
-    assert "-262" in result.output  # the paper's Table II beside ours
+    assert "-262" in output  # the paper's Table II beside ours
 
 
 @pytest.mark.slow("trains studies through the command line")
-def test_reproduce_again_loads_instead_of_training(tmp_path: Path) -> None:
-    invoke("reproduce", "--allow-undecidable", "--seeds", "1", "--episodes", "20", "--no-videos", "--out",
-           str(tmp_path))
-    result = invoke("reproduce", "--allow-undecidable", "--seeds", "1", "--episodes", "20", "--no-videos", "--out",
-                    str(tmp_path))
+def test_reproduce_again_loads_instead_of_training(reproduced: tuple[Path, str]) -> None:
+    out, _ = reproduced
+    result = invoke("reproduce", "--allow-undecidable", "--seeds", "2", "--episodes", "100", "--no-videos", "--out",
+                    str(out))
     assert result.exit_code == 0
     assert result.output.count("loaded (already complete)") == 9
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from helpers import invoke
+from helpers import invoke, paper_study
 
 from rlcompare.experiment.engines import load_run
 from rlcompare.studies.book.contrast import contrast_table, load_pairs, sibling_studies
@@ -45,10 +45,9 @@ def test_cartpole_study_runs_the_papers_grid_and_reports_it_without_the_papers_n
 
 @pytest.fixture(scope="module")
 def studies(tmp_path_factory) -> Path:
-    """A small paper study and the cliff study beside it."""
+    """A small paper study (its runs: the cliff's report reads no more of it) and the cliff study beside it."""
     root = tmp_path_factory.mktemp("studies")
-    assert invoke("reproduce", "--allow-undecidable", "--seeds", "4", "--episodes", "400", "--no-videos", "--out",
-                  str(root / "paper")).exit_code == 0
+    paper_study(root / "paper", seeds=4, episodes=400)
     assert invoke("reproduce", "cliff", "--allow-undecidable", "--seeds", "8", "--out",
                   str(root / "cliff")).exit_code == 0
     return root
