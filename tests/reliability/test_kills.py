@@ -7,7 +7,6 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -57,15 +56,16 @@ def test_a_report_killed_half_way_is_rebuilt_equal_to_one_never_interrupted(why_
                                                                            tmp_path: Path) -> None:
     study = Path(shutil.copytree(why_reference, tmp_path / "why", ignore=shutil.ignore_patterns(store.LOCK_FILE)))
     report = [sys.executable, "-m", "rlcompare.cli", "report", str(study)]
-    started = time.monotonic()
     assert subprocess.run(report, capture_output=True, check=False, env=ENV, timeout=600).returncode == 0
-    whole = time.monotonic() - started
     tables = {p.name: p.read_bytes() for p in (study / "tables").iterdir()}
     page = (study / "report.html").read_bytes()
+    written = {path: _modified(path) for path in [*(study / "tables").iterdir(), *(study / "figures").iterdir(),
+                                                  study / "report.html"]}
     log = tmp_path / "report.log"
     process = start(report, log)
-    started = time.monotonic()
-    kill_when(process, lambda: time.monotonic() - started > whole / 2, log)  # half-way through, as timed whole
+    # half-way through: once it has written one of its files again, the others (a figure among them, drawn for a
+    # second or more) still to write
+    kill_when(process, lambda: any(_modified(path) != when for path, when in written.items()), log)
     # what a kill in the middle of writing a figure leaves (whether or not this one did), and a user's file
     (study / "figures" / ".decomposition.png.k1ll3d.tmp").write_bytes(b"half a picture")
     (study / "figures" / ".mine.tmp").write_bytes(b"a user's")
@@ -74,6 +74,14 @@ def test_a_report_killed_half_way_is_rebuilt_equal_to_one_never_interrupted(why_
     assert {p.name: p.read_bytes() for p in (study / "tables").iterdir()} == tables
     assert (study / "report.html").read_bytes() == page
     assert list(study.rglob(".*.tmp")) == [study / "figures" / ".mine.tmp"]  # what rlcompare left half-written is gone
+
+
+def _modified(path: Path) -> int | None:
+    """When ``path`` was last written (None while it is being replaced)."""
+    try:
+        return path.stat().st_mtime_ns
+    except FileNotFoundError:
+        return None
 
 
 BOOK = ("reproduce", "book-6.3", "--allow-undecidable", "--runs", "200", "--episodes", "2000")
