@@ -32,11 +32,19 @@ def rlcompare(*args: str) -> list[str]:
     return [sys.executable, "-m", "rlcompare.cli", *args]
 
 
-def cold_compiles(tmp_path: Path) -> dict[str, str]:
-    """The environment of a study whose networks compile afresh, in a JAX cache of the test's own: a compile takes
+def cold_compiles(cache: Path) -> dict[str, str]:
+    """The environment of a study whose networks compile afresh, in the empty JAX cache ``cache``: a compile takes
     seconds, time to send the signals while a training is in flight (with the user's warm cache a training of
     CartPole can end within the test's reaction)."""
-    return {**ENV, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "jax-cache")}
+    assert not cache.exists() or not any(cache.iterdir()), cache
+    return {**ENV, "JAX_COMPILATION_CACHE_DIR": str(cache)}
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A JAX cache that the first test's training, kept after its Ctrl-C, compiles into from nothing, and the second
+    test's resumed command (sent no signal) reads: one compile fewer."""
+    return tmp_path_factory.mktemp("jax-cache")
 
 
 def wait_for(ready: Callable[[], bool], process: subprocess.Popen[bytes], log: Path, timeout: float = 240) -> None:
@@ -70,9 +78,10 @@ def deep_runs(study: Path) -> set[str]:
     return set(finished_runs(study)) - {"tabular-sarsa-CartPole-v1", "tabular-q_learning-CartPole-v1"}
 
 
-def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path) -> None:
+def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(compiled: Path, tmp_path: Path) -> None:
     out, log = tmp_path / "study", tmp_path / "log"
-    process = start(rlcompare(*DEEP, "--out", str(out)), log, cold_compiles(tmp_path))
+    cache = tmp_path / "jax-cache" if any(compiled.iterdir()) else compiled  # filled already where run after the next
+    process = start(rlcompare(*DEEP, "--out", str(out)), log, cold_compiles(cache))
     wait_for(lambda: in_flight(out), process, log)
     process.send_signal(signal.SIGINT)
     wait_for(lambda: "Ctrl-C: finishing the trainings in flight (" in log.read_text(), process, log,
@@ -87,9 +96,9 @@ def test_ctrl_c_once_finishes_the_training_in_flight_and_keeps_it(tmp_path: Path
     assert deep_runs(out) == ({FIRST} if flying == [FIRST] else {FIRST, SECOND}), text
 
 
-def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Path) -> None:
+def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(compiled: Path, tmp_path: Path) -> None:
     out, log = tmp_path / "study", tmp_path / "log"
-    process = start(rlcompare(*DEEP, "--out", str(out)), log, cold_compiles(tmp_path))
+    process = start(rlcompare(*DEEP, "--out", str(out)), log, cold_compiles(tmp_path / "jax-cache"))
     wait_for(lambda: in_flight(out), process, log)
     process.send_signal(signal.SIGINT)
     wait_for(lambda: "Ctrl-C again abandons them" in log.read_text(), process, log, timeout=SAYS_SO)
@@ -101,9 +110,9 @@ def test_ctrl_c_twice_abandons_at_once_and_the_same_command_resumes(tmp_path: Pa
     assert "terminate called" not in text
     # the one in flight abandoned; the first kept where it had finished before the Ctrl-C was handled
     assert deep_runs(out) == (set() if in_flight_when_handled(text) == [FIRST] else {FIRST}), text
-    # the resumed command may find its programs compiled (the user's cache): no signal is sent to it
-    resumed = subprocess.run(rlcompare(*DEEP, "--out", str(out)), capture_output=True, text=True, env=ENV,
-                             check=False)
+    # no signal is sent to the resumed command: it may find its programs compiled
+    resumed = subprocess.run(rlcompare(*DEEP, "--out", str(out)), capture_output=True, text=True,
+                             env={**ENV, "JAX_COMPILATION_CACHE_DIR": str(compiled)}, check=False)
     assert resumed.returncode == 0, resumed.stderr
     assert len(finished_runs(out)) == 4
 
