@@ -11,7 +11,6 @@ initial weights ``W0``: state 0 prefers "stay" (0.25 > 0.2) until an update lowe
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import pytest
 
@@ -25,22 +24,24 @@ from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import chain
 from rlcompare.rng import stream_state
-from rlcompare.tabular import episodes, loops
-from rlcompare.tabular.runs import train_runs
-from rlcompare.tabular.state import Settings, allocate_records, initial_state
+from rlcompare.tabular.runs import train_block, train_runs
+from rlcompare.tabular.state import (
+    AGENT_STREAM,
+    ENV_STREAM,
+    EVAL_AGENT_STREAM,
+    EVAL_ENV_STREAM,
+    EVAL_TRANSITION_STREAM,
+    STREAMS,
+    TRANSITION_STREAM,
+    RunState,
+    Settings,
+    allocate_records,
+    initial_state,
+)
 
 W0 = [[0.25, 0.2], [0.1, 0.6]]
 COIN_SEED = 343
 """An agent stream whose uniforms 1 to 7 all fall below 0.5: Double Q-Learning's coin always updates Q1."""
-_CACHED: dict = {}
-
-
-def _compiled(fn):
-    """The episode loop compiled with the same (default) options, but cached on disk, as the run loop is: the loops
-    themselves are not, and compiling them takes a while every session."""
-    if fn not in _CACHED:
-        _CACHED[fn] = numba.njit(cache=True)(fn.py_func)
-    return _CACHED[fn]
 
 
 def _rule(algorithm: str, before: bool, target_epsilon: float = -1.0) -> tuple:
@@ -49,24 +50,24 @@ def _rule(algorithm: str, before: bool, target_epsilon: float = -1.0) -> tuple:
     return rule(before, float(target_epsilon)) if "target_epsilon" in rule._fields else rule(before)
 
 
-def _no_traces() -> episodes.Traces:
-    return episodes.Traces(np.zeros(1), np.empty(1, np.int64), np.zeros(1, np.bool_))
-
-
 SETTINGS = Settings(alpha=0.5, gamma=0.5, max_steps=100, truncation_as_terminal=False, eval_every=0)
 
 
 def _chain_episode(algorithm: str, before: bool, seed: int = 0, w2=None):
-    table_env = chain(2)
+    """One training episode of one run on ``chain(2)`` through the engine's ``train_block`` (its choice of the
+    loop by the rule's type included; compiled once and cached on disk, as test_algorithms_beyond_paper.py's
+    episodes are): the weights, steps, visits and agent stream it left."""
+    rng = np.empty((1, STREAMS, 4), np.uint64)
+    for stream, stream_seed in ((ENV_STREAM, 1000), (AGENT_STREAM, seed), (TRANSITION_STREAM, 2000),
+                                (EVAL_ENV_STREAM, 1001), (EVAL_AGENT_STREAM, 1002), (EVAL_TRANSITION_STREAM, 1003)):
+        rng[0, stream] = stream_state(stream_seed)
     w = np.array(W0)
     w2 = np.zeros_like(w) if w2 is None else np.array(w2)
-    agent_rng, visits = stream_state(seed), np.zeros(2, np.int64)
-    rule = _rule(algorithm, before)
-    ret, steps, terminated = _compiled(loops.LOOPS[type(rule)][0])(
-        rule, SETTINGS, table_env, OneHot(2), w, w2, _no_traces(), 0.0, stream_state(1000),
-        agent_rng, stream_state(2000), visits)
-    assert (ret, terminated) == (1.0, True)
-    return w, w2, steps, visits, agent_rng
+    state = RunState(w=w[None].copy(), w2=w2[None].copy(), rng=rng)
+    records = allocate_records(1, 1, 0, 1, np.array([1], np.int64), w.shape)
+    train_block(0, 1, _rule(algorithm, before), SETTINGS, chain(2), OneHot(2), state, np.array([0.0]), 0, 1, records)
+    assert (records.returns[0, 0], records.terminated[0, 0]) == (1.0, True)
+    return state.w[0], state.w2[0], int(records.lengths[0, 0]), records.visits[0], state.rng[0, AGENT_STREAM]
 
 
 def _after(seed: int, draws: int) -> np.ndarray:
@@ -95,7 +96,6 @@ HAND_CASES = [
 ]
 
 
-@pytest.mark.slow("trains every one-step method")
 @pytest.mark.parametrize(("algorithm", "before", "w", "steps", "visits", "draws"), HAND_CASES)
 def test_one_step_episode_by_hand(algorithm, before, w, steps, visits, draws):
     w_out, _, steps_out, visits_out, agent_rng = _chain_episode(algorithm, before)
@@ -105,7 +105,6 @@ def test_one_step_episode_by_hand(algorithm, before, w, steps, visits, draws):
     np.testing.assert_array_equal(agent_rng, _after(0, draws))
 
 
-@pytest.mark.slow("trains every one-step method")
 @pytest.mark.parametrize("before", [False, True])
 def test_double_q_learning_episode_by_hand(before):
     """Q2 = 0 and every coin updates Q1, so each target is R + γ Q2(S', argmax Q1) = R.
