@@ -16,7 +16,7 @@ ale_py = pytest.importorskip("ale_py")
 
 import jax.numpy as jnp  # noqa: E402
 
-from rlcompare.deep import dqn, ppo, pqn  # noqa: E402
+from rlcompare.deep import dqn, ppo  # noqa: E402
 from rlcompare.deep.atari import AtariEnv, NatureCNN, atari_env, reset_seed  # noqa: E402
 from rlcompare.deep.config import DeepConfig  # noqa: E402
 from rlcompare.deep.envs import evaluation_epsilon, jax_env, jax_env_names, learning_reward  # noqa: E402
@@ -121,8 +121,7 @@ def test_mnih_network_has_its_layers_and_reads_uint8_frames() -> None:
 
 
 TINY = {
-    "pqn": (pqn, dataclasses.replace(pqn.PRESETS["default"]["Breakout-Atari"], total_steps=2 * 4 * 16, n_envs=4,
-                                      n_steps=16, n_minibatches=2, hidden=(32,))),
+    # Q(λ)'s PQN: test_two_trainings_on_two_threads_equal_each_trained_alone, through the engine's train
     "dqn": (dqn, dataclasses.replace(dqn_config.ATARI, total_steps=2 * 48, n_envs=2, buffer_size=200,
                                      learning_starts=32, batch_size=8, hidden=(32,))),
     "ppo": (ppo, dataclasses.replace(ppo_config.ATARI, total_steps=2 * 4 * 16, n_envs=4, n_steps=16, batch_size=32,
@@ -157,39 +156,56 @@ def test_several_seeds_side_by_side_are_refused_naming_the_field() -> None:
     assert "Breakout-Atari" in str(unknown.value)
 
 
-def _tiny_config(algorithm: str, seed: int) -> DeepConfig:
-    return DeepConfig(algorithm=algorithm, env="Breakout-Atari", seeds=(seed,), vmap_width=1, eval_rounds=1,
+def _tiny_config(seed: int) -> DeepConfig:
+    return DeepConfig(algorithm="pqn_q_lambda", env="Breakout-Atari", seeds=(seed,), vmap_width=1, eval_rounds=1,
                       eval_episodes=1, hyperparameters={"total_steps": 128, "n_envs": 4, "n_steps": 16,
                                                         "n_minibatches": 2, "hidden": (32,)})
 
 
-def test_two_trainings_on_two_threads_equal_each_trained_alone() -> None:
+@pytest.fixture(scope="module")
+def pqn_trainings() -> tuple[list, list]:
+    """Q(λ)'s tiny training of seeds 0 and 1, each alone, then the two at once on two threads: one program,
+    compiled once for the module."""
     from concurrent.futures import ThreadPoolExecutor
 
     from rlcompare.deep.train import train
 
-    configs = [_tiny_config("pqn_q_lambda", 0), _tiny_config("pqn_sarsa_lambda", 0)]
+    configs = [_tiny_config(0), _tiny_config(1)]
     alone = [train(config) for config in configs]
     with ThreadPoolExecutor(2) as pool:
         together = list(pool.map(train, configs))
+    return alone, together
+
+
+def test_two_trainings_on_two_threads_equal_each_trained_alone(pqn_trainings) -> None:
+    """Also Q(λ)'s case of test_each_method_trains_on_a_game_and_gives_the_same_bits_twice, through the engine: a
+    seed trained twice gives the same bits (episodes, evaluations, parameters at every stage), another seed other
+    parameters."""
+    alone, together = pqn_trainings
     for a, b in zip(alone, together, strict=True):
         pd.testing.assert_frame_equal(a.episodes, b.episodes)
         pd.testing.assert_frame_equal(a.evaluations, b.evaluations)
+        assert list(a.params) == list(b.params)
         for name in a.params:
             np.testing.assert_array_equal(a.params[name], b.params[name])
-    # the two methods learnt differently, so a training that played the other's games would show
+        assert a.snapshots.keys() == b.snapshots.keys()
+        for stage in a.snapshots:
+            for name in a.snapshots[stage]:
+                np.testing.assert_array_equal(a.snapshots[stage][name], b.snapshots[stage][name])
+    # the two seeds learnt differently, so a training that played the other's games would show
     assert any(not np.array_equal(alone[0].params[n], alone[1].params[n]) for n in alone[0].params)
 
 
-def test_evaluations_play_at_the_protocols_epsilon_and_end_by_the_game() -> None:
+def test_evaluations_play_at_the_protocols_epsilon_and_end_by_the_game(pqn_trainings) -> None:
     assert evaluation_epsilon(BREAKOUT) == 0.05
     assert evaluation_epsilon(jax_env("CartPole-v1")) == 0.0
-    from rlcompare.deep.train import train
-
-    evaluations = train(_tiny_config("pqn_q_lambda", 1)).evaluations
+    alone, _ = pqn_trainings
+    evaluations = alone[1].evaluations  # seed 1
+    assert len(evaluations) == 1  # one round of one episode
     # an untrained greedy network that never presses FIRE would play every episode to the 27,000-step cut
     assert evaluations["terminated"].all()
     assert (evaluations["length"] < atari.PROTOCOL.max_steps).all()
+    assert (evaluations["length"] > 0).all()
 
 
 def test_gymnasiums_own_game_shows_the_frames_the_engine_sees() -> None:
