@@ -61,8 +61,10 @@ def test_adapter_on_mountain_car_learns_as_the_port_over_ten_seeds() -> None:
 
 @pytest.mark.slow("steps Gymnasium's environments at Python speed")
 def test_adapter_results_do_not_depend_on_the_thread_count() -> None:
-    config = ExperimentConfig(env="CliffWalking-v1", adapter=True, algorithm="sarsa", seeds=(0, 1, 2, 3), episodes=20,
-                              eval_every=10, eval_episodes=1)
+    """Q-Learning on the adapter's tables: the compiled program of test_adapter_gives_each_ports_results_bit_for_bit
+    (CliffWalking-v1), not one of its own."""
+    config = ExperimentConfig(env="CliffWalking-v1", adapter=True, algorithm="q_learning", seeds=(0, 1, 2, 3),
+                              episodes=20, eval_every=10, eval_episodes=1)
     previous = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
