@@ -67,7 +67,7 @@ def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
 @pytest.mark.slow("trains, rates and reports a chess study")
 def test_a_finished_study_is_loaded_and_its_ladder_kept(study):
     out, _ = study
-    assert_loaded_not_trained(out, *TINY, runs=2, kept=f"{LADDER}/gardner_chess/games.parquet")
+    assert_loaded_not_trained(out, *TINY, "--no-videos", runs=2, kept=f"{LADDER}/gardner_chess/games.parquet")
 
 
 @pytest.mark.slow("trains, rates and reports a chess study")

@@ -11,6 +11,7 @@ Stockfish rung.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
 from contextlib import closing
 from dataclasses import dataclass
@@ -21,12 +22,12 @@ import numpy as np
 import pandas as pd
 
 from rlcompare.deep import float64
-from rlcompare.deep.agent import BoardAgent, action_values
+from rlcompare.deep.agent import BoardAgent, action_values, network_template
 from rlcompare.deep.chess.games import ChessGameEnv
+from rlcompare.deep.envs import jax_env
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
-from rlcompare.deep.rollout import material_mover, play, policy_mover, random_mover
-from rlcompare.deep.train import params_template
+from rlcompare.deep.rollout import Act, Mover, material_mover, play, policy_mover, random_mover
 from rlcompare.players.games import GameRecord, play_pairs
 from rlcompare.players.stockfish import ELO_1350, SKILL_0, StockfishPlayer
 from rlcompare.stats.ratings import Game
@@ -34,6 +35,8 @@ from rlcompare.stats.ratings import Game
 RANDOM, MATERIAL = "random", "material"
 LADDER_KEY = 30_000
 """The ladder's games in pgx play from ``jax.random.key(LADDER_KEY + i)``, apart from training's keys."""
+Played = tuple[jax.Array, jax.Array, jax.Array]
+"""What :func:`rlcompare.deep.rollout.play` returns: ``(results, plies, decided)``."""
 COLUMNS = ("white", "black", "white_seed", "black_seed", "score", "plies", "termination")
 """One row per game: the players (a seed where the player is a network, else -1), White's score, its length."""
 
@@ -50,12 +53,19 @@ class Learner:
         return self.results.seeds
 
 
+@functools.cache
+def greedy_policy(algorithm: str, method_config: Any, env: str) -> Act:
+    """A method's greedy policy, made once per configuration, so that the games built on it are traced once per
+    process (a ladder played again, its games missing or changed, compiles nothing again)."""
+    return deep_method(algorithm).module.act(method_config, jax_env(env))
+
+
 @float64
-def networks(learner: Learner) -> tuple[Callable[..., jax.Array], Any]:
+def networks(learner: Learner) -> tuple[Act, Any]:
     """``(act, params)``: the greedy policy and every seed's final parameters, stacked."""
     config = learner.results.config
-    act = deep_method(config.algorithm).module.act(config.method_config(), config.environment)
-    return act, learner.results.stacked_params(params_template(config))
+    act = greedy_policy(config.algorithm, config.method_config(), config.env)
+    return act, learner.results.stacked_params(network_template(learner.results))
 
 
 def seed_params(params: Any, index: int) -> Any:
@@ -89,21 +99,18 @@ def pgx_games(game: ChessGameEnv, learners: list[Learner], pairs: int) -> pd.Dat
     compiled once, its networks' parameters given as arguments."""
     games = 2 * pairs
     keys = (jax.random.key(LADDER_KEY + index) for index in range(10**6))
-    rows = paired_rows(RANDOM, MATERIAL, *played(jax.jit(
-        lambda key: play(game, random_mover, material_mover, key, games))(next(keys))))
+    rows = paired_rows(RANDOM, MATERIAL, *played(fixed_games(game, games)(next(keys))))
     nets = {learner.name: networks(learner) for learner in learners}
     for index, learner in enumerate(learners):
         act, params = nets[learner.name]
         for name, opponent in ((RANDOM, random_mover), (MATERIAL, material_mover)):
-            against = jax.jit(lambda p, key, opponent=opponent, act=act: play(
-                game, policy_mover(act, p), opponent, key, games))
+            against = network_games(game, act, opponent, games)
             for seed_index, seed in enumerate(learner.seeds):
                 rows += paired_rows(learner.name, name, *played(against(seed_params(params, seed_index), next(keys))),
                                     player_seed=seed)
         for other in learners[index + 1:]:
             other_act, other_params = nets[other.name]
-            duel = jax.jit(lambda p, q, key, act=act, other_act=other_act: play(
-                game, policy_mover(act, p), policy_mover(other_act, q), key, games))
+            duel = duel_games(game, act, other_act, games)
             for seed_index, seed in enumerate(learner.seeds):
                 if seed in other.seeds:
                     result = duel(seed_params(params, seed_index),
@@ -111,6 +118,26 @@ def pgx_games(game: ChessGameEnv, learners: list[Learner], pairs: int) -> pd.Dat
                     rows += paired_rows(learner.name, other.name, *played(result), player_seed=seed,
                                         opponent_seed=seed)
     return frame(rows)
+
+
+@functools.cache
+def fixed_games(game: ChessGameEnv, games: int) -> Callable[[jax.Array], Played]:
+    """``(key) -> play(...)``: the random player against the material player, compiled once per process."""
+    return jax.jit(lambda key: play(game, random_mover, material_mover, key, games))
+
+
+@functools.cache
+def network_games(game: ChessGameEnv, act: Act, opponent: Mover, games: int) -> Callable[[Any, jax.Array], Played]:
+    """``(params, key) -> play(...)``: a network against a fixed player, compiled once per process."""
+    return jax.jit(lambda params, key: play(game, policy_mover(act, params), opponent, key, games))
+
+
+@functools.cache
+def duel_games(game: ChessGameEnv, act: Act, other_act: Act, games: int
+               ) -> Callable[[Any, Any, jax.Array], Played]:
+    """``(params, other_params, key) -> play(...)``: one network against another, compiled once per process."""
+    return jax.jit(lambda params, other_params, key: play(game, policy_mover(act, params),
+                                                         policy_mover(other_act, other_params), key, games))
 
 
 def played(result: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[np.ndarray, np.ndarray]:

@@ -15,11 +15,11 @@ import jax.numpy as jnp
 from matplotlib.figure import Figure
 
 from rlcompare.deep import float64
+from rlcompare.deep.agent import network_template
 from rlcompare.deep.chess.games import ChessGameEnv, chess_game_env, fen_of
 from rlcompare.deep.methods import DEEP_METHODS, deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import random_mover
-from rlcompare.deep.train import params_template
 from rlcompare.experiment import store
 from rlcompare.report.boards import draw_board
 from rlcompare.report.page import save_figure
@@ -103,7 +103,7 @@ def stage_games(out: Path, runs: dict[str, DeepResults], env: str) -> tuple[list
         config, seed = results.config, results.seeds[0]
         choose = greedy_player(game, deep_method(config.algorithm).module.act(config.method_config(),
                                                                                config.environment))
-        template = params_template(config)
+        template = network_template(results)
         stages = [(stage, jax.tree.map(lambda leaf: leaf[0], results.stacked_params(template, stage)))
                   for stage in results.stages]
         label = DEEP_METHODS[config.algorithm].label
