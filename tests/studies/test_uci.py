@@ -44,11 +44,11 @@ def chess_run(tmp_path_factory):
 
 def warm_the_compilation_cache(run) -> None:
     """What any earlier start of ``rlcompare uci`` on this machine leaves: the engine's programs in JAX's persistent
-    cache (a first start compiles them, 8-10 s on a busy two-core machine, near python-chess's 10 s)."""
-    import subprocess
-
-    subprocess.run([sys.executable, "-m", "rlcompare.cli", "uci", str(run)], input="isready\nquit\n", text=True,
-                   capture_output=True, check=True, timeout=300)
+    cache (a first start compiles them, 8-10 s on a busy two-core machine, near python-chess's 10 s). The command
+    runs in this process (its programs are the same, and so are their keys in the cache), sparing a start of JAX."""
+    result = invoke("uci", str(run), input="isready\nquit\n", columns=300)
+    assert result.exit_code == 0, result.output
+    assert result.output.splitlines()[-1] == "readyok"
 
 
 @pytest.mark.slow("trains a network at chess and plays whole games through python-chess's UCI client")
@@ -185,6 +185,17 @@ def test_the_network_moves_after_a_game_went_past_an_automatic_end(chess_run):
     assert chess.Move.from_uci(result.output.splitlines()[-1].split()[1]) in board.legal_moves
 
 
+def tabular_run(run_dir, env: str):
+    """A tabular run directory of ``env`` as ``rlcompare run`` leaves it, as far as ``uci`` reads one: its
+    ``config.json`` (the configuration's own, written by the one writer of run directories) and ``meta.json``;
+    ``uci`` refuses a run from its configuration alone, before anything is loaded or compiled."""
+    from rlcompare.experiment import rundir
+    from rlcompare.tabular.config import ExperimentConfig
+
+    config = ExperimentConfig(env=env, episodes=5, seeds=(0,))
+    return rundir.write_run(run_dir, config.to_dict(), {}, {})
+
+
 @pytest.mark.slow("trains a network at chess")
 def test_uci_refuses_a_run_that_is_not_chess_in_one_line(tmp_path, chess_run):
     result = invoke("uci", str(tmp_path / "missing"), columns=300)
@@ -200,15 +211,12 @@ def test_uci_refuses_a_run_that_is_not_chess_in_one_line(tmp_path, chess_run):
     assert result.exit_code == 2
     assert "'--seed'" in result.output
     assert "got 5; allowed: one of the run's seeds" in result.output
-    mountain_car = tmp_path / "mountain_car"
-    assert invoke("run", "--episodes", "5", "--seeds", "1", "--out", str(mountain_car)).exit_code == 0
+    mountain_car = tabular_run(tmp_path / "mountain_car", "MountainCar-v0")
     result = invoke("uci", str(mountain_car), columns=300)  # once an AttributeError
     assert result.exit_code == 2
     assert "holds a run of MountainCar-v0; allowed: a run of a network trained at chess" in result.output
     assert "Traceback" not in result.output
-    endgame = tmp_path / "krk"
-    assert invoke("run", "--env", "KRK:defender=random", "--episodes", "5", "--seeds", "1", "--out",
-                  str(endgame)).exit_code == 0
+    endgame = tabular_run(tmp_path / "krk", "KRK:defender=random")
     result = invoke("uci", str(endgame), columns=300)  # once 'ChessAgent' object has no attribute 'name'
     assert result.exit_code == 2
     assert "a table learnt in the KRK endgame, which plays White's moves in that endgame only" in result.output
