@@ -258,13 +258,14 @@ def test_random_games_end_as_python_chess():
         board = chess.Board()
         seen: collections.Counter[str] = collections.Counter()  # the start's first occurrence: not counted
         for ply in game.plies:
+            key = _pgx_key(board)
             if board.ply():
-                seen[_pgx_key(board)] += 1
+                seen[key] += 1
             expected = (not ply.legal.size or board.is_insufficient_material() or board.halfmove_clock >= 100
-                        or seen[_pgx_key(board)] >= 3 or board.ply() >= pgx_rules.MAX_TERMINATION_STEPS)
+                        or seen[key] >= 3 or board.ply() >= pgx_rules.MAX_TERMINATION_STEPS)
             assert ply.terminated == expected, (board.fen(), board.ply())
             assert ply.current_player == game.order[0 if ply.white else 1]
-            departure = _claim_departure(board, seen[_pgx_key(board)], ply.terminated)
+            departure = _claim_departure(board, seen[key], ply.terminated)
             if departure is not None:
                 departures[departure] += 1
             if ply.terminated:
