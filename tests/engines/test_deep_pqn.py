@@ -30,7 +30,6 @@ def _compilation_cache() -> None:
     use_compilation_cache()
 
 
-
 def returns_by_hand(rewards, terminated, truncated, values, gamma=GAMMA, lam=LAM):
     """The λ-return of each step of one environment, from its definition, forwards, one step at a time."""
     steps = len(rewards)
