@@ -77,6 +77,7 @@ def test_the_study_writes_its_runs_and_a_human_normalised_report(study):
     page = (out / "report.html").read_text()
     assert page.index(">The answer</h2>") < page.index("paired-differences.png")
     assert "Needs a method run on all five Atari-5 games" in page
+    assert "Breakout-Atari: greedy return against frames (4 an agent step)" in page
     assert sorted(p.name for p in (out / "videos").iterdir()) == sorted(
         f"{run}.{kind}" for run in RUNS for kind in ("gif", "mp4"))
 
@@ -105,6 +106,79 @@ def test_the_agents_loaded_by_load_agent_play_gymnasiums_game(study):
     again = atari_play.play_stages(out / "pqn_q_lambda-Breakout", load_run(out / "pqn_q_lambda-Breakout"), 0, 40)
     np.testing.assert_array_equal(again.returns[:, -1], played[(played["method"].str.startswith("Q"))
                                                                & (played["seed"] == 0)]["return"].to_numpy())
+
+
+def test_the_curves_count_frames_four_to_an_agent_step(study):
+    from rlcompare.studies.paired import eval_curves
+    from rlcompare.studies.paired_report import curves_figure
+
+    out, _ = study
+    runs = {name: load_run(out / name) for name in RUNS}
+    steps, _ = eval_curves(runs[RUNS[0]])
+    axes = curves_figure(runs, "Breakout-Atari", "frames", 4).axes[0]
+    assert axes.get_xlabel() == "frames"
+    np.testing.assert_array_equal(axes.lines[0].get_xdata(), 4 * steps)
+
+
+def _gymnasium_breakout(**make):
+    """``ALE/Breakout-v5`` as a user of Gymnasium makes it, here on its minimal action set (Gymnasium's default),
+    with the preprocessing of :func:`atari.gymnasium_env`."""
+    import gymnasium as gym
+
+    env = gym.make("ALE/Breakout-v5", frameskip=1, **make)
+    env = gym.wrappers.AtariPreprocessing(env, noop_max=0, frame_skip=4, terminal_on_life_loss=False)
+    return gym.wrappers.FrameStackObservation(env, 4, padding_type="zero")
+
+
+def test_an_agent_given_gymnasiums_minimal_action_set_plays_the_best_of_its_actions(study):
+    """Breakout's minimal set is no-op, fire, right, left: ALE's 0, 1, 3, 4. The agent's action is the index in
+    that set of the best of the network's Q-values among those four (ties: the first), never an action the set
+    lacks; its ε-greedy draws are uniform over the four."""
+    from rlcompare.deep.agent import action_values
+
+    out, _ = study
+    run_dir = out / "pqn_q_lambda-Breakout"
+    env = _gymnasium_breakout()
+    try:
+        agent = load_agent(run_dir, seed=1, env=env)
+        assert agent.actions == (0, 1, 3, 4)
+        q_values = action_values(load_run(run_dir))
+        observation, _ = env.reset(seed=3)
+        for step in range(40):
+            q = np.asarray(q_values(agent.params, np.moveaxis(observation, 0, -1)[None].astype(np.float32)))[0]
+            action = agent.act(observation)
+            assert action == int(np.argmax(q[[0, 1, 3, 4]]))
+            observation, *_ = env.step(action if step % 2 else 1)  # FIRE every other step: the game goes on
+        crafted = np.zeros((1, 18), np.float32)
+        crafted[0, [17, 3, 4]] = [9.0, 2.0, 2.0]  # the network's best (17) is not in the set; 3 and 4 tie
+        agent._scores = lambda params, observations: crafted
+        assert agent.act(observation) == 2  # ALE's 3, right: the first of the best of the set
+        explorer = load_agent(run_dir, seed=1, epsilon=1.0, exploration_seed=0, env=env)
+        assert set(explorer.act(observation) for _ in range(200)) == {0, 1, 2, 3}
+        full = load_agent(run_dir, seed=1, env=atari.gymnasium_env("Breakout-Atari"))
+        assert full.actions is None
+    finally:
+        env.close()
+
+
+def test_an_environment_an_agent_cannot_read_is_one_line_naming_what_it_needs(study):
+    import gymnasium as gym
+
+    from rlcompare.validation import ConfigError
+
+    out, _ = study
+    env = gym.make("ALE/Breakout-v5")  # Gymnasium's default: 210 x 160 colour frames, 4 frames a step
+    try:
+        needs = r"env.*\(210, 160, 3\).*\(4, 84, 84\).*gymnasium_env\('Breakout-Atari'\)"
+        with pytest.raises(ConfigError, match=needs):
+            load_agent(out / "pqn_q_lambda-Breakout", seed=1, env=env)
+    finally:
+        env.close()
+    cartpole = gym.make("CartPole-v1")
+    with pytest.raises(ConfigError, match="ALE/<Game>-v5"):
+        load_agent(out / "pqn_q_lambda-Breakout", seed=1, env=gym.wrappers.TransformObservation(
+            cartpole, lambda o: np.zeros((4, 84, 84), np.uint8),
+            gym.spaces.Box(0, 255, (4, 84, 84), np.uint8)))
 
 
 def test_a_finished_study_is_loaded_not_trained_again(study):

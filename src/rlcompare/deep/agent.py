@@ -10,12 +10,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlcompare.deep import float64, use_compilation_cache
+from rlcompare.deep.config import DeepConfig
 from rlcompare.deep.envs import is_game
 from rlcompare.deep.methods import deep_method
 from rlcompare.deep.results import DeepResults
 from rlcompare.deep.train import params_template
 from rlcompare.envs.atari import games as atari
 from rlcompare.envs.observations import check_box_observation
+from rlcompare.validation import ConfigError
 
 if TYPE_CHECKING:  # pgx and python-chess are imported where a chess network plays, not by every deep run
     import chess
@@ -25,14 +27,20 @@ if TYPE_CHECKING:  # pgx and python-chess are imported where a chess network pla
 
 class DeepAgent:
     """The greedy policy of one seed's network at one stage of learning: ``act(observation) -> action``, for an
-    observation of Gymnasium's own environment (an Atari game's: :func:`rlcompare.envs.atari.games.gymnasium_env`)."""
+    observation of Gymnasium's own environment (an Atari game's: :func:`rlcompare.envs.atari.games.gymnasium_env`).
+    Given ``env``, its actions are that environment's: an ``ALE/<Game>-v5`` on Gymnasium's minimal action set gets
+    the best of the network's scores among the actions it has (:func:`playable_actions`)."""
 
-    def __init__(self, results: DeepResults, seed: int, stage: str = "final") -> None:
+    def __init__(self, results: DeepResults, seed: int, stage: str = "final", env: Any = None) -> None:
         config = results.config
         self.config, self.seed, self.stage = config, seed, stage
         self.params: Any = results.seed_params(seed, params_template(config), stage)
-        self._act = jax.jit(deep_method(config.algorithm).module.act(config.method_config(), config.environment))
+        module = deep_method(config.algorithm).module
+        self._act = jax.jit(module.act(config.method_config(), config.environment))
+        self._scores = jax.jit(module.scores(config.method_config(), config.environment))
         self._shape = tuple(config.environment.observation_shape)
+        self.actions = None if env is None else playable_actions(config, env)
+        """The network's actions that ``env``'s actions 0, 1, ... are; None where they are the network's own."""
 
     @float64
     def act(self, observation: np.ndarray) -> int:
@@ -42,7 +50,35 @@ class DeepAgent:
         if self.config.env in atari.NAMES:  # Gymnasium's stack of frames first, the engine's last
             observation = np.moveaxis(np.asarray(observation), 0, -1)
         checked = check_box_observation(observation, self._shape, self.config.env).astype(np.float32)
-        return int(self._act(self.params, checked[None])[0])
+        if self.actions is None:
+            return int(self._act(self.params, checked[None])[0])
+        scores = np.asarray(self._scores(self.params, checked[None])[0])
+        return int(np.argmax(scores[list(self.actions)]))  # ties: the first, as the greedy policy's
+
+
+def gymnasium_shape(config: DeepConfig) -> tuple[int, ...]:
+    """The observations' shape as Gymnasium's environment gives them: an Atari game's stack first."""
+    shape = tuple(config.environment.observation_shape)
+    return (shape[-1], *shape[:-1]) if config.env in atari.NAMES else shape
+
+
+def playable_actions(config: DeepConfig, env: Any) -> tuple[int, ...] | None:
+    """The network's actions that ``env``'s are (None: the same), after checking that ``env`` gives the observations
+    the network reads; one line naming ``env`` and what it needs where it does not."""
+    made = env.spec.id if getattr(env, "spec", None) is not None else type(env).__name__
+    expected = gymnasium_shape(config)
+    builder = (f"rlcompare.envs.atari.games.gymnasium_env({config.env!r})" if config.env in atari.NAMES
+               else f"gymnasium.make({config.env!r})")
+    if tuple(env.observation_space.shape or ()) != expected:
+        raise ConfigError("env", f"{made}, observations of shape {env.observation_space.shape}",
+                          f"an environment whose observations are {expected}, as {builder} makes")
+    if config.env in atari.NAMES:
+        actions = atari.action_set(env)
+        return None if actions == tuple(range(config.environment.n_actions)) else actions
+    if int(env.action_space.n) != config.environment.n_actions:
+        raise ConfigError("env", f"{made}, {env.action_space.n} actions",
+                          f"an environment of {config.environment.n_actions} actions, as {builder} makes")
+    return None
 
 
 class BoardAgent:
@@ -136,12 +172,14 @@ def action_values(results: DeepResults) -> Any:
     return network_of(results).apply
 
 
-def agent(results: DeepResults, seed: int, stage: str = "final") -> DeepAgent | BoardAgent:
-    """The greedy agent of ``seed``'s network at ``stage`` (``results.stages``): on python-chess boards for a
-    network trained at chess."""
+def agent(results: DeepResults, seed: int, stage: str = "final", env: Any = None) -> DeepAgent | BoardAgent:
+    """The greedy agent of ``seed``'s network at ``stage`` (``results.stages``), acting in ``env`` where given
+    (:class:`DeepAgent`): on python-chess boards for a network trained at chess."""
     if is_game(results.config.environment):
+        if env is not None:
+            raise ConfigError("env", type(env).__name__, "none for a network that plays chess boards")
         return BoardAgent.of(results, seed, stage)
-    return DeepAgent(results, seed, stage)
+    return DeepAgent(results, seed, stage, env)
 
 
 @float64

@@ -50,7 +50,7 @@ Apply = Callable[[Params, jax.Array], jax.Array]
 Config = DQNConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
 __all__ = ["OPTIMIZERS", "PRESETS", "Apply", "Config", "Params", "Targets", "act", "dqn_targets", "make_train",
-           "network"]
+           "network", "scores"]
 
 
 # --- the learning rule ---
@@ -113,13 +113,18 @@ def network(config: DQNConfig, env: Environment) -> MLP | ConvNet | NatureCNN:
     return MLP(hidden=config.hidden, outputs=env.n_actions)
 
 
+def scores(config: DQNConfig, env: Environment) -> Callable[[Params, jax.Array], jax.Array]:
+    """``(params, observations) -> (batch, n_actions)`` Q-values, what the greedy policy maximises."""
+    net: Network = network(config, env)
+    return net.apply
+
+
 def act(config: DQNConfig, env: Environment) -> rollout.Act:
     """``(params, observations) -> int32 actions`` greedy in the Q-values (ties: the first)."""
-    net: Network = network(config, env)
-    apply = net.apply
+    values = scores(config, env)
 
     def greedy(params: Params, observations: jax.Array) -> jax.Array:
-        return jnp.argmax(apply(params, observations), axis=-1).astype(jnp.int32)
+        return jnp.argmax(values(params, observations), axis=-1).astype(jnp.int32)
 
     return greedy
 

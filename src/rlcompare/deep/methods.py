@@ -47,6 +47,11 @@ class MethodModule(Protocol):
         """``(params, observations) -> actions``: the greedy policy of trained parameters."""
         ...
 
+    def scores(self, config: Any, env: Environment) -> Callable[..., jax.Array]:
+        """``(params, observations) -> (batch, n_actions)``: what the greedy policy maximises (Q-values, or the
+        policy's logits)."""
+        ...
+
     def network(self, config: Any, env: Environment) -> nn.Module:
         """The network whose parameters it learns."""
         ...

@@ -26,7 +26,7 @@ from rlcompare.deep.presets.dqn import DQNConfig
 from rlcompare.deep.replay import Transitions
 from rlcompare.validation import POSITIVE, UNIT, Number, Rule, check_fields
 
-__all__ = ["PRESETS", "Config", "act", "make_train", "network"]
+__all__ = ["PRESETS", "Config", "act", "make_train", "network", "scores"]
 
 
 @dataclass(frozen=True)
@@ -77,5 +77,7 @@ def make_train(config: MunchausenConfig, env: Environment, rounds: int, eval_epi
 
 act = dqn.act
 """The greedy policy of the Q-network, DQN's."""
+scores = dqn.scores
+"""The Q-values, DQN's."""
 network = dqn.network
 """The Q-network, DQN's."""

@@ -42,7 +42,7 @@ from rlcompare.validation import COUNT, check, require
 
 Config = PPOConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
-__all__ = ["PRESETS", "Config", "act", "make_train", "network"]
+__all__ = ["PRESETS", "Config", "act", "make_train", "network", "scores"]
 
 
 @jax.tree_util.register_dataclass
@@ -105,16 +105,21 @@ def _observe(config: PPOConfig, params: PolicyParams, observation: jax.Array) ->
     return observation if observation.dtype == jnp.bool_ else observation.astype(jnp.float32)
 
 
-def act(config: PPOConfig, env: Environment) -> Act:
-    """``(params, raw observations) -> greedy actions``: the argmax of the logits (SB3's ``deterministic=True``),
-    observations normalised with the frozen statistics where trained so (the zoo's evaluation)."""
+def scores(config: PPOConfig, env: Environment) -> Callable[[PolicyParams, jax.Array], jax.Array]:
+    """``(params, raw observations) -> (batch, n_actions)`` the policy's logits, observations normalised with the
+    frozen statistics where trained so (the zoo's evaluation)."""
     module: Network = network(config, env)
 
-    def greedy(params: PolicyParams, observation: jax.Array) -> jax.Array:
-        logits = module.apply(params.network, _observe(config, params, observation), method="logits")
-        return jnp.argmax(logits, axis=-1)
+    def logits(params: PolicyParams, observation: jax.Array) -> jax.Array:
+        return jnp.asarray(module.apply(params.network, _observe(config, params, observation), method="logits"))
 
-    return greedy
+    return logits
+
+
+def act(config: PPOConfig, env: Environment) -> Act:
+    """``(params, raw observations) -> greedy actions``: the argmax of the logits (SB3's ``deterministic=True``)."""
+    logits = scores(config, env)
+    return lambda params, observation: jnp.argmax(logits(params, observation), axis=-1)
 
 
 # --- the pieces of the objective ---

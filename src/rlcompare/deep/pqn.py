@@ -61,7 +61,7 @@ Config = PQNConfig
 """The method's settings (:class:`~rlcompare.deep.methods.MethodModule`)."""
 
 __all__ = ["NEXT_ACTIONS", "PRESETS", "TARGETS", "Config", "PQNConfig", "act", "bootstrap_values", "epsilon_greedy",
-           "expected_value", "greedy", "lambda_returns", "make_train", "masked", "network", "sarsa_actions",
+           "expected_value", "greedy", "lambda_returns", "make_train", "masked", "network", "sarsa_actions", "scores",
            "uniform_legal"]
 
 
@@ -109,11 +109,17 @@ def network(config: PQNConfig, env: Environment) -> MLP | ConvNet | NatureCNN:
     return MLP(hidden=config.hidden, outputs=env.n_actions, activation="relu", layer_norm=True, box=box)
 
 
+def scores(config: PQNConfig, env: Environment) -> Callable[..., jax.Array]:
+    """``(params, observations) -> (batch, n_actions)`` Q-values, what the greedy policy maximises."""
+    net: Network = network(config, env)
+    return net.apply
+
+
 def act(config: PQNConfig, env: Environment) -> Callable[..., jax.Array]:
     """The greedy policy: ``(params, observations) -> argmax_a Q``; in a game ``(params, observations, legal)``, the
     best legal move."""
-    net: Network = network(config, env)
-    return lambda params, observations, legal=None: greedy(net.apply(params, observations), legal)
+    values = scores(config, env)
+    return lambda params, observations, legal=None: greedy(values(params, observations), legal)
 
 
 def masked(q: jax.Array, legal: jax.Array | None) -> jax.Array:

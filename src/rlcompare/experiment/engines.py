@@ -59,8 +59,8 @@ class EngineFront(Protocol):
         """One results of runs of one configuration on other seeds (a sweep's trials)."""
         ...
 
-    def agent(self, results: Any, seed: int, stage: str = "final") -> Any:
-        """The greedy agent of one seed, acting in Gymnasium's environment."""
+    def agent(self, results: Any, seed: int, stage: str = "final", env: Any = None) -> Any:
+        """The greedy agent of one seed, acting in Gymnasium's environment (``env``'s actions, where given)."""
         ...
 
     def sweep_config(self, values: dict[str, Any], seeds: tuple[int, ...]) -> Any:
@@ -136,11 +136,12 @@ def load_if_complete(run_dir: Path, config: Any, load: Callable[..., Any] | None
 
 
 def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final", epsilon: float = 0.0,
-               exploration_seed: int = 0) -> Any:
+               exploration_seed: int = 0, env: Any = None) -> Any:
     """The agent of ``seed`` (default: the run's first) at ``stage`` of a finished run directory of any engine,
     ready for ``gymnasium.make`` of the run's environment: ``agent.act(observation) -> action``. Greedy where
     ``epsilon`` is 0; otherwise ε-greedy as an evaluation plays (:class:`EpsilonGreedy`, Mnih et al. 2015's
-    ε = 0.05 on the Atari 2600), its draws from ``exploration_seed``."""
+    ε = 0.05 on the Atari 2600), its draws from ``exploration_seed``. Given ``env`` (a Gymnasium environment), its
+    actions are ``env``'s, checked: an Atari agent plays an ``ALE/<Game>-v5`` on Gymnasium's minimal action set."""
     owner = store.owner_of(Path(run_dir))
     if owner is not None and owner != store.RUN:
         runs = sorted(p.name for p in Path(run_dir).iterdir() if store.owner_of(p) == store.RUN)
@@ -154,15 +155,17 @@ def load_agent(run_dir: Path, seed: int | None = None, stage: str = "final", eps
         raise ConfigError("exploration_seed", exploration_seed, "an integer >= 0")
     results = load_run(Path(run_dir))
     try:
-        greedy = front(results.config).agent(results, results.seeds[0] if seed is None else int(seed), stage)
+        greedy = front(results.config).agent(results, results.seeds[0] if seed is None else int(seed), stage, env)
+    except ConfigError:  # an ``env`` the agent cannot act in
+        raise
     except ValueError as error:  # stored arrays that are not the method's (a run of another version)
         raise store.StoreError(f"{Path(run_dir)}: {error}") from None
     if epsilon == 0:
         return greedy
     if not hasattr(greedy, "act"):
         raise ConfigError("epsilon", epsilon, "0 for an agent that plays chess boards (its move is the greedy one)")
-    return EpsilonGreedy(greedy, float(epsilon), results.config.environment.n_actions,
-                         np.random.default_rng(int(exploration_seed)))
+    n_actions = results.config.environment.n_actions if env is None else int(env.action_space.n)
+    return EpsilonGreedy(greedy, float(epsilon), n_actions, np.random.default_rng(int(exploration_seed)))
 
 
 @dataclass

@@ -104,6 +104,9 @@ class PairedStudy:
     floors: Mapping[str, float] = field(default_factory=dict)
     """Per environment, a published random policy's score (Atari's table), the floor of its normalised scores in
     place of the random policy played in the port (:func:`random_floor`)."""
+    frames_per_step: int = 0
+    """Frames an environment step plays (the Atari 2600's frame skip, 4): where set, curves are drawn against frames,
+    as the protocol counts its budgets (Machado et al. 2018)."""
 
     def floor_of(self, env: str) -> float:
         """The random policy's score on ``env``: published, or played in the port."""

@@ -236,32 +236,39 @@ def draw_across(study: PairedStudy, spread: Across, tables: Path, figures: Path
     ran on two or more environments alike."""
     if len(spread.envs) < 2 or len(spread.scores) < 2:
         return None, {}
+    x, xlabel = spread.x, spread.xlabel
+    if study.frames_per_step and xlabel == "environment steps":
+        x, xlabel = x * study.frames_per_step, "frames"
     aggregates = draw_aggregates(labelled(study, spread.scores), figures, tasks=study.tasks,
-                                 curves=labelled(study, spread.curves), x=spread.x, curve_xlabel=spread.xlabel,
-                                 prefix=study.prefix)
+                                 curves=labelled(study, spread.curves), x=x, curve_xlabel=xlabel, prefix=study.prefix)
     return aggregates, {name: write_table(frame, tables, f"{study.name}_{name}") for name, frame in (
         ("aggregates", aggregates.intervals), ("improvement", aggregates.improvements))}
 
 
-def curves_figure(runs: Mapping[str, DeepResults], env: str, against: str) -> Figure:
-    """Greedy return against environment steps (``steps``) or wall-clock seconds (``seconds``), mean over seeds
-    with a 95% bootstrap band, one line per method."""
+AGAINST = {"steps": "environment steps", "frames": "frames", "seconds": "seconds of training"}
+"""What a curve may be drawn against, and its axis's label."""
+
+
+def curves_figure(runs: Mapping[str, DeepResults], env: str, against: str, frames_per_step: int = 0) -> Figure:
+    """Greedy return against environment steps (``steps``), frames (``frames``: ``frames_per_step`` a step) or
+    wall-clock seconds (``seconds``), mean over seeds with a 95% bootstrap band, one line per method."""
     figure = Figure(figsize=(7, 4.2))
     ax = figure.subplots()
     for results in (r for r in runs.values() if r.config.env == env):
         steps, curves = eval_curves(results)
-        x = steps if against == "steps" else steps * seconds_per_step(results)
+        x = {"steps": steps, "frames": steps * frames_per_step,
+             "seconds": steps * seconds_per_step(results)}[against]
         plot_return_curves(ax, x, {DEEP_METHODS[results.config.algorithm].label: curves}, window=1,
                            ylabel="greedy return")
-    ax.set_xlabel("environment steps" if against == "steps" else "seconds of training")
+    ax.set_xlabel(AGAINST[against])
     ax.set_title(env)
     return figure
 
 
-def curves_drawn(runs: Mapping[str, DeepResults], env: str, against: str, path: Path, words: str
-                 ) -> tuple[str, str]:
+def curves_drawn(runs: Mapping[str, DeepResults], env: str, against: str, path: Path, words: str,
+                 frames_per_step: int = 0) -> tuple[str, str]:
     """:func:`curves_figure` saved at ``path``, and its caption (``words``: what it is drawn against)."""
-    return (save_figure(curves_figure(runs, env, against), path),
+    return (save_figure(curves_figure(runs, env, against, frames_per_step), path),
             f"{env}: greedy return against {words} (mean over seeds, 95% band)")
 
 

@@ -8,7 +8,7 @@ Gymnasium's ``DiscretizeObservation``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,7 @@ from rlcompare.envs.observations import check_box_observation, check_observation
 from rlcompare.envs.registry import Environment
 from rlcompare.envs.tiles import TileCoding, active_tiles_nd
 from rlcompare.tabular.results import Results
+from rlcompare.validation import ConfigError
 
 if TYPE_CHECKING:
     from rlcompare.players.endgame import ChessAgent
@@ -87,12 +88,23 @@ class RandomAgent:
         return int(self.rng.integers(self.n_actions))
 
 
-def agent(results: Results, seed: int, stage: str = "final") -> GreedyAgent | RandomAgent | ChessAgent:
+def check_actions(env: Any, n_actions: int, name: str) -> None:
+    """One line naming ``env`` where its actions are not the ``n_actions`` the agent of ``name`` chooses among."""
+    if is_endgame_name(name):
+        raise ConfigError("env", type(env).__name__, "none for an agent that plays chess boards")
+    if getattr(env.action_space, "n", None) != n_actions:
+        raise ConfigError("env", f"an environment with the action space {env.action_space}",
+                          f"one of {n_actions} actions, as gymnasium.make({name!r}) makes")
+
+
+def agent(results: Results, seed: int, stage: str = "final", env: Any = None) -> GreedyAgent | RandomAgent | ChessAgent:
     """The agent of ``seed`` at ``stage`` of a tabular run, ready for ``gymnasium.make(config.env)``
-    (``MountainCar-v0`` for the book's variant too, whose trajectories are the same); a chess endgame's plays
-    python-chess boards (``agent.move(board)``)."""
+    (``MountainCar-v0`` for the book's variant too, whose trajectories are the same; ``env``, where given, must
+    have its actions); a chess endgame's plays python-chess boards (``agent.move(board)``)."""
     weights = results.q_table(seed, stage)
     c = results.config
+    if env is not None:
+        check_actions(env, weights.shape[1], c.env)
     if is_endgame_name(c.env) and c.algorithm != "random":
         from rlcompare.players.endgame import ChessAgent
 

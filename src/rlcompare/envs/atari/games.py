@@ -97,3 +97,17 @@ def gymnasium_env(name: str, protocol: Protocol = PROTOCOL, **make: Any) -> gym.
                                                 screen_size=protocol.size, terminal_on_life_loss=False,
                                                 grayscale_obs=True, scale_obs=False)
     return gymnasium.wrappers.FrameStackObservation(env, protocol.stack, padding_type="zero")
+
+
+def action_set(env: gym.Env[Any, Any]) -> tuple[int, ...]:
+    """The joystick actions (numbers of :data:`ACTION_NAMES`) that a Gymnasium ALE environment's actions 0, 1, ...
+    press: all 18 in ALE's order (``full_action_space=True``, :func:`gymnasium_env`), or the game's minimal set,
+    Gymnasium's default (Breakout's: no-op, fire, right, left). Read from ALE's names of the environment's own
+    actions (``get_action_meanings``), whatever wrappers it has."""
+    from rlcompare.validation import ConfigError
+
+    unwrapped: Any = env.unwrapped
+    if not hasattr(unwrapped, "ale"):
+        raise ConfigError("env", type(unwrapped).__name__, "an ALE/<Game>-v5 environment of Gymnasium's (ale-py)")
+    number = {action.name: int(action.value) for action in unwrapped.ale.getLegalActionSet()}
+    return tuple(number[meaning] for meaning in unwrapped.get_action_meanings())

@@ -90,7 +90,8 @@ ATARI = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game
                     label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
                     overall_margin=OVERALL_MARGIN, prefix="across-games-",
                     references={name_of(t): g.human for t, g in atari_scores.GAMES.items()},
-                    floors={name_of(t): g.random for t, g in atari_scores.GAMES.items()}, learnt_share=LEARNT)
+                    floors={name_of(t): g.random for t, g in atari_scores.GAMES.items()}, learnt_share=LEARNT,
+                    frames_per_step=atari.PROTOCOL.frameskip)
 """Every game of the 57, each margin a share of its random-to-human range, human-normalised scores over them."""
 
 
@@ -270,7 +271,8 @@ def _build_report(out: Path, videos: bool) -> Report:
     cells, played = video_cells({name: out / name for name in runs}, runs, out / "videos") if videos else ([], None)
     if played is not None:
         files["gymnasium"] = write_table(played, out / "tables", "atari_gymnasium")
-    curve_figures = [curves_drawn(runs, env, "steps", out / "figures" / f"curves-{env}.png", "environment steps")
+    curve_figures = [curves_drawn(runs, env, "frames", out / "figures" / f"curves-{env}.png",
+                                  f"frames ({atari.PROTOCOL.frameskip} an agent step)", atari.PROTOCOL.frameskip)
                      for env in found.envs]
     sections = [
         Section("The answer", lines, figures=answer_figure),
