@@ -16,9 +16,11 @@ import math
 import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 from rlcompare.formatting import cut, quote
+
+T = TypeVar("T")
 
 
 class ConfigError(ValueError):
@@ -231,3 +233,17 @@ def check_fields(config: Any, rules: Mapping[str, Rule]) -> None:
     """Each field of ``config`` named in ``rules`` checked against its rule, in the table's order."""
     for name, rule in rules.items():
         check(name, getattr(config, name), rule)
+
+
+def setting(default: T, rule: Rule) -> T:
+    """A dataclass field holding ``default``, with the ``rule`` it must hold to beside it (:func:`check_settings`)."""
+    return dataclasses.field(default=default, metadata={"rule": rule})
+
+
+def check_settings(config: Any) -> None:
+    """The fields of the frozen dataclass ``config`` made plain (:func:`plain_fields`), then each declared with
+    :func:`setting` checked against its rule, in the fields' order (called first in its ``__post_init__``)."""
+    plain_fields(config)
+    for item in dataclasses.fields(config):
+        if "rule" in item.metadata:
+            check(item.name, getattr(config, item.name), item.metadata["rule"])
