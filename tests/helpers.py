@@ -72,6 +72,27 @@ def command_line(*args: str, columns: int = 200, python: tuple[str, ...] = (), *
                           env=environment, check=False, **options)
 
 
+def assert_each_once(problems: list[str], starts: list[str]) -> None:
+    """Each of ``starts`` begins exactly one of ``problems``, and no problem is left over (a file's problems, all
+    reported at once)."""
+    for begins in starts:
+        assert sum(p.startswith(begins) for p in problems) == 1, (begins, problems)
+    assert len(problems) == len(starts), problems
+
+
+def assert_sweep_refused(directory: Path, text: str, *said: str) -> None:
+    """``rlcompare sweep`` of a file holding ``text`` exits 2 before running anything: its output says each of
+    ``said``, without a traceback, and no study directory is written."""
+    sweep_file = directory / "bad.toml"
+    sweep_file.write_text(text)
+    result = invoke("sweep", str(sweep_file), "--out", str(directory / "out"))
+    assert result.exit_code == 2
+    for words in said:
+        assert words in result.output
+    assert "Traceback" not in result.output
+    assert not (directory / "out").exists()
+
+
 def digests(directory: Path) -> dict[str, str]:
     """Every file under ``directory`` and its SHA-256, by its path relative to ``directory``."""
     return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
