@@ -11,14 +11,14 @@ from rlcompare.envs import minatar
 from rlcompare.envs.atari import games as atari
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     NON_NEGATIVE,
     POSITIVE,
     STEP_SIZE,
     UNIT,
+    WIDTHS,
     Choice,
-    Flag,
     Integer,
-    Widths,
     check_settings,
     require,
     setting,
@@ -40,7 +40,7 @@ class DQNConfig:
     """One DQN or Double DQN training, per seed. Defaults are SB3's ``DQN`` defaults (its MlpPolicy's 64 x 64
     network); frozen and validated on creation."""
 
-    double: bool = setting(False, Flag())
+    double: bool = setting(False, FLAG)
     """Double DQN (van Hasselt et al. 2016): the online network picks the next action, the target network
     values it. False: DQN's max over the target network (Mnih et al. 2015)."""
     n_envs: int = setting(1, COUNT)
@@ -74,12 +74,12 @@ class DQNConfig:
     decay_fraction: float = setting(0.1, STEP_SIZE)
     """Share of ``total_steps`` over which ε goes linearly from start to end (SB3's ``exploration_fraction``),
     in (0, 1]."""
-    decay_after_learning_starts: bool = setting(False, Flag())
+    decay_after_learning_starts: bool = setting(False, FLAG)
     """ε's decay begins once ``learning_starts`` steps are taken (MinAtar's reference); False: at the first step
     (SB3's)."""
     max_grad_norm: float = setting(10.0, NON_NEGATIVE)
     """Gradients are scaled down to this global norm, >= 0; 0: not clipped (MinAtar's reference)."""
-    hidden: tuple[int, ...] = setting((64, 64), Widths())
+    hidden: tuple[int, ...] = setting((64, 64), WIDTHS)
     """Widths of the Q-network's hidden layers (ReLU), each >= 1."""
 
     def __post_init__(self) -> None:

@@ -10,13 +10,13 @@ from rlcompare.envs import minatar
 from rlcompare.envs.atari import games as atari
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     NON_NEGATIVE,
     POSITIVE,
     STEP_SIZE,
     UNIT,
+    WIDTHS,
     Choice,
-    Flag,
-    Widths,
     check_settings,
     require,
     setting,
@@ -48,7 +48,7 @@ class PPOConfig:
     """Passes over each update's transitions, each in a fresh random order."""
     learning_rate: float = setting(3e-4, POSITIVE)
     """Adam's step size (at the start, where ``anneal_lr``)."""
-    anneal_lr: bool = setting(False, Flag())
+    anneal_lr: bool = setting(False, FLAG)
     """Decay the learning rate linearly to 0 over training (the zoo's ``lin_``)."""
     gamma: float = setting(0.99, STEP_SIZE)
     """Discount factor."""
@@ -56,7 +56,7 @@ class PPOConfig:
     """GAE's λ (Schulman et al. 2016)."""
     clip_range: float = setting(0.2, POSITIVE)
     """The surrogate's ε: the probability ratio is clipped to [1 - ε, 1 + ε] (at the start, where annealed)."""
-    anneal_clip_range: bool = setting(False, Flag())
+    anneal_clip_range: bool = setting(False, FLAG)
     """Decay ``clip_range`` linearly to 0 over training (the zoo's ``lin_``)."""
     ent_coef: float = setting(0.0, NON_NEGATIVE)
     """Weight of the entropy bonus in the loss."""
@@ -64,14 +64,14 @@ class PPOConfig:
     """Weight of the value loss in the loss."""
     max_grad_norm: float = setting(0.5, POSITIVE)
     """The gradient's global norm is clipped to this."""
-    normalize_advantage: bool = setting(True, Flag())
+    normalize_advantage: bool = setting(True, FLAG)
     """Normalise the advantages within each minibatch (to zero mean, unit sample standard deviation)."""
-    normalize_observations: bool = setting(False, Flag())
+    normalize_observations: bool = setting(False, FLAG)
     """Normalise observations by running mean and variance, clipped to ±10 (``VecNormalize(norm_obs=True)``)."""
-    normalize_rewards: bool = setting(False, Flag())
+    normalize_rewards: bool = setting(False, FLAG)
     """Divide rewards by the running standard deviation of the discounted return, clipped to ±10
     (``VecNormalize(norm_reward=True)``)."""
-    hidden: tuple[int, ...] = setting((64, 64), Widths())
+    hidden: tuple[int, ...] = setting((64, 64), WIDTHS)
     """Widths of the hidden layers of each of the two networks, actor and critic (SB3's ``net_arch``)."""
     activation: str = setting("tanh", Choice(tuple(ACTIVATIONS)))
     """Hidden activation: ``tanh`` (SB3's default) or ``relu``; also after the convolution, for images."""

@@ -12,12 +12,12 @@ from rlcompare.envs.atari import games as atari
 from rlcompare.envs.chess import games as chess_games
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     POSITIVE,
     STEP_SIZE,
     UNIT,
+    WIDTHS,
     Choice,
-    Flag,
-    Widths,
     check_settings,
     require,
     setting,
@@ -54,7 +54,7 @@ class PQNConfig:
     """Minibatches per pass."""
     learning_rate: float = setting(1e-4, POSITIVE)
     """RAdam's step size."""
-    anneal_lr: bool = setting(True, Flag())
+    anneal_lr: bool = setting(True, FLAG)
     """Decay the step size linearly to zero over the training."""
     max_grad_norm: float = setting(10.0, POSITIVE)
     """Gradients clipped to this global norm."""
@@ -66,13 +66,13 @@ class PQNConfig:
     """Fraction of the updates over which ε decays linearly."""
     reward_scale: float = setting(0.1, POSITIVE)
     """Rewards are multiplied by this in the return (the recorded returns are the environment's own)."""
-    hidden: tuple[int, ...] = setting((128, 128), Widths())
+    hidden: tuple[int, ...] = setting((128, 128), WIDTHS)
     """Widths of the hidden layers, each followed by LayerNorm and ReLU."""
     next_action: str = setting(BEFORE_UPDATE, Choice(NEXT_ACTIONS))
     """When the action after a rollout's last step is drawn: ``before_update`` (Algorithm 2's order: the one the
     return bootstraps from is taken next) or ``after_update`` (Algorithm 1's: drawn again from the updated
     network)."""
-    scale_observations: bool = setting(False, Flag())
+    scale_observations: bool = setting(False, FLAG)
     """Map a bounded observation box onto [-1, 1] before the network (Mountain Car's velocity spans ±0.07)."""
 
     def __post_init__(self) -> None:
