@@ -1,9 +1,15 @@
-"""Agents played in Gymnasium's own environments, to compare with what the kernels recorded."""
+"""Agents played in Gymnasium's own environments, to compare with what the kernels recorded; Gymnasium's resets
+beside a port's."""
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Iterator
+
 import gymnasium as gym
 import numpy as np
+
+from rlcompare.rng import stream_state
 
 
 def gymnasium_returns(agent, stream: np.random.SeedSequence, episodes: int, *, env_id: str = "MountainCar-v0",
@@ -22,3 +28,18 @@ def gymnasium_returns(agent, stream: np.random.SeedSequence, episodes: int, *, e
         returns.append(total)
     env.close()
     return returns
+
+
+def resets(env: gym.Env, generator: np.random.Generator, every: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Gymnasium's resets of ``env``, one an episode, each with the stream a port's ``reset`` is given beside it:
+    a fresh seed drawn from ``generator`` every ``every``-th episode (the first included), plain resets in between,
+    which draw on from the seed's stream as the port's do. Yields ``(observation, stream)``."""
+    stream = None
+    for episode in itertools.count():
+        if episode % every == 0:
+            seed = int(generator.integers(2**31))
+            observation, _ = env.reset(seed=seed)
+            stream = stream_state(seed)
+        else:
+            observation, _ = env.reset()
+        yield observation, stream

@@ -22,8 +22,20 @@ from typer.testing import CliRunner
 
 from rlcompare.experiment import rundir
 from rlcompare.experiment.engines import load_run
+from rlcompare.rng import stream_state
 from rlcompare.tabular.results import Results
-from rlcompare.tabular.state import Records
+from rlcompare.tabular.state import (
+    AGENT_STREAM,
+    ENV_STREAM,
+    EVAL_AGENT_STREAM,
+    EVAL_ENV_STREAM,
+    EVAL_TRANSITION_STREAM,
+    STREAMS,
+    TRANSITION_STREAM,
+    Records,
+    RunState,
+    allocate_records,
+)
 
 
 def invoke(*args: str, columns: int | None = 200, **options: Any) -> Result:
@@ -70,6 +82,47 @@ def command_line(*args: str, columns: int = 200, python: tuple[str, ...] = (), *
     environment = {**os.environ, "COLUMNS": str(columns), **options.pop("env", {})}
     return subprocess.run([sys.executable, *python, "-m", "rlcompare.cli", *args], capture_output=True, text=True,
                           env=environment, check=False, **options)
+
+
+def assert_each_once(problems: list[str], starts: list[str]) -> None:
+    """Each of ``starts`` begins exactly one of ``problems``, and no problem is left over (a file's problems, all
+    reported at once)."""
+    for begins in starts:
+        assert sum(p.startswith(begins) for p in problems) == 1, (begins, problems)
+    assert len(problems) == len(starts), problems
+
+
+def assert_sweep_refused(directory: Path, text: str, *said: str) -> None:
+    """``rlcompare sweep`` of a file holding ``text`` exits 2 before running anything: its output says each of
+    ``said``, without a traceback, and no study directory is written."""
+    sweep_file = directory / "bad.toml"
+    sweep_file.write_text(text)
+    result = invoke("sweep", str(sweep_file), "--out", str(directory / "out"))
+    assert result.exit_code == 2
+    for words in said:
+        assert words in result.output
+    assert "Traceback" not in result.output
+    assert not (directory / "out").exists()
+
+
+def one_episode(rule: Any, settings: Any, table_env: Any, features: Any, w: np.ndarray, w2: np.ndarray,
+                epsilon: float, agent_rng: np.ndarray, env_rng: np.ndarray | None = None,
+                transitions: np.ndarray | None = None) -> tuple[RunState, Records]:
+    """One training episode of one run through the engine's ``train_block`` (its choice of the loop by the rule's
+    type, and its snapshot, included): the weights ``w`` and ``w2`` and the streams given (the environment's and
+    the transitions' by default from seeds 1000 and 2000, the evaluation's from 1001 to 1003, unused: no
+    evaluation round). The state and the records it left."""
+    from rlcompare.tabular.runs import train_block  # compiled code: only where a test trains
+
+    rng = np.empty((1, STREAMS, 4), np.uint64)
+    for stream, given, seed in ((ENV_STREAM, env_rng, 1000), (AGENT_STREAM, agent_rng, 0),
+                                (TRANSITION_STREAM, transitions, 2000), (EVAL_ENV_STREAM, None, 1001),
+                                (EVAL_AGENT_STREAM, None, 1002), (EVAL_TRANSITION_STREAM, None, 1003)):
+        rng[0, stream] = stream_state(seed) if given is None else given
+    state = RunState(w=w[None].copy(), w2=w2[None].copy(), rng=rng)
+    records = allocate_records(1, 1, 0, 1, np.array([1], np.int64), w.shape)
+    train_block(0, 1, rule, settings, table_env, features, state, np.array([epsilon]), 0, 1, records)
+    return state, records
 
 
 def digests(directory: Path) -> dict[str, str]:

@@ -2,23 +2,27 @@
 method's hyperparameters, a sweep file and a study's options.
 
 One error, :class:`ConfigError`, names the field, quotes the value and says what is allowed. One rule each for
-an integer, a finite number, a flag and a choice, written once (:class:`Integer`, :class:`Number`, :class:`Flag`,
-:class:`Choice`), and every config checks its fields against a table of them (:func:`check_fields`). NumPy's
-scalars count as the Python values they hold (``np.int64(3)`` is an integer, ``np.float32(0.5)`` a number, and
-``np.bool_(True)`` a flag), known by the abstract numbers they register as (:mod:`numbers`), so that checking a
-setting imports no NumPy; a bool is never a number.
+an integer, a finite number, a flag and a choice, written once (:class:`Integer`, :class:`Number`, :data:`FLAG`,
+:class:`Choice`), and every config declares each field's rule beside it (:func:`setting`) or checks its fields
+against a table of them (:func:`check_fields`). NumPy's scalars count as the Python values they hold
+(``np.int64(3)`` is an integer, ``np.float32(0.5)`` a number, and ``np.bool_(True)`` a flag), known by the
+abstract numbers they register as (:mod:`numbers`), so that checking a setting imports no NumPy; a bool is never
+a number.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 from rlcompare.formatting import cut, quote
+
+T = TypeVar("T")
 
 
 class ConfigError(ValueError):
@@ -149,18 +153,6 @@ class Number:
 
 
 @dataclass(frozen=True)
-class Flag:
-    """True or false."""
-
-    @property
-    def allowed(self) -> str:
-        return "true or false"
-
-    def holds(self, value: Any) -> bool:
-        return is_flag(value)
-
-
-@dataclass(frozen=True)
 class Choice:
     """One of ``values``."""
 
@@ -178,15 +170,11 @@ class Choice:
 
 
 @dataclass(frozen=True)
-class Widths:
-    """A tuple of layer widths, each an integer >= 1, at least one."""
+class Predicate:
+    """A rule that is a test and the words that say what passes it (:data:`FLAG`, :data:`WIDTHS`)."""
 
-    @property
-    def allowed(self) -> str:
-        return "a tuple of layer widths, each an integer >= 1"
-
-    def holds(self, value: Any) -> bool:
-        return isinstance(value, tuple) and len(value) >= 1 and all(Integer(1).holds(width) for width in value)
+    allowed: str
+    holds: Callable[[Any], bool]
 
 
 UNIT = Number(0.0, 1.0)
@@ -199,6 +187,15 @@ NON_NEGATIVE = Number(0.0)
 """A finite number >= 0."""
 COUNT = Integer(1)
 """An integer >= 1."""
+FLAG = Predicate("true or false", is_flag)
+
+
+def _are_widths(value: Any) -> bool:
+    return isinstance(value, tuple) and len(value) >= 1 and all(COUNT.holds(width) for width in value)
+
+
+WIDTHS = Predicate("a tuple of layer widths, each an integer >= 1", _are_widths)
+"""A network's hidden layers: at least one, each an integer >= 1."""
 
 
 SEEDS_ALLOWED = "distinct integers in [0, 2**63), at least one"
@@ -231,3 +228,25 @@ def check_fields(config: Any, rules: Mapping[str, Rule]) -> None:
     """Each field of ``config`` named in ``rules`` checked against its rule, in the table's order."""
     for name, rule in rules.items():
         check(name, getattr(config, name), rule)
+
+
+def setting(default: T, rule: Rule) -> T:
+    """A dataclass field holding ``default``, with the ``rule`` it must hold to beside it (:func:`check_settings`)."""
+    return dataclasses.field(default=default, metadata={"rule": rule})
+
+
+def check_settings(config: Any) -> None:
+    """The fields of the frozen dataclass ``config`` made plain (:func:`plain_fields`), then each declared with
+    :func:`setting` checked against its rule, in the fields' order (called first in its ``__post_init__``)."""
+    plain_fields(config)
+    check_fields(config, field_rules(config))
+
+
+def field_rules(config: Any) -> dict[str, Rule]:
+    """The rule of each field of the dataclass ``config`` declared with :func:`setting`, in the fields' order."""
+    return _rules_of(config.__class__)
+
+
+@functools.cache
+def _rules_of(cls: type) -> dict[str, Rule]:
+    return {item.name: item.metadata["rule"] for item in dataclasses.fields(cls) if "rule" in item.metadata}

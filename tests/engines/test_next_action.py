@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import one_episode
 
 from rlcompare import ConfigError, ExperimentConfig, run
 from rlcompare.algorithms.registry import METHODS
@@ -24,16 +25,9 @@ from rlcompare.envs.features import OneHot, make_features
 from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import chain
 from rlcompare.rng import stream_state
-from rlcompare.tabular.runs import train_block, train_runs
+from rlcompare.tabular.runs import train_runs
 from rlcompare.tabular.state import (
     AGENT_STREAM,
-    ENV_STREAM,
-    EVAL_AGENT_STREAM,
-    EVAL_ENV_STREAM,
-    EVAL_TRANSITION_STREAM,
-    STREAMS,
-    TRANSITION_STREAM,
-    RunState,
     Settings,
     allocate_records,
     initial_state,
@@ -57,15 +51,10 @@ def _chain_episode(algorithm: str, before: bool, seed: int = 0, w2=None):
     """One training episode of one run on ``chain(2)`` through the engine's ``train_block`` (its choice of the
     loop by the rule's type included; compiled once and cached on disk, as test_algorithms_beyond_paper.py's
     episodes are): the weights, steps, visits and agent stream it left."""
-    rng = np.empty((1, STREAMS, 4), np.uint64)
-    for stream, stream_seed in ((ENV_STREAM, 1000), (AGENT_STREAM, seed), (TRANSITION_STREAM, 2000),
-                                (EVAL_ENV_STREAM, 1001), (EVAL_AGENT_STREAM, 1002), (EVAL_TRANSITION_STREAM, 1003)):
-        rng[0, stream] = stream_state(stream_seed)
     w = np.array(W0)
     w2 = np.zeros_like(w) if w2 is None else np.array(w2)
-    state = RunState(w=w[None].copy(), w2=w2[None].copy(), rng=rng)
-    records = allocate_records(1, 1, 0, 1, np.array([1], np.int64), w.shape)
-    train_block(0, 1, _rule(algorithm, before), SETTINGS, chain(2), OneHot(2), state, np.array([0.0]), 0, 1, records)
+    state, records = one_episode(_rule(algorithm, before), SETTINGS, chain(2), OneHot(2), w, w2, 0.0,
+                                 stream_state(seed))
     assert (records.returns[0, 0], records.terminated[0, 0]) == (1.0, True)
     return state.w[0], state.w2[0], int(records.lengths[0, 0]), records.visits[0], state.rng[0, AGENT_STREAM]
 

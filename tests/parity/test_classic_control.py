@@ -7,11 +7,10 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium_play import gymnasium_returns
+from gymnasium_play import gymnasium_returns, resets
 
 from rlcompare import ExperimentConfig, load_agent, run
 from rlcompare.envs import acrobot, cartpole
-from rlcompare.rng import stream_state
 
 ROLLOUT_STEPS = 60_000
 ENVS = {cartpole: cartpole.CartPole(), acrobot: acrobot.Acrobot()}
@@ -54,15 +53,10 @@ def test_transitions_equal_gymnasium(port, policy) -> None:
     env = gym.make(port.ENV_ID, max_episode_steps=limit)
     ours = ENVS[port]
     generator = np.random.default_rng(7)
-    rng = None
-    total = episodes = terminations = truncations = 0
-    while total < ROLLOUT_STEPS:
-        if episodes % 3 == 0:
-            seed = int(generator.integers(2**31))
-            observation, _ = env.reset(seed=seed)
-            rng = stream_state(seed)
-        else:
-            observation, _ = env.reset()
+    total = terminations = truncations = 0
+    for episodes, (observation, rng) in enumerate(resets(env, generator, every=3)):
+        if total >= ROLLOUT_STEPS:
+            break
         state = port.reset(ours, rng)
         assert len(state) == port.STATE_SIZE
         assert state == _gym_state(env)
@@ -80,7 +74,6 @@ def test_transitions_equal_gymnasium(port, policy) -> None:
                 terminations += terminated
                 truncations += truncated
                 break
-        episodes += 1
     assert terminations > 30
     assert truncations > 3
     np.testing.assert_array_equal(NO_DRAWS, 0)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium_play import resets
 
 from rlcompare.envs import mountain_car
 from rlcompare.rng import stream_state
@@ -42,15 +43,10 @@ def test_transitions_equal_gymnasium(env):
     """At least 100,000 steps: every state, reward, termination and truncation equal (``==``)."""
     generator = np.random.default_rng(2024)
     kinds = ("random", "bang_bang", "noisy")
-    total = episodes = wall_hits = terminations = truncations = 0
-    rng_state = None
-    while total < TOTAL_STEPS:
-        if episodes % 4 == 0:  # a fresh seed now and then, plain resets in between
-            seed = int(generator.integers(2**31))
-            observation, _ = env.reset(seed=seed)
-            rng_state = stream_state(seed)
-        else:
-            observation, _ = env.reset()
+    total = wall_hits = terminations = truncations = 0
+    for episodes, (observation, rng_state) in enumerate(resets(env, generator, every=4)):
+        if total >= TOTAL_STEPS:
+            break
         state = mountain_car.reset(ENV, rng_state)
         assert state == _gym_state(env)
         _assert_observation(observation, state)
@@ -73,7 +69,6 @@ def test_transitions_equal_gymnasium(env):
                 terminations += terminated
                 truncations += truncated
                 break
-        episodes += 1
     # The coverage is real: the goal, the left wall and the time limit were all reached many times.
     assert total >= TOTAL_STEPS
     assert terminations > 20

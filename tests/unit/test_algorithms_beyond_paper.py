@@ -24,6 +24,7 @@ import math
 import numba
 import numpy as np
 import pytest
+from helpers import one_episode
 
 from rlcompare import ConfigError, ExperimentConfig, run
 from rlcompare.algorithms import td, traces
@@ -40,14 +41,12 @@ from rlcompare.envs.registry import environment, make_env
 from rlcompare.envs.table import TableEnv, chain, two_armed_bandit
 from rlcompare.rng import next_double, stream_state
 from rlcompare.tabular import loops
-from rlcompare.tabular.runs import train_block, train_runs
+from rlcompare.tabular.runs import train_runs
 from rlcompare.tabular.state import (
     AGENT_STREAM,
     ENV_STREAM,
     EVAL_AGENT_STREAM,
     EVAL_ENV_STREAM,
-    EVAL_TRANSITION_STREAM,
-    STREAMS,
     TRANSITION_STREAM,
     Records,
     RunState,
@@ -154,15 +153,8 @@ class Episode:
         self.ret, self.steps, self.terminated = float(out[0]), int(out[1]), bool(out[2])
 
     def _train_block(self, rule, settings, table_env, features, epsilon):
-        rng = np.empty((1, STREAMS, 4), np.uint64)
-        rng[0, ENV_STREAM], rng[0, AGENT_STREAM], rng[0, TRANSITION_STREAM] = (self.env_rng, self.agent_rng,
-                                                                                self.transitions)
-        for stream, seed in ((EVAL_ENV_STREAM, ENV_SEED + 1), (EVAL_AGENT_STREAM, ENV_SEED + 2),
-                             (EVAL_TRANSITION_STREAM, ENV_SEED + 3)):
-            rng[0, stream] = stream_state(seed)
-        state = RunState(w=self.w[None].copy(), w2=self.w2[None].copy(), rng=rng)
-        records = allocate_records(1, 1, 0, 1, np.array([1], np.int64), self.w.shape)
-        train_block(0, 1, rule, settings, table_env, features, state, np.array([epsilon]), 0, 1, records)
+        state, records = one_episode(rule, settings, table_env, features, self.w, self.w2, epsilon, self.agent_rng,
+                                     self.env_rng, self.transitions)
         self.w, self.w2 = state.w[0], state.w2[0]
         self.env_rng, self.agent_rng, self.transitions = (state.rng[0, ENV_STREAM], state.rng[0, AGENT_STREAM],
                                                           state.rng[0, TRANSITION_STREAM])

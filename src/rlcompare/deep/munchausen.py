@@ -24,7 +24,7 @@ from rlcompare.deep.envs import Environment
 from rlcompare.deep.presets import dqn as dqn_config
 from rlcompare.deep.presets.dqn import DQNConfig
 from rlcompare.deep.replay import Transitions
-from rlcompare.validation import POSITIVE, UNIT, Number, Rule, check_fields
+from rlcompare.validation import POSITIVE, UNIT, Number, setting
 
 __all__ = ["PRESETS", "Config", "act", "make_train", "network", "scores"]
 
@@ -33,20 +33,13 @@ __all__ = ["PRESETS", "Config", "act", "make_train", "network", "scores"]
 class MunchausenConfig(DQNConfig):
     """DQN's settings and the three of the Munchausen target."""
 
-    tau: float = 0.03
+    tau: float = setting(0.03, POSITIVE)
     """τ, the temperature of the policy the target reads: π = softmax(q̄ / τ), > 0."""
-    scale: float = 0.9
+    scale: float = setting(0.9, UNIT)
     """α, the weight of the Munchausen term α τ ln π(a|s), in [0, 1]; 0 leaves soft DQN."""
-    log_floor: float = -1.0
+    log_floor: float = setting(-1.0, Number(high=0.0, high_open=True))
     """l0: ln π(a|s) is clipped to [l0, 0] in the Munchausen term, a finite number < 0."""
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_fields(self, RULES)
-
-
-RULES: dict[str, Rule] = {"tau": POSITIVE, "scale": UNIT, "log_floor": Number(high=0.0, high_open=True)}
-"""What each of its own settings may hold (:mod:`rlcompare.validation`)."""
 
 PRESETS = {preset: {env: MunchausenConfig(**dataclasses.asdict(settings)) for env, settings in table.items()}
            for preset, table in dqn_config.PRESETS.items()}

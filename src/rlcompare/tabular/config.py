@@ -26,15 +26,17 @@ from rlcompare.envs.registry import ENDGAMES, PORTS, TABLE_ENVIRONMENTS, Environ
 from rlcompare.formatting import cut
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     STEP_SIZE,
     UNIT,
     ConfigError,
-    Flag,
     Integer,
     check_fields,
+    field_rules,
     is_integer,
     plain,
     require,
+    setting,
 )
 
 ENVIRONMENTS = (*PORTS, *TABLE_ENVIRONMENTS, *ENDGAMES)
@@ -43,6 +45,8 @@ MAX_WEIGHT_BYTES = 4 * 2**30
 """Weights, second estimates and snapshots of all seeds together may take at most this much memory."""
 MAX_COUNT = 2**31 - 1
 """The largest episode count, step limit or layout size: the kernels count in 32 bits."""
+KERNEL_COUNT = Integer(1, MAX_COUNT)
+"""The rule of a count field."""
 FLOAT_FIELDS = ("alpha", "gamma", "epsilon", "epsilon_start", "epsilon_end", "decay_fraction", "lam",
                 "baseline_alpha", "target_epsilon")
 """Fields holding a number, kept as floats so that ``1`` and ``1.0`` are one configuration (one hash)."""
@@ -81,15 +85,15 @@ class ExperimentConfig:
     port exists: to check a port against Gymnasium, which gives the same results bit for bit."""
     features: str = "grid"
     """``grid``: one cell of ``bins`` per dimension (the paper); ``tiles``: tile coding (9.5.4)."""
-    tilings: int = 8
+    tilings: int = setting(8, KERNEL_COUNT)
     """Tilings of the tile coder, >= 1."""
-    tiles: int = 8
+    tiles: int = setting(8, KERNEL_COUNT)
     """Tiles per dimension in each tiling, >= 1."""
     hash_size: int = 0
     """Hash the tiles into this many features; 0: no hashing."""
-    n: int = 4
+    n: int = setting(4, KERNEL_COUNT)
     """n of n-step SARSA, >= 1."""
-    lam: float = 0.9
+    lam: float = setting(0.9, UNIT)
     """λ of SARSA(λ) and Q(λ), in [0, 1]."""
     trace: str = "replacing"
     """Eligibility traces: ``replacing`` or ``accumulating``."""
@@ -101,19 +105,19 @@ class ExperimentConfig:
     bootstraps on, before ``Q(S, A)`` moves: SARSA's box, Algorithm 2) or ``after_update`` (from the updated
     values: Q-Learning's box, Algorithm 1). None: the method's own box (:attr:`drawn_next`). Only the
     one-step learners have it (:attr:`rlcompare.algorithms.registry.Method.one_step`; ``docs/why.md``)."""
-    baseline_alpha: float = 0.01
+    baseline_alpha: float = setting(0.01, STEP_SIZE)
     """Step size of REINFORCE's state-value baseline (``reinforce_baseline``), in (0, 1]."""
-    alpha: float = 0.05
+    alpha: float = setting(0.05, STEP_SIZE)
     """Step size α, in (0, 1]."""
-    gamma: float = 0.9
+    gamma: float = setting(0.9, UNIT)
     """Discount γ, in [0, 1]."""
-    epsilon: float = 0.5
+    epsilon: float = setting(0.5, UNIT)
     """ε of the ``constant`` schedule, in [0, 1]."""
-    epsilon_start: float = 1.0
+    epsilon_start: float = setting(1.0, UNIT)
     """ε at the first episode of the ``decay`` schedule, in [0, 1]."""
-    epsilon_end: float = 0.0
+    epsilon_end: float = setting(0.0, UNIT)
     """ε once the ``decay`` schedule has run its course, in [0, 1]."""
-    decay_fraction: float = 0.5
+    decay_fraction: float = setting(0.5, STEP_SIZE)
     """Share of the episodes over which ``decay`` goes from start to end, in (0, 1]."""
     bins: int | tuple[int, ...] | None = None
     """Cells per observation dimension of the uniform grid (``DiscretizeObservation(env, bins)``), >= 1; one
@@ -122,9 +126,9 @@ class ExperimentConfig:
     bounds: tuple[tuple[float, float], ...] | None = None
     """``(low, high)`` per observation dimension for the grid and the tiles; None: the environment's
     defaults (its observation box, with chosen bounds where the box is unbounded: ``docs/environments.md``)."""
-    episodes: int = 5000
+    episodes: int = setting(5000, KERNEL_COUNT)
     """Training episodes per seed, >= 1."""
-    max_steps: int | None = None
+    max_steps: int | None = setting(None, KERNEL_COUNT)
     """Episode limit; reaching it truncates the episode, >= 1. None: the environment's default (the paper's
     1000 moves for Mountain Car, Gymnasium's registered limit for the others)."""
     truncation_as_terminal: bool = False
@@ -133,7 +137,7 @@ class ExperimentConfig:
     """One run per seed; seed ``s`` draws the start states of ``env.reset(seed=s)``."""
     eval_every: int = 50
     """Evaluate the greedy policy after every this many episodes; 0 turns evaluation off."""
-    eval_episodes: int = 10
+    eval_episodes: int = setting(10, KERNEL_COUNT)
     """Episodes per evaluation, >= 1."""
     stages: tuple[tuple[str, float], ...] = field(default=DEFAULT_STAGES)
     """Named stages of learning, as shares of the episodes, at which the Q-table is kept."""
@@ -291,13 +295,6 @@ def _as_floats(c: ExperimentConfig) -> dict[str, float]:
     return {name: float(getattr(c, name)) for name in FLOAT_FIELDS if is_integer(getattr(c, name))}
 
 
-RATES = {"alpha": STEP_SIZE, "gamma": UNIT, "epsilon": UNIT, "epsilon_start": UNIT, "epsilon_end": UNIT,
-         "decay_fraction": STEP_SIZE, "lam": UNIT, "baseline_alpha": STEP_SIZE}
-"""The rule of each number field (:mod:`rlcompare.validation`)."""
-COUNTS = {name: Integer(1, MAX_COUNT) for name in ("episodes", "max_steps", "eval_episodes", "n", "tilings", "tiles")}
-"""The rule of each count field: the kernels count in 32 bits."""
-
-
 def _check_choices(c: ExperimentConfig) -> None:
     require(c.algorithm in ALGORITHMS, "algorithm", c.algorithm, ", ".join(ALGORITHMS))
     require(c.schedule in SCHEDULES, "schedule", c.schedule, ", ".join(SCHEDULES))
@@ -305,7 +302,7 @@ def _check_choices(c: ExperimentConfig) -> None:
             + ", or a registered Gymnasium environment id")
     require(c.features in FEATURES, "features", c.features, ", ".join(FEATURES))
     require(c.trace in TRACES, "trace", c.trace, ", ".join(TRACES))
-    check_fields(c, {"adapter": Flag(), "truncation_as_terminal": Flag()})
+    check_fields(c, {"adapter": FLAG, "truncation_as_terminal": FLAG})
     if c.algorithm in NEXT_ACTION_DEFAULTS:
         require(c.next_action in (None, BEFORE_UPDATE, AFTER_UPDATE), "next_action", c.next_action,
                 f"{BEFORE_UPDATE}, {AFTER_UPDATE}, or none for {c.algorithm}'s own box")
@@ -314,14 +311,12 @@ def _check_choices(c: ExperimentConfig) -> None:
                 f"{', '.join(NEXT_ACTION_DEFAULTS)} choose when to draw the next action)")
 
 
-def _check_rates(c: ExperimentConfig) -> None:
-    check_fields(c, RATES)
+def _check_numbers(c: ExperimentConfig) -> None:
+    """The fields declared with their rules (once the environment's defaults are filled in), then
+    ``target_epsilon``, ``hash_size``, ``eval_every`` and the seeds."""
+    check_fields(c, field_rules(c))
     require(c.target_epsilon is None or UNIT.holds(c.target_epsilon), "target_epsilon", c.target_epsilon,
             f"none, or {UNIT.allowed}")
-
-
-def _check_counts(c: ExperimentConfig) -> None:
-    check_fields(c, COUNTS)
     for name, meaning in (("hash_size", "0: no hashing"), ("eval_every", "0: no evaluation")):
         rule = Integer(0, MAX_COUNT)
         require(rule.holds(getattr(c, name)), name, getattr(c, name), f"{rule.allowed} ({meaning})")
@@ -385,4 +380,4 @@ def _check_tiles(c: ExperimentConfig) -> None:
                           f"a layout that fits the bounds ({error})") from None
 
 
-_CHECKS = (_check_rates, _check_counts, _check_stages, _check_grid, _check_tiles)
+_CHECKS = (_check_numbers, _check_stages, _check_grid, _check_tiles)

@@ -11,18 +11,17 @@ from rlcompare.envs import minatar
 from rlcompare.envs.atari import games as atari
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     NON_NEGATIVE,
     POSITIVE,
     STEP_SIZE,
     UNIT,
+    WIDTHS,
     Choice,
-    Flag,
     Integer,
-    Rule,
-    Widths,
-    check_fields,
-    plain_fields,
+    check_settings,
     require,
+    setting,
 )
 
 OPTIMIZERS = ("adam", "rmsprop")
@@ -41,51 +40,50 @@ class DQNConfig:
     """One DQN or Double DQN training, per seed. Defaults are SB3's ``DQN`` defaults (its MlpPolicy's 64 x 64
     network); frozen and validated on creation."""
 
-    double: bool = False
+    double: bool = setting(False, FLAG)
     """Double DQN (van Hasselt et al. 2016): the online network picks the next action, the target network
     values it. False: DQN's max over the target network (Mnih et al. 2015)."""
-    n_envs: int = 1
+    n_envs: int = setting(1, COUNT)
     """Environments stepped side by side, >= 1; each environment step counts ``n_envs`` steps."""
-    total_steps: int = 1_000_000
+    total_steps: int = setting(1_000_000, COUNT)
     """Environment steps of the training (over all environments; the zoo's ``n_timesteps``), >= 1. The
     exploration schedule spans it; the training runs whole updates, so it may take a little more."""
-    learning_rate: float = 1e-4
+    learning_rate: float = setting(1e-4, POSITIVE)
     """The optimizer's step size, > 0."""
-    optimizer: str = "adam"
+    optimizer: str = setting("adam", Choice(OPTIMIZERS))
     """``adam`` (SB3's) or ``rmsprop`` (MinAtar's centered RMSProp, :data:`OPTIMIZERS`)."""
-    buffer_size: int = 1_000_000
+    buffer_size: int = setting(1_000_000, COUNT)
     """Transitions the replay buffer holds (over all environments), >= ``n_envs``; the oldest go first."""
-    learning_starts: int = 100
+    learning_starts: int = setting(100, Integer(0))
     """Environment steps of uniformly random actions before learning; training starts once more are stored."""
-    batch_size: int = 32
+    batch_size: int = setting(32, COUNT)
     """Transitions per gradient step, drawn uniformly (with replacement) from the buffer, >= 1."""
-    gamma: float = 0.99
+    gamma: float = setting(0.99, UNIT)
     """Discount γ, in [0, 1]."""
-    train_freq: int = 4
+    train_freq: int = setting(4, COUNT)
     """Steps of every environment collected between two trainings, >= 1."""
-    gradient_steps: int = 1
+    gradient_steps: int = setting(1, COUNT)
     """Gradient steps per training, >= 1 (SB3's ``-1`` is ``train_freq * n_envs``)."""
-    target_update_interval: int = 10_000
+    target_update_interval: int = setting(10_000, COUNT)
     """Environment steps between copies of the online network into the target network, >= 1 (with several
     environments, SB3's ``max(target_update_interval // n_envs, 1)`` steps of all of them)."""
-    epsilon_start: float = 1.0
+    epsilon_start: float = setting(1.0, UNIT)
     """ε of the ε-greedy exploration at the start (SB3's ``exploration_initial_eps``), in [0, 1]."""
-    epsilon_end: float = 0.05
+    epsilon_end: float = setting(0.05, UNIT)
     """ε once the decay has run its course (SB3's ``exploration_final_eps``), in [0, 1]."""
-    decay_fraction: float = 0.1
+    decay_fraction: float = setting(0.1, STEP_SIZE)
     """Share of ``total_steps`` over which ε goes linearly from start to end (SB3's ``exploration_fraction``),
     in (0, 1]."""
-    decay_after_learning_starts: bool = False
+    decay_after_learning_starts: bool = setting(False, FLAG)
     """ε's decay begins once ``learning_starts`` steps are taken (MinAtar's reference); False: at the first step
     (SB3's)."""
-    max_grad_norm: float = 10.0
+    max_grad_norm: float = setting(10.0, NON_NEGATIVE)
     """Gradients are scaled down to this global norm, >= 0; 0: not clipped (MinAtar's reference)."""
-    hidden: tuple[int, ...] = (64, 64)
+    hidden: tuple[int, ...] = setting((64, 64), WIDTHS)
     """Widths of the Q-network's hidden layers (ReLU), each >= 1."""
 
     def __post_init__(self) -> None:
-        plain_fields(self)
-        check_fields(self, RULES)
+        check_settings(self)
         require(self.buffer_size >= self.n_envs, "buffer_size", self.buffer_size,
                 f"an integer >= n_envs ({self.n_envs})")
         require(self.total_steps > self.learning_starts, "total_steps", self.total_steps,
@@ -101,16 +99,6 @@ class DQNConfig:
         """Environment steps the training runs over ``rounds`` rounds: whole updates of ``train_freq`` steps of
         every environment."""
         return self.updates_per_round(rounds) * rounds * self.train_freq * self.n_envs
-
-
-RULES: dict[str, Rule] = {
-    "double": Flag(), "decay_after_learning_starts": Flag(), "optimizer": Choice(OPTIMIZERS), "n_envs": COUNT,
-    "total_steps": COUNT, "learning_starts": Integer(0), "batch_size": COUNT, "train_freq": COUNT,
-    "gradient_steps": COUNT, "target_update_interval": COUNT, "buffer_size": COUNT, "learning_rate": POSITIVE,
-    "gamma": UNIT, "epsilon_start": UNIT, "epsilon_end": UNIT, "decay_fraction": STEP_SIZE,
-    "max_grad_norm": NON_NEGATIVE, "hidden": Widths(),
-}
-"""What each setting may hold (:mod:`rlcompare.validation`), checked in this order."""
 
 
 ZOO = ("rl-baselines3-zoo, hyperparams/dqn.yml (github.com/DLR-RM/rl-baselines3-zoo, commit 22e3ff2, "

@@ -10,17 +10,16 @@ from rlcompare.envs import minatar
 from rlcompare.envs.atari import games as atari
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     NON_NEGATIVE,
     POSITIVE,
     STEP_SIZE,
     UNIT,
+    WIDTHS,
     Choice,
-    Flag,
-    Rule,
-    Widths,
-    check_fields,
-    plain_fields,
+    check_settings,
     require,
+    setting,
 )
 
 NORMALIZE_EPSILON = 1e-8
@@ -34,57 +33,55 @@ VALUE_LOSSES = ("sb3", "purejaxrl")
 ``V_clip = V_old + clip(V - V_old, ±clip_range)`` (purejaxrl's ``_loss_fn``, as CleanRL's ``clip_vloss``)."""
 
 
-
 @dataclass(frozen=True)
 class PPOConfig:
     """PPO's settings; the defaults are SB3's ``PPO`` and ``MlpPolicy`` defaults (zoo's ``n_envs: 1`` and
     ``n_timesteps: 1e6``). Frozen and validated on creation."""
 
-    n_envs: int = 1
+    n_envs: int = setting(1, COUNT)
     """Environments stepped side by side."""
-    n_steps: int = 2048
+    n_steps: int = setting(2048, COUNT)
     """Steps per environment collected for each update."""
-    batch_size: int = 64
+    batch_size: int = setting(64, COUNT)
     """Minibatch size (SB3's meaning); must divide ``n_envs * n_steps``."""
-    n_epochs: int = 10
+    n_epochs: int = setting(10, COUNT)
     """Passes over each update's transitions, each in a fresh random order."""
-    learning_rate: float = 3e-4
+    learning_rate: float = setting(3e-4, POSITIVE)
     """Adam's step size (at the start, where ``anneal_lr``)."""
-    anneal_lr: bool = False
+    anneal_lr: bool = setting(False, FLAG)
     """Decay the learning rate linearly to 0 over training (the zoo's ``lin_``)."""
-    gamma: float = 0.99
+    gamma: float = setting(0.99, STEP_SIZE)
     """Discount factor."""
-    gae_lambda: float = 0.95
+    gae_lambda: float = setting(0.95, UNIT)
     """GAE's λ (Schulman et al. 2016)."""
-    clip_range: float = 0.2
+    clip_range: float = setting(0.2, POSITIVE)
     """The surrogate's ε: the probability ratio is clipped to [1 - ε, 1 + ε] (at the start, where annealed)."""
-    anneal_clip_range: bool = False
+    anneal_clip_range: bool = setting(False, FLAG)
     """Decay ``clip_range`` linearly to 0 over training (the zoo's ``lin_``)."""
-    ent_coef: float = 0.0
+    ent_coef: float = setting(0.0, NON_NEGATIVE)
     """Weight of the entropy bonus in the loss."""
-    vf_coef: float = 0.5
+    vf_coef: float = setting(0.5, NON_NEGATIVE)
     """Weight of the value loss in the loss."""
-    max_grad_norm: float = 0.5
+    max_grad_norm: float = setting(0.5, POSITIVE)
     """The gradient's global norm is clipped to this."""
-    normalize_advantage: bool = True
+    normalize_advantage: bool = setting(True, FLAG)
     """Normalise the advantages within each minibatch (to zero mean, unit sample standard deviation)."""
-    normalize_observations: bool = False
+    normalize_observations: bool = setting(False, FLAG)
     """Normalise observations by running mean and variance, clipped to ±10 (``VecNormalize(norm_obs=True)``)."""
-    normalize_rewards: bool = False
+    normalize_rewards: bool = setting(False, FLAG)
     """Divide rewards by the running standard deviation of the discounted return, clipped to ±10
     (``VecNormalize(norm_reward=True)``)."""
-    hidden: tuple[int, ...] = (64, 64)
+    hidden: tuple[int, ...] = setting((64, 64), WIDTHS)
     """Widths of the hidden layers of each of the two networks, actor and critic (SB3's ``net_arch``)."""
-    activation: str = "tanh"
+    activation: str = setting("tanh", Choice(tuple(ACTIVATIONS)))
     """Hidden activation: ``tanh`` (SB3's default) or ``relu``; also after the convolution, for images."""
-    total_steps: int = 1_000_000
+    total_steps: int = setting(1_000_000, COUNT)
     """Environment steps of training in all, rounded down to whole updates."""
-    value_loss: str = "sb3"
+    value_loss: str = setting("sb3", Choice(VALUE_LOSSES))
     """The critic's loss: ``sb3`` or ``purejaxrl`` (:data:`VALUE_LOSSES`)."""
 
     def __post_init__(self) -> None:
-        plain_fields(self)
-        check_fields(self, RULES)
+        check_settings(self)
         require(self.batch % self.batch_size == 0, "batch_size", self.batch_size,
                 "an integer >= 1 dividing n_envs * n_steps")
         require(self.total_steps >= self.batch, "total_steps", self.total_steps,
@@ -109,16 +106,6 @@ class PPOConfig:
     def minibatches(self) -> int:
         """Minibatches per epoch."""
         return self.batch // self.batch_size
-
-
-RULES: dict[str, Rule] = {
-    "n_envs": COUNT, "n_steps": COUNT, "batch_size": COUNT, "n_epochs": COUNT, "learning_rate": POSITIVE,
-    "anneal_lr": Flag(), "gamma": STEP_SIZE, "gae_lambda": UNIT, "clip_range": POSITIVE, "anneal_clip_range": Flag(),
-    "ent_coef": NON_NEGATIVE, "vf_coef": NON_NEGATIVE, "max_grad_norm": POSITIVE, "normalize_advantage": Flag(),
-    "normalize_observations": Flag(), "normalize_rewards": Flag(), "hidden": Widths(),
-    "activation": Choice(tuple(ACTIVATIONS)), "total_steps": COUNT, "value_loss": Choice(VALUE_LOSSES),
-}
-"""What each setting may hold (:mod:`rlcompare.validation`), checked in this order."""
 
 
 MINATAR = PPOConfig(n_envs=64, n_steps=128, batch_size=64 * 128 // 8, n_epochs=4, learning_rate=5e-3, anneal_lr=True,

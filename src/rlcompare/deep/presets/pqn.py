@@ -12,16 +12,15 @@ from rlcompare.envs.atari import games as atari
 from rlcompare.envs.chess import games as chess_games
 from rlcompare.validation import (
     COUNT,
+    FLAG,
     POSITIVE,
     STEP_SIZE,
     UNIT,
+    WIDTHS,
     Choice,
-    Flag,
-    Rule,
-    Widths,
-    check_fields,
-    plain_fields,
+    check_settings,
     require,
+    setting,
 )
 
 TARGETS = ("max", "sample", "expected", "watkins")
@@ -37,48 +36,47 @@ OBSERVATION_BOXES = {
 class PQNConfig:
     """One PQN-style configuration (defaults: purejaxql's ``pqn_cartpole.yaml``, but a 2 x 128 network)."""
 
-    target: str = "max"
+    target: str = setting("max", Choice(TARGETS))
     """What the return bootstraps from: ``max`` (Q(λ)), ``sample`` (SARSA(λ)), ``expected`` (Expected SARSA(λ))."""
-    lam: float = 0.95
+    lam: float = setting(0.95, UNIT)
     """λ of the λ-return; 0 gives the one-step target."""
-    gamma: float = 0.99
+    gamma: float = setting(0.99, STEP_SIZE)
     """Discount."""
-    total_steps: int = 500_000
+    total_steps: int = setting(500_000, COUNT)
     """Environment steps over all parallel environments."""
-    n_envs: int = 32
+    n_envs: int = setting(32, COUNT)
     """Environments stepped in parallel."""
-    n_steps: int = 64
+    n_steps: int = setting(64, COUNT)
     """Steps of each environment per rollout (one update)."""
-    n_epochs: int = 4
+    n_epochs: int = setting(4, COUNT)
     """Passes over each rollout."""
-    n_minibatches: int = 16
+    n_minibatches: int = setting(16, COUNT)
     """Minibatches per pass."""
-    learning_rate: float = 1e-4
+    learning_rate: float = setting(1e-4, POSITIVE)
     """RAdam's step size."""
-    anneal_lr: bool = True
+    anneal_lr: bool = setting(True, FLAG)
     """Decay the step size linearly to zero over the training."""
-    max_grad_norm: float = 10.0
+    max_grad_norm: float = setting(10.0, POSITIVE)
     """Gradients clipped to this global norm."""
-    epsilon_start: float = 1.0
+    epsilon_start: float = setting(1.0, UNIT)
     """ε of the first rollout."""
-    epsilon_end: float = 0.05
+    epsilon_end: float = setting(0.05, UNIT)
     """ε after the decay."""
-    decay_fraction: float = 0.2
+    decay_fraction: float = setting(0.2, STEP_SIZE)
     """Fraction of the updates over which ε decays linearly."""
-    reward_scale: float = 0.1
+    reward_scale: float = setting(0.1, POSITIVE)
     """Rewards are multiplied by this in the return (the recorded returns are the environment's own)."""
-    hidden: tuple[int, ...] = (128, 128)
+    hidden: tuple[int, ...] = setting((128, 128), WIDTHS)
     """Widths of the hidden layers, each followed by LayerNorm and ReLU."""
-    next_action: str = BEFORE_UPDATE
+    next_action: str = setting(BEFORE_UPDATE, Choice(NEXT_ACTIONS))
     """When the action after a rollout's last step is drawn: ``before_update`` (Algorithm 2's order: the one the
     return bootstraps from is taken next) or ``after_update`` (Algorithm 1's: drawn again from the updated
     network)."""
-    scale_observations: bool = False
+    scale_observations: bool = setting(False, FLAG)
     """Map a bounded observation box onto [-1, 1] before the network (Mountain Car's velocity spans ±0.07)."""
 
     def __post_init__(self) -> None:
-        plain_fields(self)
-        check_fields(self, RULES)
+        check_settings(self)
         rollout = self.n_envs * self.n_steps
         require(rollout % self.n_minibatches == 0, "n_minibatches", self.n_minibatches,
                 f"a divisor of n_envs x n_steps = {rollout}")
@@ -93,16 +91,6 @@ class PQNConfig:
         """Environment steps the training runs over ``rounds`` rounds: ``updates // rounds`` whole rollouts a
         round (the remainder is not run)."""
         return self.updates // rounds * rounds * self.n_envs * self.n_steps
-
-
-RULES: dict[str, Rule] = {
-    "target": Choice(TARGETS), "next_action": Choice(NEXT_ACTIONS), "lam": UNIT, "gamma": STEP_SIZE,
-    "learning_rate": POSITIVE, "max_grad_norm": POSITIVE, "reward_scale": POSITIVE, "epsilon_start": UNIT,
-    "epsilon_end": UNIT, "decay_fraction": STEP_SIZE, "n_envs": COUNT, "n_steps": COUNT, "n_epochs": COUNT,
-    "n_minibatches": COUNT, "total_steps": COUNT, "anneal_lr": Flag(), "scale_observations": Flag(),
-    "hidden": Widths(),
-}
-"""What each setting may hold (:mod:`rlcompare.validation`), checked in this order."""
 
 
 _SMALL = PQNConfig(total_steps=500_000, n_envs=16, n_steps=128, n_epochs=4, n_minibatches=4, hidden=(64, 64),
