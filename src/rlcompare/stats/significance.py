@@ -24,6 +24,7 @@ from scipy import stats
 
 from rlcompare.formatting import distinct_numbers
 from rlcompare.stats.intervals import NO_ESTIMATE, Estimate, per_seed_values
+from rlcompare.stats.power import ALPHA as ALPHA
 
 Verdict = Literal["supported", "contradicted", "not resolved", "undecidable here", "no data"]
 SUPPORTED: Verdict = "supported"
@@ -32,8 +33,6 @@ NOT_RESOLVED: Verdict = "not resolved"
 UNDECIDABLE: Verdict = "undecidable here"
 NO_DATA: Verdict = "no data"
 VERDICTS: tuple[Verdict, ...] = (SUPPORTED, CONTRADICTED, NOT_RESOLVED, UNDECIDABLE, NO_DATA)
-ALPHA = 0.05
-"""Family-wise error rate of one report's claims."""
 
 
 
