@@ -10,13 +10,16 @@ import html
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
 
 from rlcompare.experiment.store import write_atomic
 from rlcompare.formatting import NO_DATA, number
+
+if TYPE_CHECKING:  # a study's module imports this page, and its plan draws nothing
+    from matplotlib.figure import Figure
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2rem auto; max-width: 1200px; color: #222; line-height: 1.45; }

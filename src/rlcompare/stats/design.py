@@ -32,8 +32,7 @@ import math
 from typing import Literal, NamedTuple
 
 from rlcompare.stats import power as power_of_t
-from rlcompare.stats.power import POWER
-from rlcompare.stats.significance import ALPHA
+from rlcompare.stats.power import ALPHA, POWER
 
 Test = Literal["signed-rank", "signed-rank, one-sided", "rank-sum", "t", "interval"]
 SIGNED_RANK: Test = "signed-rank"

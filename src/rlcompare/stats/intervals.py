@@ -21,7 +21,6 @@ from collections.abc import Callable
 from typing import Literal, NamedTuple
 
 import numpy as np
-from scipy import stats
 
 from rlcompare.compiled import njit
 
@@ -57,6 +56,8 @@ def iqm(values: np.ndarray, axis: int = -1) -> np.ndarray | float:
 
     ``scipy.stats.trim_mean(values, 0.25, axis)``: ``int(0.25 * n)`` values are cut from each end.
     """
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     trimmed: np.ndarray | float = stats.trim_mean(values, 0.25, axis=axis)
     return trimmed
 
@@ -122,6 +123,8 @@ def mean_interval(per_seed: np.ndarray, confidence: float = 0.95) -> Estimate:
     distribution is normal to any precision a table shows, while the bootstrap would resample an array of
     seeds x resamples (and BCa's jackknife one of seeds x seeds: 20 GB for 50,000 seeds). Degenerate inputs
     follow the module conventions."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     values = per_seed_values(per_seed)
     if not np.all(np.isfinite(values)):
         return NO_ESTIMATE
@@ -143,6 +146,8 @@ def _bootstrap(data: tuple[np.ndarray, ...], function: OverSeeds, method: Method
     or three seeds and few resamples); scipy then warns and returns NaN, and the warning is silenced here
     because the NaN is handled.
     """
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     if n_resamples < 2:
         raise ValueError(f"n_resamples must be at least 2, got {n_resamples}")
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
@@ -222,6 +227,8 @@ def improvement_share(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarra
     value that is not finite, U comes from the mid-ranks of the pooled sample (``U = Σ ranks of a − n(n+1)/2``),
     in O(n + m) memory per resample. Both give U exactly (a whole number or a half), so the same bits.
     """
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     a, b = np.moveaxis(np.asarray(a), axis, -1), np.moveaxis(np.asarray(b), axis, -1)
     n: int = a.shape[-1]
     m: int = b.shape[-1]
@@ -275,6 +282,7 @@ def improvement_score_interval(a: np.ndarray, b: np.ndarray, confidence: float =
     (:func:`newcombe_variance`). Where every seed of ``a`` beats every one of ``b`` its upper end is 1 and its lower
     end stays below, where a bootstrap of 5 seeds a side shrinks to 1.00 [1.00, 1.00]. Fewer than two seeds on
     either side gives NaN bounds; a non-finite value gives a NaN estimate."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
     from scipy.optimize import brentq
 
     a, b = per_seed_values(a), per_seed_values(b)

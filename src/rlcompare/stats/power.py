@@ -7,10 +7,8 @@ from __future__ import annotations
 
 import math
 
-from scipy import optimize, stats
-
-from rlcompare.stats.significance import ALPHA
-
+ALPHA = 0.05
+"""Family-wise error rate of one report's claims (here, with no import of scipy, for the plans' design)."""
 POWER = 0.8
 """The chance of detection the power columns are read at (Cohen 1988's convention)."""
 
@@ -27,6 +25,8 @@ def detectable_difference(spread: float, seeds: int, level: float = ALPHA, power
         return math.nan
     if spread == 0:
         return 0.0
+    from scipy import optimize, stats  # here: a plan imports this module, and most plans read no spread
+
     scale = math.sqrt(1 / seeds + (0 if other_seeds is None else 1 / other_seeds))
     critical = stats.t.ppf(1 - (level if one_sided else level / 2), df)
 
@@ -46,5 +46,7 @@ def provable_margin(spread: float, seeds: int, level: float = ALPHA, power: floa
     Wang 2008, section 3.2). NaN with fewer than two seeds."""
     if seeds < 2 or not math.isfinite(spread):
         return math.nan
+    from scipy import stats
+
     df = seeds - 1
     return float((stats.t.ppf(1 - level, df) + stats.t.ppf((1 + power) / 2, df)) * spread / math.sqrt(seeds))

@@ -29,8 +29,6 @@ from collections.abc import Iterable
 from typing import NamedTuple
 
 import numpy as np
-from scipy import sparse, special, stats
-from scipy.sparse import csgraph
 
 from rlcompare.stats.intervals import Estimate
 
@@ -77,6 +75,8 @@ class Record(NamedTuple):
         .proportion_ci(confidence, "wilson")``). A game's score ``X`` lies in [0, 1], so ``Var X <= s (1 - s)``: draws
         only shrink the variance, and with them the interval is conservative. No games: NaN throughout.
         """
+        from scipy import stats
+
         if not self.games:
             return Estimate(np.nan, np.nan, np.nan)
         n, s = self.games, self.share
@@ -99,6 +99,8 @@ def elo_difference(share: float) -> float:
 def expected_score(difference: float) -> float:
     """The share of the points the model expects of a player rated ``difference`` above the opponent (the inverse
     of :func:`elo_difference`)."""
+    from scipy import special
+
     return float(special.expit(difference / ELO_SCALE))
 
 
@@ -149,6 +151,9 @@ class _Table(NamedTuple):
 
 
 def _table(games: Iterable[Game], anchor: str) -> _Table:
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
     records = pair_records(games)
     names = sorted({player for player, _ in records})
     if anchor not in names:
@@ -171,6 +176,9 @@ def _unbounded(points: np.ndarray, names: list[str]) -> str | None:
     when they are finite: the players split into groups each of which scored against every other (strongly
     connected), and the message names the groups no outsider scored against, and those that scored against
     nobody outside."""
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
     scored = sparse.csr_array((points > 0).astype(np.int8))
     count, group = csgraph.connected_components(scored, directed=True, connection="strong")
     if count == 1:
@@ -200,6 +208,8 @@ def _strongly_connected(scored: np.ndarray) -> np.ndarray:
 
 def _log_likelihood(theta: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Per row of ``theta`` (resamples x players): ``sum_ij points_ij log P(i beats j)``."""
+    from scipy import special
+
     likelihood: np.ndarray = np.einsum("bij,bij->b", points, special.log_expit(theta[:, :, None] - theta[:, None, :]))
     return likelihood
 
@@ -211,6 +221,8 @@ def _maximise(points: np.ndarray, games: np.ndarray, anchor: int, start: np.ndar
     The gradient is ``sum_j points_ij - games_ij p_ij`` and the Hessian minus the Laplacian of the weights
     ``games_ij p_ij (1 - p_ij)``: negative definite once the anchor's coordinate is fixed, for connected players.
     """
+    from scipy import special
+
     free = np.arange(points.shape[1]) != anchor
     theta = np.array(start, dtype=np.float64)
     theta[:, ~free] = 0.0

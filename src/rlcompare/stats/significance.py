@@ -20,10 +20,10 @@ from collections.abc import Iterable
 from typing import Literal, NamedTuple
 
 import numpy as np
-from scipy import stats
 
 from rlcompare.formatting import distinct_numbers
 from rlcompare.stats.intervals import NO_ESTIMATE, Estimate, per_seed_values
+from rlcompare.stats.power import ALPHA as ALPHA
 
 Verdict = Literal["supported", "contradicted", "not resolved", "undecidable here", "no data"]
 SUPPORTED: Verdict = "supported"
@@ -32,8 +32,6 @@ NOT_RESOLVED: Verdict = "not resolved"
 UNDECIDABLE: Verdict = "undecidable here"
 NO_DATA: Verdict = "no data"
 VERDICTS: tuple[Verdict, ...] = (SUPPORTED, CONTRADICTED, NOT_RESOLVED, UNDECIDABLE, NO_DATA)
-ALPHA = 0.05
-"""Family-wise error rate of one report's claims."""
 
 
 
@@ -44,6 +42,8 @@ def rank_test(a: np.ndarray, b: np.ndarray, paired: bool = True) -> float:
     the two signs (Pratt/``zero_method="zsplit"``); all differences zero gives p = 1.
     Otherwise: Mann-Whitney U test of two independent samples; all values equal gives p = 1.
     """
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     a, b = per_seed_values(a), per_seed_values(b)
     if paired:
         if a.shape != b.shape:
@@ -79,6 +79,8 @@ def exact_rank_sum_p(a: np.ndarray, b: np.ndarray) -> float:
     likely splits of the pooled values (the permutation distribution under no difference), counted by the rank sum
     of the smaller side (:func:`rank_sum_counts`), twice the smaller tail beyond its observed rank sum, at most 1
     (scipy's convention for its exact test)."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     doubled = np.rint(2 * stats.rankdata(np.concatenate([a, b]))).astype(np.int64)  # mid-ranks, as whole numbers
     side = doubled[:a.size] if a.size <= b.size else doubled[a.size:]
     counts = rank_sum_counts(doubled, side.size)
@@ -104,6 +106,8 @@ def has_learnt(finals: np.ndarray, floor: float, margin: float, level: float = A
     mean ``floor`` by more than ``margin``, by a one-sided Wilcoxon signed-rank test (the studies' own test) at
     ``level``. A gate before a comparison, not a claim: failing it withholds a verdict and asserts nothing, so it
     is not Holm-corrected with the claims."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     above = per_seed_values(finals) - (floor + margin)
     if above.size == 0 or np.all(above == 0):
         return False
@@ -161,6 +165,8 @@ class Equivalence(NamedTuple):
 
 def _one_sided(distance: float, se: float, df: float) -> float:
     """p-value of H0: distance <= 0 against distance > 0, for a mean ``distance`` from a bound (Student t)."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     if se == 0:
         return 0.0 if distance > 0 else 1.0
     return float(stats.t.sf(distance / se, df))
@@ -183,6 +189,8 @@ def tost(values: np.ndarray, lower: float, upper: float, confidence: float = 0.9
     carries the two-sided ``confidence`` t interval. One seed gives NaN p-values; identical values give
     p = 0 or 1 (a point either inside or outside); a non-finite value gives a NaN estimate.
     """
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     if not lower < upper:
         raise ValueError(f"the margin needs lower < upper, got [{lower}, {upper}]")
     values = per_seed_values(values)
@@ -203,6 +211,8 @@ def welch_tost(a: np.ndarray, b: np.ndarray, lower: float, upper: float, confide
     one-sided tests with Welch's standard error and Satterthwaite's degrees of freedom (Welch 1947), as
     ``scipy.stats.ttest_ind(a, b + bound, equal_var=False)`` gives each. Fewer than two values on a side give NaN
     p-values; a non-finite value a NaN estimate."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     if not lower < upper:
         raise ValueError(f"the margin needs lower < upper, got [{lower}, {upper}]")
     a, b = per_seed_values(a), per_seed_values(b)
@@ -323,6 +333,8 @@ def worst_case_sign_p(values: np.ndarray, bound: float, side: int, up: np.ndarra
     one that could only be smaller (``down``) below it when the median is claimed above. The test reads only on
     which side of the bound each value lies, so it holds whatever the censored values truly are; values on the
     bound are left out (Dixon and Mood 1946)."""
+    from scipy import stats  # here, where a number needs it: a plan imports this module
+
     if side not in (1, -1):
         raise ValueError(f"side must be +1 or -1, got {side!r}")
     d = np.sign(np.asarray(values, dtype=np.float64) - bound)

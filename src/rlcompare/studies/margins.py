@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rlcompare.stats.verdicts import RATIO_FACTOR
+from rlcompare.stats.claims import RATIO_FACTOR
 
 
 @dataclass(frozen=True)

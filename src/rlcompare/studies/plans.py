@@ -224,16 +224,16 @@ def with_known_spread(plan: StudyPlan, out: Path, name: str) -> StudyPlan:
     these seeds), read from the spread of the paired differences its previous run in ``out`` showed: the verdict
     table ``tables/<name>_verdicts.csv`` its report wrote, verified against the study's record (a table that is not
     the study's says so instead). Unchanged where ``out`` holds no such table or the plan makes no paired test."""
-    import io
-
-    import pandas as pd  # here, not for every command's --help
-
-    from rlcompare.experiment import rundir, store
-
     table = f"tables/{name}_verdicts.csv"
     question = next((q for q in plan.questions if q.test == SIGNED_RANK and q.headline), None)
     if question is None or not (Path(out) / table).is_file():
         return plan
+    import io
+
+    import pandas as pd  # here, where a table is read: not for every command's --help, nor every plan
+
+    from rlcompare.experiment import rundir, store
+
     try:
         verdicts = pd.read_csv(io.BytesIO(rundir.read_member_file(Path(out), table)))
     except (store.StoreError, ValueError) as error:

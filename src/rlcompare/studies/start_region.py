@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from rlcompare.envs.discretize import UniformGrid, cell_indices, make_grid
 from rlcompare.envs.features import grid_bounds
 from rlcompare.report.map_frame import MapFrame
 from rlcompare.tabular.config import ExperimentConfig
-from rlcompare.tabular.results import Results
+
+if TYPE_CHECKING:  # a plan asks has_start_region: numba and pandas only where a grid or a run is read
+    from rlcompare.envs.discretize import UniformGrid
+    from rlcompare.tabular.results import Results
 
 
 def map_frame(config: ExperimentConfig) -> MapFrame | None:
@@ -29,6 +33,8 @@ def has_start_region(config: ExperimentConfig) -> bool:
 
 def training_grid(config: ExperimentConfig) -> UniformGrid:
     """The uniform grid the runs of ``config`` were trained on: its bins over its bounds."""
+    from rlcompare.envs.discretize import make_grid
+
     return make_grid(*grid_bounds(config.environment, config.bounds), config.grid_bins)
 
 
@@ -46,6 +52,8 @@ def map_of(config: ExperimentConfig) -> tuple[MapFrame, int]:
 def start_cells(grid: UniformGrid, start_box: tuple[tuple[float, float], ...], points: int = 2001) -> np.ndarray:
     """Cells of ``points`` start states spread evenly over each range of ``start_box`` together (Mountain Car's:
     ``(p, 0)`` for ``p`` in its reset range [-0.6, -0.4])."""
+    from rlcompare.envs.discretize import cell_indices
+
     return cell_indices(grid, np.column_stack([np.linspace(low, high, points) for low, high in start_box]))
 
 

@@ -42,7 +42,7 @@ LAST_RANK_BUT_ONE = 6
 
 
 def env() -> pgx.Env:
-    """pgx's chess, one per process (:data:`rlcompare.deep.chess.games.PGX_GAMES`)."""
+    """pgx's chess, one per process (:func:`rlcompare.deep.chess.games.pgx_game`)."""
     return pgx_game("chess")
 
 

@@ -14,31 +14,45 @@ differ.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pgx
-from pgx._src import gardner_chess_utils as gardner_tables
-from pgx._src.games import chess as pgx_chess
 
 from rlcompare.envs.chess.games import GAMES, HISTORY_PLANES, PIECE_VALUES, BoardGame
 
-with jax.enable_x64(False):  # made here, outside any trace: pgx makes its games' constant arrays when they load
-    PGX_GAMES = {pgx_id: pgx.make(pgx_id) for pgx_id in ("chess", "gardner_chess")}
+if TYPE_CHECKING:
+    import pgx
+
+
+@functools.cache
+def _loaded() -> tuple[dict[str, pgx.Env], dict[str, np.ndarray]]:
+    """pgx's games and, per game, the square each action's move ends on (-1 where the label names no move), made
+    once per process where a game is first stepped, not where one is named: pgx builds its tables and constant
+    arrays as it loads (seconds; a configuration's checks and a plan read only the game's sizes). Loaded outside any
+    trace (a constant made while tracing would be the trace's) and in JAX's 32-bit default, as at an import."""
+    with jax.ensure_compile_time_eval(), jax.enable_x64(False):
+        import pgx
+        from pgx._src import gardner_chess_utils as gardner_tables
+        from pgx._src.games import chess as pgx_chess
+
+        games = {pgx_id: pgx.make(pgx_id) for pgx_id in ("chess", "gardner_chess")}
+    return games, {
+        "chess": np.asarray(pgx_chess.FROM_PLANE, np.int32).reshape(-1),  # a label is from * 73 + plane
+        "gardner_chess": np.asarray(gardner_tables.TO_MAP, np.int32).reshape(-1),  # from * 49 + plane
+    }
 
 
 def pgx_game(pgx_id: str) -> pgx.Env:
-    return PGX_GAMES[pgx_id]
+    return _loaded()[0][pgx_id]
 
 
-DESTINATIONS = {
-    "chess": np.asarray(pgx_chess.FROM_PLANE, np.int32).reshape(-1),  # a label is from * 73 + plane
-    "gardner_chess": np.asarray(gardner_tables.TO_MAP, np.int32).reshape(-1),  # from * 49 + plane
-}
-"""Per game, the square each action's move ends on (-1 where the label names no move)."""
+def destinations(pgx_id: str) -> np.ndarray:
+    """The square each action's move ends on in the game ``pgx_id`` (-1 where the label names no move)."""
+    return _loaded()[1][pgx_id]
 
 
 @dataclass(frozen=True)
@@ -94,7 +108,7 @@ class ChessGameEnv:
         (:data:`rlcompare.envs.chess.games.PIECE_VALUES`; a pawn for en passant; 0 for a move that takes nothing)."""
         board = state._x.board if self.game.pgx_id == "chess" else state._board
         values = jnp.asarray((0.0, *PIECE_VALUES), jnp.float32)  # by pgx's piece code, 0 for an empty square
-        to = jnp.asarray(DESTINATIONS[self.game.pgx_id])
+        to = jnp.asarray(destinations(self.game.pgx_id))
         taken = jnp.clip(-board[jnp.maximum(to, 0)], 0, 6)  # the opponent's pieces are negative
         if self.game.pgx_id == "chess":  # a pawn moving onto the en-passant square takes a pawn
             pawn_from = board[jnp.arange(self.n_actions) // 73] == 1

@@ -30,7 +30,6 @@ from rlcompare.players.stockfish import ELO_1350
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.design import GATE, can_pass, seeds_needed, smallest_p
 from rlcompare.stats.intervals import Estimate
-from rlcompare.stats.ratings import bootstrap_ratings, player_records
 from rlcompare.stats.significance import ALPHA
 from rlcompare.studies.chess import ladder as chess_ladder
 from rlcompare.studies.chess.ladder import MATERIAL, RANDOM, Learner, games_of
@@ -174,6 +173,8 @@ def anchor_of(games: pd.DataFrame) -> tuple[str, float]:
 def ladder_table(games: pd.DataFrame, ratings: dict[str, Estimate]) -> pd.DataFrame:
     """Per player: its rating, and its games, wins, draws, losses and score over all its games and against the
     random player, strongest first."""
+    from rlcompare.stats.ratings import player_records  # scipy: for the report, not the plan
+
     played = games_of(games)
     overall = player_records(played)
     against_random = player_records(g for g in played if RANDOM in (g.white, g.black))
@@ -243,6 +244,8 @@ def _build_report(out: Path, videos: bool) -> Report:
             problems.append(f"{game}: the ladder is not rated: {error}")
             continue
         anchor = anchor_of(games)
+        from rlcompare.stats.ratings import bootstrap_ratings  # scipy: for the report, not the plan
+
         ratings = bootstrap_ratings(games_of(games), *anchor, seed=0)
         table = ladder_table(games, ratings)
         table_file = write_table(table, out / "tables", f"chess_ladder_{env}")

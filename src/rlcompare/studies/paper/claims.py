@@ -7,7 +7,7 @@ import dataclasses
 from collections.abc import Collection
 from typing import Any
 
-from rlcompare.stats.verdicts import Claim
+from rlcompare.stats.claims import Claim
 from rlcompare.studies.margins import margin
 
 NAMES = ("SARSA", "Q-Learning")

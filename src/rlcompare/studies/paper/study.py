@@ -10,17 +10,18 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
-
-from rlcompare.experiment.runner import run_or_load
 from rlcompare.stats.design import SIGNED_RANK
 from rlcompare.studies.interface import UI, Report
 from rlcompare.studies.plans import Question, StudyPlan, episodic
 from rlcompare.studies.registry import PaperOptions
 from rlcompare.tabular.config import ExperimentConfig
-from rlcompare.tabular.results import Results
+
+if TYPE_CHECKING:  # a plan imports this module: pandas and the engine only once something trains
+    import pandas as pd
+
+    from rlcompare.tabular.results import Results
 
 STUDY = "paper"
 DEFAULT_EPISODES = 5000
@@ -61,6 +62,8 @@ def reproduce(
 ) -> Iterator[tuple[Results, bool]]:
     """The paper's configurations into ``out``, one run directory each named after its configuration
     (:func:`rlcompare.experiment.runner.run_or_load`); yields ``(results, reused)``."""
+    from rlcompare.experiment.runner import run_or_load
+
     for _, results, reused in run_or_load(Path(out), {c.name: c for c in configs}, study=study, progress=progress,
                                           force=force):
         yield results, reused
