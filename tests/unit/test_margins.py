@@ -4,13 +4,16 @@ five, two one-sided tests prove the provable margin about four times in five whe
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from scipy import stats
 
+from rlcompare.stats.claims import RATIO_FACTOR
 from rlcompare.stats.power import POWER, detectable_difference, provable_margin
 from rlcompare.stats.significance import tost
-from rlcompare.studies.margins import MARGINS, margin
+from rlcompare.studies.margins import MARGINS, margin, read_margins
 
 
 @pytest.mark.parametrize(("seeds", "level"), [(10, 0.05), (30, 0.05 / 9), (8, 0.05 / 4)])
@@ -51,6 +54,7 @@ def test_every_margin_has_its_reason_and_the_studies_read_them_from_the_table() 
     from rlcompare.studies.paper import claims as paper_claims
 
     assert all(m.reason and m.unit and m.value > 0 for m in MARGINS.values())
+    assert margin("paper", "about R times (ratio)") == RATIO_FACTOR
     assert {env: margin("deep", f"{env} (final greedy return)") for env in deep.MARGIN} == deep.MARGIN
     assert margin("book 6.3", "Expected SARSA at least as good as SARSA") == book_6_3.NONINFERIORITY_MARGIN
     assert margin("book 6.3", "an asymptote collapses") == book_6_3.COLLAPSE_MARGIN
@@ -65,3 +69,14 @@ def test_the_documented_table_is_the_codes() -> None:
     page = (Path(__file__).parents[2] / "docs" / "why.md").read_text(encoding="utf-8")
     for m in MARGINS.values():
         assert f"| {m.study} | {m.bounds} | {m.value:g} {m.unit} | {m.reason} |" in page
+
+
+@pytest.mark.parametrize("entry", [
+    'study = "x"\nbounds = "y"\nvalue = 0.0\nunit = "u"\nreason = "r"',  # not above 0
+    'study = "x"\nbounds = "y"\nvalue = 1.0\nunit = "u"',  # no reason
+    'study = "x"\nbounds = "y"\nvalue = 1.0\nunit = "u"\nreason = "r"\nextra = 1',
+])
+def test_a_margin_without_its_reason_or_above_zero_is_refused_naming_it(entry: str) -> None:
+    refused = re.escape("margins.toml: a margin must give study, bounds, value, unit, reason")
+    with pytest.raises(ValueError, match=refused):
+        read_margins(f"[[margin]]\n{entry}\n")

@@ -23,7 +23,7 @@ from rlcompare.experiment import rundir
 from rlcompare.formatting import number
 from rlcompare.report.aggregate_plots import Aggregates, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
-from rlcompare.report.page import save_figure, write_table
+from rlcompare.report.page import Section, save_figure, write_table
 from rlcompare.report.plots import plot_paired_differences, plot_return_curves
 from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import NEITHER_LEARNT, Judged, Paired, compare_paired, gated_label, judge_family
@@ -245,6 +245,25 @@ def draw_across(study: PairedStudy, spread: Across, tables: Path, figures: Path
         ("aggregates", aggregates.intervals), ("improvement", aggregates.improvements))}
 
 
+PQN_PAIR = "SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds"
+"""What the networks' studies compare, in a report's words."""
+
+
+def not_learnt(compared: Mapping[str, Judged]) -> list[str]:
+    """The environments whose verdict is that neither method learnt them."""
+    return [env for env, judged in compared.items() if judged.label == NEITHER_LEARNT]
+
+
+def learnt_rule(floor: str, learnt: float, margin: float, margins: Sequence[str], after_neither: str = "") -> str:
+    """The rule a game's verdict follows, for a report: when a method has learnt it (beating ``floor`` by ``learnt``
+    of its range), what neither learning it reads, and the margins declared before the runs (``margin`` of the
+    range: ``margins``, each game's)."""
+    return (f"A method has learnt a game when its final return beats {floor} by {learnt:g} of that range (one-sided "
+            f"signed-rank test, α = 0.05); where neither has, the verdict is \"{NEITHER_LEARNT}\"{after_neither}. "
+            f"Margins of no difference, declared before the runs: {margin:g} of the game's range "
+            f"({', '.join(margins)})")
+
+
 AGAINST = {"steps": "environment steps", "frames": "frames", "seconds": "seconds of training"}
 """What a curve may be drawn against, and its axis's label."""
 
@@ -293,12 +312,11 @@ def difference_figure(pairs: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> Fig
     return figure
 
 
-def answer_figures(runs: Mapping[str, DeepResults], envs: Sequence[str], title: Callable[[str], str],
-                   figures_dir: Path) -> list[tuple[str, str]]:
-    """The answer's picture saved as ``paired-differences.png``, each environment under ``title(env)``, with its
-    caption: none where no environment has both methods."""
+def answer_section(lines: list[str], runs: Mapping[str, DeepResults], envs: Sequence[str],
+                   title: Callable[[str], str], figures_dir: Path) -> Section:
+    """"The answer": its ``lines`` and its picture, saved as ``paired-differences.png``, each environment under
+    ``title(env)`` (no picture where no environment has both methods)."""
     pictured = difference_figure({title(env): pair for env, pair in pair_finals(runs, envs).items()})
-    if pictured is None:
-        return []
-    return [(save_figure(pictured, figures_dir / "paired-differences.png"),
-             "SARSA(λ) minus Q(λ), seed by seed, per game")]
+    figures = [] if pictured is None else [(save_figure(pictured, figures_dir / "paired-differences.png"),
+                                            "SARSA(λ) minus Q(λ), seed by seed, per game")]
+    return Section("The answer", lines, figures=figures)

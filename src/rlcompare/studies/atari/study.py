@@ -30,13 +30,12 @@ from rlcompare.report.aggregate_plots import across_section
 from rlcompare.report.page import Section, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
-from rlcompare.stats.compare import NEITHER_LEARNT
+from rlcompare.studies import paired_report
 from rlcompare.studies.atari import play as atari_play
 from rlcompare.studies.atari.play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
 from rlcompare.studies.paired import OVERALL, PairedStudy, Plan, checked, cluster, final_returns, paired_plan, train
-from rlcompare.studies.paired_report import answer, answer_figures, curves_drawn, findings, short_label
 from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import AtariOptions
 from rlcompare.validation import ConfigError
@@ -87,7 +86,7 @@ def title(env: str) -> str:
 
 ENVS = tuple(name_of(t) for t in atari_scores.GAMES)
 ATARI = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game": title(key.env)},
-                    label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
+                    label=paired_report.short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
                     overall_margin=OVERALL_MARGIN, prefix="across-games-",
                     references={name_of(t): g.human for t, g in atari_scores.GAMES.items()},
                     floors={name_of(t): g.random for t, g in atari_scores.GAMES.items()}, learnt_share=LEARNT,
@@ -246,7 +245,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = Non
 
 
 def _build_report(out: Path, videos: bool) -> Report:
-    found = findings(out, ATARI)
+    found = paired_report.findings(out, ATARI)
     runs, aggregates, files = found.runs, found.aggregates, found.files
     summary = summary_table(runs)
     files["summary"] = write_table(summary, out / "tables", "atari_summary")
@@ -259,34 +258,31 @@ def _build_report(out: Path, videos: bool) -> Report:
     games = [title(env) for env in found.envs]
     floors = {t: atari_scores.GAMES[t].random for t in games}
     humans = {t: atari_scores.GAMES[t].human for t in games}
-    lines = answer(compared, seeds, floors=floors, references=humans, measure=f"final return at ε = {EPSILON:g}",
-                   reference="the human")
+    lines = paired_report.answer(compared, seeds, floors=floors, references=humans,
+                                 measure=f"final return at ε = {EPSILON:g}", reference="the human")
     if steps and plumbing(steps):
         lines.insert(0, f"A plumbing check: no verdict is possible ({plumbing(steps)}).")
-    not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
-    if not_learnt:
-        lines.append(f"Not learnt at this budget ({steps:,} steps a training): {', '.join(not_learnt)}; the "
+    unlearnt = paired_report.not_learnt(compared)
+    if unlearnt:
+        lines.append(f"Not learnt at this budget ({steps:,} steps a training): {', '.join(unlearnt)}; the "
                      "published learning curves of PQN and DQN need millions of steps (docs/atari.md).")
-    answer_figure = answer_figures(runs, found.envs, title, out / "figures")
     cells, played = video_cells({name: out / name for name in runs}, runs, out / "videos") if videos else ([], None)
     if played is not None:
         files["gymnasium"] = write_table(played, out / "tables", "atari_gymnasium")
-    curve_figures = [curves_drawn(runs, env, "frames", out / "figures" / f"curves-{env}.png",
-                                  f"frames ({atari.PROTOCOL.frameskip} an agent step)", atari.PROTOCOL.frameskip)
-                     for env in found.envs]
+    curve_figures = [paired_report.curves_drawn(runs, env, "frames", out / "figures" / f"curves-{env}.png",
+                                                f"frames ({atari.PROTOCOL.frameskip} an agent step)",
+                                                atari.PROTOCOL.frameskip) for env in found.envs]
     sections = [
-        Section("The answer", lines, figures=answer_figure),
+        paired_report.answer_section(lines, runs, found.envs, title, out / "figures"),
         Section("On-policy or off-policy target on the Atari 2600", [
-            f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, each "
-            f"seed's mean return in the last evaluation round ({EPSILON:g}-greedy, Mnih et al. 2015's evaluation). "
-            f"Protocol: {atari.PROTOCOL.summary}. Training: {steps:,} agent steps ({4 * steps:,} frames) per seed. "
+            f"{paired_report.PQN_PAIR}, each seed's mean return in the last evaluation round ({EPSILON:g}-greedy, "
+            f"Mnih et al. 2015's evaluation). Protocol: {atari.PROTOCOL.summary}. Training: {steps:,} agent steps "
+            f"({4 * steps:,} frames) per seed. "
             "Each game's scale runs from the published random score to the published human score "
-            "(human-normalised: random 0, human 1; Mnih et al. 2015's table, as docs/atari.md cites). A method has "
-            f"learnt a game when its final return beats the random score by {LEARNT:g} of that range (one-sided "
-            f"signed-rank test, α = 0.05); where neither has, the verdict is \"{NEITHER_LEARNT}\". Margins of no "
-            f"difference, declared before the runs: {MARGIN:g} of the game's range ("
-            + ", ".join(f"{t} ±{number(MARGIN * (humans[t] - floors[t]))}" for t in games)
-            + f"), ±{OVERALL_MARGIN:g} of the human-normalised score over the games. p-values Holm-adjusted over "
+            "(human-normalised: random 0, human 1; Mnih et al. 2015's table, as docs/atari.md cites). "
+            + paired_report.learnt_rule("the random score", LEARNT, MARGIN,
+                          [f"{t} ±{number(MARGIN * (humans[t] - floors[t]))}" for t in games])
+            + f", ±{OVERALL_MARGIN:g} of the human-normalised score over the games. p-values Holm-adjusted over "
             "the games and the overall row."], [("Verdicts", found.verdicts, files["verdicts"])]),
         Section("Every game", [
             "Final return: each seed's mean over the last evaluation round's episodes; human-normalised against the "

@@ -35,8 +35,9 @@ from rlcompare.report.aggregate_plots import across_section
 from rlcompare.report.page import Section, write_report, write_table
 from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
-from rlcompare.stats.compare import NEITHER_LEARNT, Judged
+from rlcompare.stats.compare import Judged
 from rlcompare.stats.design import SIGNED_RANK, smallest_p
+from rlcompare.studies import paired_report
 from rlcompare.studies.deep import same_question
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
@@ -53,7 +54,6 @@ from rlcompare.studies.paired import (
     random_floor,
     train,
 )
-from rlcompare.studies.paired_report import answer, answer_figures, curves_drawn, findings, short_label
 from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import MinAtarOptions
 
@@ -114,7 +114,7 @@ def game_of(results: DeepResults) -> str:
 ENVS = tuple(minatar.NAMES)
 """Every game under every protocol, game by game."""
 MINATAR = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game": title(key.env)},
-                      label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
+                      label=paired_report.short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
                       overall_margin=OVERALL_MARGIN, prefix="across-games-",
                       references={env: game.reference for env, (game, _) in minatar.NAMES.items()},
                       learnt_share=LEARNT)
@@ -242,7 +242,7 @@ def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = Non
 
 
 def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
-    found = findings(out, MINATAR)
+    found = paired_report.findings(out, MINATAR)
     runs, aggregates, files = found.runs, found.aggregates, found.files
     floors = {env: random_floor(env) for env in found.envs}
     summary = summary_table(runs, floors)
@@ -252,36 +252,34 @@ def _build_report(out: Path, videos: bool, siblings: dict[str, Path]) -> Report:
     elsewhere = same_question.beside(out, same_question_rows(compared), siblings)
     files |= {name: write_table(frame, out / "tables", f"minatar_{name}")
               for name, frame in (("summary", summary), ("same_question", elsewhere.table))}
-    curve_figures = [curves_drawn(runs, env, "steps", out / "figures" / f"curves-{env.replace('/', '_')}.png",
-                                  "environment steps") for env in found.envs]
+    curve_figures = [paired_report.curves_drawn(runs, env, "steps",
+                                                out / "figures" / f"curves-{env.replace('/', '_')}.png",
+                                                "environment steps") for env in found.envs]
     steps = {r.config.steps_trained for r in runs.values()}
     budget = budget_words(max(steps, default=0))
     protocols = sorted({minatar.NAMES[r.config.env][1].summary for r in runs.values()})
     seeds = min((len(r.seeds) for r in runs.values()), default=0)
-    lines = answer(compared, seeds, floors=floors_by_game, references=references_by_game)
-    not_learnt = [game for game, j in compared.items() if j.label == NEITHER_LEARNT]
-    if not_learnt:
+    lines = paired_report.answer(compared, seeds, floors=floors_by_game, references=references_by_game)
+    unlearnt = paired_report.not_learnt(compared)
+    if unlearnt:
         lines.append(f"Not learnt at this budget ({budget}, {max(steps, default=0):,} steps): "
-                     f"{', '.join(not_learnt)}. docs/minatar.md expects the 'paper' budget (--budget paper, 5 M "
+                     f"{', '.join(unlearnt)}. docs/minatar.md expects the 'paper' budget (--budget paper, 5 M "
                      "steps, where the MinAtar paper's DQN reaches its reference) to learn them; not yet measured "
                      "here.")
-    answer_figure = answer_figures(runs, found.envs, title, out / "figures")
     sections = [
-        Section("The answer", lines, figures=answer_figure),
+        paired_report.answer_section(lines, runs, found.envs, title, out / "figures"),
         Section("On-policy or off-policy target, with a convolutional network", [
-            f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds, final "
-            f"greedy return. Protocol: {'; '.join(protocols)}. Training: {', '.join(f'{s:,}' for s in sorted(steps))}"
-            f" environment steps per seed, {budget}: read the verdicts as what this budget shows, not what the "
-            f"methods reach. Each game's scale runs from the random policy's return to {minatar.REFERENCE_SOURCE}: "
+            f"{paired_report.PQN_PAIR}, final greedy return. Protocol: {'; '.join(protocols)}. Training: "
+            f"{', '.join(f'{s:,}' for s in sorted(steps))} environment steps per seed, {budget}: read the verdicts "
+            f"as what this budget shows, not what the methods reach. Each game's scale runs from the random "
+            f"policy's return to {minatar.REFERENCE_SOURCE}: "
             + ", ".join(f"{title(env)} {number(floors[env])} to {number(minatar.NAMES[env][0].reference)}"
                         for env in found.envs)
-            + f". A method has learnt a game when its final return beats the random policy's by {LEARNT:g} of "
-            f"that range (one-sided signed-rank test, α = 0.05); where neither has, the verdict is \"{NEITHER_LEARNT}"
-            "\" and the game is left out of the overall row; where one has, that is the answer. Margins of no "
-            f"difference, declared before the runs: {MARGIN:g} of the game's range ("
-            + ", ".join(f"{title(env)} ±{number(MARGIN * (minatar.NAMES[env][0].reference - floors[env]))}"
-                        for env in found.envs)
-            + f"), ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
+            + ". " + paired_report.learnt_rule("the random policy's", LEARNT, MARGIN, [
+                f"{title(env)} ±{number(MARGIN * (minatar.NAMES[env][0].reference - floors[env]))}"
+                for env in found.envs], " and the game is left out of the overall row; where one has, that is the "
+                "answer")
+            + f", ±{OVERALL_MARGIN:g} of the normalised score overall (each seed's normalised score averaged over "
             f"the games learnt; random 0, the reference 1). p-values Holm-adjusted over the games and the overall "
             f"row; with {seeds} seeds the signed-rank test cannot give a p below "
             f"{number(smallest_p(SIGNED_RANK, seeds))}.",

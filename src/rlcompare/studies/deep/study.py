@@ -44,7 +44,7 @@ from rlcompare.studies.paired import (
     seconds_per_step,
     train,
 )
-from rlcompare.studies.paired_report import Findings, curves_drawn, findings
+from rlcompare.studies.paired_report import PQN_PAIR, Findings, curves_drawn, findings
 from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import DeepOptions
 from rlcompare.tabular.config import ExperimentConfig
@@ -230,9 +230,8 @@ def _build_report(out: Path) -> Report:
     lines = [f"{row.env}, {row.engine}, {row.metric}: {row.verdict}" for row in found.verdicts.itertuples()]
     sections = [
         Section("On-policy or off-policy target, with a network and in a table",
-                [f"SARSA(λ) against Q(λ) in one PQN-style engine (the bootstrap is the only switch), paired seeds; "
-                 f"SARSA against Q-Learning in a table with the paper's settings. Margins of no difference, "
-                 f"declared before the runs: {', '.join(f'{e} ±{m:g}' for e, m in MARGIN.items())}. "
+                [f"{PQN_PAIR}; SARSA against Q-Learning in a table with the paper's settings. Margins of no "
+                 f"difference, declared before the runs: {', '.join(f'{e} ±{m:g}' for e, m in MARGIN.items())}. "
                  "p-values Holm-adjusted over the whole table."], [("Verdicts", found.verdicts)]),
         Section("Every method", [
             f"Gymnasium: each seed's final greedy policy in Gymnasium's own environment (gym.make), "
