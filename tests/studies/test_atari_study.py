@@ -257,3 +257,46 @@ def test_machados_measure_is_each_seeds_mean_of_its_last_hundred_training_episod
     found = atari_study.last_training_episodes(results)
     np.testing.assert_array_equal(found[:2], [99.5, 1.0])
     assert np.isnan(found[2])
+
+
+def test_the_overall_row_is_each_seeds_interquartile_mean_which_one_games_scale_cannot_own():
+    """Five games both methods play alike (human-normalised 1.0, noise 0.01), but on DoubleDunk, whose random-to-human
+    range is 2.2 points, SARSA(λ) scores 8 human ranges more on every seed. The mean over the games calls SARSA(λ)
+    better by 1.6; each seed's interquartile mean (the middle three of its five games) sees no difference."""
+    from rlcompare.deep.config import DeepConfig
+    from rlcompare.deep.results import DeepResults
+    from rlcompare.studies.paired import OVERALL
+    from rlcompare.studies.paired_report import across, judged, verdict_table
+
+    rng = np.random.default_rng(5)
+    seeds = tuple(range(10))  # every seed one way: 2 / 2^10, below Holm's 0.05 / 12 for the first of twelve tests
+    normalised = {(method, title): 1.0 + rng.normal(0, 0.01, len(seeds))
+                  for method in ("pqn_sarsa_lambda", "pqn_q_lambda") for title in atari_scores.ATARI_5}
+    normalised["pqn_sarsa_lambda", "DoubleDunk"] += 8.0
+
+    def results(method: str, title: str) -> DeepResults:
+        game = atari_scores.GAMES[title]
+        finals = game.random + normalised[method, title] * (game.human - game.random)
+        evaluations = pd.DataFrame({"seed": seeds, "round": 0, "after_step": 100, "return": finals, "length": 10,
+                                    "terminated": True})
+        config = DeepConfig(algorithm=method, env=f"{title}-Atari", seeds=seeds, vmap_width=1)
+        return DeepResults(config, pd.DataFrame({"seed": seeds, "return": 0.0}), evaluations, {}, {})
+
+    runs = {f"{m}-{t}": results(m, t) for m, t in normalised}
+    envs = [f"{t}-Atari" for t in atari_scores.ATARI_5]
+    floors = {f"{t}-Atari": atari_scores.GAMES[t].random for t in atari_scores.ATARI_5}
+    spread = across(runs, envs, floors, atari_study.ATARI.method_order, atari_study.ATARI.references)
+
+    def overall(study) -> pd.Series:
+        table = verdict_table(study, judged(study, runs, {}, floors, spread))
+        return table[table["game"] == OVERALL].iloc[0]
+
+    on, off = (np.stack([normalised[m, t] for t in atari_scores.ATARI_5]) for m in ("pqn_sarsa_lambda", "pqn_q_lambda"))
+    middle_three = (np.sort(on, axis=0)[1:4].mean(axis=0) - np.sort(off, axis=0)[1:4].mean(axis=0)).mean()
+    robust = overall(atari_study.ATARI)
+    assert robust["on - off (mean, 95% CI)"].startswith(f"{middle_three:.2f} [")
+    assert abs(middle_three) < 0.01
+    assert not robust["verdict"].startswith("on-policy")
+    by_mean = overall(dataclasses.replace(atari_study.ATARI, overall_statistic="mean"))
+    assert by_mean["on - off (mean, 95% CI)"].startswith(f"{(on - off).mean():.2f} [")  # 1.60
+    assert by_mean["verdict"].startswith("on-policy")

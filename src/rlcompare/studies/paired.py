@@ -45,6 +45,8 @@ PAIR = ("pqn_sarsa_lambda", "pqn_q_lambda")
 """The on-policy and the off-policy target in one engine: the only switch is the bootstrap."""
 OVERALL = "overall (normalised)"
 """The comparison of each seed's normalised score averaged over the environments."""
+OVERALL_STATISTICS = ("mean", "iqm")
+"""How each seed's normalised scores are taken over the environments for :data:`OVERALL` (:func:`over_environments`)."""
 VMAP_WIDTH = 10
 """Seeds trained side by side in one program, at most."""
 RANDOM_EPISODES = 200
@@ -104,6 +106,9 @@ class PairedStudy:
     floors: Mapping[str, float] = field(default_factory=dict)
     """Per environment, a published random policy's score (Atari's table), the floor of its normalised scores in
     place of the random policy played in the port (:func:`random_floor`)."""
+    overall_statistic: str = "mean"
+    """How :data:`OVERALL` takes each seed's normalised scores over the environments (:func:`over_environments`):
+    their ``mean``, or their ``iqm``, which one environment's outlying score cannot move."""
     frames_per_step: int = 0
     """Frames an environment step plays (the Atari 2600's frame skip, 4): where set, curves are drawn against frames,
     as the protocol counts its budgets (Machado et al. 2018)."""
@@ -262,6 +267,17 @@ def load_runs(out: Path) -> tuple[dict[str, DeepResults], dict[str, Results], li
             problems.append(str(error))
             failed.append(run_dir.name)
     return deep, tabular, problems + rundir.missing_members(Path(out), failed)
+
+
+def over_environments(scores: np.ndarray, statistic: str) -> np.ndarray:
+    """Each seed's score over the environments, ``scores`` being ``(environments, seeds)``: their ``mean``, or their
+    ``iqm``, the mean of the middle half (rliable's interquartile mean, Agarwal et al. 2021: scipy's ``trim_mean``
+    cutting a quarter of the environments at each end, rounded down; 5 games: the middle 3, 3 or fewer: all)."""
+    if statistic == "iqm":
+        from scipy.stats import trim_mean
+
+        return np.asarray(trim_mean(scores, 0.25, axis=0), dtype=float)
+    return np.asarray(scores.mean(axis=0), dtype=float)
 
 
 def eval_curves(results: DeepResults) -> tuple[np.ndarray, np.ndarray]:

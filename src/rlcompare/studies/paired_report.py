@@ -36,6 +36,7 @@ from rlcompare.studies.paired import (
     eval_curves,
     final_returns,
     load_runs,
+    over_environments,
     pair_of,
     per_seed,
     run_of,
@@ -102,7 +103,8 @@ def judged(study: PairedStudy, runs: Mapping[str, DeepResults], beside: Mapping[
     """Per environment, :data:`PAIR` on paired seeds (each of the study's metrics, the margin in the environment's
     units: :meth:`PairedStudy.margin_of`), then the study's ``others`` (of the runs ``beside`` the networks); over
     two or more environments, where the study declares a margin for it, the pair overall (each seed's normalised
-    score in ``spread`` averaged over the environments where a method learnt). All one family
+    scores in ``spread`` taken over the environments where a method learnt, by the study's
+    :attr:`~PairedStudy.overall_statistic`). All one family
     (:func:`~rlcompare.stats.compare.judge_family`: directions and equivalences Holm-adjusted together); then each
     network comparison behind the learning gate (:func:`~rlcompare.stats.compare.gated_label`) and the divergence
     check."""
@@ -123,7 +125,8 @@ def judged(study: PairedStudy, runs: Mapping[str, DeepResults], beside: Mapping[
     on_scores, off_scores = (spread.scores.get(method) if spread else None for method in PAIR)
     if (study.overall_margin is not None and len(counted) > 1 and on_scores is not None and off_scores is not None
             and on_scores.shape == off_scores.shape):
-        found[Key(OVERALL)] = compare_paired(on_scores[counted].mean(axis=0), off_scores[counted].mean(axis=0),
+        found[Key(OVERALL)] = compare_paired(over_environments(on_scores[counted], study.overall_statistic),
+                                             over_environments(off_scores[counted], study.overall_statistic),
                                              study.overall_margin)
     family: dict[Hashable, Paired] = {key: paired for key, paired in found.items()}
     judgements = judge_family(family, TARGETS)
