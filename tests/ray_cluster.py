@@ -102,14 +102,14 @@ def stop_node(process: subprocess.Popen) -> None:
 
 
 @contextlib.contextmanager
-def loopback_cluster() -> Iterator[tuple[str, dict[str, str], Path, list[subprocess.Popen]]]:
-    """A head node on loopback (one CPU): ``(address, env, Ray's directory, nodes)``; nodes added to ``nodes`` are
-    stopped with it."""
+def loopback_cluster(*head: str) -> Iterator[tuple[str, dict[str, str], Path, list[subprocess.Popen]]]:
+    """A head node on loopback (one CPU, and the resources ``head`` declares: ``--num-gpus=1``, say):
+    ``(address, env, Ray's directory, nodes)``; nodes added to ``nodes`` are stopped with it."""
     temp = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))  # Ray's socket paths must stay short
     env = {**os.environ, **TEST_CLUSTER}
     address = f"{LOOPBACK}:{free_port()}"
     head = start_node(["--head", f"--port={address.split(':')[1]}", "--include-dashboard=false",
-                   f"--dashboard-host={LOOPBACK}", f"--temp-dir={temp}"], temp / "head.log", env)
+                   f"--dashboard-host={LOOPBACK}", f"--temp-dir={temp}", *head], temp / "head.log", env)
     nodes = [head]
     try:
         wait_for_nodes(address, 1, env, temp / "head.log")

@@ -214,3 +214,27 @@ def test_a_cluster_that_cannot_be_reached_says_how_this_command_trains_here(comm
     assert "no Ray cluster at '127.0.0.1:1'" in result.output
     assert result.output.rstrip().endswith(f"start one with 'ray start --head', or {here}")
     assert "Traceback" not in result.output
+
+
+def test_ray_gives_a_networks_trial_a_gpu_of_its_own_and_a_tables_trial_one_cpu() -> None:
+    """On a head that declares a GPU to Ray, the options :func:`task_resources` gives are what Ray assigns: a deep
+    trial one GPU, shown to it alone (``CUDA_VISIBLE_DEVICES``), and one CPU; a tabular trial one CPU and no GPU.
+    Nothing here uses a GPU: Ray schedules the resources a node declares."""
+    script = (
+        "import json, os, ray\n"
+        "from rlcompare.experiment.backends import task_resources\n"
+        "ray.init(address=os.environ['ADDRESS'], logging_level='ERROR', log_to_driver=False)\n"
+        "nodes = [n['Resources'] for n in ray.nodes() if n['Alive']]\n"
+        "probe = ray.remote(lambda: (ray.get_runtime_context().get_assigned_resources(),\n"
+        "                            os.environ.get('CUDA_VISIBLE_DEVICES')))\n"
+        "asked = {e: task_resources({'engine': e}, nodes) for e in ('deep', 'tabular')}\n"
+        "print(json.dumps({e: [a, ray.get(probe.options(**a).remote())] for e, a in asked.items()}))\n")
+    with loopback_cluster("--num-gpus=1") as (address, env, _, _):
+        answer = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=False,
+                                env={**env, "ADDRESS": address}, timeout=180)
+    assert answer.returncode == 0, answer.stderr[-3000:]
+    found = json.loads(answer.stdout.strip().splitlines()[-1])
+    assert found["deep"] == [{"num_cpus": 1, "num_gpus": 1}, [{"CPU": 1.0, "GPU": 1.0}, "0"]]
+    assert found["tabular"][0] == {"num_cpus": 1, "num_gpus": 0}
+    assert found["tabular"][1][0] == {"CPU": 1.0}
+    assert found["tabular"][1][1] in (None, "")  # Ray shows a task that asked for none no GPU

@@ -10,8 +10,10 @@ bit for bit, whatever the number of workers.
 
 - ``local``: a pool of threads. Each trial is one run, whose compiled kernel releases the GIL, so threads
   train in parallel without the cost of starting processes (and of loading the compiled kernels in each).
-- ``ray``: one Ray task per trial (``num_cpus=1``), retried by Ray on another node when a node is lost, and
-  streamed back with ``ray.wait`` as each finishes. Ray is an optional dependency
+- ``ray``: one Ray task per trial, retried by Ray on another node when a node is lost, and streamed back with
+  ``ray.wait`` as each finishes. Each task asks for what it uses (:func:`task_resources`): a tabular trial one CPU;
+  a network's trial one GPU where the cluster has GPUs (Ray then shows it that GPU alone), else the cores of the
+  smallest node, which XLA's thread pool spans. Ray is an optional dependency
   (``pip install 'rlcompare[ray]'``), imported only here, and only when this backend runs. Every node needs
   rlcompare installed in the same version (a shared environment, or a Ray ``runtime_env``).
 """
@@ -50,6 +52,22 @@ class Backend(Protocol):
     def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
         """Run every trial, calling ``on_done(trial, results)`` as each one finishes."""
         ...
+
+
+def task_resources(config: dict[str, Any], nodes: list[dict[str, float]]) -> dict[str, float]:
+    """What the Ray task of a trial (``config``, as :func:`~rlcompare.experiment.sweep.config_dict` gives it) asks
+    of a cluster whose alive nodes hold ``nodes`` (Ray's resources of each): ``num_cpus`` and ``num_gpus``.
+
+    A tabular trial: one CPU (a sweep's trial is one seed, trained on one thread). A deep trial: where a node has a
+    GPU, one GPU and one CPU, so that tasks never share a GPU and each JAX process sees only its own (Ray sets
+    ``CUDA_VISIBLE_DEVICES``; JAX takes 75% of the memory it sees); on CPUs only, the cores of the smallest node,
+    since XLA's thread pool spans every core of the node it runs on: two such tasks on one node would each run at
+    half speed with twice the memory."""
+    if config.get("engine") != "deep":
+        return {"num_cpus": 1, "num_gpus": 0}
+    if any(node.get("GPU", 0) >= 1 for node in nodes):
+        return {"num_cpus": 1, "num_gpus": 1}
+    return {"num_cpus": min((node.get("CPU", 1) for node in nodes), default=1), "num_gpus": 0}
 
 
 def run_trial(config: dict[str, Any]) -> Any:
@@ -129,8 +147,12 @@ class RayBackend:
     def run(self, trials: Iterable[Trial], on_done: OnDone) -> None:
         self.connect()
         ray = _import_ray()
-        remote = ray.remote(num_cpus=1, max_retries=self.max_retries)(run_trial)
-        running = {remote.remote(config_dict(trial.config)): trial for trial in trials}
+        remote = ray.remote(max_retries=self.max_retries)(run_trial)
+        nodes = [node["Resources"] for node in ray.nodes() if node["Alive"]]
+        running = {}
+        for trial in trials:
+            config = config_dict(trial.config)
+            running[remote.options(**task_resources(config, nodes)).remote(config)] = trial
         try:
             while running:
                 finished, _ = ray.wait(list(running), num_returns=1)
