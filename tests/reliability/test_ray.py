@@ -46,10 +46,11 @@ algorithm = ["q_learning", "sarsa"]
 """
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def cluster():
-    """A head node on loopback (one CPU), torn down with everything it started."""
-    with loopback_cluster() as started:
+    """A head node on loopback (one CPU, and one GPU declared to Ray, which no test uses), torn down with everything
+    it started."""
+    with loopback_cluster("--num-gpus=1") as started:
         yield started
 
 
@@ -216,8 +217,8 @@ def test_a_cluster_that_cannot_be_reached_says_how_this_command_trains_here(comm
     assert "Traceback" not in result.output
 
 
-def test_ray_gives_a_networks_trial_a_gpu_of_its_own_and_a_tables_trial_one_cpu() -> None:
-    """On a head that declares a GPU to Ray, the options :func:`task_resources` gives are what Ray assigns: a deep
+def test_ray_gives_a_networks_trial_a_gpu_of_its_own_and_a_tables_trial_one_cpu(cluster) -> None:
+    """On the head, which declares a GPU to Ray, the options :func:`task_resources` gives are what Ray assigns: a deep
     trial one GPU, shown to it alone (``CUDA_VISIBLE_DEVICES``), and one CPU; a tabular trial one CPU and no GPU.
     Nothing here uses a GPU: Ray schedules the resources a node declares."""
     script = (
@@ -229,9 +230,9 @@ def test_ray_gives_a_networks_trial_a_gpu_of_its_own_and_a_tables_trial_one_cpu(
         "                            os.environ.get('CUDA_VISIBLE_DEVICES')))\n"
         "asked = {e: task_resources({'engine': e}, nodes) for e in ('deep', 'tabular')}\n"
         "print(json.dumps({e: [a, ray.get(probe.options(**a).remote())] for e, a in asked.items()}))\n")
-    with loopback_cluster("--num-gpus=1") as (address, env, _, _):
-        answer = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=False,
-                                env={**env, "ADDRESS": address}, timeout=180)
+    address, env, _, _ = cluster
+    answer = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=False,
+                            env={**env, "ADDRESS": address}, timeout=180)
     assert answer.returncode == 0, answer.stderr[-3000:]
     found = json.loads(answer.stdout.strip().splitlines()[-1])
     assert found["deep"] == [{"num_cpus": 1, "num_gpus": 1}, [{"CPU": 1.0, "GPU": 1.0}, "0"]]
