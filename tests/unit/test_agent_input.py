@@ -185,3 +185,18 @@ def test_a_refused_observation_draws_nothing_from_the_random_agent(box_agents) -
     with pytest.raises(ValueError, match=BOX_EXPECTED):
         agent.act(np.zeros(3))
     assert [agent.act(np.zeros(2)) for _ in range(20)] == [fresh.act(np.zeros(2)) for _ in range(20)]
+
+
+def test_an_environment_given_to_load_agent_must_have_the_runs_actions(tmp_path: Path) -> None:
+    """Mountain Car's agent chooses among 3 actions: CartPole's 2 are refused in one line naming ``env``;
+    Mountain Car's own are taken, and ε's random actions are drawn from them."""
+    from rlcompare.validation import ConfigError
+
+    run(ExperimentConfig(**TINY, algorithm="q_learning"), out=tmp_path / "run")
+    with pytest.raises(ConfigError, match=r"env: got 'an environment with the action space Discrete\(2\)'; allowed: "
+                                          r"one of 3 actions, as gymnasium.make\('MountainCar-v0'\) makes"):
+        load_agent(tmp_path / "run", env=gym.make("CartPole-v1"))
+    env = gym.make("MountainCar-v0")
+    assert load_agent(tmp_path / "run", env=env).act(env.reset(seed=0)[0]) in range(3)
+    explorer = load_agent(tmp_path / "run", epsilon=1.0, env=env)
+    assert {explorer.act(env.reset(seed=0)[0]) for _ in range(100)} == {0, 1, 2}
