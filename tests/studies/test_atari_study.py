@@ -23,6 +23,7 @@ from rlcompare.envs.atari import games as atari  # noqa: E402
 from rlcompare.envs.atari import scores as atari_scores  # noqa: E402
 from rlcompare.experiment.engines import load_run  # noqa: E402
 from rlcompare.studies.atari import play as atari_play  # noqa: E402
+from rlcompare.studies.atari import random_policy  # noqa: E402
 from rlcompare.studies.atari import study as atari_study  # noqa: E402
 from rlcompare.studies.paired import final_returns  # noqa: E402
 
@@ -39,6 +40,7 @@ def small_preset():
     with pytest.MonkeyPatch.context() as patch:
         patch.setitem(pqn.PRESETS["default"], "Breakout-Atari", SMALL)
         patch.setattr(atari_play, "STAGE_STEPS", 40)
+        patch.setattr(random_policy, "EPISODES", 4)
         patch.setitem(atari_study.BUDGETS, "smoke", atari_study.Budget("breakout", 256, 1, 2, "seconds"))
         yield
 
@@ -179,6 +181,33 @@ def test_an_environment_an_agent_cannot_read_is_one_line_naming_what_it_needs(st
         load_agent(out / "pqn_q_lambda-Breakout", seed=1, env=gym.wrappers.TransformObservation(
             cartpole, lambda o: np.zeros((4, 84, 84), np.uint8),
             gym.spaces.Box(0, 255, (4, 84, 84), np.uint8)))
+
+
+def test_the_random_policy_is_measured_under_the_protocol_once_and_read_back_after(study, monkeypatch):
+    """Breakout's 4 random episodes, played in the study's emulator, stand in its table beside the published random
+    score and the margin; a report made again reads them back instead of playing them, and a table changed by hand
+    is played again, not read."""
+    out, _ = study
+    episodes = pd.read_csv(out / random_policy.TABLE)
+    assert episodes["game"].tolist() == ["Breakout"] * 4
+    returns = episodes["return"].to_numpy()
+    assert (returns >= 0).all()  # Breakout's points: never lost,
+    assert (returns == np.round(returns)).all()  # and whole
+    table = pd.read_csv(out / "tables" / "atari_random.csv").iloc[0]
+    assert table["random here, mean"].startswith(f"{returns.mean():.1f} [")
+    assert table["one episode's sd"] == round(float(np.std(returns, ddof=1)), 2)
+    assert table["margin"] == round(0.1 * (30.5 - 1.7), 2)  # a tenth of Mnih et al.'s random-to-human range
+    assert table["published random"] == 1.7
+
+    def played(*_):
+        raise AssertionError("played again")
+
+    monkeypatch.setattr(random_policy, "random_returns", played)
+    assert random_policy.random_episodes(out, ["Breakout"], 4).equals(episodes)
+    table_file = out / random_policy.TABLE
+    table_file.write_text(table_file.read_text().replace("Breakout,0,", "Breakout,0,9", 1))
+    with pytest.raises(AssertionError, match="played again"):
+        random_policy.random_episodes(out, ["Breakout"], 4)
 
 
 def test_a_finished_study_is_loaded_not_trained_again(study):

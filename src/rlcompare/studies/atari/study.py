@@ -32,6 +32,7 @@ from rlcompare.report.stage_video import render_stages
 from rlcompare.stats import intervals as stats
 from rlcompare.studies import paired_report
 from rlcompare.studies.atari import play as atari_play
+from rlcompare.studies.atari import random_policy
 from rlcompare.studies.atari.play import play_stages, upscaled
 from rlcompare.studies.interface import UI, Report, listed
 from rlcompare.studies.margins import margin
@@ -262,6 +263,8 @@ def _build_report(out: Path, videos: bool) -> Report:
     games = [title(env) for env in found.envs]
     floors = {t: atari_scores.GAMES[t].random for t in games}
     humans = {t: atari_scores.GAMES[t].human for t in games}
+    randoms = random_policy.random_table(random_policy.random_episodes(out, games, random_policy.EPISODES), MARGIN)
+    files["random"] = write_table(randoms, out / "tables", "atari_random")
     lines = paired_report.answer(compared, seeds, over=OVER_GAMES, floors=floors, references=humans,
                                  measure=f"final return at ε = {EPSILON:g}", reference="the human")
     if steps and plumbing(steps):
@@ -302,6 +305,13 @@ def _build_report(out: Path, videos: bool) -> Report:
             "seeds, with a 95% bootstrap interval over the seeds."
             if atari5 is not None else "Needs a method run on all five Atari-5 games (--games atari5)."],
             [("Atari-5 estimate", atari5, files["atari5"])] if atari5 is not None else []),
+        Section("The random policy under this protocol", [
+            f"{random_policy.EPISODES} episodes of the uniformly random policy on each game, played here under the "
+            "protocol above (the evaluation's loop at ε = 1; every episode in "
+            f"{random_policy.TABLE}), beside the published random score, which DQN's protocol measured (no-op "
+            "starts, no sticky actions), and the game's margin: where one episode's standard deviation is many "
+            "margins, the game's verdict needs the seeds to outnumber that noise."],
+            [("Random policy", randoms, files["random"])]),
         across_section(
             "Across games",
             "Human-normalised final scores pooled over the games as rliable does (Agarwal et al. 2021): interval "
