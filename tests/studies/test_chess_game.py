@@ -14,7 +14,6 @@ import pytest
 pytest.importorskip("jax")
 pytest.importorskip("pgx")
 
-import jax
 from helpers import assert_loaded_not_trained, invoke, study_fixture
 
 from rlcompare.deep import pqn
@@ -182,15 +181,27 @@ def test_the_opening_suite_is_seeded_and_each_opening_a_different_position():
     game = chess_game_env("gardner_chess")
     suite = chess_ladder.openings(game, 32)
     assert suite.moves.shape == (32, chess_ladder.OPENING_PLIES)
-    seen = np.asarray(jax.vmap(game.observe)(suite.states))
+    seen = np.asarray(suite.states.observation)  # pgx's planes: the position and its history
     assert len({position.tobytes() for position in seen}) == 32
     assert not np.asarray(suite.states.terminated).any()
     assert np.array_equal(chess_ladder.openings(game, 32).moves, suite.moves)  # seeded
-    paired = suite.paired()
-    assert np.array_equal(np.asarray(jax.vmap(game.observe)(paired))[::2], seen)
-    assert np.array_equal(np.asarray(jax.vmap(game.observe)(paired))[1::2], seen)
-    with pytest.raises(ValueError, match="distinct positions after 1 random plies"):
-        chess_ladder.openings(game, 32, plies=1)  # one ply: 7 positions at most
+    paired = np.asarray(suite.paired().observation)
+    assert np.array_equal(paired[::2], seen)
+    assert np.array_equal(paired[1::2], seen)
+
+
+def test_openings_leave_out_repeated_positions_and_ended_games_and_too_few_are_refused(monkeypatch):
+    """The suite's selection on drawn candidates made by hand: 6 candidates, positions a, b, a, c, d, b, the one at d
+    ended by its plies: a, b, c are kept in the order drawn, and 4 openings are refused naming what was found."""
+    positions = np.array([[0], [1], [0], [2], [3], [1]])
+    drawn = ({"id": np.arange(6)}, np.arange(6)[:, None] * np.ones((1, 4), int), np.array([0, 0, 0, 0, 1, 0], bool),
+             positions)
+    monkeypatch.setattr(chess_ladder, "opening_candidates", lambda game, candidates, plies: lambda key: drawn)
+    suite = chess_ladder.openings(None, 3)
+    assert suite.states["id"].tolist() == [0, 1, 3]
+    assert suite.moves[:, 0].tolist() == [0, 1, 3]
+    with pytest.raises(ValueError, match="only 3 distinct positions after 4 random plies among 256 drawn; 4 pairs"):
+        chess_ladder.openings(None, 4)
 
 
 def test_the_ratings_are_anchored_at_the_random_player_always():

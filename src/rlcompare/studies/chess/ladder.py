@@ -1,12 +1,14 @@
 """The rating ladder of ``rlcompare reproduce chess``: games between the learnt networks, a uniformly random player, a
-one-ply material player and, for chess itself, Stockfish at two strengths; each pairing played in pairs of games,
-colours swapped, and every game rated together (:mod:`rlcompare.stats.ratings`).
+one-ply material player and, for chess itself, Stockfish at two settings; each pairing played in pairs of games,
+each pair from its own seeded opening (:func:`openings`) with colours swapped, and every distinct game rated
+together (:mod:`rlcompare.stats.seeded_ratings`).
 
 The games of networks, the random and the material player are played in pgx, side by side and seeded
-(:func:`rlcompare.deep.rollout.play`); those against Stockfish through python-chess's UCI client, the network
-choosing on pgx's copy of the board (:mod:`rlcompare.deep.chess.board`). A player of the ladder is a method's
-network (every seed's, pooled: the rating is of a network that method trains), ``random``, ``material`` or a
-Stockfish rung.
+(:func:`rlcompare.deep.rollout.play_from`, which gives each game's identity); those against Stockfish through
+python-chess's UCI client from the same openings, the network choosing on pgx's copy of the board
+(:mod:`rlcompare.deep.chess.board`). A player of the ladder is a method's network (every seed's, one player whose
+seeds the two-level bootstrap resamples: the rating is of a network that method trains), ``random``, ``material`` or
+a Stockfish rung.
 """
 
 from __future__ import annotations
@@ -41,12 +43,15 @@ OPENINGS_KEY = LADDER_KEY - 1
 """The key of the ladder's opening suite."""
 OPENING_PLIES = 4
 """k: each opening is k uniformly random legal plies from the start, two moves a side. Two greedy networks from one
-position play one game, so every pair of games needs a position of its own: k = 2 gives at most 7 x 7 = 49 Gardner
-openings (fewer positions), too few for the default 32 pairs, while k = 4 gives hundreds (chess: 197,281 move
-sequences), and two random moves a side change the position without deciding the game; each opening is played
-with both colours, so what it gives one side it gives the other player in the pair's other game."""
+position play one game, so every pair of games needs a position of its own. On Gardner's board (7 legal first moves)
+4,096 seeded draws reach 7 positions at k = 1, 53 at k = 2 (too few for the default 32 pairs once repeats are drawn)
+and 2,188 at k = 4, none of them ended; chess has 197,281 four-ply sequences. Two random moves a side vary the
+position without deciding the game, and each opening is played with both colours, so what it gives one side it
+gives the other player in the pair's other game."""
 CANDIDATES = 8
-"""Openings drawn per opening kept (those the random plies ended, and repeated positions, are dropped)."""
+"""Openings drawn per opening kept (those the random plies ended, and repeated positions, are dropped), and at least
+:data:`MIN_CANDIDATES`, so that suites of up to 32 openings share one compiled program."""
+MIN_CANDIDATES = 256
 Played = tuple[jax.Array, jax.Array, jax.Array, jax.Array]
 """What :func:`rlcompare.deep.rollout.play_from` returns: ``(results, plies, decided, digest)``."""
 COLUMNS = ("white", "black", "white_seed", "black_seed", "score", "plies", "termination", "opening", "game")
@@ -108,17 +113,18 @@ def opening_candidates(game: ChessGameEnv, candidates: int, plies: int) -> Calla
 @float64
 def openings(game: ChessGameEnv, count: int, plies: int = OPENING_PLIES) -> Openings:
     """``count`` openings of ``plies`` random plies, seeded (:data:`OPENINGS_KEY`): the first ``count`` distinct
-    positions (by what the network sees of them) among ``CANDIDATES x count`` drawn, those the plies ended left out;
-    fewer is a ``ValueError``."""
-    states, moves, ended, seen = opening_candidates(game, CANDIDATES * count, plies)(jax.random.key(OPENINGS_KEY))
+    positions (by what the network sees of them) among ``max(MIN_CANDIDATES, CANDIDATES x count)`` drawn, those the
+    plies ended left out; fewer is a ``ValueError``."""
+    drawn = max(MIN_CANDIDATES, CANDIDATES * count)
+    states, moves, ended, seen = opening_candidates(game, drawn, plies)(jax.random.key(OPENINGS_KEY))
     kept: dict[bytes, int] = {}
     for index, (done, observation) in enumerate(zip(np.asarray(ended), np.asarray(seen), strict=True)):
         if not done:
             kept.setdefault(observation.tobytes(), index)
     chosen = np.asarray(sorted(kept.values())[:count])
     if len(chosen) < count:
-        raise ValueError(f"only {len(chosen)} distinct positions after {plies} random plies among "
-                         f"{CANDIDATES * count} drawn; {count} pairs need {count}")
+        raise ValueError(f"only {len(chosen)} distinct positions after {plies} random plies among {drawn} drawn; "
+                         f"{count} pairs need {count}")
     return Openings(np.asarray(moves)[chosen], jax.tree.map(lambda leaf: leaf[chosen], states))
 
 
