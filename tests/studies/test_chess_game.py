@@ -18,7 +18,9 @@ from helpers import assert_loaded_not_trained, invoke, study_fixture
 
 from rlcompare.deep import pqn
 from rlcompare.studies.chess import game as chess_game
+from rlcompare.studies.chess import ladder as chess_ladder
 from rlcompare.studies.chess.game import LADDER, load_ladder
+from rlcompare.studies.chess.ladder import distinct_games
 from rlcompare.studies.paired import load_runs
 
 TINY = ["reproduce", "chess", "--allow-undecidable", "--seeds", "2", "--steps", "1280", "--pairs", "2"]
@@ -51,9 +53,24 @@ def test_the_study_writes_its_runs_the_ladder_and_a_report(study):
     assert set(games["score"]) <= {0.0, 0.5, 1.0}
     swapped = games.iloc[0:2]
     assert (swapped["white"].tolist(), swapped["black"].tolist()) == (["random", "material"], ["material", "random"])
+    # each pair of games from its own opening, both colours; every pairing plays the same suite
+    assert games["opening"].tolist() == [0, 0, 1, 1] * pairings
+    assert (games["plies"] > chess_ladder.OPENING_PLIES).all()
+    # two greedy networks play one game from one position: every duel's game differs from the others
+    duels = games[(games["white_seed"] >= 0) & (games["black_seed"] >= 0)]
+    assert len(duels) == 2 * 2 * 2
+    assert distinct_games(duels) == len(duels)
+    assert duels.groupby(["white", "white_seed"])["game"].nunique().tolist() == [2, 2, 2, 2]
     ladder = pd.read_csv(out / "tables" / "chess_ladder_gardner_chess.csv")
     assert set(ladder["player"]) == {"random", "material", "Q(λ)", "SARSA(λ)"}
-    assert ladder.loc[ladder["player"] == "random", "rating (Elo)"].item() == "0 [0, 0]"  # the anchor
+    assert ladder.loc[ladder["player"] == "random", "rating (Elo)"].item() == "0 [0, 0]"  # the anchor, always
+    learner = ladder[ladder["player"] == "Q(λ)"].iloc[0]
+    assert learner["games"] == 12 * 2
+    assert learner["distinct games"] == distinct_games(
+        games[(games["white"] == "Q(λ)") | (games["black"] == "Q(λ)")])
+    assert learner["per seed"].startswith("#0 ")
+    assert ", #1 " in learner["per seed"]
+    assert "95% intervals over seeds then games" in " ".join(output.split())
     assert "The ladder, strongest first" in " ".join(output.split())
     assert "With 2 seeds the learning gate cannot pass" in " ".join(output.split())
     page = (out / "report.html").read_text()
@@ -157,15 +174,37 @@ def test_a_missing_stockfish_is_one_line_saying_how_to_install_it(tmp_path, monk
     assert not any((tmp_path / "out").glob("pqn_*"))  # refused before anything trained
 
 
-def test_the_ratings_are_anchored_at_stockfish_only_where_the_ladder_reaches_it_by_points():
-    from rlcompare.studies.chess.game import anchor_of
+@pytest.mark.slow("compiles pgx's Gardner game")
+def test_the_opening_suite_is_seeded_and_each_opening_a_different_position():
+    from rlcompare.deep.chess.games import chess_game_env
 
-    def games(*rows):
-        return pd.DataFrame(rows, columns=["white", "black", "score"])
+    game = chess_game_env("gardner_chess")
+    suite = chess_ladder.openings(game, 32)
+    assert suite.moves.shape == (32, chess_ladder.OPENING_PLIES)
+    seen = np.asarray(suite.states.observation)  # pgx's planes: the position and its history
+    assert len({position.tobytes() for position in seen}) == 32
+    assert not np.asarray(suite.states.terminated).any()
+    assert np.array_equal(chess_ladder.openings(game, 32).moves, suite.moves)  # seeded
+    paired = np.asarray(suite.paired().observation)
+    assert np.array_equal(paired[::2], seen)
+    assert np.array_equal(paired[1::2], seen)
 
-    engines_only = games(("stockfish-skill0-depth1", "stockfish-elo1350", 1.0), ("random", "stockfish-skill0-depth1",
-                                                                               0.0))
-    assert anchor_of(engines_only) == ("random", 0.0)  # Stockfish's points against Stockfish reach no one else
-    drawn = pd.concat([engines_only, games(("stockfish-skill0-depth1", "material", 0.5))], ignore_index=True)
-    assert anchor_of(drawn) == ("stockfish-elo1350", 1350.0)
-    assert anchor_of(games(("Q(λ)", "random", 1.0))) == ("random", 0.0)
+
+def test_openings_leave_out_repeated_positions_and_ended_games_and_too_few_are_refused(monkeypatch):
+    """The suite's selection on drawn candidates made by hand: 6 candidates, positions a, b, a, c, d, b, the one at d
+    ended by its plies: a, b, c are kept in the order drawn, and 4 openings are refused naming what was found."""
+    positions = np.array([[0], [1], [0], [2], [3], [1]])
+    drawn = ({"id": np.arange(6)}, np.arange(6)[:, None] * np.ones((1, 4), int), np.array([0, 0, 0, 0, 1, 0], bool),
+             positions)
+    monkeypatch.setattr(chess_ladder, "opening_candidates", lambda game, candidates, plies: lambda key: drawn)
+    suite = chess_ladder.openings(None, 3)
+    assert suite.states["id"].tolist() == [0, 1, 3]
+    assert suite.moves[:, 0].tolist() == [0, 1, 3]
+    with pytest.raises(ValueError, match="only 3 distinct positions after 4 random plies among 256 drawn; 4 pairs"):
+        chess_ladder.openings(None, 4)
+
+
+def test_the_ratings_are_anchored_at_the_random_player_always():
+    from rlcompare.studies.chess.game import ANCHOR
+
+    assert ANCHOR == ("random", 0.0)

@@ -239,29 +239,28 @@ def test_a_game_drawn_by_an_automatic_rule_is_answered_with_a_legal_move_as_stoc
 
 @pytest.mark.slow("trains a network at chess and plays it against Stockfish")
 def test_the_ladder_plays_stockfish_in_pairs_and_rates_from_its_anchor(chess_run):
-    """Each network against both rungs in colour-swapped pairs, the rungs tied to the rest by the random and material
-    players' games and each other's; the ratings anchored at UCI_Elo 1350 where some player scored against it."""
-    import pandas as pd
-
+    """Each network against both rungs in colour-swapped pairs from one opening, the rungs tied to the rest by the
+    random and material players' games and each other's; the ratings anchored at random = 0, the rungs measured."""
     from rlcompare.experiment.engines import load_run
-    from rlcompare.stats.ratings import bootstrap_ratings
-    from rlcompare.studies.chess.game import anchor_of, ladder_table
-    from rlcompare.studies.chess.ladder import Learner, games_of, stockfish_games
+    from rlcompare.stats.seeded_ratings import seeded_ratings, seeded_scores
+    from rlcompare.studies.chess.game import ANCHOR, ladder_table
+    from rlcompare.studies.chess.ladder import OPENING_PLIES, Learner, games_of, stockfish_games
 
     stockfish_or_skip()
     results = load_run(chess_run)
     games, records = stockfish_games(results.config.environment, [Learner("Q(λ)", results)], pairs=1)
     assert len(games) == len(records) == 2 * (1 + 2 + 2)
     assert games.iloc[0:2][["white", "black"]].values.tolist() == [
-        ["stockfish-skill0-depth1", "stockfish-elo1350"], ["stockfish-elo1350", "stockfish-skill0-depth1"]]
+        ["stockfish-skill0-depth1", "stockfish-limit1350-nodes5000"],
+        ["stockfish-limit1350-nodes5000", "stockfish-skill0-depth1"]]
+    assert set(games["opening"]) == {0}
+    assert all(record.game.headers["FEN"] == records[0].game.headers["FEN"] for record in records)
+    assert (games["plies"] == [OPENING_PLIES + record.plies for record in records]).all()
     network = games[(games["white"] == "Q(λ)") | (games["black"] == "Q(λ)")]
     assert len(network) == 4
     assert set(network["white_seed"].where(network["white"] == "Q(λ)", network["black_seed"])) == {0}
     assert all(record.game.headers["Result"] in ("1-0", "0-1", "1/2-1/2") for record in records)
-    anchor = anchor_of(games)
-    engine_white, engine_black = (games[side].str.startswith("stockfish") for side in ("white", "black"))
-    others = pd.concat([games[engine_white & ~engine_black]["score"].rsub(1),
-                        games[engine_black & ~engine_white]["score"]]).sum()
-    assert anchor == (("stockfish-elo1350", 1350.0) if others > 0 else ("random", 0.0))
-    table = ladder_table(games, bootstrap_ratings(games_of(games), *anchor, seed=0))
+    table = ladder_table(games, seeded_ratings(games_of(games), *ANCHOR, seed=0),
+                         seeded_scores(games_of(games), "random", seed=0))
+    assert table.loc[table["player"] == "random", "rating (Elo)"].item() == "0 [0, 0]"
     assert table["player"].iloc[0].startswith("stockfish")  # strongest first

@@ -19,7 +19,7 @@ from rlcompare.envs.chess.games import PIECE_VALUES
 from rlcompare.players import stockfish
 from rlcompare.players.basic import MaterialPlayer, RandomPlayer
 from rlcompare.players.games import GameRecord, play_game, play_pairs
-from rlcompare.players.stockfish import ELO_1350, SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
+from rlcompare.players.stockfish import LIMIT_1350, SKILL_0, MissingEngine, StockfishPlayer, find_stockfish
 
 MIDGAME = "r1bqkb1r/pppp1ppp/2n2n2/4p3/2B1P3/5N2/PPPP1PPP/RNBQK2R w KQkq - 4 4"
 
@@ -273,12 +273,12 @@ def test_stockfish_at_skill_0_beats_the_random_player():
     assert [record.white for record in records] == [SKILL_0.name, "random"] * 3
 
 
-def test_stockfish_at_elo_1350_plays_legal_moves_and_closes():
-    stockfish = StockfishPlayer(ELO_1350, stockfish_or_skip())
+def test_stockfish_limited_to_uci_elo_1350_plays_legal_moves_and_closes():
+    stockfish = StockfishPlayer(LIMIT_1350, stockfish_or_skip())
     try:
         board = chess.Board(MIDGAME)
         assert stockfish.move(board) in board.legal_moves
-        assert stockfish.name == "stockfish-elo1350"
+        assert stockfish.name == "stockfish-limit1350-nodes5000"
     finally:
         stockfish.close()
     assert stockfish.engine.returncode.result(timeout=10) == 0

@@ -171,27 +171,50 @@ def play(game: GameEnv, player: Mover, opponent: Mover, key: jax.Array, games: i
     games and the second in the odd ones: ``(results, plies, decided)``, each ``(games,)``, a result being
     ``player``'s +1 (won), 0 (drawn) or -1 (lost). The game's own end stops each; the loop ends when all have."""
     states = jax.vmap(game.reset)(jax.random.split(key, games))
+    results, plies, decided, _ = _played(game, player, opponent, key, states, games, digest=False)
+    return results, plies, decided
+
+
+def play_from(game: GameEnv, player: Mover, opponent: Mover, key: jax.Array, states: Any
+              ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+    """:func:`play` from the given positions (``states``, a batch: ``player`` White in the even ones), with each
+    game's identity: ``(results, plies, decided, digest)``, ``digest`` ``(games, 2)`` uint32, two polynomial hashes
+    of the moves played (Karp and Rabin's rolling hash, on two multipliers), equal for equal move sequences."""
+    games = jax.tree.leaves(states)[0].shape[0]
+    return _played(game, player, opponent, key, states, games, digest=True)
+
+
+DIGEST_MULTIPLIERS = (1_000_003, 2_654_435_761)
+"""The multipliers of :func:`play_from`'s two move hashes (mod 2^32): a prime and Knuth's golden-ratio constant."""
+
+
+def _played(game: GameEnv, player: Mover, opponent: Mover, key: jax.Array, states: Any, games: int, digest: bool
+            ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     unused = jax.random.split(key, games)  # the game's step draws nothing
     player_side = jnp.arange(games) % 2
+    multipliers = jnp.asarray(DIGEST_MULTIPLIERS, jnp.uint32)
 
-    def going(carry: Evaluating) -> jax.Array:
+    def going(carry: tuple[Any, ...]) -> jax.Array:
         return jnp.any(carry[2])
 
-    def one_ply(carry: Evaluating) -> Evaluating:
-        t, state, running, results, plies, decided = carry
+    def one_ply(carry: tuple[Any, ...]) -> tuple[Any, ...]:
+        t, state, running, results, plies, decided, *hashes = carry
         player_moves = jax.vmap(game.colour)(state) == player_side
         player_key, opponent_key = jax.random.split(jax.random.fold_in(key, t))
         move = jnp.where(player_moves, player(game, state, player_key), opponent(game, state, opponent_key))
+        if digest:
+            rolled = hashes[0] * multipliers + (move.astype(jnp.uint32) + jnp.uint32(1))[:, None]
+            hashes = [jnp.where(running[:, None], rolled, hashes[0])]
         state, reward, term, _ = step_all(game, state, move, unused)
         result = jnp.where(player_moves, reward, -reward)
         results = results + jnp.where(running, result, 0.0).astype(jnp.float32)
         return (t + 1, state, running & ~term, results, plies + running.astype(jnp.int32),
-                decided | (running & term & (reward != 0)))
+                decided | (running & term & (reward != 0)), *hashes)
 
     start = (jnp.zeros((), jnp.int32), states, jnp.ones(games, bool), jnp.zeros(games, jnp.float32),
-             jnp.zeros(games, jnp.int32), jnp.zeros(games, bool))
-    _, _, _, results, plies, decided = jax.lax.while_loop(going, one_ply, start)
-    return results, plies, decided
+             jnp.zeros(games, jnp.int32), jnp.zeros(games, bool), *([jnp.zeros((games, 2), jnp.uint32)] * digest))
+    _, _, _, results, plies, decided, *hashes = jax.lax.while_loop(going, one_ply, start)
+    return results, plies, decided, hashes[0] if digest else jnp.zeros((games, 2), jnp.uint32)
 
 
 def all_finite(params: Params) -> jax.Array:

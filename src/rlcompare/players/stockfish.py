@@ -33,12 +33,14 @@ ENGINE_OPTIONS: Mapping[str, int] = {"Threads": 1, "Hash": 1}
 searches this short."""
 SKILL_0 = StockfishRung("stockfish-skill0-depth1", {"Skill Level": 0}, chess.engine.Limit(depth=1))
 """Stockfish's weakest skill, searching one ply (with MultiPV 4 behind the scenes)."""
-ELO_1350 = StockfishRung("stockfish-elo1350", {"UCI_LimitStrength": True, "UCI_Elo": 1350},
-                         chess.engine.Limit(nodes=5000))
-"""Stockfish 15.1's lowest Elo: skill level ((1350 - 1346.6) / 143.4) ** (1 / 0.806) ~ 0.01, which picks among the
-first iteration's best moves as skill 0 does, yet searches on, and the fuller hash table and histories seem to
-help: it scored 52 of 80 against :data:`SKILL_0` (46 of 80 at 1000 nodes, 54 at 10 ms a move). A node limit, not
-a time limit, so that the work per move does not hang on the machine or its load; 5000 nodes take about 5 ms."""
+LIMIT_1350 = StockfishRung("stockfish-limit1350-nodes5000", {"UCI_LimitStrength": True, "UCI_Elo": 1350},
+                           chess.engine.Limit(nodes=5000))
+"""Named by its settings, not by a rating: ``UCI_Elo`` is calibrated against CCRL at a time control, not at 5,000
+nodes, so the ladder measures this rung as it measures every player. Stockfish 15.1's lowest ``UCI_Elo``: skill
+level ((1350 - 1346.6) / 143.4) ** (1 / 0.806) ~ 0.01, which picks among the first iteration's best moves as skill 0
+does, yet searches on, and the fuller hash table and histories seem to help: it scored 52 of 80 against
+:data:`SKILL_0` (46 of 80 at 1000 nodes, 54 at 10 ms a move). A node limit, not a time limit, so that the work per
+move does not hang on the machine or its load; 5000 nodes take about 5 ms."""
 
 
 def find_stockfish() -> str:

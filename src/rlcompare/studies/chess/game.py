@@ -1,13 +1,14 @@
 """``rlcompare reproduce chess``: the paper's question on a whole game of chess, with networks, in self-play.
 
-A configuration of the paired study (:mod:`rlcompare.studies.paired`): Q(λ) (off-policy, the opponent's best
-legal reply) against SARSA(λ) (on-policy, the reply played), one network playing both sides, on Gardner's 5 x 5
-minichess by default or on chess (``--game chess``), through pgx (:mod:`rlcompare.deep.chess.games`). A method's
-result is its final greedy network's score against the uniformly random player; the verdicts compare those on paired
-seeds. Then a rating ladder (:mod:`rlcompare.studies.chess.ladder`): every network against the random player, the
-one-ply material player and the other method's network of the same seed, and on chess against Stockfish at Skill
-Level 0 and at ``UCI_Elo`` 1350, every game rated together by a Bradley-Terry fit on the Elo scale with bootstrap
-intervals. The ladder's games are played once, when the runs are trained, and kept beside them.
+A configuration of the paired study (:mod:`rlcompare.studies.paired`): Q(λ) (off-policy, the opponent's best legal
+reply) against SARSA(λ) (on-policy, the reply played), one network playing both sides, on Gardner's 5 x 5 minichess
+by default or on chess (``--game chess``), through pgx (:mod:`rlcompare.deep.chess.games`). A method's result is its
+final greedy network's score against the uniformly random player; the verdicts compare those on paired seeds. Then a
+rating ladder (:mod:`rlcompare.studies.chess.ladder`): every network against the random player, the one-ply material
+player and the other method's network of the same seed, and on chess against Stockfish at two settings, each pair of
+games from a seeded random opening with colours swapped, every distinct game rated together by a Bradley-Terry fit
+on the Elo scale (random = 0) with two-level bootstrap intervals (seeds, then games). The ladder's games are played
+once, when the runs are trained, and kept beside them.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 import io
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -26,10 +27,8 @@ from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.results import DeepResults
 from rlcompare.envs.chess.games import GAMES
 from rlcompare.experiment import rundir, store
-from rlcompare.players.stockfish import ELO_1350
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.design import GATE, can_pass, seeds_needed, smallest_p
-from rlcompare.stats.intervals import Estimate
 from rlcompare.stats.significance import ALPHA
 from rlcompare.studies.chess import ladder as chess_ladder
 from rlcompare.studies.chess.ladder import MATERIAL, RANDOM, Learner, games_of
@@ -40,6 +39,9 @@ from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, clus
 from rlcompare.studies.paired_report import curves_drawn, findings, short_label
 from rlcompare.studies.plans import StudyPlan
 from rlcompare.studies.registry import ChessOptions
+
+if TYPE_CHECKING:
+    from rlcompare.stats.seeded_ratings import Levelled
 
 STUDY = "chess"
 BUDGETS = {"cpu": 500_000, "gpu": 10_000_000}
@@ -117,7 +119,8 @@ def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
     deep = {name: r for name, r in runs.items() if isinstance(r, DeepResults) and r.config.env == options.game}
     where = out / LADDER / options.game
     marker = where / "ladder.json"
-    if marker.exists() and store.read_json(marker).get("runs") == played_from(deep):
+    if marker.exists() and store.read_json(marker).get("runs") == played_from(deep) and \
+            store.read_json(marker).get("version") == chess_ladder.VERSION:
         try:
             rundir.read_member_file(out, ladder_games(options.game))
             return
@@ -134,7 +137,8 @@ def play_ladder(out: Path, runs: dict[str, Any], options: ChessOptions) -> None:
     data = games.to_parquet(index=False)
     store.write_bytes_atomic(where / GAMES_FILE, data)
     rundir.enter_members(out, [], {ladder_games(options.game): data})
-    store.write_json_atomic(marker, {"runs": played_from(deep), "pairs": options.pairs, "game": options.game})
+    store.write_json_atomic(marker, {"runs": played_from(deep), "pairs": options.pairs, "game": options.game,
+                                     "version": chess_ladder.VERSION, "opening_plies": chess_ladder.OPENING_PLIES})
 
 
 def load_ladder(out: Path, env: str, runs: dict[str, DeepResults]) -> pd.DataFrame:
@@ -149,7 +153,8 @@ def load_ladder(out: Path, env: str, runs: dict[str, DeepResults]) -> pd.DataFra
     games = pd.read_parquet(io.BytesIO(rundir.read_member_file(out, ladder_games(env))))
     missing = set(chess_ladder.COLUMNS) - set(games.columns)
     if missing:
-        raise store.StoreError(f"{where / GAMES_FILE}: not a ladder's games (no {sorted(missing)})")
+        raise store.StoreError(f"{where / GAMES_FILE}: not a ladder's games of this version (no {sorted(missing)}); "
+                               "run 'rlcompare reproduce chess' with the same options to play it again")
     return games
 
 
@@ -161,44 +166,62 @@ def ladder_games(env: str) -> str:
 
 # --- the report -------------------------------------------------------------------------------------------------
 
-def anchor_of(games: pd.DataFrame) -> tuple[str, float]:
-    """Stockfish's ``UCI_Elo`` 1350 where some player other than Stockfish scored against a Stockfish rung (the
-    ladder reaches it by points, not only by the prior's virtual draws), else the random player at 0."""
-    engine = games["white"].str.startswith(STOCKFISH) != games["black"].str.startswith(STOCKFISH)
-    others_points = np.where(games["white"].str.startswith(STOCKFISH), 1 - games["score"], games["score"])
-    reached = float(others_points[engine.to_numpy()].sum()) > 0
-    return (ELO_1350.name, float(ELO_1350.options["UCI_Elo"])) if reached else (RANDOM, 0.0)
+ANCHOR = (RANDOM, 0.0)
+"""The scale's zero, always: the uniformly random player. Stockfish's rungs are players the ladder measures, named by
+their settings; a ``UCI_Elo`` setting is no rating on this scale (it is calibrated at a time control against CCRL)."""
 
 
-def ladder_table(games: pd.DataFrame, ratings: dict[str, Estimate]) -> pd.DataFrame:
-    """Per player: its rating, and its games, wins, draws, losses and score over all its games and against the
-    random player, strongest first."""
-    from rlcompare.stats.ratings import player_records  # scipy: for the report, not the plan
+def ladder_table(games: pd.DataFrame, ratings: dict[str, Levelled], against_random: dict[str, Levelled]
+                 ) -> pd.DataFrame:
+    """Per player, strongest first: its rating with the two-level interval (seeds, then games) and the games-only
+    one, each seed's rating and their standard deviation; its games and how many differ, wins, draws, losses and
+    score (Wilson); its score against the random player (two-level interval) and each seed's."""
+    from rlcompare.stats.ratings import Game, player_records  # scipy: for the report, not the plan
 
-    played = games_of(games)
-    overall = player_records(played)
-    against_random = player_records(g for g in played if RANDOM in (g.white, g.black))
+    overall = player_records(Game(*game[:3]) for game in games_of(games))
     rows = []
-    for player, rating in sorted(ratings.items(), key=lambda item: -item[1].value):
+    for player, rating in sorted(ratings.items(), key=lambda item: -item[1].estimate.value):
         record = overall[player]
-        versus = against_random.get(player) if player != RANDOM else None
-        rows.append({"player": player, "rating (Elo)": rating.format(0), "games": record.games,
+        mine = games[(games["white"] == player) | (games["black"] == player)]
+        versus = against_random.get(player)
+        rows.append({"player": player, "rating (Elo)": rating.estimate.format(0),
+                     "games-only interval": rating.games_only.format(0).split(" ", 1)[1],
+                     "per seed": per_seed(rating.per_seed, 0), "between seeds (sd)": spread_text(rating, 0),
+                     "games": record.games, "distinct games": chess_ladder.distinct_games(mine),
                      "won-drawn-lost": f"{record.wins}-{record.draws}-{record.losses}",
                      "score": record.interval().format(3),
-                     "score against random": versus.interval().format(3) if versus else ""})
+                     "score against random": versus.estimate.format(3) if versus else "",
+                     "against random per seed": per_seed(versus.per_seed, 3) if versus else ""})
     return pd.DataFrame(rows)
 
 
-def ladder_figure(ratings: dict[str, Estimate], anchor: tuple[str, float]) -> Figure:
-    """Each player's rating with its 95% interval, strongest at the top."""
-    ordered = sorted(ratings.items(), key=lambda item: item[1].value)
+def per_seed(values: dict[int, float], digits: int) -> str:
+    return ", ".join(f"#{seed} {value:.{digits}f}" for seed, value in sorted(values.items()))
+
+
+def spread_text(levelled: Levelled, digits: int) -> str:
+    """The spread between seeds; with one seed none can be measured, and the text says so."""
+    if not levelled.per_seed:
+        return ""
+    return "one seed: none measured" if len(levelled.per_seed) < 2 else f"{levelled.spread:.{digits}f}"
+
+
+def ladder_figure(ratings: dict[str, Levelled], anchor: tuple[str, float]) -> Figure:
+    """Each player's rating with its two-level 95% interval (thin) and its games-only one (thick), strongest at the
+    top."""
+    ordered = sorted(ratings.items(), key=lambda item: item[1].estimate.value)
     figure = Figure(figsize=(7, 0.5 * len(ordered) + 1.2))
     ax = figure.subplots()
-    values = np.array([r.value for _, r in ordered])
-    errors = np.array([[r.value - r.low for _, r in ordered], [r.high - r.value for _, r in ordered]])
-    ax.errorbar(values, np.arange(len(ordered)), xerr=errors, fmt="o", color="#1f4e79", capsize=4)
+    values = np.array([r.estimate.value for _, r in ordered])
+    for which, width, colour in (("estimate", 1.0, "#1f4e79"), ("games_only", 4.0, "#7fa7cf")):
+        bounds = [getattr(r, which) for _, r in ordered]
+        errors = np.array([[values[i] - b.low for i, b in enumerate(bounds)],
+                           [b.high - values[i] for i, b in enumerate(bounds)]])
+        ax.errorbar(values, np.arange(len(ordered)), xerr=errors, fmt="o", color=colour, capsize=4 * (width == 1),
+                    elinewidth=width)
     ax.set_yticks(np.arange(len(ordered)), [name for name, _ in ordered])
-    ax.set_xlabel(f"rating (Elo), {anchor[0]} at {anchor[1]:g}; 95% bootstrap intervals")
+    ax.set_xlabel(f"rating (Elo), {anchor[0]} at {anchor[1]:g}; 95% intervals: seeds then games (thin), games "
+                  "alone (thick)")
     ax.grid(axis="x", alpha=0.3)
     figure.tight_layout()
     return figure
@@ -211,13 +234,13 @@ def answer_lines(table: pd.DataFrame, judged_label: str, difference: str, seeds:
                                                                      strict=True))
     return [f"{game}, self-play, {seeds} paired seeds, result of the final greedy network against the uniformly "
             f"random player (+1 won, 0 drawn, -1 lost): {on} minus {off} = {difference} ({judged_label}).",
-            f"The ladder, strongest first (Elo, 95% intervals): {order}."]
+            f"The ladder, strongest first (Elo, random = 0, 95% intervals over seeds then games): {order}."]
 
 
 def learners_against_random(table: pd.DataFrame) -> str:
     learners = table[~table["player"].isin([RANDOM, MATERIAL]) & ~table["player"].str.startswith(STOCKFISH)]
-    return "; ".join(f"{player} {score}" for player, score in zip(learners["player"],
-                                                                  learners["score against random"], strict=True))
+    return "; ".join(f"{player} {score} (per seed {seeds})" for player, score, seeds in zip(
+        learners["player"], learners["score against random"], learners["against random per seed"], strict=True))
 
 
 def report(out: Path, ui: UI | None = None, *, runs: dict[str, Any] | None = None, videos: bool = True) -> Report:
@@ -243,30 +266,32 @@ def _build_report(out: Path, videos: bool) -> Report:
         except store.StoreError as error:  # the verdicts stand; nothing is rated from games not the study's
             problems.append(f"{game}: the ladder is not rated: {error}")
             continue
-        anchor = anchor_of(games)
-        from rlcompare.stats.ratings import bootstrap_ratings  # scipy: for the report, not the plan
+        from rlcompare.stats.seeded_ratings import seeded_ratings, seeded_scores  # scipy: for the report
 
-        ratings = bootstrap_ratings(games_of(games), *anchor, seed=0)
-        table = ladder_table(games, ratings)
+        ratings = seeded_ratings(games_of(games), *ANCHOR, seed=0)
+        table = ladder_table(games, ratings, seeded_scores(games_of(games), RANDOM, seed=0))
         table_file = write_table(table, out / "tables", f"chess_ladder_{env}")
-        figure = save_figure(ladder_figure(ratings, anchor), out / "figures" / f"ladder-{env}.png")
+        figure = save_figure(ladder_figure(ratings, ANCHOR), out / "figures" / f"ladder-{env}.png")
         curves = curves_drawn(found.runs, env, "steps", out / "figures" / f"curves-{env}.png", "environment steps")
         seeds = min(len(r.seeds) for r in env_runs.values())
         lines += answer_lines(table, judged.label, judged.paired.difference.format(2), seeds, game)
-        lines.append(f"Score against the random player over the ladder's games (95% Wilson intervals): "
-                     f"{learners_against_random(table)}.")
+        lines.append(f"Score against the random player over the ladder's games (95% intervals over seeds then "
+                     f"games): {learners_against_random(table)}.")
         if not can_pass(GATE, seeds):
             lines.append(f"With {seeds} seeds the learning gate cannot pass: the one-sided signed-rank test's "
                          f"smallest p is 1/2^{seeds} = {smallest_p(GATE, seeds):g}, above {ALPHA:g}; at least "
                          f"{seeds_needed(GATE)} seeds can show a game learnt.")
         steps = {r.config.steps_trained for r in env_runs.values()}
         sections.append(Section(f"{game}: the ladder", [
-            f"{len(games):,} games, each pairing in pairs of games with colours swapped; a method's networks (every "
-            f"seed's) are one player. Ratings: a "
-            f"Bradley-Terry fit on the Elo scale over every game (a draw half a win), one virtual draw between every "
-            f"pair that met, anchored at {anchor[0]} = {anchor[1]:g}; 95% intervals from 1,000 bootstrap resamples "
-            f"of the games within each pairing. Training: {', '.join(f'{s:,}' for s in sorted(steps))} steps per "
-            "seed."], [("The ladder", table, table_file)], [(figure, "Ratings with 95% intervals"), curves]))
+            f"{len(games):,} games ({chess_ladder.distinct_games(games):,} distinct), each pair of games from one "
+            f"of {games['opening'].nunique()} openings of {chess_ladder.OPENING_PLIES} random plies with colours "
+            "swapped; a method's networks (every seed's) are one player. Ratings: a Bradley-Terry fit on the Elo "
+            "scale over every distinct game (a draw half a win; a game two networks repeat counts once), one virtual "
+            f"draw between every pair that met, anchored at {ANCHOR[0]} = {ANCHOR[1]:g} (Stockfish's rungs are "
+            "measured, named by their settings); 95% intervals from 1,000 bootstrap resamples of the seeds, then "
+            "of the games within each seed's pairings, and beside them the games-only interval and each seed's "
+            f"rating. Training: {', '.join(f'{s:,}' for s in sorted(steps))} steps per seed."],
+            [("The ladder", table, table_file)], [(figure, "Ratings with 95% intervals"), curves]))
         if videos:
             sections.append(stage_section(out, env_runs, env))
     sections.insert(0, Section("The answer", lines, [("Verdicts", found.verdicts, found.files["verdicts"])]))
