@@ -19,7 +19,8 @@ on ``threads`` threads (:meth:`Pace.seconds`) is its compile plus ``seeds / thre
   the cache now), at most :data:`LOAD_SECONDS`.
 
 What a study spends beside its trainings' loops (starting, building environments, saving, the report and its
-videos, trainings run side by side unevenly) is kept under ``rest STUDY`` (:func:`record_rest`): its last run's
+videos, trainings run side by side unevenly) is kept under ``rest STUDY`` (:func:`rest_key`, apart without the
+videos): its last run's
 time less what its trainings' paces account for. Paces kept before sizes were (a file of the older form) are not
 read. A pace is a measurement on a machine others may share; an estimate is for planning, not a promise.
 """
@@ -193,6 +194,13 @@ def record(name: str, *, wall_seconds: float, compile_seconds: float, seeds: int
             json.dump(entries, handle, indent=1, sort_keys=True)
 
 
-def record_rest(study: str, seconds: float) -> None:
-    """Keep what a study's run spent beside its trainings' loops (:data:`REST` ``study``)."""
-    record(REST + study, wall_seconds=max(seconds, 1e-3), compile_seconds=0.0, seeds=1, amount=1, unit="rest")
+def rest_key(study: str, videos: bool = True) -> str:
+    """The key of what a study's run spends beside its trainings' loops, apart with and without its videos:
+    ``rest paper``, ``rest paper no-videos``."""
+    return f"{REST}{study}{'' if videos else ' no-videos'}"
+
+
+def record_rest(name: str, seconds: float) -> None:
+    """Keep what a study's run spent beside what its trainings' paces account for, under ``name``
+    (:func:`rest_key`)."""
+    record(name, wall_seconds=max(seconds, 1e-3), compile_seconds=0.0, seeds=1, amount=1, unit="rest")

@@ -119,7 +119,8 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     options = study_options(study, values)
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
-    plan, paces, rest = study_plan(study, runner, options), pace.stored(), pace.REST + study.name
+    videos = getattr(options, "videos", True)
+    plan, paces, rest = study_plan(study, runner, options), pace.stored(), pace.rest_key(study.name, videos)
     plan = plans.with_known_spread(plan, out, study.name)
     finished = [t.name for t in plan.trainings if (out / t.name / rundir.META_FILE).is_file()]
     if show_plan:
@@ -137,10 +138,10 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
             runs = runner.run(out, options, ConsoleUI(), study=study.name, force=force)
         except ConfigError as error:
             raise bad_option(error) from None
-        report = runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True))
+        report = runner.report(out, ConsoleUI(), runs=runs, videos=videos)
         # what this run spent beside what its trainings' paces, just kept, account for: the next plan adds it
         trained = plan.training_seconds(pace.stored(), finished, as_run=True) or 0.0
-        pace.record_rest(study.name, time.perf_counter() - began - trained)
+        pace.record_rest(rest, time.perf_counter() - began - trained)
         print_report(report)
 
 
