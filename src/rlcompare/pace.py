@@ -41,9 +41,10 @@ from rlcompare import machine
 from rlcompare.atomic import atomic_file
 
 PACE_FILE = "pace.json"
-AMOUNTS = ("seeds", "episodes", "total_steps", "eval_every")
+AMOUNTS = ("seeds", "episodes", "total_steps", "eval_every", "vmap_width")
 """What a training's settings say of how much it trains, not how: left out of its pace's key (the studies evaluate
-a fixed number of times, so the episodes between evaluations grow with the episodes)."""
+a fixed number of times, so the episodes between evaluations grow with the episodes; a deep training vmaps as many
+seeds as it has, up to its width, as a tabular one spreads them over threads)."""
 KEPT_SIZES = 4
 """Sizes (units a seed) kept a key: the newest measurements' of distinct sizes."""
 SAME_SIZE = 1.5
