@@ -113,22 +113,24 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     the study's directory lacks, then its report."""
     from rlcompare.studies import plans
 
+    began = time.perf_counter()
     out, force = out_path(values.pop("out"), Path("runs") / study.name), values.pop("force")
     show_plan, allow_undecidable = values.pop("plan"), values.pop("allow_undecidable")
     options = study_options(study, values)
     check_out(out, store.Owner("study", study.name), force)
     runner = load_runner(study)
-    plan, paces, report_pace = study_plan(study, runner, options), pace.stored(), f"report {study.name}"
+    videos = getattr(options, "videos", True)
+    plan, paces, rest = study_plan(study, runner, options), pace.stored(), pace.rest_key(study.name, videos)
     plan = plans.with_known_spread(plan, out, study.name)
     finished = [t.name for t in plan.trainings if (out / t.name / rundir.META_FILE).is_file()]
     if show_plan:
-        for line in plan.lines(paces, report_pace, finished):
+        for line in plan.lines(paces, rest, finished):
             console.print(line, highlight=False, soft_wrap=True)
         return
     if plan.undecidable and not allow_undecidable:
         fail(f"{plan.first_line()} Run it anyway with --allow-undecidable.")
     console.print(plan.first_line(), highlight=False)
-    console.print(plan.time_line(paces, report_pace, finished), highlight=False)
+    console.print(plan.time_line(paces, rest, finished), highlight=False)
     announce_compiling()
     # one hold of the directory's lock for the training and the report, so no other process writes in between
     with store.output_directory(out, store.Owner("study", study.name), force=force):
@@ -136,10 +138,10 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
             runs = runner.run(out, options, ConsoleUI(), study=study.name, force=force)
         except ConfigError as error:
             raise bad_option(error) from None
-        started = time.perf_counter()
-        report = runner.report(out, ConsoleUI(), runs=runs, videos=getattr(options, "videos", True))
-        pace.record(report_pace, wall_seconds=time.perf_counter() - started, compile_seconds=0, seeds=1, amount=1,
-                    unit="report")
+        report = runner.report(out, ConsoleUI(), runs=runs, videos=videos)
+        # what this run spent beside what its trainings' paces, just kept, account for: the next plan adds it
+        trained = plan.training_seconds(pace.stored(), finished, as_run=True) or 0.0
+        pace.record_rest(rest, time.perf_counter() - began - trained)
         print_report(report)
 
 

@@ -24,6 +24,24 @@ from rlcompare.deep.results import DeepResults
 from rlcompare.deep.rollout import TrainOutput
 from rlcompare.validation import ConfigError
 
+CACHE_EVENTS = {"/jax/compilation_cache/compile_requests_use_cache": 0, "/jax/compilation_cache/cache_hits": 0}
+"""How often this process asked JAX's persistent cache for a compiled program, and found it: a request that found
+nothing compiled afresh."""
+
+
+def count_cache_event(event: str, **_: str | int) -> None:
+    if event in CACHE_EVENTS:
+        CACHE_EVENTS[event] += 1
+
+
+jax.monitoring.register_event_listener(count_cache_event)
+
+
+def compiled_afresh(before: dict[str, int]) -> bool:
+    """Whether a program was compiled, not loaded, since the counts ``before`` (:data:`CACHE_EVENTS`)."""
+    requests, hits = (CACHE_EVENTS[event] - before[event] for event in CACHE_EVENTS)
+    return requests > hits
+
 
 def groups(seeds: tuple[int, ...], width: int) -> Iterator[tuple[tuple[int, ...], tuple[int, ...]]]:
     """``(seeds, padded)``: the seeds in groups of ``width``, the last padded with copies of its first seed."""
@@ -168,7 +186,7 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
     """Train every seed of ``config``, ``vmap_width`` at a time in one compiled program; ``progress`` is called
     with the number of seeds finished since its last call."""
     use_compilation_cache()
-    started = time.perf_counter()
+    started, before = time.perf_counter(), dict(CACHE_EVENTS)
     check_sizes(config)
     train = compiled_training(config)
     compile_seconds = time.perf_counter() - started
@@ -188,7 +206,7 @@ def train(config: DeepConfig, *, study: str = "", progress: Callable[[int], None
     steps_per_round = int(np.prod(done.shape[2:]))
     steps = steps_per_round * done.shape[1]
     pace.record(pace.key("deep", config), wall_seconds=wall, compile_seconds=compile_seconds,
-                seeds=len(config.seeds), amount=steps, unit="environment steps")
+                seeds=len(config.seeds), amount=steps, unit="environment steps", compiled=compiled_afresh(before))
     meta = {
         "study": study, "name": config.name, "engine": "deep", "seeds": list(config.seeds),
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "command": sys.argv,

@@ -89,10 +89,11 @@ class Training:
     memory: int = 0
     """Bytes it holds while it trains, where known before it runs (a tabular training's records and weights)."""
 
-    def seconds(self, paces: Mapping[str, Pace]) -> float | None:
-        """Its time on this machine from the pace kept for it; None where none is kept."""
+    def seconds(self, paces: Mapping[str, Pace], as_run: bool = False) -> float | None:
+        """Its time on this machine from the pace kept for it (:meth:`rlcompare.pace.Pace.seconds`); None where
+        none is kept."""
         found = paces.get(self.pace_key)
-        return None if found is None else found.seconds(self.seeds, self.amount, self.threads)
+        return None if found is None else found.seconds(self.seeds, self.amount, self.threads, as_run)
 
 
 def tabular_training(name: str, config: Any, memory_checked: bool = True) -> Training:
@@ -169,39 +170,54 @@ class StudyPlan:
         reasons = "; ".join(f"{q.asks}: {q.reads()}" for q in self.undecidable)
         return f"This design cannot decide {reasons}; with --seeds {self.seeds_needed} it can."
 
-    def time_line(self, paces: Mapping[str, Pace], report: str = "", finished: Collection[str] = ()) -> str:
-        """How long it will take on this machine, from the pace each training (and the report, kept under
-        ``report``) last ran at here, :attr:`workers` trainings at once; the trainings ``finished`` already are
-        read, not trained, and not counted, and those with no pace kept are named."""
+    def training_seconds(self, paces: Mapping[str, Pace], finished: Collection[str] = (), as_run: bool = False
+                         ) -> float | None:
+        """The time of its trainings but those ``finished``, :attr:`workers` at once, from ``paces`` (``as_run``:
+        their compiles as they just took); None where none of them has a pace (those without one count nothing)."""
         waiting = [t for t in self.trainings if t.name not in finished]
-        times = [t.seconds(paces) for t in waiting]
-        unknown = [t.name for t, seconds in zip(waiting, times, strict=True) if seconds is None]
-        at_once = max(1, min(self.workers, len(waiting)))
-        known = [seconds / at_once for seconds in times if seconds is not None]
+        known = [seconds for seconds in (t.seconds(paces, as_run) for t in waiting) if seconds is not None]
+        return sum(known) / max(1, min(self.workers, len(waiting))) if known else None
+
+    def time_line(self, paces: Mapping[str, Pace], rest: str = "", finished: Collection[str] = ()) -> str:
+        """How long it will take on this machine, from the pace each training last ran at here
+        (:meth:`rlcompare.pace.Pace.seconds`), :attr:`workers` at once, and the rest of the study's last run (kept
+        under ``rest``: starting, saving, the report); the trainings ``finished`` already are read, not trained, and
+        not counted; those with no pace kept are named, and those far larger or smaller than any run measured."""
+        waiting = [t for t in self.trainings if t.name not in finished]
+        unknown = [t.name for t in waiting if t.pace_key not in paces]
+        trained = self.training_seconds(paces, finished)
         done = (f"; {len(finished)} training{'s' * (len(finished) != 1)} finished already, read and not counted"
                 if finished else "")
-        if waiting and not known:
+        if waiting and trained is None:
             return (f"Time: not known yet; no training of this design has run on this machine (each keeps its pace "
                     f"in {pace.pace_file()} as it runs){done}.")
-        if report in paces:
-            known.append(paces[report].seconds(1, 1, 1))
-        if not known:
+        total = (trained or 0.0) + (paces[rest].seconds(1, 1, 1) if rest in paces else 0.0)
+        if not waiting and rest not in paces:
             return f"Time: not known yet{done}."
-        newest = max(paces[key].measured for key in (*(t.pace_key for t in waiting), report) if key in paces)
-        line = (f"Time: about {duration(sum(known))} on this machine, from the pace of its trainings measured here "
+        newest = max(paces[key].measured for key in (*(t.pace_key for t in waiting), rest) if key in paces)
+        line = (f"Time: about {duration(total)} on this machine, from the pace of its trainings measured here "
                 f"(newest {newest}){done}")
+        far = [t for t in waiting if t.pace_key in paces and paces[t.pace_key].far(t.amount)]
+        if far:
+            first = far[0]
+            runs = sorted({paces[t.pace_key].nearest(t.amount).units for t in far})
+            line += (f"; extrapolated for {len(far)} training{'s' * (len(far) != 1)}, from runs of "
+                     f"{'-'.join(f'{units:,}' for units in dict.fromkeys((runs[0], runs[-1])))} {first.unit}: "
+                     f"{first.name} trains {first.amount:,}")
+        if rest and rest not in paces and waiting:
+            line += "; the report not counted (never run here)"
         if unknown:
             more = f" and {len(unknown) - 3} more" if len(unknown) > 3 else ""
             line += f"; not counted, never run here with these settings: {', '.join(unknown[:3])}{more}"
         return line + "."
 
-    def lines(self, paces: Mapping[str, Pace] | None = None, report: str = "", finished: Collection[str] = ()
+    def lines(self, paces: Mapping[str, Pace] | None = None, rest: str = "", finished: Collection[str] = ()
               ) -> list[str]:
         """The whole plan: the first line, its time where ``paces`` are given (:meth:`time_line`), every training,
         every family of tests."""
         lines = [self.first_line()]
         if paces is not None:
-            lines.append(self.time_line(paces, report, finished))
+            lines.append(self.time_line(paces, rest, finished))
         if self.trainings:
             lines += ["", f"Trainings ({len(self.trainings)}):"]
             lines += [f"  {t.name}: {t.seeds} seeds x {t.amount:,} {t.unit}" for t in self.trainings]

@@ -11,6 +11,7 @@ from typing import Any
 
 import numba
 import numpy as np
+from numba.core import event
 
 from rlcompare import compiled, machine, pace
 from rlcompare.algorithms.registry import rule_for
@@ -76,7 +77,8 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
         rule, settings = rule_for(config), kernel_settings(config)
 
         started = time.perf_counter()
-        engine.train_runs(rule, settings, env, features, state, epsilons, 0, 0, records)  # compile or load it
+        with event.install_recorder("numba:compile") as compiles:  # a load from the cache compiles nothing
+            engine.train_runs(rule, settings, env, features, state, epsilons, 0, 0, records)  # compile or load it
         compile_seconds = time.perf_counter() - started
         size = chunk_episodes(state.w[0].nbytes if len(config.seeds) else 0)
         chunks = [(first, min(first + size, config.episodes)) for first in range(0, config.episodes, size)]
@@ -85,7 +87,8 @@ def train(config: ExperimentConfig, *, study: str = "", progress: Callable[[int]
         wall = time.perf_counter() - started
     threads = min(numba.get_num_threads(), len(config.seeds))
     pace.record(pace.key("tabular", config), wall_seconds=wall, compile_seconds=compile_seconds,
-                seeds=len(config.seeds), amount=config.episodes, unit="episodes", threads=threads)
+                seeds=len(config.seeds), amount=config.episodes, unit="episodes", threads=threads,
+                compiled=bool(compiles.buffer))
     steps = int(records.lengths.sum())
     meta = _meta(config, study, wall, steps, int(records.eval_lengths.sum()))
     meta["timings"]["compile_seconds"] = compile_seconds
