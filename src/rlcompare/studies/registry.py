@@ -309,7 +309,8 @@ STUDIES = {study.name: study for study in (
           "scores (the 'atari' extra)", AtariOptions, "rlcompare.studies.atari.study", extra="atari",
           planner="rlcompare.studies.atari.plan"),
     Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
-          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess.endgames_report"),
+          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess.endgames_report",
+          planner="rlcompare.studies.chess.endgames"),
     Study("chess", "the question on a whole game in self-play: Q(λ) vs SARSA(λ) on Gardner's minichess or chess, "
           "rated on a ladder up to Stockfish (the 'deep' extra)", ChessOptions, "rlcompare.studies.chess.game",
           extra="deep", planner="rlcompare.studies.chess.game_plan"),
