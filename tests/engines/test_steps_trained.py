@@ -39,7 +39,7 @@ def test_atari_100k_trains_81920_steps_in_ten_rounds() -> None:
 
 def test_a_studys_start_names_the_steps_that_train_and_the_number_given_where_they_differ() -> None:
     """``reproduce atari --steps 40960`` said "40,960 steps" at its start and trained 32,768."""
-    from rlcompare.studies.paired import Plan
+    from rlcompare.studies.paired_plan import Plan
 
     plan = Plan(seeds=(0,), methods=("pqn_q_lambda", "ppo"), envs={"CartPole-v1": "CartPole-v1"}, steps=45_000,
                 workers=1)

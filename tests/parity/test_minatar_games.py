@@ -32,7 +32,8 @@ from minatar.environments import freeway as ref_freeway  # noqa: E402
 from minatar.environments import space_invaders as ref_space_invaders  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from rlcompare.deep.minatar.games import GYMNAX_CLASSES, asterix_spawn, asterix_spawn_draws, minatar_env  # noqa: E402
+from rlcompare.deep.minatar.games import minatar_env  # noqa: E402
+from rlcompare.deep.minatar.gymnax_games import GYMNAX_CLASSES, asterix_spawn, asterix_spawn_draws  # noqa: E402
 from rlcompare.envs.minatar import GAMES  # noqa: E402
 
 

@@ -22,6 +22,7 @@ from rlcompare.deep.agent import DeepAgent  # noqa: E402
 from rlcompare.envs.atari import games as atari  # noqa: E402
 from rlcompare.envs.atari import scores as atari_scores  # noqa: E402
 from rlcompare.experiment.engines import load_run  # noqa: E402
+from rlcompare.studies.atari import plan as atari_plan  # noqa: E402
 from rlcompare.studies.atari import play as atari_play  # noqa: E402
 from rlcompare.studies.atari import random_policy  # noqa: E402
 from rlcompare.studies.atari import study as atari_study  # noqa: E402
@@ -41,7 +42,7 @@ def small_preset():
         patch.setitem(pqn.PRESETS["default"], "Breakout-Atari", SMALL)
         patch.setattr(atari_play, "STAGE_STEPS", 40)
         patch.setattr(random_policy, "EPISODES", 4)
-        patch.setitem(atari_study.BUDGETS, "smoke", atari_study.Budget("breakout", 256, 1, 2, "seconds"))
+        patch.setitem(atari_plan.BUDGETS, "smoke", atari_plan.Budget("breakout", 256, 1, 2, "seconds"))
         yield
 
 

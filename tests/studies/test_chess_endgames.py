@@ -96,6 +96,26 @@ def test_the_symmetries_give_every_image_of_a_position_one_state() -> None:
     assert len(np.unique(tables.state_of[tables.state_of >= 0])) < len(tables.starts) / 7.5  # about an eighth
 
 
+@pytest.mark.slow("makes an endgame's tables")
+@pytest.mark.parametrize("endgame", list(ENDGAMES))
+def test_an_endgame_is_checked_without_its_tables_whose_sizes_its_facts_give(endgame: str) -> None:
+    """A configuration's checks and a plan read an endgame's sizes from its facts, the tables made where first read
+    (a second of solving): the facts' counts of states, with and without the symmetries, and of actions are the
+    tables'."""
+    facts = ENDGAMES[endgame]
+    for symmetries in (True, False):
+        assert chess_endgame.states(facts.piece, symmetries)[1].size + 1 == facts.n_states(symmetries)
+    assert facts.n_actions == chess_rules.n_actions(facts.piece)
+    made = chess_endgame.make_endgame.cache_info().misses
+    config = ExperimentConfig(env=f"{endgame}:starts=hard,symmetries=off,rewards=moves", algorithm="sarsa")
+    env = config.environment
+    assert chess_endgame.make_endgame.cache_info().misses == made  # checked, and nothing made
+    assert (env.n_states, env.n_actions) == (facts.n_states(False), facts.n_actions)
+    assert env.legal_moves.shape == (env.dynamics.n_states, facts.n_actions) == (env.n_states, env.n_actions)
+    assert chess_endgame.make_endgame.cache_info().misses == made + 1
+    assert env.dynamics is chess_endgame.make_endgame(parse(env.name))
+
+
 @pytest.mark.parametrize("rewards", list(REWARDS))
 def test_no_episode_ends_better_by_losing_the_piece(rewards: str) -> None:
     from rlcompare.studies.measures import solved

@@ -17,7 +17,7 @@ pytest.importorskip("pgx")
 from helpers import assert_loaded_not_trained, invoke, study_fixture
 
 from rlcompare.deep import pqn
-from rlcompare.studies.chess import game as chess_game
+from rlcompare.studies.chess import game_plan
 from rlcompare.studies.chess import ladder as chess_ladder
 from rlcompare.studies.chess.game import LADDER, load_ladder
 from rlcompare.studies.chess.ladder import distinct_games
@@ -34,7 +34,7 @@ loaded with them too (the study runs in this process; the preset's own size is t
 def small_preset():
     with pytest.MonkeyPatch.context() as patch:
         patch.setitem(pqn.PRESETS["default"], "gardner_chess", SMALL)
-        patch.setattr(chess_game, "EVAL_EPISODES", 8)
+        patch.setattr(game_plan, "EVAL_EPISODES", 8)
         yield
 
 

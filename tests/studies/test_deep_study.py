@@ -209,7 +209,7 @@ def _third_study():
     an order of its own, one metric, a comparison of its own after the pair's in each environment, an overall
     row, its own labels, digits and prefix."""
     from rlcompare.stats.compare import compare_paired
-    from rlcompare.studies.paired import Key, PairedStudy
+    from rlcompare.studies.paired_plan import Key, PairedStudy
 
     def others(env, beside):
         return {Key(env, "constant"): compare_paired(np.array([1.0, 2.0, 3.0]), np.array([0.0, 1.0, 2.0]), 0.5)}
@@ -234,7 +234,8 @@ class _Recorded(UI):
 def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_the_same_code(study, tmp_path):
     import shutil
 
-    from rlcompare.studies.paired import OVERALL, PAIR, Key, Plan, final_returns, per_seed, run_of, train
+    from rlcompare.studies.paired import final_returns, per_seed, run_of, train
+    from rlcompare.studies.paired_plan import OVERALL, PAIR, Key, Plan
     from rlcompare.studies.paired_report import answer, difference_figure, findings, pair_finals
 
     third, out = _third_study(), tmp_path / "third"
@@ -295,7 +296,7 @@ def test_a_third_configuration_of_the_paired_study_trains_and_reports_through_th
 def test_a_configuration_with_one_environment_has_no_aggregates_and_no_overall_row(study, tmp_path):
     import shutil
 
-    from rlcompare.studies.paired import OVERALL, Key
+    from rlcompare.studies.paired_plan import OVERALL, Key
     from rlcompare.studies.paired_report import findings
 
     out = tmp_path / "one"
@@ -315,7 +316,7 @@ def test_a_diverged_training_is_no_verdict_and_the_report_names_it(study, tmp_pa
     import shutil
 
     from rlcompare.studies.deep.study import DEEP
-    from rlcompare.studies.paired import Key
+    from rlcompare.studies.paired_plan import Key
     from rlcompare.studies.paired_report import DIVERGED, findings
 
     out = tmp_path / "diverged"

@@ -24,7 +24,7 @@ from rlcompare.deep.methods import DEEP_METHODS  # noqa: E402
 from rlcompare.deep.rollout import evaluate  # noqa: E402
 from rlcompare.formatting import number  # noqa: E402
 from rlcompare.studies.deep.minatar import plan_of  # noqa: E402
-from rlcompare.studies.paired import random_returns  # noqa: E402
+from rlcompare.studies.paired_plan import random_returns  # noqa: E402
 from rlcompare.studies.paper.claims import CLAIMS as PAPER_CLAIMS  # noqa: E402
 from rlcompare.studies.registry import MinAtarOptions  # noqa: E402
 

@@ -58,7 +58,7 @@ def test_the_papers_answer_states_the_seeds_own_numbers() -> None:
                                    "no data"])
 def test_the_minatar_answer_states_each_games_own_label(label: str) -> None:
     pytest.importorskip("jax")
-    from rlcompare.studies.paired import OVERALL
+    from rlcompare.studies.paired_plan import OVERALL
     from rlcompare.studies.paired_report import answer
 
     rng = np.random.default_rng(1)

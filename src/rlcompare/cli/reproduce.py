@@ -90,22 +90,28 @@ def study_options(study: Study, values: dict[str, Any]) -> Options:
         raise bad_option(error) from None
 
 
-def load_runner(study: Study) -> Any:
-    """The study's runner; a missing optional extra ends the command with one line saying how to install it."""
+def load_runner(study: Study, *, planner: bool = False) -> Any:
+    """The study's runner (or, ``planner``, what gives its design: :meth:`Study.load_planner`); a missing optional
+    extra ends the command with one line saying how to install it."""
     try:
-        return study.load_runner()
+        return study.load_planner() if planner else study.load_runner()
     except ImportError as error:
         if not study.extra:
             raise
         fail(str(error))
 
 
-def study_plan(study: Study, runner: Any, options: Options) -> StudyPlan:
-    """The study's design from its options (:mod:`rlcompare.studies.plans`); a refused value names its option."""
+def study_plan(study: Study, planner: Any, options: Options) -> StudyPlan:
+    """The study's design from its options (:mod:`rlcompare.studies.plans`); a refused value names its option, a
+    missing optional extra is one line, as :func:`load_runner` says it."""
     try:
-        return runner.study_plan(options)  # type: ignore[no-any-return]
+        return planner.study_plan(options)  # type: ignore[no-any-return]
     except ConfigError as error:
         raise bad_option(error) from None
+    except ImportError as error:  # what a plan reads of an extra (the Atari ROMs), loaded where it reads it
+        if not study.extra:
+            raise
+        fail(str(error))
 
 
 def reproduce_study(study: Study, values: dict[str, Any]) -> None:
@@ -118,15 +124,16 @@ def reproduce_study(study: Study, values: dict[str, Any]) -> None:
     show_plan, allow_undecidable = values.pop("plan"), values.pop("allow_undecidable")
     options = study_options(study, values)
     check_out(out, store.Owner("study", study.name), force)
-    runner = load_runner(study)
+    planner = load_runner(study, planner=True)  # --plan loads no report's modules
     videos = getattr(options, "videos", True)
-    plan, paces, rest = study_plan(study, runner, options), pace.stored(), pace.rest_key(study.name, videos)
+    plan, paces, rest = study_plan(study, planner, options), pace.stored(), pace.rest_key(study.name, videos)
     plan = plans.with_known_spread(plan, out, study.name)
     finished = [t.name for t in plan.trainings if (out / t.name / rundir.META_FILE).is_file()]
     if show_plan:
         for line in plan.lines(paces, rest, finished):
             console.print(line, highlight=False, soft_wrap=True)
         return
+    runner = load_runner(study)
     if plan.undecidable and not allow_undecidable:
         fail(f"{plan.first_line()} Run it anyway with --allow-undecidable.")
     console.print(plan.first_line(), highlight=False)

@@ -8,6 +8,7 @@ updates) but not on which seeds train beside it or how many a user asks for.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -120,16 +121,15 @@ class DeepConfig:
         program's own figure (:func:`rlcompare.deep.train.memory_needed`), checked before the first step, adds its
         networks and temporaries."""
         import jax
+        import numpy as np
 
-        from rlcompare.deep.envs import observe_all, reset_all
         from rlcompare.deep.replay import buffer_bytes
 
         records = RECORD_COPIES * FINISHED_BYTES_PER_STEP * self.steps_trained * len(self.seeds)
         capacity = getattr(self.method_config(), "buffer_size", 0)
         if not capacity:
             return records
-        env = self.environment
-        observation = jax.eval_shape(lambda key: observe_all(env, reset_all(env, key[None]))[0], jax.random.key(0))
+        observation = _observation(self.env, jax.dtypes.canonicalize_dtype(np.float64))
         return records + min(self.vmap_width, len(self.seeds)) * buffer_bytes(capacity, observation)
 
     def method_config(self) -> Any:
@@ -168,6 +168,19 @@ class DeepConfig:
         known = {f.name for f in dataclasses.fields(cls)}
         values: dict[str, Any] = {k: (tuple(v) if k == "seeds" else v) for k, v in data.items() if k in known}
         return cls(**values)
+
+
+@functools.cache
+def _observation(env_name: str, widest: Any) -> Any:
+    """The shape and dtype of one observation of ``env_name``, traced from its reset (nothing run), once per
+    environment and widest float type (64 bits inside :func:`rlcompare.deep.float64`, 32 outside) in a process: a
+    plan reads it for each method with a replay buffer."""
+    import jax
+
+    from rlcompare.deep.envs import observe_all, reset_all
+
+    env = jax_env(env_name)
+    return jax.eval_shape(lambda key: observe_all(env, reset_all(env, key[None]))[0], jax.random.key(0))
 
 
 def with_settings_added_since(stored: dict[str, Any], config: DeepConfig) -> dict[str, Any]:

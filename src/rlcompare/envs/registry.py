@@ -113,6 +113,11 @@ class Environment:
     (:mod:`rlcompare.algorithms.policies`). None: every action is legal everywhere."""
 
     @property
+    def moves_vary(self) -> bool:
+        """Whether the legal moves change with the state (:attr:`legal_moves` is not None), known without them."""
+        return self.legal_moves is not None
+
+    @property
     def observation_size(self) -> int:
         return 1 if self.n_states else self.low.size
 
@@ -185,18 +190,63 @@ def _minatar(name: str) -> Environment:
                        observation_shape=shape, tabular=False)
 
 
+class _MadeWhereRead:
+    """A field of a chess endgame's :class:`Environment`, its tables (``dynamics``) or ``legal_moves``, made where it
+    is first read, not where the environment is named: solving the endgame takes a second, and a configuration's
+    checks and a plan read only the sizes its facts give (:class:`rlcompare.envs.chess.endgames.Facts`)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __set__(self, instance: Environment, value: Any) -> None:
+        instance.__dict__[self.name] = value
+
+    def __get__(self, instance: Environment | None, owner: type | None = None) -> Any:
+        if instance is None:
+            return self
+        value = instance.__dict__[self.name]
+        if isinstance(value, _Later):
+            from rlcompare.envs.chess import endgame as chess_endgame
+
+            tables = chess_endgame.make_endgame(chess.parse(instance.name))  # cached
+            value = tables if self.name == "dynamics" else chess_endgame.legal_moves(tables)
+            instance.__dict__[self.name] = value
+        return value
+
+
+class _Later:
+    """What a field made where it is first read holds until then (a copy, pickled, is one too)."""
+
+
+_LATER: Any = _Later()
+
+
+class _EndgameEnvironment(Environment):
+    """A chess endgame: its tables and legal moves made where first read (:class:`_MadeWhereRead`)."""
+
+    dynamics = _MadeWhereRead()
+    legal_moves = _MadeWhereRead()
+
+    @property
+    def moves_vary(self) -> bool:
+        return True
+
+
 def _endgame(name: str) -> Environment:
-    """A chess endgame against its defender (:mod:`rlcompare.envs.chess.endgame`); ``name`` carries its options."""
+    """A chess endgame against its defender (:mod:`rlcompare.envs.chess.endgame`); ``name`` carries its options. A
+    start given as a FEN is checked now; the tables are made where first read."""
     import numpy as np
 
-    from rlcompare.envs.chess import endgame as chess_endgame
-
     options = chess.parse(name)
-    tables = chess_endgame.make_endgame(options)
-    legal = chess_endgame.legal_moves(tables)
-    return Environment(options.name, tables, legal.shape[1], tables.n_states, np.zeros(1),
-                       np.ones(1), chess.MOVE_LIMIT, 1, "positive_return" if options.rewards == "mate" else "won",
-                       endings=("mate, or the piece lost", "fifty moves without mate"), legal_moves=legal)
+    if options.starts not in chess.STARTS:
+        from rlcompare.envs.chess.endgame import fen_start
+
+        fen_start(options)  # a FEN that is not a legal start of the endgame refused here, as before its tables
+    facts = chess.ENDGAMES[options.endgame]
+    return _EndgameEnvironment(options.name, _LATER, facts.n_actions, facts.n_states(options.symmetries),
+                               np.zeros(1), np.ones(1), chess.MOVE_LIMIT, 1,
+                               "positive_return" if options.rewards == "mate" else "won",
+                               endings=("mate, or the piece lost", "fifty moves without mate"), legal_moves=_LATER)
 
 
 def _atari(name: str) -> Environment:

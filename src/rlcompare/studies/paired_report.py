@@ -29,10 +29,6 @@ from rlcompare.stats.aggregates import by_method, score_scales
 from rlcompare.stats.compare import NEITHER_LEARNT, Judged, Paired, compare_paired, gated_label, judge_family
 from rlcompare.stats.design import SIGNED_RANK, smallest_p
 from rlcompare.studies.paired import (
-    OVERALL,
-    PAIR,
-    Key,
-    PairedStudy,
     eval_curves,
     final_returns,
     load_runs,
@@ -42,6 +38,7 @@ from rlcompare.studies.paired import (
     run_of,
     seconds_per_step,
 )
+from rlcompare.studies.paired_plan import OVERALL, PAIR, Key, PairedStudy, short_label
 from rlcompare.studies.plans import ESTIMATE, SPREAD
 from rlcompare.tabular.results import Results
 
@@ -157,11 +154,6 @@ def verdict_table(study: PairedStudy, compared: Mapping[Key, Judged]) -> pd.Data
         "detectable (80% power)": number(j.detectable), "verdict": j.label, SPREAD: j.paired.spread,
         "seeds": j.paired.seeds,
     } for key, j in compared.items()])
-
-
-def short_label(method: str) -> str:
-    """``SARSA(λ)`` for ``SARSA(λ), network``, where every method has a network."""
-    return DEEP_METHODS[method].label.removesuffix(", network")
 
 
 def answer(compared: Mapping[str, Judged], seeds: int, over: str = "the games",

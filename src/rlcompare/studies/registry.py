@@ -3,7 +3,8 @@
 ``rlcompare reproduce STUDY`` is generated from these records: a subcommand per study taking exactly the fields
 of its options class (docstrings as help), so an option a study does not read is an error. ``reproduce --list``,
 ``rlcompare report`` and the README's list read them too; nothing else lists the studies. A runner is imported
-only when its study runs (the deep study's needs the ``deep`` extra).
+only when its study runs (the deep study's needs the ``deep`` extra); ``--plan`` imports the study's planner, where it
+names one, in its place: the design without the report's modules (pandas, matplotlib).
 """
 
 from __future__ import annotations
@@ -263,12 +264,23 @@ class Study:
     (:mod:`rlcompare.studies.interface`)."""
     extra: str = ""
     """The optional extra its runner needs, if any."""
+    planner: str = ""
+    """``module`` whose ``study_plan`` gives the design (``--plan``) without the runner's report modules; empty: the
+    runner's own."""
 
     def load_runner(self) -> Any:
         """The runner, imported now; an :class:`ImportError` saying how to install a missing extra."""
-        module, _, attribute = self.runner.partition(":")
-        loaded = importlib.import_module(module)
-        return getattr(loaded, attribute) if attribute else loaded
+        return _load(self.runner)
+
+    def load_planner(self) -> Any:
+        """What offers ``study_plan``: the planner where the study names one, else the runner; imported now."""
+        return _load(self.planner or self.runner)
+
+
+def _load(name: str) -> Any:
+    module, _, attribute = name.partition(":")
+    loaded = importlib.import_module(module)
+    return getattr(loaded, attribute) if attribute else loaded
 
 
 STUDIES = {study.name: study for study in (
@@ -289,16 +301,19 @@ STUDIES = {study.name: study for study in (
     Study("book-6.3", "Cliff Walking against α, 100 episodes x 50,000 runs and 100,000 x 10 (Figure 6.3; about "
           "5 min on 2 cores)", Fig63Options, "rlcompare.studies.book.figures:FIG_6_3"),
     Study("deep", "the question with networks: Q(λ), SARSA(λ), DQN, PPO on three environments (the 'deep' extra)",
-          DeepOptions, "rlcompare.studies.deep.study", extra="deep"),
+          DeepOptions, "rlcompare.studies.deep.study", extra="deep", planner="rlcompare.studies.deep.plan"),
     Study("minatar", "the question on Atari-class games: Q(λ) vs SARSA(λ) with MinAtar's network, paired seeds "
-          "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.deep.minatar", extra="deep"),
+          "(the 'deep' extra)", MinAtarOptions, "rlcompare.studies.deep.minatar", extra="deep",
+          planner="rlcompare.studies.deep.minatar_plan"),
     Study("atari", "the question on the Atari 2600 through Gymnasium's ALE: Q(λ) vs SARSA(λ), human-normalised "
-          "scores (the 'atari' extra)", AtariOptions, "rlcompare.studies.atari.study", extra="atari"),
+          "scores (the 'atari' extra)", AtariOptions, "rlcompare.studies.atari.study", extra="atari",
+          planner="rlcompare.studies.atari.plan"),
     Study("chess-endgames", "the question on chess endgames (KRK, KQK) against an optimal and a random defender, "
-          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess.endgames_report"),
+          "measured against the exact optimum", ChessEndgameOptions, "rlcompare.studies.chess.endgames_report",
+          planner="rlcompare.studies.chess.endgames"),
     Study("chess", "the question on a whole game in self-play: Q(λ) vs SARSA(λ) on Gardner's minichess or chess, "
           "rated on a ladder up to Stockfish (the 'deep' extra)", ChessOptions, "rlcompare.studies.chess.game",
-          extra="deep"),
+          extra="deep", planner="rlcompare.studies.chess.game_plan"),
     Study("sensitivity", "does SARSA still beat Q-Learning across α, γ, the ε schedule and the time limit? (a sweep; "
           "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity.study"),
 )}

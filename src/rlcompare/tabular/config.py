@@ -184,7 +184,7 @@ class ExperimentConfig:
             raise ConfigError("env", self.env, f"{', '.join(ENVIRONMENTS)}, or a registered Gymnasium "
                               "environment with Discrete actions and Discrete or Box observations "
                               f"({cut(str(error), 200)})") from None
-        if entry.legal_moves is not None and METHODS[self.algorithm].family == "policy gradient":
+        if entry.moves_vary and METHODS[self.algorithm].family == "policy gradient":
             raise ConfigError("algorithm", self.algorithm, "a value method or the random baseline: "
                               f"{self.env}'s legal moves change with the state, which only they mask")
         if not entry.tabular:

@@ -15,56 +15,9 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-from gymnax.environments.minatar import asterix, breakout, freeway, space_invaders
 
-from rlcompare.deep.minatar.seaquest import Seaquest
 from rlcompare.envs import minatar
 from rlcompare.envs.minatar import ACTION_NAMES, FREEWAY_STEPS, NAMES, Game, Protocol
-
-
-class _Asterix(asterix.MinAsterix):
-    """gymnax's Asterix with the reference's spawn: a new enemy or treasure takes a free row drawn uniformly, and
-    none spawns when every row is taken (gymnax never draws the first row of its shuffled order, and with no row
-    free overwrites a taken one)."""
-
-    def step_env(self, key: jax.Array, state: asterix.EnvState, action: jax.Array, params: asterix.EnvParams
-                 ) -> tuple[jax.Array, asterix.EnvState, jax.Array, jax.Array, dict[str, Any]]:
-        spawn_now = state.spawn_timer == 0
-        state = state.replace(entities=jnp.where(spawn_now, asterix_spawn(key, state.entities), state.entities),
-                              spawn_timer=jnp.where(spawn_now, state.spawn_speed, state.spawn_timer))
-        state = asterix.step_agent(state, self.action_set[action])
-        state, reward, done = asterix.step_entities(state)
-        state = asterix.step_timers(state, params)
-        state = state.replace(time=state.time + 1, terminal=done)
-        return self.get_obs(state), state, reward.astype(jnp.float32), done, {}
-
-
-class AsterixDraws(NamedTuple):
-    """The draws of one Asterix spawn, in the reference's order (``rand``, ``rand``, ``randint``)."""
-
-    left_to_right: jax.Array
-    """uniform in [0, 1): from the left edge, moving right, where below 1/2"""
-    gold: jax.Array
-    """uniform in [0, 1): treasure where below 1/3, else an enemy"""
-    slot_rank: jax.Array
-    """uniform in [0, 1): which free row, by rank among the free rows"""
-
-
-def asterix_spawn_draws(key: jax.Array) -> AsterixDraws:
-    return AsterixDraws(*jax.random.uniform(key, (3,)))
-
-
-def asterix_spawn(key: jax.Array, entities: jax.Array) -> jax.Array:
-    """The entities after a spawn (the reference's ``_spawn_entity``): rows are ``[x, y, lr, gold, alive]``."""
-    draws = asterix_spawn_draws(key)
-    free = entities[:, 4] == 0
-    n_free = jnp.sum(free)
-    rank = jnp.minimum((draws.slot_rank * n_free).astype(jnp.int32), n_free - 1)
-    slot = jnp.argmax(jnp.cumsum(free) == rank + 1)
-    left_to_right = draws.left_to_right < 0.5
-    entity = jnp.array([jnp.where(left_to_right, 0, 9), slot + 1, left_to_right, draws.gold < 1 / 3, 1],
-                       entities.dtype)
-    return jnp.where(n_free > 0, entities.at[slot].set(entity), entities)
 
 
 class MinAtarState(NamedTuple):
@@ -72,11 +25,6 @@ class MinAtarState(NamedTuple):
     """gymnax's state of the game (its ``time`` counts this episode's steps)."""
     last_action: jax.Array
     """The last action taken, among all six (a sticky action repeats it); no-op at a reset."""
-
-
-GYMNAX_CLASSES = {"asterix": _Asterix, "breakout": breakout.MinBreakout, "freeway": freeway.MinFreeway,
-                  "seaquest": Seaquest, "space_invaders": space_invaders.MinSpaceInvaders}
-"""Each game's port: gymnax's class, or one here where gymnax departs from the reference."""
 
 
 @dataclass(frozen=True)
@@ -93,7 +41,7 @@ class MinAtarEnv:
         """gymnax's game, built outside any trace: its constructor makes arrays, which, made first inside a jitted
         function, would be that trace's tracers, cached here and leaked into the next trace."""
         with jax.ensure_compile_time_eval():
-            return GYMNAX_CLASSES[self.game.module_name](use_minimal_action_set=False)
+            return gymnax_classes()[self.game.module_name](use_minimal_action_set=False)
 
     @functools.cached_property
     def _params(self) -> Any:
@@ -162,6 +110,16 @@ def _thirty_two_bits(state: Any) -> Any:
         return jax.lax.convert_element_type(value, kind)
 
     return jax.tree.map(fixed, state)
+
+
+@functools.cache
+def gymnax_classes() -> dict[str, Any]:
+    """Each game's port (:data:`rlcompare.deep.minatar.gymnax_games.GYMNAX_CLASSES`), loaded once per process where a
+    game is first built: outside any trace and in JAX's 32-bit default, as at an import."""
+    with jax.ensure_compile_time_eval(), jax.enable_x64(False):
+        from rlcompare.deep.minatar.gymnax_games import GYMNAX_CLASSES
+
+    return GYMNAX_CLASSES
 
 
 def minatar_env(name: str) -> MinAtarEnv:

@@ -30,10 +30,25 @@ class Facts:
     title: str
     longest_mate: int
     """The longest mate with best play, in White's moves (published: KRK 16, KQK 10)."""
+    classes: int
+    """The states with ``symmetries=on``: the classes of legal White-to-move positions under the board's 8
+    symmetries, and the ended state (:func:`rlcompare.envs.chess.endgame.states` counts them; a test keeps the two
+    equal), known here without making the tables."""
+    positions: int
+    """The states with ``symmetries=off``: one per legal White-to-move position, and the ended state."""
+
+    def n_states(self, symmetries: bool) -> int:
+        return self.classes if symmetries else self.positions
+
+    @property
+    def n_actions(self) -> int:
+        """White's actions: 8 king steps and 7 distances along each of the piece's 4 (rook) or 8 (queen) directions
+        (:func:`rlcompare.envs.chess.rules.n_actions`)."""
+        return 8 + 7 * (4 if self.piece == ROOK else 8)
 
 
-ENDGAMES = {"KRK": Facts("KRK", ROOK, "king and rook against king", 16),
-            "KQK": Facts("KQK", QUEEN, "king and queen against king", 10)}
+ENDGAMES = {"KRK": Facts("KRK", ROOK, "king and rook against king", 16, 21_960, 175_169),
+            "KQK": Facts("KQK", QUEEN, "king and queen against king", 10, 18_082, 144_509)}
 
 
 class Options(NamedTuple):

@@ -19,7 +19,7 @@ import pandas as pd
 from rlcompare.envs.atari import scores as atari_scores
 from rlcompare.experiment import rundir, store
 from rlcompare.stats import intervals as stats
-from rlcompare.studies.paired import random_returns
+from rlcompare.studies.paired_plan import random_returns
 
 EPISODES = 30
 """Episodes of the random policy per game: enough for a 95% interval of its mean and the spread of one episode."""

@@ -19,20 +19,25 @@ learners, which splits SARSA - Q-Learning into order, target and their interacti
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import pandas as pd
 
 from rlcompare.algorithms.registry import AFTER_UPDATE, BEFORE_UPDATE
 from rlcompare.envs.chess.endgames import ENDGAMES, MOVE_LIMIT, parse
+from rlcompare.stats.design import GATE, SIGNED_RANK
 from rlcompare.studies.interface import UI, run_each
+from rlcompare.studies.plans import Question, StudyPlan, episodic
 from rlcompare.studies.registry import ChessEndgameOptions
 from rlcompare.tabular.config import ExperimentConfig
-from rlcompare.tabular.results import Results
+
+if TYPE_CHECKING:  # a plan reads no table nor run: pandas loads where one is made
+    import pandas as pd
+
+    from rlcompare.tabular.results import Results
 
 STUDY = "chess-endgames"
 DEFENDERS = ("optimal", "random")
@@ -84,6 +89,23 @@ def study_configs(options: ChessEndgameOptions) -> dict[str, ExperimentConfig]:
                     configs[f"{prefix}-{algorithm}-decay-{order}"] = replace(base, algorithm=algorithm,
                                                                              next_action=order)
     return configs
+
+
+def settings(runs: Collection[str]) -> list[tuple[str, str, str]]:
+    """(endgame, defender, schedule) of every pair of SARSA and Q-Learning runs, in the study's order."""
+    return [(e, d, s) for e in ENDGAMES for d in DEFENDERS for s in SCHEDULES
+            if f"{e}-{d}-sarsa-{s}" in runs and f"{e}-{d}-q_learning-{s}" in runs]
+
+
+def study_plan(options: ChessEndgameOptions) -> StudyPlan:
+    """What the study trains and can decide: every measure of every setting, one family (:func:`verdicts`), and
+    the learning gate."""
+    configs = study_configs(options)
+    comparisons = len(settings(configs)) * len(MEASURES)
+    questions = (Question(f"SARSA against Q-Learning ({comparisons} comparisons, each a direction and an "
+                          "equivalence test)", SIGNED_RANK, options.seeds, 2 * comparisons),
+                 Question("whether each learner has learnt (a mate rate above 0, one-sided)", GATE, options.seeds))
+    return StudyPlan(episodic(configs), questions if comparisons else ())
 
 
 def run(out: Path, options: ChessEndgameOptions, ui: UI, *, study: str = STUDY, force: bool = False
@@ -160,6 +182,8 @@ def episodes_to_hold(rates: np.ndarray, every: int) -> float:
 
 def per_seed(results: Results, games: list[Games]) -> pd.DataFrame:
     """One row per seed: every measure of :data:`MEASURES` and the failure rate (the piece lost or stalemate)."""
+    import pandas as pd
+
     from rlcompare.studies.measures import solved
 
     config, records = results.config, results.records
@@ -185,6 +209,8 @@ def _title(measure: str) -> str:
 
 def summary(metrics: Mapping[str, pd.DataFrame]) -> tuple[pd.DataFrame, str, str]:
     """Each configuration's mean of every measure over seeds: the table, its title and its caption."""
+    import pandas as pd
+
     frame = pd.DataFrame([{"configuration": name, "seeds": len(m),
                            **{_title(str(c)): round(float(m[c].mean()), 3) for c in m.columns if c != "seed"}}
                           for name, m in metrics.items()])

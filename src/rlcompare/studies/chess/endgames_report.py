@@ -7,7 +7,7 @@ piece, games at three stages of learning as animated boards, and every evaluatio
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Collection, Hashable, Mapping
+from collections.abc import Hashable, Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -24,15 +24,14 @@ from rlcompare.experiment.engines import load_run
 from rlcompare.formatting import number
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.compare import Paired, compare_paired, gated_label, judge_family
-from rlcompare.stats.design import GATE, SIGNED_RANK, reach, smallest_p
+from rlcompare.stats.design import SIGNED_RANK, reach, smallest_p
 from rlcompare.stats.intervals import Estimate, interval
 from rlcompare.stats.significance import has_learnt
 from rlcompare.studies.chess import endgames as study
-from rlcompare.studies.chess.endgames import run
+from rlcompare.studies.chess.endgames import run, settings
+from rlcompare.studies.chess.endgames import study_plan as study_plan
 from rlcompare.studies.interface import UI, Report
 from rlcompare.studies.margins import margin
-from rlcompare.studies.plans import Question, StudyPlan, episodic
-from rlcompare.studies.registry import ChessEndgameOptions
 from rlcompare.tabular.results import Results
 
 Key = tuple[str, str, str, str]
@@ -44,23 +43,6 @@ TERMS = {"SARSA - Q-Learning": ((1, "sarsa-decay"), (-1, "q_learning-decay")),
          "interaction": ((1, "sarsa-decay"), (-1, f"sarsa-decay-{AFTER_UPDATE}"),
                          (-1, f"q_learning-decay-{BEFORE_UPDATE}"), (1, "q_learning-decay"))}
 """Each term of the decomposition as a signed sum of runs, per seed (:mod:`rlcompare.studies.paper.why`)."""
-
-
-def settings(runs: Collection[str]) -> list[tuple[str, str, str]]:
-    """(endgame, defender, schedule) of every pair of SARSA and Q-Learning runs, in the study's order."""
-    return [(e, d, s) for e in ENDGAMES for d in study.DEFENDERS for s in study.SCHEDULES
-            if f"{e}-{d}-sarsa-{s}" in runs and f"{e}-{d}-q_learning-{s}" in runs]
-
-
-def study_plan(options: ChessEndgameOptions) -> StudyPlan:
-    """What the study trains and can decide: every measure of every setting, one family (:func:`verdicts`), and
-    the learning gate."""
-    configs = study.study_configs(options)
-    comparisons = len(settings(configs)) * len(study.MEASURES)
-    questions = (Question(f"SARSA against Q-Learning ({comparisons} comparisons, each a direction and an "
-                          "equivalence test)", SIGNED_RANK, options.seeds, 2 * comparisons),
-                 Question("whether each learner has learnt (a mate rate above 0, one-sided)", GATE, options.seeds))
-    return StudyPlan(episodic(configs), questions if comparisons else ())
 
 
 def _values(metrics: pd.DataFrame, measure: str, episodes: int) -> np.ndarray:

@@ -14,7 +14,6 @@ once, when the runs are trained, and kept beside them.
 from __future__ import annotations
 
 import io
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,66 +22,30 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from rlcompare.deep.chess.games import chess_game_env
-from rlcompare.deep.methods import DEEP_METHODS
 from rlcompare.deep.results import DeepResults
-from rlcompare.envs.chess.games import GAMES
 from rlcompare.experiment import rundir, store
 from rlcompare.report.page import Section, save_figure, write_report, write_table
 from rlcompare.stats.design import GATE, can_pass, seeds_needed, smallest_p
 from rlcompare.stats.significance import ALPHA
 from rlcompare.studies.chess import ladder as chess_ladder
+from rlcompare.studies.chess.game_plan import CHESS, STUDY, game_title, plan_of
+from rlcompare.studies.chess.game_plan import study_plan as study_plan
 from rlcompare.studies.chess.ladder import MATERIAL, RANDOM, Learner, games_of
 from rlcompare.studies.chess.stages import stage_games
-from rlcompare.studies.interface import UI, Report, listed
-from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import PAIR, Key, PairedStudy, Plan, checked, cluster, paired_plan, train
-from rlcompare.studies.paired_report import curves_drawn, findings, short_label
-from rlcompare.studies.plans import StudyPlan
+from rlcompare.studies.interface import UI, Report
+from rlcompare.studies.paired import cluster, train
+from rlcompare.studies.paired_plan import PAIR, Key, short_label
+from rlcompare.studies.paired_report import curves_drawn, findings
 from rlcompare.studies.registry import ChessOptions
 
 if TYPE_CHECKING:
     from rlcompare.stats.seeded_ratings import Levelled
 
-STUDY = "chess"
-BUDGETS = {"cpu": 500_000, "gpu": 10_000_000}
-"""Budget -> environment steps per training (``docs/chess-game.md`` gives the time each took)."""
-MARGIN = margin("chess", "a game (result against the random player)")
-LEARNT = margin("chess", "learnt (result above the random player's)")
-WON_EVERY_GAME = 1.0
-"""The reference a result is measured against: +1, winning every game against the random player."""
-DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
 STOCKFISH = "stockfish"
 """What the Stockfish rungs' names begin with."""
 LADDER = "ladder"
 """The directory, inside the study's, of each game's ladder: its games and what they were played from."""
 GAMES_FILE = "games.parquet"
-EVAL_ROUNDS, EVAL_EPISODES = 10, 64
-"""Each training's evaluations: rounds over the training, and games of the greedy network against the random player
-in each."""
-
-
-def game_title(env: str) -> str:
-    return GAMES[env].label
-
-
-CHESS = PairedStudy(STUDY, tuple(GAMES), dict.fromkeys(GAMES, MARGIN), lambda key: {"game": game_title(key.env)},
-                    label=short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
-                    references=dict.fromkeys(GAMES, WON_EVERY_GAME), learnt_share=LEARNT)
-"""The game played, its margin a share of the range from the random player's result against itself (0) to winning
-every game (+1)."""
-
-
-def plan_of(options: ChessOptions) -> Plan:
-    """The plan from the options; an unknown game or method is a :class:`~rlcompare.validation.ConfigError`."""
-    methods = listed("methods", options.methods, tuple(m for m in DEEP_METHODS if m.startswith("pqn_")))
-    return checked(Plan(options.seed_range, methods, {options.game: options.game},
-                        options.steps or BUDGETS[options.budget], options.workers or DEFAULT_WORKERS,
-                        eval_rounds=EVAL_ROUNDS, eval_episodes=EVAL_EPISODES))
-
-
-def study_plan(options: ChessOptions) -> StudyPlan:
-    """What the study trains and can decide (``reproduce chess --plan``)."""
-    return paired_plan(CHESS, plan_of(options), "plies")
 
 
 def run(out: Path, options: ChessOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:

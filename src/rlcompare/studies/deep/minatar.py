@@ -13,7 +13,6 @@ seed by seed, the verdicts the paper's tabular study and the deep study wrote fo
 from __future__ import annotations
 
 import functools
-import os
 from pathlib import Path
 from typing import Any
 
@@ -39,52 +38,29 @@ from rlcompare.stats.compare import Judged
 from rlcompare.stats.design import SIGNED_RANK, smallest_p
 from rlcompare.studies import paired_report
 from rlcompare.studies.deep import same_question
-from rlcompare.studies.interface import UI, Report, listed
-from rlcompare.studies.margins import margin
-from rlcompare.studies.paired import (
-    OVERALL,
-    RANDOM_EPISODES,
-    Key,
-    PairedStudy,
-    Plan,
-    checked,
-    cluster,
-    final_returns,
-    paired_plan,
-    random_floor,
-    train,
+from rlcompare.studies.deep.minatar_plan import (
+    ABLATIONS,
+    BUDGETS,
+    LEARNT,
+    MARGIN,
+    MINATAR,
+    OVERALL_MARGIN,
+    STUDY,
+    plan_of,
+    title,
 )
-from rlcompare.studies.plans import StudyPlan
+from rlcompare.studies.deep.minatar_plan import study_plan as study_plan
+from rlcompare.studies.interface import UI, Report
+from rlcompare.studies.paired import cluster, final_returns, train
+from rlcompare.studies.paired_plan import OVERALL, RANDOM_EPISODES, Key, random_floor
 from rlcompare.studies.registry import MinAtarOptions
 
-STUDY = "minatar"
-BUDGETS = {
-    "short": (("breakout", "space_invaders", "asterix"), 250_000),
-    "paper": (tuple(minatar.GAMES), 5_000_000),
-    "pqn": (tuple(minatar.GAMES), 10_000_000),
-}
-"""Budget -> (default games, environment steps per training). ``short``: 11 minutes on 2 CPU cores with the pair and
-9 seeds, the fewest that can decide (672 s measured; 37 minutes with the ablations at 8), a short look that says so in
-its report
-(at 5 seeds and 400,000 steps every game was already far above random, and no verdict could be reached: see
-:mod:`rlcompare.stats.design`); ``paper``: the MinAtar paper's 5 M frames (a frame is a step: MinAtar skips none);
-``pqn``: purejaxql's 10 M steps."""
-MARGIN = margin("minatar", "a game (final greedy return)")
-"""Differences of mean return smaller than this share of the game's range from the random policy to the MinAtar
-paper's DQN count as no difference (:data:`rlcompare.studies.margins.MARGINS`), declared before any run."""
-LEARNT = margin("minatar", "learnt (final greedy return above random)")
-"""A method has learnt a game when its final return beats the random policy's by this share of the same range."""
-OVERALL_MARGIN = margin("minatar", "over the games (normalised score)")
-"""Across games, differences of mean normalised score (random 0, the reference 1) smaller than this count as no
-difference."""
 PAIR_DIFFERS_IN = (
     "What the pair differs in: Q(λ) here is Peng's (purejaxql's), whose return G = r + γ[(1 − λ) max Q(s′) + λ G′] "
     "never cuts its trace on an exploratory action, so at λ = {lam:g} it differs from SARSA(λ) only in the "
     "{share:g}-weighted bootstrap (max against the action taken): it is not off-policy learning of Q* in full. "
     "Watkins's Q(λ) (the trace cut after an exploratory action, Sutton and Barto 12.10) and the pair at λ = 0 (the "
     "one-step targets alone) separate the target from the traces: {ablations}.")
-ABLATIONS = ("pqn_sarsa_lambda", "pqn_q_lambda", "pqn_watkins_q_lambda", "pqn_sarsa", "pqn_q_learning")
-"""``--methods ablations``: the pair, Watkins's Q(λ) and the pair at λ = 0."""
 PAIR_LAMBDA = 0.65
 """λ of the pair's MinAtar preset (purejaxql's)."""
 SCHEDULES = (
@@ -99,43 +75,10 @@ EPSILON_EPISODES = 8
 """Episodes per seed of the final network at :data:`EVAL_EPSILON`, played when the report is drawn."""
 EPSILON_KEY = 20_000
 """Seed ``s``'s episodes at ε = 0.05 play from ``jax.random.key(EPSILON_KEY + s)``, apart from training's keys."""
-DEFAULT_WORKERS = max(1, min(2, os.cpu_count() or 1))
-
-
-def title(env: str) -> str:
-    """``Breakout`` for ``MinAtar/Breakout-v0`` (and for :data:`~rlcompare.studies.paired.OVERALL`, itself)."""
-    return env if env == OVERALL else minatar.NAMES[env][0].title
 
 
 def game_of(results: DeepResults) -> str:
     return minatar.NAMES[results.config.env][0].module_name
-
-
-ENVS = tuple(minatar.NAMES)
-"""Every game under every protocol, game by game."""
-MINATAR = PairedStudy(STUDY, ENVS, dict.fromkeys(ENVS, MARGIN), lambda key: {"game": title(key.env)},
-                      label=paired_report.short_label, method_order=tuple(sorted(DEEP_METHODS)), tasks="games",
-                      overall_margin=OVERALL_MARGIN, prefix="across-games-",
-                      references={env: game.reference for env, (game, _) in minatar.NAMES.items()},
-                      learnt_share=LEARNT)
-"""MinAtar's games, each margin a share of the game's random-to-reference range, one margin over them, the methods
-by their short names."""
-
-
-def plan_of(options: MinAtarOptions) -> Plan:
-    """The plan from the options; an unknown game, protocol or method, or steps a method cannot train in, is a
-    :class:`~rlcompare.validation.ConfigError` naming the option."""
-    default_games, default_steps = BUDGETS[options.budget]
-    games = listed("games", options.games, tuple(minatar.GAMES)) if options.games else default_games
-    methods = listed("methods", options.methods, tuple(DEEP_METHODS), every="all", groups={"ablations": ABLATIONS})
-    envs = {game: minatar.GAMES[game].name(options.protocol) for game in games}
-    return checked(Plan(options.seed_range, methods, envs, options.steps or default_steps,
-                        options.workers or DEFAULT_WORKERS, eval_rounds=10, eval_episodes=8))
-
-
-def study_plan(options: MinAtarOptions) -> StudyPlan:
-    """What the study trains and can decide (``reproduce minatar --plan``)."""
-    return paired_plan(MINATAR, plan_of(options))
 
 
 def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force: bool = False) -> dict[str, Any]:
@@ -153,7 +96,7 @@ def run(out: Path, options: MinAtarOptions, ui: UI, *, study: str = STUDY, force
 # --- what the report adds to the paired study's --------------------------------------------------------------
 
 def by_game(judged: dict[Key, Judged]) -> dict[str, Judged]:
-    """The verdicts by game title (and :data:`~rlcompare.studies.paired.OVERALL`)."""
+    """The verdicts by game title (and :data:`~rlcompare.studies.paired_plan.OVERALL`)."""
     return {title(key.env): j for key, j in judged.items()}
 
 
