@@ -22,18 +22,15 @@ from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
 
 from rlcompare.experiment import store
 from rlcompare.formatting import cut as cut_text
-from rlcompare.report.aggregate_plots import Aggregates, across_section, draw_aggregates
 from rlcompare.report.findings import gap_and_interval
 from rlcompare.report.page import Section, save_figure, write_report, write_table
-from rlcompare.report.plots import plot_return_curves
 from rlcompare.stats.aggregates import by_method
 from rlcompare.stats.compare import Judged, Paired, compare_independent, compare_paired, judge_family
 from rlcompare.stats.design import RANK_SUM, SIGNED_RANK, detectable_difference, reach
@@ -50,6 +47,11 @@ from rlcompare.studies.compare_numbers import (
 from rlcompare.studies.interface import Report
 from rlcompare.studies.plans import Question, StudyPlan
 from rlcompare.validation import ConfigError
+
+if TYPE_CHECKING:  # matplotlib loads where a report draws, not for --plan
+    from matplotlib.figure import Figure
+
+    from rlcompare.report.aggregate_plots import Aggregates
 
 COMPARISON = store.Owner("comparison")
 """What ``rlcompare compare`` writes its directory as."""
@@ -228,6 +230,8 @@ def across(found: list[Curves], read: list[Numbers], references: Mapping[str, tu
                           "read each method's seeds by environments as one matrix, with the same seeds on every "
                           "environment; seeds: " + "; ".join(f"{env}: " + ", ".join(
                               f"{m} {len(v)}" for m, v in methods.items()) for env, methods in finals.items()) + ".")
+    from rlcompare.report.aggregate_plots import draw_aggregates
+
     curves = by_method({c.env: c.values for c in found}, scales)
     drawn = draw_aggregates(scores, figures, tasks="environments", curves={m: curves[m] for m in scores},
                             x=np.linspace(0.0, 1.0, GRID_POINTS),
@@ -237,6 +241,10 @@ def across(found: list[Curves], read: list[Numbers], references: Mapping[str, tu
 
 
 def curves_figure(curve: Curves) -> Figure:
+    from matplotlib.figure import Figure
+
+    from rlcompare.report.plots import plot_return_curves
+
     figure = Figure(figsize=(7, 4.2))
     ax = figure.subplots()
     plot_return_curves(ax, curve.steps, curve.values, window=1, ylabel="value")
@@ -290,6 +298,8 @@ def report(out: Path, frame: pd.DataFrame, *, paired: bool, margin: float | None
            scores: Mapping[str, tuple[float, float]] | None = None) -> Report:
     """Verdicts, tables, figures and ``report.html`` of ``frame``'s runs into ``out`` (``force``: beside a user's
     files there); ``cut``: runs that end apart are compared on the steps all of them reached (:func:`checked`)."""
+    from rlcompare.report.aggregate_plots import across_section
+
     checked(frame, cut, paired)
     found, read = curves(frame), numbers(frame)
     comparisons = compared(read, paired, margin, metrics)
