@@ -295,7 +295,7 @@ def test_the_overall_row_is_each_seeds_interquartile_mean_which_one_games_scale_
     better by 1.6; each seed's interquartile mean (the middle three of its five games) sees no difference."""
     from rlcompare.deep.config import DeepConfig
     from rlcompare.deep.results import DeepResults
-    from rlcompare.studies.paired import OVERALL
+    from rlcompare.studies.paired_plan import OVERALL
     from rlcompare.studies.paired_report import across, judged, verdict_table
 
     rng = np.random.default_rng(5)
