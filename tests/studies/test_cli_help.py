@@ -18,7 +18,7 @@ from rlcompare import ExperimentConfig, cli, run
 from rlcompare.cli import console as console_module
 from rlcompare.cli.app_help import summary_app
 from rlcompare.cli.config_options import PLAIN_WORDS
-from rlcompare.studies.registry import STUDIES
+from rlcompare.studies.registry import MEASURED_DEFAULTS, STUDIES
 from rlcompare.tabular.config import field_docs
 
 HEAVY = ("numpy", "pandas", "numba", "jax", "matplotlib", "scipy", "pyarrow")
@@ -262,3 +262,22 @@ def test_a_count_of_one_is_singular() -> None:
     line = console_module.done_line("x", SimpleNamespace(config=SimpleNamespace(episodes=1), seeds=(0,),
                                                          meta={"timings": {"wall_seconds": 1.0}}), reused=False)
     assert "1 seed x 1 episode:" in line
+
+
+@pytest.mark.slow("makes every study's plan at its defaults")
+@pytest.mark.parametrize("name", list(STUDIES))
+def test_every_studys_help_states_what_its_default_can_decide_and_what_its_plan_computes(name: str) -> None:
+    """The help's line (``MEASURED_DEFAULTS``) gives a time and, where it names a smallest p and a level, the same
+    numbers as the study's own plan at its defaults computes for its headline question."""
+    study = STUDIES[name]
+    stated = MEASURED_DEFAULTS[name]
+    assert re.search(r"\d (s|min)\b", stated)
+    shown = " ".join(invoke("reproduce", name, "--help", columns=300).output.split())
+    assert f"Its default, measured: {stated} (docs/defaults.md)." in shown
+    named = re.match(r"smallest p ([\d.e-]+) against (Holm's )?([\d.]+)", stated)
+    if named is None:
+        assert any(words in stated for words in ("plumbing check", "no test", "bootstrap interval", "t tests"))
+        return
+    headline = next(q for q in study.load_planner().study_plan(study.options()).questions if q.headline)
+    assert float(named.group(1)) == pytest.approx(headline.reach.smallest_p, rel=0.05)  # two figures, as stated
+    assert float(named.group(3)) == pytest.approx(headline.reach.level, rel=0.05)

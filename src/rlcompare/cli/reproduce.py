@@ -30,7 +30,7 @@ from rlcompare.cli.console import (
 )
 from rlcompare.experiment import rundir, store
 from rlcompare.studies.interface import Options
-from rlcompare.studies.registry import DEFAULT_STUDY, STUDIES, Study
+from rlcompare.studies.registry import DEFAULT_STUDY, MEASURED_DEFAULTS, STUDIES, Study
 from rlcompare.tabular.config import field_docs
 from rlcompare.validation import ConfigError
 
@@ -159,7 +159,8 @@ def study_command(study: Study) -> Callable[..., None]:
     def command(**values: Any) -> None:
         reproduce_study(study, values)
 
-    command.__doc__ = f"{study.summary[0].upper()}{study.summary[1:]}."
+    command.__doc__ = (f"{study.summary[0].upper()}{study.summary[1:]}. Its default, measured: "
+                       f"{MEASURED_DEFAULTS[study.name]} (docs/defaults.md).")
     return with_signature(command, inspect.Signature([*option_parameters(study.options),
                                                       *_common_parameters(study.name)]))
 
@@ -211,5 +212,6 @@ def reproduce_app() -> typer.Typer:
         inspect.Parameter("list_studies", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=list_option)])))
     for name, study in STUDIES.items():
         command = study_command(study)
-        app.command(name, help=command.__doc__, cls=PlainCommand)(command)
+        app.command(name, help=command.__doc__, short_help=f"{study.summary[0].upper()}{study.summary[1:]}.",
+                    cls=PlainCommand)(command)
     return app

@@ -129,7 +129,8 @@ class DeepConfig:
         capacity = getattr(self.method_config(), "buffer_size", 0)
         if not capacity:
             return records
-        observation = _observation(self.env, jax.dtypes.canonicalize_dtype(np.float64))
+        with jax.enable_x64(True):  # as a training traces its environment (rlcompare.deep.float64): no warning
+            observation = _observation(self.env, jax.dtypes.canonicalize_dtype(np.float64))
         return records + min(self.vmap_width, len(self.seeds)) * buffer_bytes(capacity, observation)
 
     def method_config(self) -> Any:

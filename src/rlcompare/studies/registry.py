@@ -318,6 +318,32 @@ STUDIES = {study.name: study for study in (
           "Ray: --address)", SensitivityOptions, "rlcompare.studies.sensitivity.study"),
 )}
 """Every study, in the order ``reproduce --list`` shows them; ``paper`` is what ``reproduce`` alone runs."""
+MEASURED_DEFAULTS = {
+    "paper": "smallest p 1.9e-9 against Holm's 0.005 over 10 claims; detects 1.9-3.5 of behaviour return, 27-89 of "
+             "greedy return, 871 episodes to converge; 84 s on 2 cores",
+    "why": "a 95% bootstrap interval over 30 seeds (no p); 92 s on 2 cores",
+    "cartpole": "smallest p 1.9e-9 against Holm's 0.0063 over 8 claims; detects 3.9-80 of behaviour return, 133-150 "
+                "of greedy return; 31 s on 2 cores",
+    "acrobot": "smallest p 1.9e-9 against Holm's 0.0063 over 8 claims; detects 3.2-6.1 of behaviour return, 62-86 of "
+               "greedy return; 5.3 min on 2 cores",
+    "book-10.2": "the figure: no test decides a question; 41 s on 2 cores",
+    "book-12.10": "the figure: no test decides a question; 43 s on 2 cores",
+    "cliff": "smallest p 1.8e-15 against 0.05; 4 s on 2 cores",
+    "book-6.3": "t tests of the book's 42 claims; 6.4 min on 2 cores",
+    "deep": "smallest p 0.002 against Holm's 0.0028 over 18 tests; the networks' final greedy return detects 85 on "
+            "CartPole, 19.5 on Acrobot, 51 on Mountain Car (margins 25, 25, 10); 52 min on 2 cores shared with other "
+            "work",
+    "minatar": "smallest p 0.0039 against Holm's 0.0063 over 8 tests; detects 1.72 points of Breakout, 48.4 of Space "
+               "Invaders; 11 min on 2 cores without videos",
+    "atari": "a plumbing check (2 seeds: smallest p 0.5 against 0.025); 16 min on 2 cores",
+    "chess-endgames": "smallest p 1.9e-9 against Holm's 0.00063 over 80 tests; detects 0.027-0.31 of the mate rate, "
+                      "0.61-8.2 excess moves; 3.5 min on 2 cores",
+    "chess": "smallest p 0.016 against Holm's 0.025 over 2 tests, the learning gate's 0.0078 against 0.05; 22 min at "
+             "6 seeds before the ladder's openings (7 seeds not measured)",
+    "sensitivity": "smallest p 1.9e-6 against Holm's 0.00051 over 99 cells; 3.1 min on 2 cores",
+}
+"""What each study's default design can decide, as measured here on 2026-11-29 (``docs/defaults.md``): the smallest p
+its seeds allow against the level it faces, the differences its verdicts detect at 80% power, and its time."""
 DEFAULT_STUDY = "paper"
 
 

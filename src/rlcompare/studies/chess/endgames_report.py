@@ -82,6 +82,7 @@ def verdicts(runs: Mapping[str, Results], metrics: Mapping[str, pd.DataFrame]) -
                      "Q-Learning": sign * j.paired.b_mean,
                      "SARSA - Q-Learning": _oriented(j.paired.difference, sign).format(3),
                      "p (Holm)": j.p, "smallest p": number(smallest_p(SIGNED_RANK, j.paired.seeds), 2),
+                     "detectable (80% power)": number(j.detectable),
                      "better": gated_label(j.label, learnt[endgame, defender, schedule], study.SIDES)})
     return pd.DataFrame(rows)
 
