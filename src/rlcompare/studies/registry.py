@@ -334,7 +334,7 @@ MEASURED_DEFAULTS = {
             "CartPole, 19.5 on Acrobot, 51 on Mountain Car (margins 25, 25, 10); 52 min on 2 cores shared with other "
             "work",
     "minatar": "smallest p 0.0039 against Holm's 0.0063 over 8 tests; detects 1.72 points of Breakout, 48.4 of Space "
-               "Invaders; 11 min on 2 cores without videos",
+               "Invaders; 10.6 min on 2 cores",
     "atari": "a plumbing check (2 seeds: smallest p 0.5 against 0.025); 16 min on 2 cores",
     "chess-endgames": "smallest p 1.9e-9 against Holm's 0.00063 over 80 tests; detects 0.027-0.31 of the mate rate, "
                       "0.61-8.2 excess moves; 3.5 min on 2 cores",
