@@ -338,8 +338,8 @@ MEASURED_DEFAULTS = {
     "atari": "a plumbing check (2 seeds: smallest p 0.5 against 0.025); 16 min on 2 cores",
     "chess-endgames": "smallest p 1.9e-9 against Holm's 0.00063 over 80 tests; detects 0.027-0.31 of the mate rate, "
                       "0.61-8.2 excess moves; 3.5 min on 2 cores",
-    "chess": "smallest p 0.016 against Holm's 0.025 over 2 tests, the learning gate's 0.0078 against 0.05; 22 min at "
-             "6 seeds before the ladder's openings (7 seeds not measured)",
+    "chess": "smallest p 0.016 against Holm's 0.025 over 2 tests, the learning gate's 0.0078 against 0.05; detects "
+             "0.151 of the result against random (margin 0.1); 20.4 min on 2 cores",
     "sensitivity": "smallest p 1.9e-6 against Holm's 0.00051 over 99 cells; 3.1 min on 2 cores",
 }
 """What each study's default design can decide, as measured here on 2026-11-29 (``docs/defaults.md``): the smallest p
