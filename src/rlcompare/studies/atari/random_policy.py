@@ -24,7 +24,7 @@ from rlcompare.studies.paired_plan import random_returns
 EPISODES = 30
 """Episodes of the random policy per game: enough for a 95% interval of its mean and the spread of one episode."""
 SEED = 0
-"""The key of the episodes' draws (:func:`~rlcompare.studies.paired.random_returns`)."""
+"""The key of the episodes' draws (:func:`~rlcompare.studies.paired_plan.random_returns`)."""
 TABLE = "tables/atari_random_episodes.csv"
 """``game, episode, return``: every random episode played, relative to the study's directory."""
 
@@ -36,7 +36,7 @@ def random_episodes(out: Path, titles: Sequence[str], episodes: int) -> pd.DataF
     known = _recorded(Path(out))
     frames, played = [], False
     for title in titles:
-        rows = known[known["game"] == title] if known is not None else known
+        rows = known[known["game"] == title] if known is not None else None
         if rows is None or len(rows) != episodes:
             returns = random_returns(f"{title}-Atari", episodes, SEED)
             rows = pd.DataFrame({"game": title, "episode": np.arange(episodes), "return": returns})
